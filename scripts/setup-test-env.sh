@@ -1,0 +1,10 @@
+#!/usr/bin/env bash
+# Installs the test-only tools a fresh machine lacks. Idempotent.
+# - a Python virtual environment (.venv) with libigl, numpy and scipy: the
+#   external oracle for the discrete operators and the ARAP baseline.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+if [ ! -x .venv/bin/python ] || ! .venv/bin/python -c "import igl, numpy, scipy" 2>/dev/null; then
+  python3 -m venv .venv
+  .venv/bin/pip install --quiet --disable-pip-version-check libigl numpy scipy
+fi

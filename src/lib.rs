@@ -1,0 +1,13 @@
+//! # dend — Discrete Elastica Nonlinear Deformation of triangle meshes
+//!
+//! Layers, bottom-up (see `README.md` and the design notes):
+//! - [`mesh`]: the validated triangle mesh, adjacency, readers/writers and
+//!   the paper's procedural test shapes;
+//! - [`operators`]: cotangent Laplacian, mixed Voronoi areas, curvatures
+//!   (dend.md §2);
+//! - [`deform`]: energies, constraints, the factor cache and the DEND
+//!   iteration (dend.md §3–6). Pure and synchronous: no I/O, no async.
+#![warn(missing_docs)]
+
+pub mod mesh;
+pub mod operators;

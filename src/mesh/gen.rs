@@ -1,0 +1,1 @@
+//! Procedural generators of the paper's test shapes.
