@@ -9,5 +9,7 @@
 //!   iteration (dend.md §3–6). Pure and synchronous: no I/O, no async.
 #![warn(missing_docs)]
 
+pub mod deform;
+pub mod measure;
 pub mod mesh;
 pub mod operators;
