@@ -17,9 +17,6 @@ use super::DeformError;
 use crate::mesh::{Mesh, Point, Real};
 use crate::operators::Operators;
 
-/// Anderson window (0 disables acceleration).
-const ANDERSON_WINDOW: usize = 5;
-
 static NEXT_REST_ID: AtomicU64 = AtomicU64::new(1);
 
 /// Everything computed once per rest mesh: the operators (dend.md §2), STEP 1
@@ -171,6 +168,7 @@ impl Deformer {
     pub fn set_params(&mut self, params: Params) -> Result<(), DeformError> {
         params.validate()?;
         self.params = params;
+        self.scratch.mem = None; // re-size the scratch (Anderson window) on the next step
         Ok(())
     }
 
@@ -250,8 +248,7 @@ impl Deformer {
         }
         let mut f = self.evaluate(factor);
         self.scratch.anderson.reset();
-        let accelerate = self.params.detail == DetailTerm::Nonlinear
-            && std::env::var_os("DEND_NO_ANDERSON").is_none();
+        let accelerate = self.params.detail == DetailTerm::Nonlinear && self.params.anderson > 0;
         let mut report = StepReport {
             iterations: 0,
             last_update: 0.0,
@@ -401,7 +398,7 @@ impl Deformer {
             s.r = vec![0.0; 3 * dims.0];
             s.rhs = vec![0.0; 3 * dims.1];
             s.mem = Some(MemBuffer::new(factor.solve_scratch(3)));
-            s.anderson = Anderson::new(ANDERSON_WINDOW, 3 * dims.1);
+            s.anderson = Anderson::new(self.params.anderson, 3 * dims.1);
             s.x_flat = vec![0.0; 3 * dims.1];
             s.cand = vec![0.0; 3 * dims.1];
             s.sized_for = dims;
