@@ -7,6 +7,8 @@ use std::process::ExitCode;
 
 use clap::{Parser, Subcommand};
 
+mod curvature;
+
 /// Deform triangle meshes with Discrete Elastica Nonlinear Deformation.
 #[derive(Debug, Parser)]
 #[command(name = "dend", version, about, long_about = None)]
@@ -16,7 +18,10 @@ struct Cli {
 }
 
 #[derive(Debug, Subcommand)]
-enum Command {}
+enum Command {
+    /// Per-vertex area, mean, Gaussian curvature and G as CSV (mesh units).
+    Curvature(curvature::CurvatureArgs),
+}
 
 /// Parses the command line, runs the command, maps errors to exit code 2.
 pub fn run() -> ExitCode {
@@ -28,7 +33,9 @@ pub fn run() -> ExitCode {
         .with_writer(std::io::stderr)
         .init();
     let cli = Cli::parse();
-    let result: anyhow::Result<()> = match cli.command {};
+    let result: anyhow::Result<()> = match &cli.command {
+        Command::Curvature(args) => curvature::run(args),
+    };
     match result {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {
