@@ -41,11 +41,13 @@ fn every_broken_file_gives_its_expected_error() {
             Err(e) => e,
         };
         assert_eq!(kind(&err), expected, "{file}: {err}");
-        if let IoError::Parse { position, .. } = &err {
-            // binary inputs name a byte, text inputs a line (≥ 1)
-            if let Position::Line(l) = position {
-                assert!(*l >= 1, "{file}: {err}");
-            }
+        if let IoError::Parse {
+            position: Position::Line(l),
+            ..
+        } = &err
+        {
+            // text inputs name a 1-based line
+            assert!(*l >= 1, "{file}: {err}");
         }
         n += 1;
     }
