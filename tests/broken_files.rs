@@ -19,6 +19,7 @@ fn kind(e: &IoError) -> &'static str {
             MeshError::NonManifoldEdge { .. } => "non_manifold_edge",
             MeshError::InconsistentOrientation { .. } => "inconsistent_orientation",
             MeshError::NonManifoldVertex { .. } => "non_manifold_vertex",
+            MeshError::VertexCountMismatch { .. } => "vertex_count_mismatch",
         },
         IoError::Io { .. } => "io",
         IoError::UnknownFormat { .. } => "unknown_format",
