@@ -62,9 +62,18 @@ impl RigidTransform {
 
     /// The fraction `s ∈ [0, 1]` of this transform: rotation angle and
     /// translation scaled by `s` about the same pivot (for `--steps`).
+    /// The angle is read from the quaternion as stored, in `[0°, 360°]`
+    /// (`2 atan2(|v|, w)`), so a 300° rotation is split into 300° / N steps;
+    /// `slerp` would take the short way (−60° in total).
     pub fn fraction(&self, s: f64) -> Self {
+        let q = self.rotation.quaternion();
+        let angle = 2.0 * q.vector().norm().atan2(q.w);
+        let rotation = match Unit::try_new(q.vector().into_owned(), 1e-300) {
+            Some(axis) => UnitQuaternion::from_axis_angle(&axis, s * angle),
+            None => UnitQuaternion::identity(),
+        };
         RigidTransform {
-            rotation: UnitQuaternion::identity().slerp(&self.rotation, s),
+            rotation,
             translation: [
                 self.translation[0] * s,
                 self.translation[1] * s,
