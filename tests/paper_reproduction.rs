@@ -79,7 +79,10 @@ fn run(
     }
     let ms_per_iteration = t0.elapsed().as_secs_f64() * 1e3 / iterations.max(1) as f64;
     let pose = d.pose().to_vec();
-    assert!(pose.iter().flatten().all(|v| v.is_finite()), "non-finite pose");
+    assert!(
+        pose.iter().flatten().all(|v| v.is_finite()),
+        "non-finite pose"
+    );
     let tol = 1e-9 * mesh.diagonal();
     let far = |a: Point, b: Point| (0..3).any(|k| (a[k] - b[k]).abs() > tol);
     for &v in &c.fixed {
@@ -109,7 +112,9 @@ fn free_span(mesh: &Mesh, c: &Constraints) -> (f64, f64) {
 }
 
 fn example(mesh: &Mesh, file: &str) -> Constraints {
-    let path = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("examples").join(file);
+    let path = PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+        .join("examples")
+        .join(file);
     let text = std::fs::read_to_string(&path).unwrap();
     let spec: ConstraintsSpec = serde_json::from_str(&text).unwrap();
     spec.resolve(mesh).unwrap()
@@ -244,7 +249,10 @@ fn generated_bar_twisted_300_in_5_steps() {
     };
     assert!(!d.diverged, "default diverged");
     assert!(*area >= 0.7, "default min area {area:.3} < 0.7 at 300°");
-    assert!(*dev <= 20.0, "default twist deviation {dev:.1}° > 20° at 300°");
+    assert!(
+        *dev <= 20.0,
+        "default twist deviation {dev:.1}° > 20° at 300°"
+    );
     assert!(*tp_area < *area, "thin plate + linear kept more area");
 }
 

@@ -37,8 +37,10 @@ pub struct Args {
 
 /// Runs `dend measure`.
 pub fn run(args: Args) -> anyhow::Result<()> {
-    let rest = io::read_path(&args.rest).with_context(|| format!("reading {}", args.rest.display()))?;
-    let pose = io::read_path(&args.pose).with_context(|| format!("reading {}", args.pose.display()))?;
+    let rest =
+        io::read_path(&args.rest).with_context(|| format!("reading {}", args.rest.display()))?;
+    let pose =
+        io::read_path(&args.pose).with_context(|| format!("reading {}", args.pose.display()))?;
     if rest.num_vertices() != pose.num_vertices() {
         bail!(
             "the pose has {} vertices, the rest mesh {}",

@@ -104,7 +104,13 @@ impl RigidTransform {
             });
         }
         r = Rotation3::from_matrix_unchecked(r).into_inner();
-        let rotation = UnitQuaternion::from_matrix(&r);
+        let q = UnitQuaternion::from_matrix(&r);
+        // canonical sign (w ≥ 0): the angle `fraction` reads is then ≤ 180°
+        let rotation = if q.w < 0.0 {
+            UnitQuaternion::new_unchecked(-q.into_inner())
+        } else {
+            q
+        };
         // p' = R p + t = pivot + R (p - pivot) + (R pivot + t - pivot)
         let c = Vector3::from(pivot);
         let t = Vector3::new(m[0][3], m[1][3], m[2][3]);
@@ -544,6 +550,21 @@ mod tests {
         // half the transform, twice, is the whole (same pivot, linear translation)
         let h = t.fraction(0.5);
         assert!((h.rotation.angle() - 1.0).abs() < 1e-12);
+        // a 300° rotation is split the long way: a fifth is +60° about +z
+        let q = RotationSpec::AxisAngle {
+            axis: [0.0, 0.0, 1.0],
+            degrees: 300.0,
+        }
+        .to_quaternion()
+        .unwrap();
+        let fifth = RigidTransform {
+            rotation: q,
+            translation: [0.0; 3],
+            pivot: [0.0; 3],
+        }
+        .fraction(0.2);
+        let a = fifth.rotation.scaled_axis();
+        assert!((a.z - 60f64.to_radians()).abs() < 1e-12, "{a:?}");
     }
 
     #[test]
