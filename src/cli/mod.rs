@@ -11,6 +11,7 @@ mod curvature;
 mod deform;
 mod gen;
 mod info;
+mod measure;
 
 /// Deform triangle meshes with Discrete Elastica Nonlinear Deformation.
 #[derive(Debug, Parser)]
@@ -30,6 +31,8 @@ enum Command {
     Curvature(curvature::CurvatureArgs),
     /// Deform a mesh with a constraints file or a survey .sel/.def pair.
     Deform(deform::Args),
+    /// Paper-reproduction figures of a pose (twisted bar or bent cylinder) as JSON.
+    Measure(measure::Args),
 }
 
 /// Parses the command line, runs the command, maps errors to exit code 2.
@@ -47,6 +50,7 @@ pub fn run() -> ExitCode {
         Command::Info(a) => info::run(a),
         Command::Curvature(a) => curvature::run(&a),
         Command::Deform(a) => deform::run(a),
+        Command::Measure(a) => measure::run(a),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

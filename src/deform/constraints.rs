@@ -62,9 +62,18 @@ impl RigidTransform {
 
     /// The fraction `s ∈ [0, 1]` of this transform: rotation angle and
     /// translation scaled by `s` about the same pivot (for `--steps`).
+    /// The angle is read from the quaternion as stored, in `[0°, 360°]`
+    /// (`2 atan2(|v|, w)`), so a 300° rotation is split into 300° / N steps;
+    /// `slerp` would take the short way (−60° in total).
     pub fn fraction(&self, s: f64) -> Self {
+        let q = self.rotation.quaternion();
+        let angle = 2.0 * q.vector().norm().atan2(q.w);
+        let rotation = match Unit::try_new(q.vector().into_owned(), 1e-300) {
+            Some(axis) => UnitQuaternion::from_axis_angle(&axis, s * angle),
+            None => UnitQuaternion::identity(),
+        };
         RigidTransform {
-            rotation: UnitQuaternion::identity().slerp(&self.rotation, s),
+            rotation,
             translation: [
                 self.translation[0] * s,
                 self.translation[1] * s,
@@ -95,7 +104,13 @@ impl RigidTransform {
             });
         }
         r = Rotation3::from_matrix_unchecked(r).into_inner();
-        let rotation = UnitQuaternion::from_matrix(&r);
+        let q = UnitQuaternion::from_matrix(&r);
+        // canonical sign (w ≥ 0): the angle `fraction` reads is then ≤ 180°
+        let rotation = if q.w < 0.0 {
+            UnitQuaternion::new_unchecked(-q.into_inner())
+        } else {
+            q
+        };
         // p' = R p + t = pivot + R (p - pivot) + (R pivot + t - pivot)
         let c = Vector3::from(pivot);
         let t = Vector3::new(m[0][3], m[1][3], m[2][3]);
@@ -535,6 +550,21 @@ mod tests {
         // half the transform, twice, is the whole (same pivot, linear translation)
         let h = t.fraction(0.5);
         assert!((h.rotation.angle() - 1.0).abs() < 1e-12);
+        // a 300° rotation is split the long way: a fifth is +60° about +z
+        let q = RotationSpec::AxisAngle {
+            axis: [0.0, 0.0, 1.0],
+            degrees: 300.0,
+        }
+        .to_quaternion()
+        .unwrap();
+        let fifth = RigidTransform {
+            rotation: q,
+            translation: [0.0; 3],
+            pivot: [0.0; 3],
+        }
+        .fraction(0.2);
+        let a = fifth.rotation.scaled_axis();
+        assert!((a.z - 60f64.to_radians()).abs() < 1e-12, "{a:?}");
     }
 
     #[test]
