@@ -16,6 +16,7 @@
 //! pre-operator (`A = P L`); in [`Mode::Paper`] and with the linear detail term
 //! it is the unrotated `A X` (the paper's `A (X' - X)`).
 
+mod cg;
 mod constraints;
 mod detail;
 mod factor;
@@ -28,7 +29,7 @@ pub use constraints::{
     RotationSpec, SphereSel, VertexSet,
 };
 pub use detail::{local_rotations, rotation_from_covariance, Mu, RingWeights};
-pub use factor::{Factor, FactorCache, FactorKey, FactorTimings};
+pub use factor::{Factor, FactorCache, FactorKey, FactorTimings, SolveOptions, SolverChoice};
 pub use params::{DetailTerm, Energy, Mode, Params};
 pub use solver::{Deformer, Rest, StepReport};
 pub use system::energy_matrix;
