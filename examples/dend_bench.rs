@@ -134,7 +134,7 @@ fn run() -> Result<(), String> {
             .map_err(|e| e.to_string())?;
         let cg_build = ms(t.elapsed());
         let before = cg.cg_iterations();
-        let cg_iters = iters.min(10);
+        let cg_iters = iters.min(3);
         let (it, _, _) = time_iterations(&rest, &cg, &constraints, cg_iters)?;
         let per_solve = (cg.cg_iterations() - before) as f64 / (cg_iters + 2) as f64 / 3.0;
         out["cg_build_ms"] = cg_build.into();
