@@ -89,20 +89,21 @@ impl Cg {
         let mut stats = CgStats::default();
         for col in 0..b.ncols() {
             let mut bc = b.as_mut().col_mut(col);
-            for i in 0..n {
-                r[i] = bc[i];
+            for (ri, bi) in r.iter_mut().zip(bc.iter()) {
+                *ri = *bi;
             }
             let (k, res) = self.solve_one(m, x, r, z, p, q);
             stats.iterations += k;
             stats.rel_residual = stats.rel_residual.max(res);
-            for i in 0..n {
-                bc[i] = x[i];
+            for (bi, xi) in bc.iter_mut().zip(x.iter()) {
+                *bi = *xi;
             }
         }
         stats
     }
 
     /// One column: `r` holds `b` on entry; `x` receives the solution.
+    #[allow(clippy::needless_range_loop)] // five arrays updated in one fused pass
     fn solve_one(
         &self,
         m: &CsMat<Real>,
@@ -117,8 +118,8 @@ impl Cg {
         if b_norm == 0.0 {
             return (0, 0.0);
         }
-        for i in 0..r.len() {
-            z[i] = self.inv_diag[i] * r[i];
+        for ((zi, di), ri) in z.iter_mut().zip(&self.inv_diag).zip(r.iter()) {
+            *zi = di * ri;
         }
         p.copy_from_slice(z);
         let mut rz = dot(r, z);
@@ -128,7 +129,7 @@ impl Cg {
         while k < self.max_iters && res > goal {
             matvec(m, p, q);
             let pq = dot(p, q);
-            if !(pq > 0.0) {
+            if pq.is_nan() || pq <= 0.0 {
                 break; // breakdown: M not positive definite on p
             }
             let alpha = rz / pq;
@@ -315,7 +316,7 @@ mod tests {
             .filter(|(a, b)| (a[2] - b[2]).abs() > 0.1)
             .count();
         assert!(moved > k * k / 3, "only {moved} vertices moved");
-        let h = (k - 1) as usize;
+        let h = k - 1;
         assert!((d_cg.pose()[h][2] - mesh.positions()[h][2] - 3.0).abs() < 1e-9);
         // Same pose as the direct solver, to the iteration tolerance.
         let diff = d_cg
