@@ -7,6 +7,11 @@ use std::process::ExitCode;
 
 use clap::{Parser, Subcommand};
 
+mod curvature;
+mod deform;
+mod gen;
+mod info;
+
 /// Deform triangle meshes with Discrete Elastica Nonlinear Deformation.
 #[derive(Debug, Parser)]
 #[command(name = "dend", version, about, long_about = None)]
@@ -16,7 +21,16 @@ struct Cli {
 }
 
 #[derive(Debug, Subcommand)]
-enum Command {}
+enum Command {
+    /// Write a procedural test shape (bar, cylinder, flag, plane, bumpy-plane, torus).
+    Gen(gen::GenArgs),
+    /// Print counts, bounding box, topology and the validation result of a mesh file.
+    Info(info::InfoArgs),
+    /// Per-vertex area, mean, Gaussian curvature and G as CSV (mesh units).
+    Curvature(curvature::CurvatureArgs),
+    /// Deform a mesh with a constraints file or a survey .sel/.def pair.
+    Deform(deform::Args),
+}
 
 /// Parses the command line, runs the command, maps errors to exit code 2.
 pub fn run() -> ExitCode {
@@ -28,7 +42,12 @@ pub fn run() -> ExitCode {
         .with_writer(std::io::stderr)
         .init();
     let cli = Cli::parse();
-    let result: anyhow::Result<()> = match cli.command {};
+    let result: anyhow::Result<()> = match cli.command {
+        Command::Gen(a) => gen::run(a),
+        Command::Info(a) => info::run(a),
+        Command::Curvature(a) => curvature::run(&a),
+        Command::Deform(a) => deform::run(a),
+    };
     match result {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {
