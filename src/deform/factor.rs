@@ -20,6 +20,7 @@ use faer::sparse::{SparseColMat, SymbolicSparseColMat};
 use faer::{Conj, MatMut, Par, Side};
 use parking_lot::Mutex;
 
+use super::cg::Cg;
 use super::constraints::Constraints;
 use super::params::{Energy, Mode, Params};
 use super::solver::Rest;
@@ -81,7 +82,50 @@ pub struct Factor {
     pub(crate) ax: Vec<Point>,
     symbolic: Option<SymbolicCholesky<usize>>,
     values: Vec<Real>,
+    /// Set when `M` is solved by preconditioned CG instead of a factor.
+    cg: Option<Cg>,
+    cg_iterations: AtomicU64,
     timings: FactorTimings,
+}
+
+/// How [`Factor::build_with`] solves `M`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum SolverChoice {
+    /// Sparse Cholesky, whatever its size.
+    Direct,
+    /// Jacobi-preconditioned conjugate gradient, no factorisation (the
+    /// paper's method; slow on large meshes).
+    Cg,
+    /// Cholesky when its estimated size fits the budget, CG otherwise.
+    #[default]
+    Auto,
+}
+
+/// Options of [`Factor::build_with`].
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SolveOptions {
+    /// Direct, CG, or automatic.
+    pub solver: SolverChoice,
+    /// [`SolverChoice::Auto`] falls back to CG when the Cholesky factor
+    /// (16 bytes per nonzero: value and row index) would exceed this.
+    pub factor_budget_bytes: usize,
+    /// CG relative residual tolerance per solve.
+    pub cg_tol: Real,
+    /// CG iteration cap per column and solve.
+    pub cg_max_iters: usize,
+}
+
+impl Default for SolveOptions {
+    /// Auto, a 2 GiB factor budget, CG tolerance `1e-4` (the paper's),
+    /// at most 5000 CG iterations per column.
+    fn default() -> Self {
+        SolveOptions {
+            solver: SolverChoice::Auto,
+            factor_budget_bytes: 2 << 30,
+            cg_tol: 1e-4,
+            cg_max_iters: 5000,
+        }
+    }
 }
 
 impl std::fmt::Debug for Factor {
@@ -105,6 +149,18 @@ impl Factor {
         rest: &Rest,
         params: &Params,
         constraints: &Constraints,
+    ) -> Result<Factor, DeformError> {
+        Self::build_with(rest, params, constraints, &SolveOptions::default())
+    }
+
+    /// [`Factor::build`] with a solver choice and factor memory budget: with
+    /// CG (chosen, or [`SolverChoice::Auto`] over budget) `M` is assembled
+    /// but not factorised, and every solve runs preconditioned CG.
+    pub fn build_with(
+        rest: &Rest,
+        params: &Params,
+        constraints: &Constraints,
+        options: &SolveOptions,
     ) -> Result<Factor, DeformError> {
         params.validate()?;
         let key = FactorKey::new(rest, params, constraints);
@@ -138,7 +194,12 @@ impl Factor {
         let sys = System::assemble(ops, &a, params, &key.constrained, rest.active())?;
         let t1 = Instant::now();
         let n = sys.unknowns.len();
+        let cg_of = |sys: &System| Some(Cg::new(&sys.m, options.cg_tol, options.cg_max_iters));
+        let mut cg = None;
         let (symbolic, values, t2) = if n == 0 {
+            (None, Vec::new(), Instant::now())
+        } else if options.solver == SolverChoice::Cg {
+            cg = cg_of(&sys);
             (None, Vec::new(), Instant::now())
         } else {
             let m = to_faer(&sys.m)?;
@@ -152,6 +213,26 @@ impl Factor {
                 what: "symbolic factorisation",
             })?;
             let t2 = Instant::now();
+            if options.solver == SolverChoice::Auto
+                && symbolic.len_val().saturating_mul(16) > options.factor_budget_bytes
+            {
+                cg = cg_of(&sys);
+                return Ok(Factor {
+                    key,
+                    sys,
+                    energy: params.energy,
+                    ax,
+                    symbolic: None,
+                    values: Vec::new(),
+                    cg,
+                    cg_iterations: AtomicU64::new(0),
+                    timings: FactorTimings {
+                        assembly: t1 - t0,
+                        symbolic: t2 - t1,
+                        numeric: Duration::ZERO,
+                    },
+                });
+            }
             let mut values = Vec::new();
             values
                 .try_reserve_exact(symbolic.len_val())
@@ -189,6 +270,8 @@ impl Factor {
             ax,
             symbolic,
             values,
+            cg,
+            cg_iterations: AtomicU64::new(0),
             timings: FactorTimings {
                 assembly: t1 - t0,
                 symbolic: t2 - t1,
@@ -212,9 +295,20 @@ impl Factor {
         self.sys.unknowns.len()
     }
 
-    /// Nonzeros of the Cholesky factor.
+    /// Nonzeros of the Cholesky factor (0 when solved by CG).
     pub fn factor_nnz(&self) -> usize {
         self.values.len()
+    }
+
+    /// Whether solves run preconditioned CG instead of a Cholesky factor.
+    pub fn uses_cg(&self) -> bool {
+        self.cg.is_some()
+    }
+
+    /// CG iterations run so far by all solves with this factor (0 for a
+    /// Cholesky factor).
+    pub fn cg_iterations(&self) -> u64 {
+        self.cg_iterations.load(Ordering::Relaxed)
     }
 
     /// Approximate heap bytes held: factor values and indices, `J`, `J_Uᵀ`, `M`.
@@ -226,13 +320,15 @@ impl Factor {
             + csr(&self.sys.m)
             + self.ax.len() * 24
             + self.sys.col_of.len() * 4
+            + self.cg.as_ref().map_or(0, |_| self.sys.unknowns.len() * 8)
     }
 
     /// Scratch needed by [`Factor::solve_in_place`] for `k` right-hand sides.
     pub(crate) fn solve_scratch(&self, k: usize) -> StackReq {
-        match &self.symbolic {
-            Some(s) => s.solve_in_place_scratch::<Real>(k, Par::Seq),
-            None => StackReq::EMPTY,
+        match (&self.symbolic, &self.cg) {
+            (Some(s), _) => s.solve_in_place_scratch::<Real>(k, Par::Seq),
+            (None, Some(_)) => Cg::scratch(self.sys.unknowns.len()),
+            (None, None) => StackReq::EMPTY,
         }
     }
 
@@ -240,6 +336,10 @@ impl Factor {
     pub(crate) fn solve_in_place(&self, b: MatMut<'_, Real>, stack: &mut MemStack) {
         if let Some(s) = &self.symbolic {
             LltRef::new(s, &self.values).solve_in_place_with_conj(Conj::No, b, Par::Seq, stack);
+        } else if let Some(cg) = &self.cg {
+            let stats = cg.solve_in_place(&self.sys.m, b, stack);
+            self.cg_iterations
+                .fetch_add(stats.iterations as u64, Ordering::Relaxed);
         }
     }
 }

@@ -17,6 +17,7 @@
 //! it is the unrotated `A X` (the paper's `A (X' - X)`).
 
 mod anderson;
+mod cg;
 mod constraints;
 mod detail;
 mod factor;
@@ -29,7 +30,7 @@ pub use constraints::{
     RotationSpec, SphereSel, VertexSet,
 };
 pub use detail::{local_rotations, rotation_from_covariance, Mu, RingWeights};
-pub use factor::{Factor, FactorCache, FactorKey, FactorTimings};
+pub use factor::{Factor, FactorCache, FactorKey, FactorTimings, SolveOptions, SolverChoice};
 pub use params::{DetailTerm, Energy, Mode, Params};
 pub use solver::{Deformer, Rest, StepReport};
 pub use system::energy_matrix;

@@ -1,0 +1,227 @@
+//! Prints JSON timings of dend on one mesh and one constraint set, for
+//! `scripts/compare_arap.py` and the scaling table of `docs/performance.md`.
+//!
+//! ```text
+//! cargo run --release --example dend_bench -- MESH [--sets FILE.json]
+//!     [--iters 30] [--cg] [--subdivide K] [--write-sets FILE.json]
+//!     [--write-mesh FILE.off]
+//! ```
+//!
+//! MESH is a file (OFF/OBJ/PLY) or `tube:N` (a generated tube of about N
+//! vertices). Without `--sets` the standard edit is used (lowest 10 % of the
+//! vertices in z fixed, highest 10 % translated by 0.15·diagonal along x and
+//! rotated 30° about y); `--write-sets` saves it as
+//! `{"fixed": [...], "handle": [...], "handle_target": [[x,y,z], ...]}`
+//! so that libigl runs on exactly the same sets and targets. `--sets` reads
+//! that format back.
+//!
+//! Reported (milliseconds, medians over `--iters` repetitions where noted):
+//! `rest` (operators + STEP 1), `assembly`/`symbolic`/`numeric` (one factor
+//! build), `iteration` (median of one-iteration steps, chained from the rest
+//! pose towards the target), `converge` (a full solve from rest), and with
+//! `--cg` the same iteration with Jacobi-PCG at tolerance 1e-4 and no factor.
+
+use std::sync::Arc;
+use std::time::Instant;
+
+use dend::deform::{
+    Constraints, Deformer, Factor, Params, Rest, RigidTransform, SolveOptions, SolverChoice,
+};
+use dend::mesh::{Mesh, Point};
+
+#[path = "../benches/support/mod.rs"]
+mod support;
+
+fn main() {
+    if let Err(e) = run() {
+        eprintln!("error: {e}");
+        std::process::exit(2);
+    }
+}
+
+fn arg<T: std::str::FromStr>(args: &[String], name: &str) -> Option<T> {
+    args.iter()
+        .position(|a| a == name)
+        .and_then(|i| args.get(i + 1))
+        .and_then(|v| v.parse().ok())
+}
+
+fn median(mut v: Vec<f64>) -> f64 {
+    v.sort_by(f64::total_cmp);
+    if v.is_empty() {
+        return f64::NAN;
+    }
+    let k = v.len();
+    if k % 2 == 1 {
+        v[k / 2]
+    } else {
+        0.5 * (v[k / 2 - 1] + v[k / 2])
+    }
+}
+
+fn load(spec: &str) -> Result<Mesh, String> {
+    if let Some(n) = spec.strip_prefix("tube:") {
+        let n: usize = n.parse().map_err(|_| format!("bad tube size {n:?}"))?;
+        return Ok(support::tube_of_size(n));
+    }
+    support::read_mesh(std::path::Path::new(spec))
+}
+
+fn ms(d: std::time::Duration) -> f64 {
+    d.as_secs_f64() * 1e3
+}
+
+fn run() -> Result<(), String> {
+    let args: Vec<String> = std::env::args().skip(1).collect();
+    let spec = args.first().ok_or("usage: dend_bench MESH [options]")?;
+    let mut mesh = load(spec)?;
+    for _ in 0..arg::<usize>(&args, "--subdivide").unwrap_or(0) {
+        mesh = support::subdivide(&mesh);
+    }
+    let iters: usize = arg(&args, "--iters").unwrap_or(30);
+    let with_cg = args.iter().any(|a| a == "--cg");
+    let constraints = match arg::<String>(&args, "--sets") {
+        Some(path) => read_sets(&mesh, &path)?,
+        None => support::standard_edit(&mesh),
+    };
+    if let Some(path) = arg::<String>(&args, "--write-mesh") {
+        write_off(&mesh, &path)?;
+    }
+    if let Some(path) = arg::<String>(&args, "--write-sets") {
+        write_sets(&constraints, &path)?;
+    }
+    let params = Params::default();
+    let t = Instant::now();
+    let rest = Arc::new(Rest::new(mesh.clone()).map_err(|e| e.to_string())?);
+    let rest_ms = ms(t.elapsed());
+    let direct = SolveOptions {
+        solver: SolverChoice::Direct,
+        ..SolveOptions::default()
+    };
+    let t = Instant::now();
+    let factor =
+        Factor::build_with(&rest, &params, &constraints, &direct).map_err(|e| e.to_string())?;
+    let build_ms = ms(t.elapsed());
+    let ft = factor.timings();
+    let (iteration, converge, conv_iters) = time_iterations(&rest, &factor, &constraints, iters)?;
+    let n = mesh.num_vertices();
+    let mut out = serde_json::json!({
+        "mesh": spec,
+        "vertices": n,
+        "unknowns": factor.num_unknowns(),
+        "threads": rayon::current_num_threads(),
+        "rest_ms": rest_ms,
+        "assembly_ms": ms(ft.assembly),
+        "symbolic_ms": ms(ft.symbolic),
+        "numeric_ms": ms(ft.numeric),
+        "factor_build_ms": build_ms,
+        "precompute_ms": rest_ms + build_ms,
+        "iteration_ms": iteration,
+        "converge_ms": converge,
+        "converge_iterations": conv_iters,
+        "factor_nnz": factor.factor_nnz(),
+        "factor_bytes": factor.factor_nnz() * 16,
+        "session_bytes": factor.memory_bytes(),
+        "bytes_per_vertex": factor.memory_bytes() as f64 / n as f64,
+    });
+    if with_cg {
+        let cg_opts = SolveOptions {
+            solver: SolverChoice::Cg,
+            ..SolveOptions::default()
+        };
+        let t = Instant::now();
+        let cg = Factor::build_with(&rest, &params, &constraints, &cg_opts)
+            .map_err(|e| e.to_string())?;
+        let cg_build = ms(t.elapsed());
+        let before = cg.cg_iterations();
+        let cg_iters = iters.min(3);
+        let (it, _, _) = time_iterations(&rest, &cg, &constraints, cg_iters)?;
+        let per_solve = (cg.cg_iterations() - before) as f64 / (cg_iters + 2) as f64 / 3.0;
+        out["cg_build_ms"] = cg_build.into();
+        out["cg_iteration_ms"] = it.into();
+        out["cg_iterations_per_column"] = per_solve.into();
+    }
+    println!("{out}");
+    Ok(())
+}
+
+/// Median time of one-iteration steps chained from rest (as an interactive
+/// drag does), and the time and count of a full solve from rest.
+fn time_iterations(
+    rest: &Arc<Rest>,
+    factor: &Factor,
+    constraints: &Constraints,
+    iters: usize,
+) -> Result<(f64, f64, usize), String> {
+    let params = Params::default();
+    let mut d = Deformer::new(rest.clone(), params);
+    d.step(factor, constraints, 2).map_err(|e| e.to_string())?;
+    let mut times = Vec::with_capacity(iters);
+    for _ in 0..iters {
+        let t = Instant::now();
+        d.step(factor, constraints, 1).map_err(|e| e.to_string())?;
+        times.push(ms(t.elapsed()));
+    }
+    d.reset();
+    let t = Instant::now();
+    let r = d
+        .step(factor, constraints, params.max_iters)
+        .map_err(|e| e.to_string())?;
+    Ok((median(times), ms(t.elapsed()), r.iterations))
+}
+
+fn write_sets(c: &Constraints, path: &str) -> Result<(), String> {
+    let h = &c.handles[0];
+    let targets: Vec<Point> = h.target_positions().map(|(_, p)| p).collect();
+    let json = serde_json::json!({
+        "fixed": c.fixed,
+        "handle": h.vertices,
+        "handle_target": targets,
+    });
+    std::fs::write(path, json.to_string()).map_err(|e| format!("{path}: {e}"))
+}
+
+fn read_sets(mesh: &Mesh, path: &str) -> Result<Constraints, String> {
+    let text = std::fs::read_to_string(path).map_err(|e| format!("{path}: {e}"))?;
+    let v: serde_json::Value = serde_json::from_str(&text).map_err(|e| e.to_string())?;
+    let ids = |k: &str| -> Vec<u32> {
+        v[k].as_array()
+            .map(|a| {
+                a.iter()
+                    .filter_map(|x| x.as_u64())
+                    .map(|x| x as u32)
+                    .collect()
+            })
+            .unwrap_or_default()
+    };
+    let (fixed, handle) = (ids("fixed"), ids("handle"));
+    let targets: Vec<Point> = serde_json::from_value(v["handle_target"].clone())
+        .map_err(|e| format!("{path}: handle_target: {e}"))?;
+    let mut c = Constraints::new(
+        mesh,
+        fixed,
+        vec![(
+            "handle".into(),
+            handle,
+            Some(RigidTransform::identity([0.0; 3])),
+        )],
+    )
+    .map_err(|e| e.to_string())?;
+    if targets.len() != c.handles[0].vertices.len() {
+        return Err(format!("{path}: handle_target has the wrong length"));
+    }
+    c.handles[0].base = targets;
+    Ok(c)
+}
+
+fn write_off(mesh: &Mesh, path: &str) -> Result<(), String> {
+    use std::fmt::Write;
+    let mut s = format!("OFF\n{} {} 0\n", mesh.num_vertices(), mesh.num_triangles());
+    for p in mesh.positions() {
+        let _ = writeln!(s, "{} {} {}", p[0], p[1], p[2]);
+    }
+    for t in mesh.triangles() {
+        let _ = writeln!(s, "3 {} {} {}", t[0], t[1], t[2]);
+    }
+    std::fs::write(path, s).map_err(|e| format!("{path}: {e}"))
+}
