@@ -11,3 +11,8 @@
 
 pub mod mesh;
 pub mod operators;
+pub mod deform;
+pub mod session;
+pub mod store;
+pub mod server;
+pub mod client;
