@@ -3,7 +3,7 @@
 use std::sync::Arc;
 use std::time::Duration;
 
-use futures_util::channel::mpsc;
+use futures_channel::mpsc;
 use futures_util::{SinkExt, StreamExt};
 
 use super::*;
