@@ -86,7 +86,9 @@ impl Client {
     /// Next JSON event of type `ty`, skipping frames and other events.
     async fn event(&mut self, ty: &str) -> serde_json::Value {
         loop {
-            if let WsMsg::Text(t) = self.next().await {
+            let m = self.next().await;
+            if std::env::var("WSDBG").is_ok() { eprintln!("{m:?}"); }
+            if let WsMsg::Text(t) = m {
                 let v: serde_json::Value = serde_json::from_str(&t).expect("json");
                 if v["type"] == ty {
                     return v;
