@@ -12,6 +12,8 @@ mod deform;
 mod gen;
 mod info;
 mod measure;
+mod loadtest;
+mod serve;
 
 /// Deform triangle meshes with Discrete Elastica Nonlinear Deformation.
 #[derive(Debug, Parser)]
@@ -33,6 +35,10 @@ enum Command {
     Deform(deform::Args),
     /// Paper-reproduction figures of a pose (twisted bar or bent cylinder) as JSON.
     Measure(measure::Args),
+    /// Run the deformation server (HTTP + WebSocket; prints its URL).
+    Serve(serve::ServeArgs),
+    /// Drive N server sessions with M drags each; report drag→frame latency.
+    Loadtest(loadtest::LoadtestArgs),
 }
 
 /// Parses the command line, runs the command, maps errors to exit code 2.
@@ -51,6 +57,8 @@ pub fn run() -> ExitCode {
         Command::Curvature(a) => curvature::run(&a),
         Command::Deform(a) => deform::run(a),
         Command::Measure(a) => measure::run(a),
+        Command::Serve(a) => serve::run(a),
+        Command::Loadtest(a) => loadtest::run(a),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,
