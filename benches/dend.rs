@@ -60,11 +60,11 @@ fn meshes() -> Vec<(String, Mesh)> {
     out
 }
 
-fn configure(
-    c: &mut Criterion,
+fn configure<'a>(
+    c: &'a mut Criterion,
     name: &str,
     n: usize,
-) -> criterion::BenchmarkGroup<'_, criterion::measurement::WallTime> {
+) -> criterion::BenchmarkGroup<'a, criterion::measurement::WallTime> {
     let mut g = c.benchmark_group(name.to_owned());
     g.sample_size(10);
     g.warm_up_time(Duration::from_millis(if n > 60_000 { 100 } else { 500 }));

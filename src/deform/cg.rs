@@ -89,13 +89,13 @@ impl Cg {
         let mut stats = CgStats::default();
         for col in 0..b.ncols() {
             let mut bc = b.as_mut().col_mut(col);
-            for (ri, bi) in r.iter_mut().zip(bc.iter()) {
+            for (ri, bi) in r.iter_mut().zip(bc.as_ref().iter()) {
                 *ri = *bi;
             }
             let (k, res) = self.solve_one(m, x, r, z, p, q);
             stats.iterations += k;
             stats.rel_residual = stats.rel_residual.max(res);
-            for (bi, xi) in bc.iter_mut().zip(x.iter()) {
+            for (bi, xi) in bc.as_mut().iter_mut().zip(x.iter()) {
                 *bi = *xi;
             }
         }
@@ -242,7 +242,12 @@ mod tests {
         for c in 0..3 {
             let xc = &x[c * n..(c + 1) * n];
             let bc = &b[c * n..(c + 1) * n];
-            let mx = &f.sys.m * xc;
+            let mx: Vec<f64> = f
+                .sys
+                .m
+                .outer_iterator()
+                .map(|row| row.iter().map(|(j, v)| v * xc[j]).sum())
+                .collect();
             let r: f64 = mx.iter().zip(bc).map(|(a, b)| (a - b).powi(2)).sum();
             let bn: f64 = bc.iter().map(|v| v * v).sum();
             worst = worst.max((r / bn).sqrt());
