@@ -7,6 +7,9 @@ use std::process::ExitCode;
 
 use clap::{Parser, Subcommand};
 
+mod loadtest;
+mod serve;
+
 /// Deform triangle meshes with Discrete Elastica Nonlinear Deformation.
 #[derive(Debug, Parser)]
 #[command(name = "dend", version, about, long_about = None)]
@@ -16,7 +19,12 @@ struct Cli {
 }
 
 #[derive(Debug, Subcommand)]
-enum Command {}
+enum Command {
+    /// Run the deformation server (HTTP + WebSocket; prints its URL).
+    Serve(serve::ServeArgs),
+    /// Drive N server sessions with M drags each; report drag→frame latency.
+    Loadtest(loadtest::LoadtestArgs),
+}
 
 /// Parses the command line, runs the command, maps errors to exit code 2.
 pub fn run() -> ExitCode {
@@ -28,7 +36,10 @@ pub fn run() -> ExitCode {
         .with_writer(std::io::stderr)
         .init();
     let cli = Cli::parse();
-    let result: anyhow::Result<()> = match cli.command {};
+    let result: anyhow::Result<()> = match cli.command {
+        Command::Serve(a) => serve::run(a),
+        Command::Loadtest(a) => loadtest::run(a),
+    };
     match result {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {

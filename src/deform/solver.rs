@@ -100,6 +100,10 @@ pub struct StepReport {
     pub diverged: bool,
     /// The final objective value (squared residual of the stacked rows).
     pub objective: Real,
+    /// The objective at the start of the step (targets applied, before any
+    /// iteration). A step that does not converge ends on the best pose it
+    /// saw, so then `objective <= initial_objective`.
+    pub initial_objective: Real,
 }
 
 /// One editing state: the current pose, warm-started across drags, and the
@@ -243,6 +247,7 @@ impl Deformer {
             converged: false,
             diverged: false,
             objective: f,
+            initial_objective: f,
         };
         let mut best_f = f;
         self.scratch.best.clone_from(&self.y);
@@ -313,6 +318,11 @@ impl Deformer {
                 report.converged = true;
                 break;
             }
+        }
+        if !report.converged && f > best_f {
+            // an unconverged step ends on the best pose it saw
+            self.y.clone_from(&self.scratch.best);
+            f = best_f;
         }
         report.objective = f;
         self.sync_pose();

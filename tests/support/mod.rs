@@ -110,3 +110,40 @@ pub fn shared_meshes() -> Option<std::path::PathBuf> {
         None
     }
 }
+
+/// A random Delaunay patch: `n` random points in the unit disc (plus a ring
+/// of boundary points), triangulated by Delaunay, lifted onto a saddle. Its
+/// hull triangles are skinny, as in dend.md §8.4's failing case.
+pub fn random_delaunay_patch(n: usize, seed: u64) -> Mesh {
+    let mut state = seed ^ 0x9E37_79B9_7F4A_7C15;
+    let mut rnd = || {
+        state ^= state << 13;
+        state ^= state >> 7;
+        state ^= state << 17;
+        (state >> 11) as f64 / (1u64 << 53) as f64
+    };
+    let mut pts = Vec::new();
+    while pts.len() < n {
+        let (x, y) = (2.0 * rnd() - 1.0, 2.0 * rnd() - 1.0);
+        if x * x + y * y < 1.0 {
+            pts.push(delaunator::Point { x, y });
+        }
+    }
+    let tri = delaunator::triangulate(&pts);
+    let p: Vec<Point> = pts
+        .iter()
+        .map(|q| [q.x, q.y, 0.6 * (q.x * q.x - q.y * q.y)])
+        .collect();
+    // delaunator gives clockwise triangles in a y-up frame: flip to CCW
+    let t: Vec<[u32; 3]> = tri
+        .triangles
+        .chunks(3)
+        .map(|c| [c[0] as u32, c[2] as u32, c[1] as u32])
+        .collect();
+    // drop numerically degenerate hull slivers, which Mesh::new rejects
+    let t: Vec<[u32; 3]> = t
+        .into_iter()
+        .filter(|f| Mesh::new(p.clone(), vec![*f]).is_ok())
+        .collect();
+    Mesh::new(p, t).expect("valid Delaunay patch")
+}

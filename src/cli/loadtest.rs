@@ -1,0 +1,180 @@
+//! `dend loadtest`: drive N sessions with M WebSocket drags each and report
+//! drag→frame latency (p50/p99) and frames per second.
+//!
+//! Each session is closed-loop: send drag `seq`, wait for the first frame
+//! acknowledging it, record the time, send the next. Without `--url` the
+//! command starts a server in-process on a free port.
+
+use std::path::PathBuf;
+use std::time::{Duration, Instant};
+
+use anyhow::Context;
+use dend::client::{Client, WsEvent};
+use dend::server::{self, AppState, Config};
+use serde_json::json;
+
+/// Arguments of `dend loadtest`.
+#[derive(Debug, clap::Args)]
+pub struct LoadtestArgs {
+    /// Concurrent sessions.
+    #[arg(long, default_value_t = 1)]
+    sessions: usize,
+    /// Drags per session.
+    #[arg(long, default_value_t = 200)]
+    drags: u64,
+    /// Mesh file (OBJ/OFF/PLY/STL); default: a generated 100×100 grid.
+    #[arg(long)]
+    mesh: Option<PathBuf>,
+    /// Server base URL; default: start a server in this process.
+    #[arg(long)]
+    url: Option<String>,
+    /// Iterations per frame of the in-process server.
+    #[arg(long, default_value_t = 1)]
+    iters_per_frame: usize,
+}
+
+/// Runs the load test and prints its report.
+pub fn run(args: LoadtestArgs) -> anyhow::Result<()> {
+    let rt = tokio::runtime::Runtime::new()?;
+    rt.block_on(run_async(args))
+}
+
+fn grid(n: usize) -> (Vec<[f64; 3]>, Vec<[u32; 3]>) {
+    let mut p = vec![];
+    for j in 0..n {
+        for i in 0..n {
+            p.push([i as f64 / (n - 1) as f64, j as f64 / (n - 1) as f64, 0.0]);
+        }
+    }
+    let mut t = vec![];
+    for j in 0..n - 1 {
+        for i in 0..n - 1 {
+            let a = (j * n + i) as u32;
+            let (b, c, d) = (a + 1, a + n as u32, a + n as u32 + 1);
+            t.extend([[a, b, d], [a, d, c]]);
+        }
+    }
+    (p, t)
+}
+
+struct SessionStats {
+    latencies: Vec<Duration>,
+    frames: u64,
+}
+
+async fn run_async(args: LoadtestArgs) -> anyhow::Result<()> {
+    let base = match &args.url {
+        Some(u) => u.clone(),
+        None => {
+            let config = Config {
+                addr: ([127, 0, 0, 1], 0).into(),
+                iters_per_frame: args.iters_per_frame,
+                ws_max_messages_per_sec: 1_000_000,
+                ..Config::default()
+            };
+            let listener = tokio::net::TcpListener::bind(config.addr).await?;
+            let addr = listener.local_addr()?;
+            let app = server::app(AppState::new(config)?);
+            drop(tokio::spawn(async move { axum::serve(listener, app).await }));
+            format!("http://{addr}")
+        }
+    };
+    let client = Client::new(&base);
+    let mesh = match &args.mesh {
+        Some(path) => {
+            let bytes = std::fs::read(path).with_context(|| format!("reading {}", path.display()))?;
+            let ext = path.extension().and_then(|e| e.to_str()).unwrap_or("").to_ascii_lowercase();
+            client.upload_file(bytes, &ext).await?
+        }
+        None => {
+            let (p, t) = grid(100);
+            client.upload_json(&p, &t).await?
+        }
+    };
+    let [lo, hi] = mesh.bbox;
+    let ext: Vec<f64> = (0..3).map(|k| hi[k] - lo[k]).collect();
+    let k = (0..3).max_by(|a, b| ext[*a].total_cmp(&ext[*b])).unwrap_or(0);
+    let (mut fixed_max, mut handle_min) = (hi, lo);
+    fixed_max[k] = lo[k] + 0.1 * ext[k];
+    handle_min[k] = hi[k] - 0.1 * ext[k];
+    let spec = json!({
+        "fixed": {"box": {"min": lo, "max": fixed_max}},
+        "handles": [{"name": "h", "vertices": {"box": {"min": handle_min, "max": hi}}}],
+    });
+    let mut step = [0.0; 3];
+    step[(k + 1) % 3] = 0.3 * ext[k] / args.drags.max(1) as f64;
+    println!(
+        "mesh: {} vertices, {} triangles; {} session(s) x {} drags",
+        mesh.vertices, mesh.triangles, args.sessions, args.drags
+    );
+    let t0 = Instant::now();
+    let mut tasks = vec![];
+    for _ in 0..args.sessions {
+        let (client, mesh_id, spec, drags) = (client.clone(), mesh.id.clone(), spec.clone(), args.drags);
+        tasks.push(tokio::spawn(async move { one_session(client, mesh_id, spec, drags, step).await }));
+    }
+    let mut all = vec![];
+    let mut frames = 0;
+    let mut drag_time = Duration::ZERO;
+    for t in tasks {
+        let (stats, elapsed) = t.await??;
+        all.extend(stats.latencies);
+        frames += stats.frames;
+        drag_time = drag_time.max(elapsed);
+    }
+    all.sort();
+    let pct = |p: f64| all.get(((all.len() as f64 - 1.0) * p).round() as usize).copied().unwrap_or_default();
+    let ms = |d: Duration| d.as_secs_f64() * 1e3;
+    println!(
+        "drag->frame latency: p50 {:.2} ms, p99 {:.2} ms, max {:.2} ms over {} drags",
+        ms(pct(0.5)),
+        ms(pct(0.99)),
+        ms(pct(1.0)),
+        all.len()
+    );
+    println!(
+        "frames/s: {:.0} (all sessions), drags/s: {:.0}; drag phase {:.2} s, total {:.2} s",
+        frames as f64 / drag_time.as_secs_f64(),
+        all.len() as f64 / drag_time.as_secs_f64(),
+        drag_time.as_secs_f64(),
+        t0.elapsed().as_secs_f64()
+    );
+    Ok(())
+}
+
+async fn one_session(
+    client: Client,
+    mesh_id: String,
+    spec: serde_json::Value,
+    drags: u64,
+    step: [f64; 3],
+) -> anyhow::Result<(SessionStats, Duration)> {
+    let s = client.create_session(&mesh_id, json!({})).await?;
+    s.set_constraints(&spec).await?;
+    s.wait_ready(Duration::from_secs(600)).await?;
+    let mut ws = s.connect().await?;
+    let mut stats = SessionStats { latencies: Vec::with_capacity(drags as usize), frames: 0 };
+    let start = Instant::now();
+    for seq in 1..=drags {
+        let sent = Instant::now();
+        ws.drag(0, step, None, seq).await?;
+        loop {
+            match ws.next().await? {
+                WsEvent::Frame(h, _) => {
+                    stats.frames += 1;
+                    if h.ack_seq >= seq {
+                        stats.latencies.push(sent.elapsed());
+                        break;
+                    }
+                }
+                WsEvent::Event(v) if v["type"] == "error" => anyhow::bail!("server error: {v}"),
+                WsEvent::Closed(c) => anyhow::bail!("connection closed ({c:?})"),
+                WsEvent::Event(_) => {}
+            }
+        }
+    }
+    let elapsed = start.elapsed();
+    ws.close().await?;
+    s.delete().await?;
+    Ok((stats, elapsed))
+}

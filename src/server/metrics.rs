@@ -1,0 +1,107 @@
+//! Prometheus metrics (`GET /metrics`, text exposition format).
+//!
+//! One [`prometheus::Registry`] per server instance (not a global recorder),
+//! so several servers in one process (tests) keep separate counts.
+
+use axum::extract::State;
+use axum::http::header;
+use axum::response::IntoResponse;
+use prometheus::{Encoder, Histogram, HistogramOpts, IntCounter, IntGauge, Registry, TextEncoder};
+
+use super::error::ApiError;
+use super::AppState;
+use crate::session::Observer;
+
+/// The server's metrics.
+pub struct Metrics {
+    registry: Registry,
+    /// Live sessions.
+    pub sessions: IntGauge,
+    /// Sessions created since start.
+    pub sessions_created: IntCounter,
+    /// Connected WebSocket clients.
+    pub ws_clients: IntGauge,
+    /// Solves run.
+    pub solves: IntCounter,
+    /// Solves that ended converged.
+    pub solves_converged: IntCounter,
+    /// DEND iterations per solve.
+    pub iterations: Histogram,
+    /// Wall time of one solve (journal + factor lookup + iterations), seconds.
+    pub solve_seconds: Histogram,
+    /// Meshes stored.
+    pub meshes: IntGauge,
+    /// Factor cache: bytes held.
+    pub factor_cache_bytes: IntGauge,
+    /// Factor cache: factors held.
+    pub factor_cache_entries: IntGauge,
+    /// Factor cache: hits since start.
+    pub factor_cache_hits: IntGauge,
+    /// Factor cache: builds since start.
+    pub factor_cache_builds: IntGauge,
+}
+
+fn reg<T: prometheus::core::Collector + Clone + 'static>(r: &Registry, m: T) -> T {
+    // Registration only fails on duplicate names, which are fixed here.
+    if let Err(e) = r.register(Box::new(m.clone())) {
+        tracing::error!(error = %e, "metric registration failed");
+    }
+    m
+}
+
+impl Metrics {
+    /// A fresh registry with every metric registered.
+    pub fn new() -> Result<Self, prometheus::Error> {
+        let r = Registry::new_custom(Some("dend".into()), None)?;
+        let latency = HistogramOpts::new("solve_seconds", "Wall time of one solve in seconds")
+            .buckets(prometheus::exponential_buckets(0.0005, 2.0, 16)?);
+        let iters = HistogramOpts::new("solve_iterations", "DEND iterations per solve")
+            .buckets(vec![1.0, 2.0, 3.0, 5.0, 10.0, 20.0, 50.0, 100.0, 200.0, 500.0]);
+        Ok(Metrics {
+            sessions: reg(&r, IntGauge::new("sessions", "Live sessions")?),
+            sessions_created: reg(&r, IntCounter::new("sessions_created_total", "Sessions created")?),
+            ws_clients: reg(&r, IntGauge::new("ws_clients", "Connected WebSocket clients")?),
+            solves: reg(&r, IntCounter::new("solves_total", "Solves run")?),
+            solves_converged: reg(&r, IntCounter::new("solves_converged_total", "Solves that converged")?),
+            iterations: reg(&r, Histogram::with_opts(iters)?),
+            solve_seconds: reg(&r, Histogram::with_opts(latency)?),
+            meshes: reg(&r, IntGauge::new("meshes", "Meshes stored")?),
+            factor_cache_bytes: reg(&r, IntGauge::new("factor_cache_bytes", "Bytes held by cached factors")?),
+            factor_cache_entries: reg(&r, IntGauge::new("factor_cache_entries", "Cached factors")?),
+            factor_cache_hits: reg(&r, IntGauge::new("factor_cache_hits", "Factor cache hits since start")?),
+            factor_cache_builds: reg(&r, IntGauge::new("factor_cache_builds", "Factors built since start")?),
+            registry: r,
+        })
+    }
+
+    /// The text exposition of every metric.
+    pub fn render(&self) -> Result<String, ApiError> {
+        let mut buf = Vec::new();
+        TextEncoder::new()
+            .encode(&self.registry.gather(), &mut buf)
+            .map_err(|e| ApiError::Internal(e.to_string()))?;
+        String::from_utf8(buf).map_err(|e| ApiError::Internal(e.to_string()))
+    }
+}
+
+impl Observer for Metrics {
+    fn solved(&self, iterations: usize, seconds: f64, converged: bool) {
+        self.solves.inc();
+        if converged {
+            self.solves_converged.inc();
+        }
+        self.iterations.observe(iterations as f64);
+        self.solve_seconds.observe(seconds);
+    }
+}
+
+/// `GET /metrics`.
+pub async fn render(State(st): State<AppState>) -> Result<impl IntoResponse, ApiError> {
+    let m = &st.metrics;
+    m.factor_cache_bytes.set(st.cache.bytes() as i64);
+    m.factor_cache_entries.set(st.cache.len() as i64);
+    m.factor_cache_hits.set(st.cache.hits() as i64);
+    m.factor_cache_builds.set(st.cache.builds() as i64);
+    m.sessions.set(st.sessions.read().len() as i64);
+    Ok(([(header::CONTENT_TYPE, "text/plain; version=0.0.4")], m.render()?))
+}

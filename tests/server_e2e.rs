@@ -1,0 +1,189 @@
+//! End-to-end tests over real sockets: the server on an ephemeral port,
+//! reqwest for HTTP and tokio-tungstenite (through `dend::client`) for
+//! WebSocket.
+
+mod server_common;
+
+use std::sync::Arc;
+use std::time::Duration;
+
+use dend::client::{Client, ClientError, WsEvent};
+use dend::deform::{ConstraintsSpec, Deformer, Factor, Params, Rest};
+use dend::mesh::Mesh;
+use dend::server::Config;
+use nalgebra::{Unit, UnitQuaternion, Vector3};
+use serde_json::json;
+use server_common::{grid, grid_constraints, start};
+
+const N: usize = 8;
+
+fn params() -> serde_json::Value {
+    json!({"tol": 1e-10, "max_iters": 2000})
+}
+
+/// The i-th of the 100 test deltas: a small translation and a small
+/// rotation about a varying axis.
+fn delta(i: usize) -> ([f64; 3], UnitQuaternion<f64>) {
+    let t = [0.01 * (i % 3) as f64, 0.02, 0.015];
+    let axis = Unit::new_normalize(Vector3::new(1.0, 0.3 * (i % 5) as f64, 0.2));
+    (t, UnitQuaternion::from_axis_angle(&axis, 0.2_f64.to_radians()))
+}
+
+#[tokio::test]
+async fn hundred_ws_drags_equal_the_library_result_for_the_composed_transform() -> Result<(), ClientError> {
+    let (base, _state) = start(Config::default()).await;
+    let c = Client::new(&base);
+    c.healthz().await?;
+    let (p, t) = grid(N);
+    let mesh = c.upload_json(&p, &t).await?;
+    assert_eq!((mesh.vertices, mesh.triangles), (N * N, 2 * (N - 1) * (N - 1)));
+    let s = c.create_session(&mesh.id, params()).await?;
+    s.set_constraints(&grid_constraints(N)).await?;
+    s.wait_ready(Duration::from_secs(60)).await?;
+    let mut ws = s.connect().await?;
+    for i in 0..100 {
+        let (tr, q) = delta(i);
+        let q = q.coords;
+        ws.drag(0, tr, Some([q.x, q.y, q.z, q.w]), i as u64 + 1).await?;
+    }
+    let (h, frame) = ws.frame_acking(100, true).await?;
+    assert!(h.converged);
+    let pose = s.pose().await?;
+    assert_eq!(pose.ack_seq, 100);
+    assert!(pose.converged);
+
+    // The library, directly: compose the 100 deltas, run to convergence.
+    let lib_params: Params = serde_json::from_value(params()).expect("params");
+    let rest = Arc::new(Rest::new(Mesh::new(p, t).expect("mesh")).expect("rest"));
+    let spec: ConstraintsSpec = serde_json::from_value(grid_constraints(N)).expect("spec");
+    let mut cons = spec.resolve(rest.mesh()).expect("resolve");
+    for i in 0..100 {
+        let (tr, q) = delta(i);
+        cons.handles[0].target = cons.handles[0].target.then(q, tr);
+    }
+    let factor = Factor::build(&rest, &lib_params, &cons).expect("factor");
+    let mut d = Deformer::new(rest.clone(), lib_params.clone());
+    let report = d.step(&factor, &cons, lib_params.max_iters).expect("solve");
+    assert!(report.converged);
+    let mut worst = 0.0f64;
+    for (a, b) in pose.positions.iter().zip(d.pose()) {
+        for k in 0..3 {
+            worst = worst.max((a[k] - b[k]).abs());
+        }
+    }
+    assert!(worst < 1e-6, "server pose differs from the library by {worst}");
+    // the f32 frame is the same pose rounded to f32
+    for (a, b) in frame.iter().zip(d.pose()) {
+        for k in 0..3 {
+            assert!((f64::from(a[k]) - b[k]).abs() < 1e-4);
+        }
+    }
+    // binary GET pose agrees with the frame
+    assert_eq!(s.pose_f32().await?, frame);
+    Ok(())
+}
+
+#[tokio::test]
+async fn two_clients_in_one_session_both_receive_frames() -> Result<(), ClientError> {
+    let (base, _state) = start(Config::default()).await;
+    let c = Client::new(&base);
+    let (p, t) = grid(N);
+    let mesh = c.upload_json(&p, &t).await?;
+    let s = c.create_session(&mesh.id, json!({})).await?;
+    s.set_constraints(&grid_constraints(N)).await?;
+    s.wait_ready(Duration::from_secs(60)).await?;
+    let mut a = s.connect().await?;
+    let mut b = s.connect().await?;
+    let _ = a.event("peer_joined").await?;
+    for seq in 1..=5 {
+        a.drag(0, [0.0, 0.0, 0.1], None, seq).await?;
+    }
+    let (ha, va) = a.frame_acking(5, true).await?;
+    let (hb, vb) = b.frame_acking(5, true).await?;
+    assert_eq!(ha, hb);
+    assert_eq!(va, vb);
+    assert_eq!(s.info().await?["peers"], 2);
+    Ok(())
+}
+
+#[tokio::test]
+async fn http_drag_undo_redo_reset_export_delete() -> Result<(), ClientError> {
+    let (base, _state) = start(Config::default()).await;
+    let c = Client::new(&base);
+    let (p, t) = grid(N);
+    let mesh = c.upload_json(&p, &t).await?;
+    let s = c.create_session(&mesh.id, params()).await?;
+    s.set_constraints(&grid_constraints(N)).await?;
+    s.wait_ready(Duration::from_secs(60)).await?;
+    let top = N * N - 1;
+    let p1 = s.drag(json!("top"), json!({"translate": [0.0, 0.0, 1.0]}), None).await?;
+    assert!(p1.converged);
+    assert!((p1.positions[top][2] - 1.0).abs() < 1e-6);
+    let p2 = s.drag(json!(0), json!({"rotate": {"axis": [1, 0, 0], "degrees": 10}}), None).await?;
+    assert!(p2.revision > p1.revision);
+    let u = s.undo().await?;
+    assert_eq!(u.positions, p1.positions);
+    let r = s.redo().await?;
+    assert_eq!(r.positions, p2.positions);
+    let z = s.reset().await?;
+    assert_eq!(z.positions, p);
+    let obj = s.export("obj").await?;
+    assert_eq!(obj.lines().filter(|l| l.starts_with("v ")).count(), N * N);
+    let ply = s.export("ply").await?;
+    assert!(ply.starts_with("ply\n"));
+    s.delete().await?;
+    match s.info().await {
+        Err(ClientError::Api { status: 404, code, .. }) => assert_eq!(code, "session_not_found"),
+        other => panic!("expected 404, got {other:?}"),
+    }
+    Ok(())
+}
+
+#[tokio::test]
+async fn wrong_or_missing_token_is_refused() -> Result<(), ClientError> {
+    let (base, _state) = start(Config::default()).await;
+    let c = Client::new(&base);
+    let (p, t) = grid(4);
+    let mesh = c.upload_json(&p, &t).await?;
+    let s = c.create_session(&mesh.id, json!({})).await?;
+    assert!(s.token.len() >= 32, "128+ bit token");
+    let http = reqwest::Client::new();
+    let url = format!("{base}/v1/sessions/{}", s.id);
+    let r = http.get(&url).send().await?;
+    assert_eq!(r.status(), 401);
+    assert_eq!(r.json::<serde_json::Value>().await?["code"], "missing_token");
+    let r = http.get(&url).bearer_auth("0".repeat(64)).send().await?;
+    assert_eq!(r.status(), 403);
+    let body = r.json::<serde_json::Value>().await?;
+    assert_eq!(body["code"], "forbidden");
+    assert!(!body["message"].as_str().unwrap_or("").contains(&s.token[..8]));
+    let r = http.delete(&url).bearer_auth("x").send().await?;
+    assert_eq!(r.status(), 403);
+    // WebSocket: wrong token in the query → 403 before the upgrade
+    let ws_url = format!("{}/ws?token=nope", url.replacen("http", "ws", 1));
+    match tokio_tungstenite::connect_async(ws_url).await {
+        Err(tokio_tungstenite::tungstenite::Error::Http(resp)) => assert_eq!(resp.status(), 403),
+        other => panic!("expected 403, got {:?}", other.map(|_| ())),
+    }
+    // WebSocket: no token → first message must authenticate
+    let ws_url = format!("{}/ws", url.replacen("http", "ws", 1));
+    let (mut ws, _) = tokio_tungstenite::connect_async(ws_url).await.map_err(Box::new)?;
+    use futures_util::{SinkExt, StreamExt};
+    use tokio_tungstenite::tungstenite::Message;
+    ws.send(Message::Text(json!({"type": "auth", "token": "bad"}).to_string().into())).await.map_err(Box::new)?;
+    let mut close_code = None;
+    while let Some(Ok(m)) = ws.next().await {
+        if let Message::Close(Some(f)) = m {
+            close_code = Some(u16::from(f.code));
+            break;
+        }
+    }
+    assert_eq!(close_code, Some(4003));
+    // the right token still works
+    let mut good = s.connect().await?;
+    match good.next().await? {
+        WsEvent::Event(v) => assert_eq!(v["type"], "state"),
+        other => panic!("expected state, got {other:?}"),
+    }
+    Ok(())
+}
