@@ -245,10 +245,10 @@ impl SessionClient {
             .collect())
     }
 
-    /// Export as `obj` or `ply` text.
-    pub async fn export(&self, format: &str) -> Result<String, ClientError> {
+    /// Export as a mesh file (`obj`, `off`, `ply`, `stl`).
+    pub async fn export(&self, format: &str) -> Result<Vec<u8>, ClientError> {
         let r = self.http.get(self.url(&format!("/export?format={format}"))).bearer_auth(&self.token).send().await?;
-        Ok(check(r).await?.text().await?)
+        Ok(check(r).await?.bytes().await?.to_vec())
     }
 
     /// Undo.

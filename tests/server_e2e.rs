@@ -128,9 +128,13 @@ async fn http_drag_undo_redo_reset_export_delete() -> Result<(), ClientError> {
     let z = s.reset().await?;
     assert_eq!(z.positions, p);
     let obj = s.export("obj").await?;
-    assert_eq!(obj.lines().filter(|l| l.starts_with("v ")).count(), N * N);
+    let back = dend::mesh::io::read_bytes(&obj, dend::mesh::io::Format::Obj).expect("exported OBJ reads back");
+    assert_eq!(back.num_vertices(), N * N);
+    for (a, b) in back.positions().iter().zip(&z.positions) {
+        assert!((0..3).all(|k| (a[k] - b[k]).abs() < 1e-9));
+    }
     let ply = s.export("ply").await?;
-    assert!(ply.starts_with("ply\n"));
+    assert!(ply.starts_with(b"ply\n"));
     s.delete().await?;
     match s.info().await {
         Err(ClientError::Api { status: 404, code, .. }) => assert_eq!(code, "session_not_found"),

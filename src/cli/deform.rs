@@ -58,6 +58,9 @@ pub struct Args {
     /// Iteration limit per increment.
     #[arg(long, default_value_t = 100)]
     max_iters: usize,
+    /// Anderson acceleration window (0 disables it).
+    #[arg(long, default_value_t = 5)]
+    anderson: usize,
     /// Convergence tolerance (largest vertex move, in mean edge lengths).
     #[arg(long, default_value_t = 1e-3)]
     tol: f64,
@@ -65,7 +68,8 @@ pub struct Args {
 
 /// Runs `dend deform`.
 pub fn run(args: Args) -> anyhow::Result<()> {
-    let mesh = io::read_path(&args.mesh).with_context(|| format!("reading {}", args.mesh.display()))?;
+    let mesh =
+        io::read_path(&args.mesh).with_context(|| format!("reading {}", args.mesh.display()))?;
     for v in mesh.unreferenced_vertices().iter().take(1) {
         eprintln!(
             "warning: {} unreferenced vertices (first: {v}) are kept in place",
@@ -73,15 +77,18 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         );
     }
     let mut constraints = if let Some(path) = &args.constraints {
-        let text = std::fs::read_to_string(path).with_context(|| format!("reading {}", path.display()))?;
+        let text =
+            std::fs::read_to_string(path).with_context(|| format!("reading {}", path.display()))?;
         let spec: ConstraintsSpec =
             serde_json::from_str(&text).with_context(|| format!("parsing {}", path.display()))?;
         spec.resolve(&mesh)?
     } else {
         let (sel_path, def_path) = (args.sel.as_ref().unwrap(), args.def.as_ref().unwrap());
-        let sel = survey::read_sel(sel_path).with_context(|| format!("reading {}", sel_path.display()))?;
+        let sel = survey::read_sel(sel_path)
+            .with_context(|| format!("reading {}", sel_path.display()))?;
         sel.check_len(mesh.num_vertices())?;
-        let def = survey::read_def(def_path).with_context(|| format!("reading {}", def_path.display()))?;
+        let def = survey::read_def(def_path)
+            .with_context(|| format!("reading {}", def_path.display()))?;
         let fixed = sel.indices(survey::VertexStatus::Fixed);
         let handle = sel.indices(survey::VertexStatus::Handle);
         let mut c = Constraints::new(&mesh, fixed, vec![("handle".into(), handle, None)])?;
@@ -90,9 +97,13 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         c
     };
     let energy = match &args.energy {
-        Some(name) if name == "combined" => Energy::Combined { ks: args.ks, kb: args.kb },
-        Some(name) => Energy::from_name(name)
-            .with_context(|| format!("unknown energy {name:?} (total, total-paper, thin-plate, membrane, combined)"))?,
+        Some(name) if name == "combined" => Energy::Combined {
+            ks: args.ks,
+            kb: args.kb,
+        },
+        Some(name) => Energy::from_name(name).with_context(|| {
+            format!("unknown energy {name:?} (total, total-paper, thin-plate, membrane, combined)")
+        })?,
         None if args.paper => Energy::TotalCurvaturePaper,
         None => Energy::TotalCurvature,
     };
@@ -100,10 +111,19 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         energy,
         lambda1: args.soft.unwrap_or(0.0),
         lambda2: args.lambda2,
-        detail: if args.linear { DetailTerm::Linear } else { DetailTerm::Nonlinear },
-        mode: if args.paper { Mode::Paper } else { Mode::Default },
+        detail: if args.linear {
+            DetailTerm::Linear
+        } else {
+            DetailTerm::Nonlinear
+        },
+        mode: if args.paper {
+            Mode::Paper
+        } else {
+            Mode::Default
+        },
         tol: args.tol,
         max_iters: args.max_iters,
+        anderson: args.anderson,
     };
     params.validate()?;
     if args.steps == 0 {
@@ -162,8 +182,13 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         ms(solve),
         ms(solve) / iterations.max(1) as f64
     );
-    io::write_path_with(&args.output, deformer.pose(), mesh.triangles(), Default::default())
-        .with_context(|| format!("writing {}", args.output.display()))?;
+    io::write_path_with(
+        &args.output,
+        deformer.pose(),
+        mesh.triangles(),
+        Default::default(),
+    )
+    .with_context(|| format!("writing {}", args.output.display()))?;
     Ok(())
 }
 

@@ -7,6 +7,10 @@ use std::process::ExitCode;
 
 use clap::{Parser, Subcommand};
 
+mod curvature;
+mod deform;
+mod gen;
+mod info;
 mod loadtest;
 mod serve;
 
@@ -20,6 +24,14 @@ struct Cli {
 
 #[derive(Debug, Subcommand)]
 enum Command {
+    /// Write a procedural test shape (bar, cylinder, flag, plane, bumpy-plane, torus).
+    Gen(gen::GenArgs),
+    /// Print counts, bounding box, topology and the validation result of a mesh file.
+    Info(info::InfoArgs),
+    /// Per-vertex area, mean, Gaussian curvature and G as CSV (mesh units).
+    Curvature(curvature::CurvatureArgs),
+    /// Deform a mesh with a constraints file or a survey .sel/.def pair.
+    Deform(deform::Args),
     /// Run the deformation server (HTTP + WebSocket; prints its URL).
     Serve(serve::ServeArgs),
     /// Drive N server sessions with M drags each; report drag→frame latency.
@@ -37,6 +49,10 @@ pub fn run() -> ExitCode {
         .init();
     let cli = Cli::parse();
     let result: anyhow::Result<()> = match cli.command {
+        Command::Gen(a) => gen::run(a),
+        Command::Info(a) => info::run(a),
+        Command::Curvature(a) => curvature::run(&a),
+        Command::Deform(a) => deform::run(a),
         Command::Serve(a) => serve::run(a),
         Command::Loadtest(a) => loadtest::run(a),
     };

@@ -16,6 +16,7 @@
 //! pre-operator (`A = P L`); in [`Mode::Paper`] and with the linear detail term
 //! it is the unrotated `A X` (the paper's `A (X' - X)`).
 
+mod anderson;
 mod constraints;
 mod detail;
 mod factor;

@@ -8,6 +8,7 @@ use faer::dyn_stack::{MemBuffer, MemStack};
 use faer::MatMut;
 use nalgebra::{Matrix3, Vector3};
 
+use super::anderson::Anderson;
 use super::constraints::Constraints;
 use super::detail::{local_rotations, Mu, RingWeights};
 use super::factor::Factor;
@@ -131,6 +132,10 @@ struct Scratch {
     y_prev: Vec<Point>,
     best: Vec<Point>,
     targets: Vec<(u32, Point)>,
+    /// Anderson history and flat `3|U|` buffers (current iterate, candidate).
+    anderson: Anderson,
+    x_flat: Vec<Real>,
+    cand: Vec<Real>,
     mem: Option<MemBuffer>,
     sized_for: (usize, usize),
 }
@@ -163,6 +168,7 @@ impl Deformer {
     pub fn set_params(&mut self, params: Params) -> Result<(), DeformError> {
         params.validate()?;
         self.params = params;
+        self.scratch.mem = None; // re-size the scratch (Anderson window) on the next step
         Ok(())
     }
 
@@ -241,6 +247,8 @@ impl Deformer {
             }
         }
         let mut f = self.evaluate(factor);
+        self.scratch.anderson.reset();
+        let accelerate = self.params.detail == DetailTerm::Nonlinear && self.params.anderson > 0;
         let mut report = StepReport {
             iterations: 0,
             last_update: 0.0,
@@ -278,26 +286,65 @@ impl Deformer {
                     (r[k] * r[k] + r[nu + k] * r[nu + k] + r[2 * nu + k] * r[2 * nu + k]).sqrt()
                 })
                 .fold(0.0, Real::max);
-            let mut alpha = 1.0;
-            let mut f_new;
-            loop {
+            // Anderson-accelerated candidate, accepted only if it lowers the objective.
+            let mut accepted = None;
+            if accelerate {
+                let s = &mut self.scratch;
                 for (k, &u) in factor.sys.unknowns.iter().enumerate() {
-                    let p = self.scratch.y_prev[u as usize];
-                    let r = &self.scratch.rhs;
-                    self.y[u as usize] = [
-                        p[0] + alpha * r[k],
-                        p[1] + alpha * r[nu + k],
-                        p[2] + alpha * r[2 * nu + k],
-                    ];
+                    let p = s.y_prev[u as usize];
+                    s.x_flat[k] = p[0];
+                    s.x_flat[nu + k] = p[1];
+                    s.x_flat[2 * nu + k] = p[2];
                 }
-                f_new = self.evaluate(factor);
-                if f_new <= 1.05 * f + 1e-20 || alpha < 1.0 / 16.0 {
-                    break;
+                if s.anderson.step(&s.x_flat, &s.rhs, &mut s.cand) {
+                    let mut mv: Real = 0.0;
+                    for (k, &u) in factor.sys.unknowns.iter().enumerate() {
+                        let c = [s.cand[k], s.cand[nu + k], s.cand[2 * nu + k]];
+                        let p = s.y_prev[u as usize];
+                        mv = mv.max(
+                            ((c[0] - p[0]).powi(2) + (c[1] - p[1]).powi(2) + (c[2] - p[2]).powi(2))
+                                .sqrt(),
+                        );
+                        self.y[u as usize] = c;
+                    }
+                    let f_aa = self.evaluate(factor);
+                    if f_aa.is_finite() && f_aa <= f {
+                        accepted = Some((f_aa, mv));
+                    } else {
+                        self.scratch.anderson.reset();
+                    }
                 }
-                alpha *= 0.5;
             }
+            let (f_new, alpha, step_len) = match accepted {
+                Some((f_aa, mv)) => (f_aa, 1.0, mv),
+                None => {
+                    let mut alpha = 1.0;
+                    let mut f_new;
+                    loop {
+                        for (k, &u) in factor.sys.unknowns.iter().enumerate() {
+                            let p = self.scratch.y_prev[u as usize];
+                            let r = &self.scratch.rhs;
+                            self.y[u as usize] = [
+                                p[0] + alpha * r[k],
+                                p[1] + alpha * r[nu + k],
+                                p[2] + alpha * r[2 * nu + k],
+                            ];
+                        }
+                        f_new = self.evaluate(factor);
+                        if f_new <= 1.05 * f + 1e-20 || alpha < 1.0 / 16.0 {
+                            break;
+                        }
+                        alpha *= 0.5;
+                    }
+                    if alpha < 1.0 {
+                        self.scratch.anderson.reset();
+                    }
+                    (f_new, alpha, alpha * max_dx)
+                }
+            };
+            let _ = alpha;
             report.iterations += 1;
-            report.last_update = alpha * max_dx;
+            report.last_update = step_len;
             growing = if f_new > 1.05 * f + 1e-20 {
                 growing + 1
             } else {
@@ -351,6 +398,9 @@ impl Deformer {
             s.r = vec![0.0; 3 * dims.0];
             s.rhs = vec![0.0; 3 * dims.1];
             s.mem = Some(MemBuffer::new(factor.solve_scratch(3)));
+            s.anderson = Anderson::new(self.params.anderson, 3 * dims.1);
+            s.x_flat = vec![0.0; 3 * dims.1];
+            s.cand = vec![0.0; 3 * dims.1];
             s.sized_for = dims;
         }
     }
@@ -409,9 +459,9 @@ impl Deformer {
                 acc[1] -= v * y[1];
                 acc[2] -= v * y[2];
             }
-            for k in 0..3 {
-                s.r[k * nrows + row] = acc[k];
-                obj += acc[k] * acc[k];
+            for (k, a) in acc.iter().enumerate() {
+                s.r[k * nrows + row] = *a;
+                obj += a * a;
             }
         }
         if sys.lambda1 > 0.0 {

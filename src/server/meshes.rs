@@ -12,6 +12,8 @@ use serde::{Deserialize, Serialize};
 
 use super::error::ApiError;
 use super::AppState;
+use crate::mesh::gen::{self, ShapeSpec};
+use crate::mesh::io::{self, Format};
 use crate::mesh::Mesh;
 
 /// `?format=` of an upload.
@@ -20,16 +22,6 @@ use crate::mesh::Mesh;
 pub struct FormatQuery {
     /// `json`, `obj`, `off`, `ply` or `stl`.
     pub format: Option<String>,
-}
-
-/// A mesh as JSON.
-#[derive(Debug, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct MeshJson {
-    /// `#V×3` positions.
-    pub positions: Vec<[f64; 3]>,
-    /// `#F×3` vertex indices, counter-clockwise.
-    pub triangles: Vec<[u32; 3]>,
 }
 
 /// Answer of upload/generate/info.
@@ -82,19 +74,25 @@ fn check_vertices(st: &AppState, n: usize) -> Result<(), ApiError> {
 }
 
 fn parse_mesh(format: &str, body: &[u8], max_vertices: usize) -> Result<Mesh, ApiError> {
-    match format {
-        "json" => {
-            let m: MeshJson = serde_json::from_slice(body).map_err(|e| ApiError::InvalidJson(e.to_string()))?;
-            if m.positions.len() > max_vertices {
-                return Err(ApiError::TooManyVertices { got: m.positions.len(), limit: max_vertices });
-            }
-            Mesh::new(m.positions, m.triangles).map_err(|e| ApiError::InvalidMesh(e.to_string()))
+    let raw = match format {
+        "json" => io::parse_json(body).map_err(|e| ApiError::InvalidJson(e.to_string()))?,
+        other => {
+            let f = parse_format(other)?;
+            io::parse_bytes(body, f).map_err(|e| ApiError::InvalidMesh(format!("{f}: {e}")))?
         }
-        "obj" | "off" | "ply" | "stl" => {
-            Err(ApiError::UnsupportedFormat(format!("`{format}` reader not available yet")))
-        }
-        other => Err(ApiError::UnsupportedFormat(format!("`{other}`"))),
+    };
+    if raw.positions.len() > max_vertices {
+        return Err(ApiError::TooManyVertices { got: raw.positions.len(), limit: max_vertices });
     }
+    raw.into_mesh().map_err(|e| ApiError::InvalidMesh(e.to_string()))
+}
+
+/// A mesh file format by name (`obj`, `off`, `ply`, `stl`).
+pub(crate) fn parse_format(name: &str) -> Result<Format, ApiError> {
+    Format::ALL
+        .into_iter()
+        .find(|f| f.extension() == name)
+        .ok_or_else(|| ApiError::UnsupportedFormat(format!("`{name}` (use json, obj, off, ply or stl)")))
 }
 
 async fn store_mesh(st: &AppState, mesh: Mesh) -> Result<(StatusCode, Json<MeshInfo>), ApiError> {
@@ -128,28 +126,18 @@ pub async fn upload(
     store_mesh(&st, mesh).await
 }
 
-/// `POST /v1/meshes/generate` body.
-#[derive(Debug, Deserialize)]
-pub struct GenerateRequest {
-    /// Shape name.
-    pub shape: String,
-    /// Shape parameters.
-    #[serde(flatten)]
-    pub params: serde_json::Map<String, serde_json::Value>,
-}
-
-/// `POST /v1/meshes/generate`: a procedural test shape.
+/// `POST /v1/meshes/generate`: a procedural test shape,
+/// `{"shape": "bar", "params": {"nu": .., "nv": .., "size": .., ...}}`.
 pub async fn generate(
     State(st): State<AppState>,
-    body: Result<Json<GenerateRequest>, axum::extract::rejection::JsonRejection>,
+    body: Result<Json<ShapeSpec>, axum::extract::rejection::JsonRejection>,
 ) -> Result<impl IntoResponse, ApiError> {
-    let Json(req) = body?;
-    let mesh = generate_mesh(&req)?;
+    let Json(spec) = body?;
+    let mesh = tokio::task::spawn_blocking(move || gen::generate(&spec))
+        .await
+        .map_err(|e| ApiError::Internal(e.to_string()))?
+        .map_err(|e| ApiError::InvalidParams(e.to_string()))?;
     store_mesh(&st, mesh).await
-}
-
-fn generate_mesh(req: &GenerateRequest) -> Result<Mesh, ApiError> {
-    Err(ApiError::InvalidParams(format!("unknown shape `{}` ({} parameters)", req.shape, req.params.len())))
 }
 
 /// `GET /v1/meshes/{id}`.

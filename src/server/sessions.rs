@@ -18,7 +18,7 @@ use sha2::{Digest, Sha256};
 use subtle::ConstantTimeEq;
 
 use super::error::ApiError;
-use super::meshes::new_id;
+use super::meshes::{new_id, parse_format};
 use super::{rest_for, AppState};
 use crate::deform::Params;
 use crate::session::{Delta, HandleRef, PoseSnapshot, SessionHandle, SessionOptions};
@@ -336,50 +336,21 @@ pub async fn pose(Authed(s): Authed, headers: HeaderMap) -> Result<Response, Api
 #[derive(Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct ExportQuery {
-    /// `obj` (default) or `ply`.
+    /// `obj` (default), `off`, `ply` or `stl`.
     pub format: Option<String>,
 }
 
-/// `GET /v1/sessions/{id}/export?format=obj|ply`: the current pose.
+/// `GET /v1/sessions/{id}/export?format=obj|off|ply|stl`: the current
+/// pose as a mesh file (PLY and STL binary little-endian).
 pub async fn export(Authed(s): Authed, Query(q): Query<ExportQuery>) -> Result<Response, ApiError> {
     let p = s.pose().await?;
-    let mesh = s.rest().mesh();
-    let format = q.format.unwrap_or_else(|| "obj".into()).to_ascii_lowercase();
-    let (ct, text) = match format.as_str() {
-        "obj" => ("model/obj", write_obj(&p.positions, mesh.triangles())),
-        "ply" => ("model/ply", write_ply(&p.positions, mesh.triangles())),
-        other => return Err(ApiError::UnsupportedFormat(format!("export format `{other}`"))),
-    };
-    Ok(([(header::CONTENT_TYPE, ct)], text).into_response())
-}
-
-fn write_obj(v: &[[f64; 3]], f: &[[u32; 3]]) -> String {
-    use std::fmt::Write;
-    let mut s = String::with_capacity(v.len() * 40 + f.len() * 24);
-    for p in v {
-        let _ = writeln!(s, "v {} {} {}", p[0], p[1], p[2]);
-    }
-    for t in f {
-        let _ = writeln!(s, "f {} {} {}", t[0] + 1, t[1] + 1, t[2] + 1);
-    }
-    s
-}
-
-fn write_ply(v: &[[f64; 3]], f: &[[u32; 3]]) -> String {
-    use std::fmt::Write;
-    let mut s = format!(
-        "ply\nformat ascii 1.0\nelement vertex {}\nproperty double x\nproperty double y\nproperty double z\n\
-         element face {}\nproperty list uchar int vertex_indices\nend_header\n",
-        v.len(),
-        f.len()
-    );
-    for p in v {
-        let _ = writeln!(s, "{} {} {}", p[0], p[1], p[2]);
-    }
-    for t in f {
-        let _ = writeln!(s, "3 {} {} {}", t[0], t[1], t[2]);
-    }
-    s
+    let format = parse_format(&q.format.unwrap_or_else(|| "obj".into()).to_ascii_lowercase())?;
+    let rest = s.rest().clone();
+    let bytes = tokio::task::spawn_blocking(move || crate::mesh::io::to_bytes(&p.positions, rest.mesh().triangles(), format))
+        .await
+        .map_err(|e| ApiError::Internal(e.to_string()))?;
+    let ct = format!("model/{}", format.extension());
+    Ok(([(header::CONTENT_TYPE, ct)], bytes).into_response())
 }
 
 /// `POST /v1/sessions/{id}/undo`.
