@@ -277,7 +277,11 @@ function onEvent(e) {
       setState('ready');
       break;
     case 'error':
-      showError(e);
+      if ((e.code === 'unknown_handle' || e.code === 'not_ready') && (app.dirtyLabels || !app.applied)) {
+        showError({ code: e.code, message: `${e.message} — the painted regions are not applied yet: paint a fixed region and press “Apply constraints”` });
+      } else {
+        showError(e);
+      }
       if (app.state === 'building') setState('failed');
       break;
     case 'handle_grabbed':
@@ -285,7 +289,10 @@ function onEvent(e) {
       break;
     case 'peer_joined':
     case 'peer_left':
-      $('stPeers').textContent = String(Math.max(1, (+$('stPeers').textContent || 1) + (e.type === 'peer_joined' ? 1 : -1)));
+      if (e.client !== app.you) {
+        const n = (+$('stPeers').textContent || 1) + (e.type === 'peer_joined' ? 1 : -1);
+        $('stPeers').textContent = String(Math.max(1, n));
+      }
       break;
     default:
       break;
