@@ -49,7 +49,10 @@ fn file(path: &str) -> Response {
         None => embedded.to_vec(),
     };
     (
-        [(header::CONTENT_TYPE, content_type(name)), (header::CACHE_CONTROL, "no-cache")],
+        [
+            (header::CONTENT_TYPE, content_type(name)),
+            (header::CACHE_CONTROL, "no-cache"),
+        ],
         body,
     )
         .into_response()
@@ -61,7 +64,10 @@ pub fn router<S: Clone + Send + Sync + 'static>() -> Router<S> {
         .route("/", get(|| async { file("index.html") }))
         .route("/index.html", get(|| async { file("index.html") }))
         .route("/style.css", get(|| async { file("style.css") }))
-        .route("/js/{file}", get(|Path(f): Path<String>| async move { file(&format!("js/{f}")) }))
+        .route(
+            "/js/{file}",
+            get(|Path(f): Path<String>| async move { file(&format!("js/{f}")) }),
+        )
 }
 
 #[cfg(test)]
@@ -90,7 +96,10 @@ mod tests {
         assert_eq!(file("../Cargo.toml").status(), StatusCode::NOT_FOUND);
         let r = file("index.html");
         assert_eq!(r.status(), StatusCode::OK);
-        assert_eq!(r.headers()[header::CONTENT_TYPE], "text/html; charset=utf-8");
+        assert_eq!(
+            r.headers()[header::CONTENT_TYPE],
+            "text/html; charset=utf-8"
+        );
         assert_eq!(content_type("js/app.js"), "text/javascript; charset=utf-8");
     }
 }

@@ -169,16 +169,36 @@ async function main() {
       c.pitch = 0.3;
       window.dend.app.needsDraw = true;
     });
+    await page.uncheck('#autoApply');
+
+    // Brush: a second handle painted and erased (Alt) on the visible side.
+    const cb = await page.locator('#view').boundingBox();
+    const mid = [...Array(n).keys()].filter((i) => Math.abs(z(i) - zmax / 2) < 0.2)
+      .sort((a, b) => rest[3 * b] - rest[3 * a])[0];
+    const [mx, my] = (await page.evaluate((i) => window.dend.project([i]), mid))[0];
+    await page.check('input[name=tool][value=brush]');
+    await page.click('#addHandle');
+    assert.equal(await page.inputValue('#target'), 'h1');
+    await page.mouse.click(cb.x + mx, cb.y + my);
+    const brushed = (await page.evaluate(() => window.dend.labels())).flatMap((l, i) => (l === 2 ? [i] : []));
+    log('brush painted', brushed.length, 'vertices');
+    assert.ok(brushed.includes(mid) && brushed.length < n / 4, 'the brush paints around the cursor');
+    const xs = Array.from({ length: n }, (_, i) => rest[3 * i]);
+    const xmid = (Math.min(...xs) + Math.max(...xs)) / 2;
+    assert.ok(brushed.every((i) => rest[3 * i] > xmid), 'without "through" only the visible side (+x) is painted');
+    await page.keyboard.down('Alt');
+    await page.mouse.click(cb.x + mx, cb.y + my);
+    await page.keyboard.up('Alt');
+    assert.ok((await page.evaluate(() => window.dend.labels())).every((l) => l !== 2), 'Alt+brush erases');
+
     await page.check('input[name=tool][value=box]');
     await page.check('#throughSel');
-    await page.uncheck('#autoApply');
 
     // Paint the handle only and drag it before any constraints: readable error.
     await page.selectOption('#target', 'h0');
     await boxSelect(page, await screenBox(page, handleIdx, 6));
     await page.check('input[name=tool][value=navigate]');
     const [hx, hy] = (await page.evaluate((i) => window.dend.project([i]), handleIdx[0]))[0];
-    const cb = await page.locator('#view').boundingBox();
     await page.mouse.move(cb.x + hx, cb.y + hy);
     await page.mouse.down();
     await page.mouse.move(cb.x + hx, cb.y + hy - 40, { steps: 4 });
@@ -287,6 +307,19 @@ async function main() {
     await page.waitForTimeout(300);
     await page.screenshot({ path: join(artifacts, '4-twisted.png') });
     if (process.env.DEND_UPDATE_SCREENSHOT) copyFileSync(join(artifacts, '4-twisted.png'), join(root, 'docs', 'screenshot.png'));
+
+    // Upload: a 4×4 grid as OBJ through the file input.
+    const g = [];
+    for (let j = 0; j < 4; j++) for (let i = 0; i < 4; i++) g.push(`v ${i} ${j} 0`);
+    for (let j = 0; j < 3; j++) {
+      for (let i = 0; i < 3; i++) {
+        const a = 4 * j + i + 1;
+        g.push(`f ${a} ${a + 1} ${a + 5}`, `f ${a} ${a + 5} ${a + 4}`);
+      }
+    }
+    await page.setInputFiles('#upload', { name: 'grid.obj', mimeType: 'text/plain', buffer: Buffer.from(g.join('\n') + '\n') });
+    await waitFor(page, () => window.dend.app.positions && window.dend.app.positions.length === 48 && window.dend.app.ws, null, 'the uploaded grid');
+    assert.match(await page.locator('#meshinfo').textContent(), /^16 vertices, 18 triangles/);
 
     assert.deepEqual(pageErrors, [], 'no page or console errors');
     writeFileSync(join(artifacts, 'result.txt'), `ok\nlatencies_ms ${stats.latencies.join(' ')}\n`);
