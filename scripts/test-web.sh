@@ -4,6 +4,7 @@
 # builds `dend`, and runs the test against the real `dend serve`.
 # Idempotent. Under CI=true a failed install is a failure; otherwise the test
 # is skipped with a message. Screenshots: web/test-artifacts/.
+# `--install-only` installs and stops (for .ci/run's set-up step).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
@@ -32,6 +33,8 @@ fi
 if [ ! -f web/node_modules/playwright-core/package.json ]; then
   (cd web && npm ci --no-audit --no-fund --loglevel=error) || skip_or_fail "npm ci (playwright-core) failed"
 fi
+
+[ "${1:-}" = "--install-only" ] && exit 0
 
 cargo build --bin dend
 export CHROMIUM
