@@ -68,6 +68,7 @@ function updateStats() {
   $('stConv').textContent = f ? (f.converged ? 'converged' : 'iterating…') : '–';
   $('stFrames').textContent = String(app.frames);
   const l = app.latencies;
+  $('stLatency').textContent = '–';
   if (l.length) {
     const s = [...l].sort((a, b) => a - b);
     $('stLatency').textContent = `${l[l.length - 1].toFixed(0)} ms (median ${s[s.length >> 1].toFixed(0)})`;
@@ -189,6 +190,7 @@ async function openSession(id, token, meshId) {
   app.last = null;
   app.latencies = [];
   app.sent.clear();
+  updateStats();
   const link = `${location.origin}${location.pathname}#session=${id}&token=${token}`;
   $('shareLink').value = link;
   app.ws = await app.api.connect(id, token, { frame: onFrame, event: onEvent, close: onClose });
