@@ -12,6 +12,7 @@
 //!   API) and its Rust client.
 #![warn(missing_docs)]
 
+pub mod client;
 pub mod deform;
 pub mod measure;
 pub mod mesh;
@@ -19,4 +20,3 @@ pub mod operators;
 pub mod server;
 pub mod session;
 pub mod store;
-pub mod client;

@@ -39,7 +39,12 @@ pub struct MeshInfo {
 
 fn info_of(id: String, m: &Mesh) -> MeshInfo {
     let (lo, hi) = m.bounding_box();
-    MeshInfo { id, vertices: m.num_vertices(), triangles: m.num_triangles(), bbox: [lo, hi] }
+    MeshInfo {
+        id,
+        vertices: m.num_vertices(),
+        triangles: m.num_triangles(),
+        bbox: [lo, hi],
+    }
 }
 
 /// A new random 128-bit id, hex.
@@ -52,23 +57,42 @@ fn format_of(q: &FormatQuery, headers: &HeaderMap) -> Result<String, ApiError> {
     if let Some(f) = &q.format {
         return Ok(f.to_ascii_lowercase());
     }
-    let ct = headers.get(header::CONTENT_TYPE).and_then(|v| v.to_str().ok()).unwrap_or("");
-    let mime = ct.split(';').next().unwrap_or("").trim().to_ascii_lowercase();
+    let ct = headers
+        .get(header::CONTENT_TYPE)
+        .and_then(|v| v.to_str().ok())
+        .unwrap_or("");
+    let mime = ct
+        .split(';')
+        .next()
+        .unwrap_or("")
+        .trim()
+        .to_ascii_lowercase();
     Ok(match mime.as_str() {
         "application/json" => "json",
         "model/obj" | "text/x-obj" => "obj",
         "model/off" | "text/x-off" => "off",
         "model/ply" | "application/ply" | "text/x-ply" => "ply",
         "model/stl" | "application/sla" | "model/x.stl-binary" => "stl",
-        "" => return Err(ApiError::UnsupportedFormat("no Content-Type and no ?format=".into())),
-        other => return Err(ApiError::UnsupportedFormat(format!("Content-Type `{other}`"))),
+        "" => {
+            return Err(ApiError::UnsupportedFormat(
+                "no Content-Type and no ?format=".into(),
+            ))
+        }
+        other => {
+            return Err(ApiError::UnsupportedFormat(format!(
+                "Content-Type `{other}`"
+            )))
+        }
     }
     .to_owned())
 }
 
 fn check_vertices(st: &AppState, n: usize) -> Result<(), ApiError> {
     if n > st.config.max_vertices {
-        return Err(ApiError::TooManyVertices { got: n, limit: st.config.max_vertices });
+        return Err(ApiError::TooManyVertices {
+            got: n,
+            limit: st.config.max_vertices,
+        });
     }
     Ok(())
 }
@@ -82,9 +106,13 @@ fn parse_mesh(format: &str, body: &[u8], max_vertices: usize) -> Result<Mesh, Ap
         }
     };
     if raw.positions.len() > max_vertices {
-        return Err(ApiError::TooManyVertices { got: raw.positions.len(), limit: max_vertices });
+        return Err(ApiError::TooManyVertices {
+            got: raw.positions.len(),
+            limit: max_vertices,
+        });
     }
-    raw.into_mesh().map_err(|e| ApiError::InvalidMesh(e.to_string()))
+    raw.into_mesh()
+        .map_err(|e| ApiError::InvalidMesh(e.to_string()))
 }
 
 /// A mesh file format by name (`obj`, `off`, `ply`, `stl`).
@@ -92,7 +120,9 @@ pub(crate) fn parse_format(name: &str) -> Result<Format, ApiError> {
     Format::ALL
         .into_iter()
         .find(|f| f.extension() == name)
-        .ok_or_else(|| ApiError::UnsupportedFormat(format!("`{name}` (use json, obj, off, ply or stl)")))
+        .ok_or_else(|| {
+            ApiError::UnsupportedFormat(format!("`{name}` (use json, obj, off, ply or stl)"))
+        })
 }
 
 async fn store_mesh(st: &AppState, mesh: Mesh) -> Result<(StatusCode, Json<MeshInfo>), ApiError> {
@@ -141,7 +171,13 @@ pub async fn generate(
 }
 
 /// `GET /v1/meshes/{id}`.
-pub async fn info(State(st): State<AppState>, Path(id): Path<String>) -> Result<Json<MeshInfo>, ApiError> {
-    let m = st.store.get_mesh(&id)?.ok_or_else(|| ApiError::MeshNotFound(id.clone()))?;
+pub async fn info(
+    State(st): State<AppState>,
+    Path(id): Path<String>,
+) -> Result<Json<MeshInfo>, ApiError> {
+    let m = st
+        .store
+        .get_mesh(&id)?
+        .ok_or_else(|| ApiError::MeshNotFound(id.clone()))?;
     Ok(Json(info_of(id, &m)))
 }

@@ -41,7 +41,11 @@ pub(crate) fn check_token(s: &SessionHandle, token: Option<&str>) -> Result<(), 
 
 /// Looks a live session up.
 pub(crate) fn find(st: &AppState, id: &str) -> Result<SessionHandle, ApiError> {
-    st.sessions.read().get(id).cloned().ok_or_else(|| ApiError::SessionNotFound(id.to_owned()))
+    st.sessions
+        .read()
+        .get(id)
+        .cloned()
+        .ok_or_else(|| ApiError::SessionNotFound(id.to_owned()))
 }
 
 /// Extractor: the session named in the path, opened by the bearer token.
@@ -97,9 +101,13 @@ pub async fn create(
     body: Result<Json<CreateSession>, JsonRejection>,
 ) -> Result<impl IntoResponse, ApiError> {
     let Json(req) = body?;
-    let params_json = if req.params.is_null() { serde_json::json!({}) } else { req.params };
-    let params: Params =
-        serde_json::from_value(params_json.clone()).map_err(|e| ApiError::InvalidParams(e.to_string()))?;
+    let params_json = if req.params.is_null() {
+        serde_json::json!({})
+    } else {
+        req.params
+    };
+    let params: Params = serde_json::from_value(params_json.clone())
+        .map_err(|e| ApiError::InvalidParams(e.to_string()))?;
     params.validate()?;
     if st.sessions.read().len() >= st.config.max_sessions {
         return Err(ApiError::TooManySessions(st.config.max_sessions));
@@ -114,7 +122,10 @@ pub async fn create(
         token_sha256: hex::encode(hash),
         params: params_json,
         constraints: None,
-        created_unix: SystemTime::now().duration_since(UNIX_EPOCH).map(|d| d.as_secs()).unwrap_or(0),
+        created_unix: SystemTime::now()
+            .duration_since(UNIX_EPOCH)
+            .map(|d| d.as_secs())
+            .unwrap_or(0),
     })?;
     let opts = SessionOptions {
         cache: st.cache.clone(),
@@ -140,7 +151,15 @@ pub async fn create(
     st.metrics.sessions_created.inc();
     st.metrics.sessions.set(st.sessions.read().len() as i64);
     let state = handle.info().state;
-    Ok((StatusCode::CREATED, Json(Created { id, token, mesh_id: req.mesh_id, state })))
+    Ok((
+        StatusCode::CREATED,
+        Json(Created {
+            id,
+            token,
+            mesh_id: req.mesh_id,
+            state,
+        }),
+    ))
 }
 
 /// `GET /v1/sessions/{id}`.
@@ -171,7 +190,10 @@ pub async fn set_constraints(
 ) -> Result<impl IntoResponse, ApiError> {
     let Json(spec) = body?;
     let state = s.set_constraints(spec).await?;
-    Ok((StatusCode::ACCEPTED, Json(serde_json::json!({ "state": state }))))
+    Ok((
+        StatusCode::ACCEPTED,
+        Json(serde_json::json!({ "state": state })),
+    ))
 }
 
 /// A rotation as axis + degrees.
@@ -205,7 +227,11 @@ fn finite<const N: usize>(v: &[Option<f64>; N], what: &str) -> Result<[f64; N], 
     for (i, x) in v.iter().enumerate() {
         match x {
             Some(x) if x.is_finite() => out[i] = *x,
-            _ => return Err(ApiError::NonFinite(format!("`{what}[{i}]` is NaN, infinite or null"))),
+            _ => {
+                return Err(ApiError::NonFinite(format!(
+                    "`{what}[{i}]` is NaN, infinite or null"
+                )))
+            }
         }
     }
     Ok(out)
@@ -220,7 +246,9 @@ impl DeltaJson {
         };
         let rotation = match (&self.rotate, &self.quaternion) {
             (Some(_), Some(_)) => {
-                return Err(ApiError::InvalidJson("give `rotate` or `quaternion`, not both".into()));
+                return Err(ApiError::InvalidJson(
+                    "give `rotate` or `quaternion`, not both".into(),
+                ));
             }
             (Some(r), None) => {
                 let axis = finite(&r.axis, "rotate.axis")?;
@@ -239,7 +267,10 @@ impl DeltaJson {
             }
             (None, None) => UnitQuaternion::identity(),
         };
-        Ok(Delta { rotation, translation: t })
+        Ok(Delta {
+            rotation,
+            translation: t,
+        })
     }
 }
 
@@ -297,11 +328,16 @@ fn pose_json(p: PoseSnapshot) -> Json<PoseJson> {
 }
 
 /// `POST /v1/sessions/{id}/drag`: applies a delta and solves.
-pub async fn drag(Authed(s): Authed, body: Result<Bytes, BytesRejection>) -> Result<Json<PoseJson>, ApiError> {
+pub async fn drag(
+    Authed(s): Authed,
+    body: Result<Bytes, BytesRejection>,
+) -> Result<Json<PoseJson>, ApiError> {
     let req: DragRequest = parse_json(&body?)?;
     let delta = req.delta.to_delta()?;
     let max_iters = req.max_iters.unwrap_or(s.params().max_iters).max(1);
-    Ok(pose_json(s.drag_solve(&req.handle, delta, max_iters).await?))
+    Ok(pose_json(
+        s.drag_solve(&req.handle, delta, max_iters).await?,
+    ))
 }
 
 /// `GET /v1/sessions/{id}/pose`: JSON, or raw f32 LE xyz with
@@ -324,8 +360,14 @@ pub async fn pose(Authed(s): Authed, headers: HeaderMap) -> Result<Response, Api
     Ok((
         [
             (header::CONTENT_TYPE, "application/octet-stream".to_owned()),
-            (header::HeaderName::from_static("x-dend-revision"), p.revision.to_string()),
-            (header::HeaderName::from_static("x-dend-vertex-count"), p.positions.len().to_string()),
+            (
+                header::HeaderName::from_static("x-dend-revision"),
+                p.revision.to_string(),
+            ),
+            (
+                header::HeaderName::from_static("x-dend-vertex-count"),
+                p.positions.len().to_string(),
+            ),
         ],
         buf,
     )
@@ -344,11 +386,17 @@ pub struct ExportQuery {
 /// pose as a mesh file (PLY and STL binary little-endian).
 pub async fn export(Authed(s): Authed, Query(q): Query<ExportQuery>) -> Result<Response, ApiError> {
     let p = s.pose().await?;
-    let format = parse_format(&q.format.unwrap_or_else(|| "obj".into()).to_ascii_lowercase())?;
+    let format = parse_format(
+        &q.format
+            .unwrap_or_else(|| "obj".into())
+            .to_ascii_lowercase(),
+    )?;
     let rest = s.rest().clone();
-    let bytes = tokio::task::spawn_blocking(move || crate::mesh::io::to_bytes(&p.positions, rest.mesh().triangles(), format))
-        .await
-        .map_err(|e| ApiError::Internal(e.to_string()))?;
+    let bytes = tokio::task::spawn_blocking(move || {
+        crate::mesh::io::to_bytes(&p.positions, rest.mesh().triangles(), format)
+    })
+    .await
+    .map_err(|e| ApiError::Internal(e.to_string()))?;
     let ct = format!("model/{}", format.extension());
     Ok(([(header::CONTENT_TYPE, ct)], bytes).into_response())
 }
