@@ -10,6 +10,7 @@ pub mod error;
 mod meshes;
 pub mod metrics;
 mod sessions;
+pub mod web;
 pub mod ws;
 
 use std::collections::HashMap;
@@ -125,6 +126,8 @@ pub fn app(state: AppState) -> Router {
     }
     let timeout = state.config.request_timeout();
     router
+        // The web client's static files (`/`, outside the `/v1` API).
+        .merge(web::router())
         .fallback(|uri: Uri| async move { ApiError::RouteNotFound(uri.path().to_owned()) })
         .layer(
             ServiceBuilder::new()

@@ -1,0 +1,41 @@
+#!/usr/bin/env bash
+# Browser test of the web client (web/tests/browser.test.mjs): installs what
+# it needs if missing (Debian's chromium, node/npm, playwright-core from npm),
+# builds `dend`, and runs the test against the real `dend serve`.
+# Idempotent. Under CI=true a failed install is a failure; otherwise the test
+# is skipped with a message. Screenshots: web/test-artifacts/.
+# `--install-only` installs and stops (for .ci/run's set-up step).
+set -euo pipefail
+cd "$(dirname "$0")/.."
+
+skip_or_fail() {
+  if [ "${CI:-}" = "true" ]; then
+    echo "test-web: $1" >&2
+    exit 1
+  fi
+  echo "test-web: skipping: $1" >&2
+  exit 0
+}
+
+apt_install() {
+  command -v apt-get >/dev/null || return 1
+  local sudo=""
+  [ "$(id -u)" = 0 ] || sudo="sudo -n"
+  $sudo apt-get update -qq && DEBIAN_FRONTEND=noninteractive $sudo apt-get install -y -qq "$@" >/dev/null
+}
+
+CHROMIUM="${CHROMIUM:-/usr/bin/chromium}"
+if [ ! -x "$CHROMIUM" ] || ! command -v node >/dev/null || ! command -v npm >/dev/null; then
+  apt_install chromium chromium-driver nodejs npm || skip_or_fail "could not install chromium/nodejs/npm"
+fi
+[ -x "$CHROMIUM" ] || skip_or_fail "no chromium at $CHROMIUM"
+
+if [ ! -f web/node_modules/playwright-core/package.json ]; then
+  (cd web && npm ci --no-audit --no-fund --loglevel=error) || skip_or_fail "npm ci (playwright-core) failed"
+fi
+
+[ "${1:-}" = "--install-only" ] && exit 0
+
+cargo build --bin dend
+export CHROMIUM
+DEND_BIN="${CARGO_TARGET_DIR:-$(pwd)/target}/debug/dend" node web/tests/browser.test.mjs

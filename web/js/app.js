@@ -1,0 +1,405 @@
+// The dend reference client: session set-up, region labels, constraints,
+// WebSocket pose frames and the UI panel. Mouse handling is in interact.js.
+// Everything goes through the public API (api.js); `window.dend` exposes a
+// read-only view of the state for the browser test.
+
+import { Api, ApiError } from './api.js';
+import { OrbitCamera } from './camera.js';
+import { parseObj, vertexNormals, edgeList, bbox } from './mesh.js';
+import { Renderer } from './renderer.js';
+import { attachInteraction } from './interact.js';
+import { project } from './select.js';
+
+const $ = (id) => document.getElementById(id);
+const FREE = 0;
+const FIXED = -1; // labels: 0 free, -1 fixed, k + 1 handle k
+
+export const app = {
+  api: new Api(),
+  camera: new OrbitCamera(),
+  renderer: null,
+  session: null, // {id, token, meshId}
+  ws: null,
+  you: null,
+  state: 'none',
+  mesh: null, // {triangles, edges, rest}
+  positions: null,
+  normals: null,
+  colors: null,
+  labels: null,
+  handles: 0,
+  applied: null, // {serverIndexOf: Map(uiHandle → server index), json}
+  dirtyLabels: false,
+  seq: 0,
+  sent: new Map(), // seq → send time (ms)
+  latencies: [],
+  frames: 0,
+  last: null, // last frame header
+  needsDraw: true,
+};
+
+// ---------- errors and status ----------
+
+export function showError(e) {
+  const text = e instanceof ApiError || (e && e.code) ? `${e.code}: ${e.message}` : String(e && e.message ? e.message : e);
+  $('errorText').textContent = text;
+  $('error').hidden = false;
+}
+$('errorClose').onclick = () => { $('error').hidden = true; };
+
+function guarded(fn) {
+  return async (...a) => {
+    try {
+      await fn(...a);
+    } catch (e) {
+      showError(e);
+    }
+  };
+}
+
+function setState(s) {
+  app.state = s;
+  $('stState').textContent = `session: ${s}`;
+}
+
+function updateStats() {
+  const f = app.last;
+  $('stIter').textContent = f ? String(f.iteration) : '–';
+  $('stConv').textContent = f ? (f.converged ? 'converged' : 'iterating…') : '–';
+  $('stFrames').textContent = String(app.frames);
+  const l = app.latencies;
+  $('stLatency').textContent = '–';
+  if (l.length) {
+    const s = [...l].sort((a, b) => a - b);
+    $('stLatency').textContent = `${l[l.length - 1].toFixed(0)} ms (median ${s[s.length >> 1].toFixed(0)})`;
+  }
+}
+
+// ---------- colours and labels ----------
+
+const HANDLE_COLORS = [[0.15, 0.35, 0.95], [0.2, 0.6, 1.0], [0.45, 0.25, 0.95], [0.1, 0.75, 0.85]];
+
+function recolor() {
+  const c = app.colors;
+  for (let i = 0; i < app.labels.length; i++) {
+    const l = app.labels[i];
+    const rgb = l === FIXED ? [0.9, 0.15, 0.12] : l > 0 ? HANDLE_COLORS[(l - 1) % HANDLE_COLORS.length] : [0.55, 0.8, 0.5];
+    c.set(rgb, 3 * i);
+  }
+  app.renderer.setColors(c);
+  app.needsDraw = true;
+  const nf = app.labels.filter((l) => l === FIXED).length;
+  const counts = [];
+  for (let h = 1; h <= app.handles; h++) counts.push(app.labels.filter((l) => l === h).length);
+  $('selinfo').textContent = `fixed ${nf}; handles [${counts.join(', ')}]${app.dirtyLabels ? ' — not applied' : ''}`;
+}
+
+/** Paints vertex indices with the current target (fixed, a handle, erase). */
+export function paint(indices, erase = false) {
+  const t = $('target').value;
+  const label = erase || t === 'erase' ? FREE : t === 'fixed' ? FIXED : Number(t.slice(1)) + 1;
+  for (const i of indices) app.labels[i] = label;
+  app.dirtyLabels = true;
+  recolor();
+}
+
+function addHandle() {
+  const k = app.handles++;
+  const o = document.createElement('option');
+  o.value = `h${k}`;
+  o.textContent = `handle ${k}`;
+  $('target').appendChild(o);
+  $('target').value = o.value;
+}
+
+/** The constraints JSON of the painted labels (empty handles are skipped). */
+function constraintsJson() {
+  const fixed = [];
+  const groups = Array.from({ length: app.handles }, () => []);
+  app.labels.forEach((l, i) => {
+    if (l === FIXED) fixed.push(i);
+    else if (l > 0) groups[l - 1].push(i);
+  });
+  const serverIndexOf = new Map();
+  const handles = [];
+  groups.forEach((g, k) => {
+    if (g.length) {
+      serverIndexOf.set(k, handles.length);
+      handles.push({ name: `handle${k}`, vertices: g });
+    }
+  });
+  return { json: { fixed, handles }, serverIndexOf };
+}
+
+const applyConstraints = guarded(async () => {
+  if (!app.session) throw new ApiError('no_session', 'generate or upload a mesh first');
+  const c = constraintsJson();
+  setState('building');
+  app.applied = c;
+  app.dirtyLabels = false;
+  recolor();
+  await app.api.setConstraints(app.session.id, app.session.token, c.json);
+});
+
+/** Called by the painting tools when a stroke ends. */
+export function strokeEnded() {
+  if ($('autoApply').checked && app.session) applyConstraints();
+}
+
+// ---------- session ----------
+
+function params() {
+  const e = $('energy').value;
+  const energy = e === 'combined' ? { combined: { ks: +$('ks').value, kb: +$('kb').value } } : e;
+  return {
+    energy,
+    lambda1: $('hard').checked ? 0 : +$('lambda1').value,
+    lambda2: +$('lambda2').value,
+    detail: $('detail').value,
+    mode: $('mode').value,
+  };
+}
+
+function setMesh(obj) {
+  app.mesh = { triangles: obj.triangles, edges: edgeList(obj.triangles) };
+  app.positions = obj.positions;
+  app.normals = new Float32Array(obj.positions.length);
+  app.colors = new Float32Array(obj.positions.length);
+  app.labels = new Int32Array(obj.positions.length / 3);
+  app.renderer.setTopology(app.mesh.triangles, app.mesh.edges);
+  app.camera.fit(bbox(obj.positions));
+  uploadPose();
+  recolor();
+  $('meshinfo').textContent = `${obj.positions.length / 3} vertices, ${obj.triangles.length / 3} triangles`;
+}
+
+function uploadPose() {
+  vertexNormals(app.positions, app.mesh.triangles, app.normals);
+  app.renderer.setPositions(app.positions, app.normals);
+  app.needsDraw = true;
+}
+
+async function openSession(id, token, meshId) {
+  if (app.ws) {
+    app.ws.onclose = null;
+    app.ws.close();
+    app.ws = null;
+  }
+  app.session = { id, token, meshId };
+  app.frames = 0;
+  app.last = null;
+  app.latencies = [];
+  app.sent.clear();
+  updateStats();
+  const link = `${location.origin}${location.pathname}#session=${id}&token=${token}`;
+  $('shareLink').value = link;
+  app.ws = await app.api.connect(id, token, { frame: onFrame, event: onEvent, close: onClose });
+}
+
+async function startSession(meshId) {
+  const s = await app.api.createSession(meshId, params());
+  // The triangles come from the OBJ export of the rest pose (the API has no
+  // route for the mesh itself); then the socket, whose frames need them.
+  setMesh(parseObj(await app.api.exportObj(s.id, s.token)));
+  setState(s.state || 'empty');
+  await openSession(s.id, s.token, meshId);
+}
+
+const generate = guarded(async () => {
+  setState('creating');
+  const m = await app.api.generate($('shape').value);
+  await startSession(m.id);
+  resetPaint();
+});
+
+const upload = guarded(async (ev) => {
+  const file = ev.target.files[0];
+  if (!file) return;
+  setState('uploading');
+  const m = await app.api.upload(file);
+  await startSession(m.id);
+  resetPaint();
+});
+
+function resetPaint() {
+  app.handles = 0;
+  app.applied = null;
+  app.dirtyLabels = false;
+  for (const o of [...$('target').options]) if (o.value.startsWith('h')) o.remove();
+  addHandle();
+  $('target').value = 'fixed';
+  recolor();
+}
+
+const restartWithParams = guarded(async () => {
+  if (!app.session) throw new ApiError('no_session', 'generate or upload a mesh first');
+  const s = await app.api.createSession(app.session.meshId, params());
+  setState(s.state || 'empty');
+  await openSession(s.id, s.token, app.session.meshId);
+  if (app.applied) await applyConstraints();
+});
+
+/** Joins an existing session from a share link (#session=…&token=…). */
+async function join(id, token) {
+  setState('joining');
+  const info = await app.api.session(id, token);
+  setMesh(parseObj(await app.api.exportObj(id, token)));
+  resetPaint();
+  setState(info.state);
+  await openSession(id, token, info.mesh_id);
+}
+
+// ---------- WebSocket ----------
+
+function onFrame(f) {
+  if (!app.positions || f.positions.length !== app.positions.length) return;
+  const now = performance.now();
+  for (const [s, t] of app.sent) {
+    if (s <= f.ackSeq) {
+      app.latencies.push(now - t);
+      if (app.latencies.length > 100) app.latencies.shift();
+      app.sent.delete(s);
+    }
+  }
+  app.positions = new Float32Array(f.positions);
+  app.frames++;
+  app.last = f;
+  uploadPose();
+  updateStats();
+}
+
+function onEvent(e) {
+  switch (e.type) {
+    case 'state':
+      if (e.you !== undefined) app.you = e.you;
+      setState(e.state);
+      $('stPeers').textContent = String(e.peers);
+      break;
+    case 'ready':
+      setState('ready');
+      break;
+    case 'error':
+      if ((e.code === 'unknown_handle' || e.code === 'not_ready') && (app.dirtyLabels || !app.applied)) {
+        showError({ code: e.code, message: `${e.message} — the painted regions are not applied yet: paint a fixed region and press “Apply constraints”` });
+      } else {
+        showError(e);
+      }
+      if (app.state === 'building') setState('failed');
+      break;
+    case 'handle_grabbed':
+      if (e.client !== app.you) $('stState').textContent = `handle ${e.handle} held by client ${e.client}`;
+      break;
+    case 'peer_joined':
+    case 'peer_left':
+      if (e.client !== app.you) {
+        const n = (+$('stPeers').textContent || 1) + (e.type === 'peer_joined' ? 1 : -1);
+        $('stPeers').textContent = String(Math.max(1, n));
+      }
+      break;
+    default:
+      break;
+  }
+}
+
+function onClose(code, reason) {
+  app.ws = null;
+  setState('disconnected');
+  if (code !== 1000) showError({ code: `closed_${code}`, message: reason || 'the session socket closed' });
+}
+
+/** Sends a JSON message on the session socket. */
+export function send(msg) {
+  if (!app.ws || app.ws.readyState !== WebSocket.OPEN) {
+    showError({ code: 'not_connected', message: 'no session: generate or upload a mesh first' });
+    return false;
+  }
+  app.ws.send(JSON.stringify(msg));
+  return true;
+}
+
+/** Server handle index of a painted UI handle (its painted index when the
+ * constraints were never applied, so the server can say what is wrong). */
+export function serverHandle(uiHandle) {
+  if (app.applied && app.applied.serverIndexOf.has(uiHandle)) return app.applied.serverIndexOf.get(uiHandle);
+  return uiHandle;
+}
+
+/** Sends one drag delta and records its send time for the latency. */
+export function sendDrag(uiHandle, translate, rotate) {
+  const seq = ++app.seq;
+  const msg = { type: 'drag', handle: serverHandle(uiHandle), translate, seq };
+  if (rotate) msg.rotate = rotate;
+  if (send(msg)) app.sent.set(seq, performance.now());
+}
+
+// ---------- pose buttons ----------
+
+async function download(name, text) {
+  const a = document.createElement('a');
+  a.href = URL.createObjectURL(new Blob([text], { type: 'model/obj' }));
+  a.download = name;
+  a.click();
+  setTimeout(() => URL.revokeObjectURL(a.href), 1000);
+}
+
+function needSession() {
+  if (!app.session) throw new ApiError('no_session', 'generate or upload a mesh first');
+  return app.session;
+}
+
+$('generate').onclick = generate;
+$('upload').onchange = upload;
+$('addHandle').onclick = addHandle;
+$('apply').onclick = applyConstraints;
+$('clearSel').onclick = () => { app.labels.fill(FREE); app.dirtyLabels = true; recolor(); };
+$('applyParams').onclick = restartWithParams;
+$('undo').onclick = () => send({ type: 'undo' });
+$('redo').onclick = () => send({ type: 'redo' });
+$('reset').onclick = guarded(async () => { const s = needSession(); await app.api.reset(s.id, s.token); });
+$('export').onclick = guarded(async () => {
+  const s = needSession();
+  await download(`dend-${s.id.slice(0, 8)}.obj`, await app.api.exportObj(s.id, s.token));
+});
+$('share').onclick = guarded(async () => {
+  needSession();
+  $('shareLink').select();
+  if (navigator.clipboard) await navigator.clipboard.writeText($('shareLink').value).catch(() => {});
+});
+$('wireframe').onchange = (e) => { app.renderer.wireframe = e.target.checked; app.needsDraw = true; };
+$('energy').onchange = (e) => { $('combinedRow').hidden = e.target.value !== 'combined'; };
+$('hard').onchange = (e) => { $('lambda1').disabled = e.target.checked; };
+
+// ---------- start ----------
+
+function loop() {
+  if (app.needsDraw && app.renderer) {
+    app.renderer.draw(app.camera);
+    app.needsDraw = false;
+  }
+  requestAnimationFrame(loop);
+}
+
+try {
+  app.renderer = new Renderer($('view'));
+  attachInteraction(app, $('view'));
+  new ResizeObserver(() => { app.needsDraw = true; }).observe($('view'));
+  requestAnimationFrame(loop);
+  const h = new URLSearchParams(location.hash.slice(1));
+  if (h.get('session') && h.get('token')) guarded(join)(h.get('session'), h.get('token'));
+} catch (e) {
+  showError(e);
+}
+
+/** Read-only state for tests and the console. */
+window.dend = {
+  app,
+  positions: () => (app.positions ? Array.from(app.positions) : null),
+  labels: () => (app.labels ? Array.from(app.labels) : null),
+  /** CSS-pixel [x, y] of each vertex index in the current view. */
+  project: (indices) => {
+    const c = $('view');
+    const s = project(app.positions, Renderer.mvp(app.camera, c.clientWidth / c.clientHeight), c.clientWidth, c.clientHeight);
+    return indices.map((i) => [s[3 * i], s[3 * i + 1]]);
+  },
+  stats: () => ({ state: app.state, frames: app.frames, last: app.last && { ...app.last, positions: undefined }, latencies: [...app.latencies] }),
+};

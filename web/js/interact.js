@@ -1,0 +1,158 @@
+// Mouse interaction on the canvas: orbit/pan/zoom, brush and box painting,
+// and handle dragging (translate in the view plane; Shift rotates about the
+// handle's centroid).
+
+import { Renderer } from './renderer.js';
+import { project, brush, box, frontFacing, pick } from './select.js';
+import { sub, dot, add, scale } from './camera.js';
+import { paint, strokeEnded, sendDrag, send, serverHandle } from './app.js';
+
+const $ = (id) => document.getElementById(id);
+
+function tool() {
+  return document.querySelector('input[name=tool]:checked').value;
+}
+
+export function attachInteraction(app, canvas) {
+  let drag = null; // current gesture
+
+  const size = () => [canvas.clientWidth, canvas.clientHeight];
+  const screen = () => {
+    const [w, h] = size();
+    return project(app.positions, Renderer.mvp(app.camera, w / h), w, h);
+  };
+  const visible = () => ($('throughSel').checked ? null : frontFacing(app.positions, app.normals, app.camera.eye()));
+
+  /** Centroid of a UI handle's vertices in the current pose. */
+  const centroid = (k) => {
+    let c = [0, 0, 0];
+    let n = 0;
+    app.labels.forEach((l, i) => {
+      if (l === k + 1) {
+        c = add(c, [app.positions[3 * i], app.positions[3 * i + 1], app.positions[3 * i + 2]]);
+        n++;
+      }
+    });
+    return scale(c, 1 / Math.max(1, n));
+  };
+
+  /** Screen position of a world point. */
+  const toScreen = (p) => {
+    const [w, h] = size();
+    const s = project(new Float32Array(p), Renderer.mvp(app.camera, w / h), w, h);
+    return [s[0], s[1]];
+  };
+
+  canvas.addEventListener('contextmenu', (e) => e.preventDefault());
+
+  canvas.addEventListener('pointerdown', (e) => {
+    canvas.focus();
+    canvas.setPointerCapture(e.pointerId);
+    const x = e.offsetX, y = e.offsetY;
+    const t = tool();
+    const panning = e.button === 2 || e.button === 1 || e.ctrlKey;
+    if (!app.positions || panning) {
+      drag = { kind: 'pan', x, y };
+      return;
+    }
+    if (t === 'brush') {
+      drag = { kind: 'brush', erase: e.altKey };
+      paint(brush(screen(), x, y, +$('brushRadius').value, visible()), e.altKey);
+      return;
+    }
+    if (t === 'box') {
+      drag = { kind: 'box', x0: x, y0: y, erase: e.altKey };
+      return;
+    }
+    const v = pick(screen(), x, y, 14, (i) => app.labels[i] > 0);
+    if (v >= 0) {
+      const k = app.labels[v] - 1;
+      const c = centroid(k);
+      const { fwd } = app.camera.basis();
+      const depth = Math.max(1e-9, dot(sub(c, app.camera.eye()), fwd));
+      const unit = (2 * depth * Math.tan(app.camera.fovy / 2)) / size()[1];
+      drag = { kind: 'handle', k, x, y, unit, center: toScreen(c), angle: null };
+      send({ type: 'grab', handle: serverHandle(k) });
+      return;
+    }
+    drag = { kind: 'orbit', x, y };
+  });
+
+  canvas.addEventListener('pointermove', (e) => {
+    if (!drag) return;
+    const x = e.offsetX, y = e.offsetY;
+    if (drag.kind === 'orbit' || drag.kind === 'pan') {
+      if (drag.kind === 'orbit') app.camera.orbit(x - drag.x, y - drag.y);
+      else app.camera.pan(x - drag.x, y - drag.y, size()[1]);
+      drag.x = x;
+      drag.y = y;
+      app.needsDraw = true;
+    } else if (drag.kind === 'brush') {
+      paint(brush(screen(), x, y, +$('brushRadius').value, visible()), drag.erase);
+    } else if (drag.kind === 'box') {
+      const r = $('boxRect');
+      r.hidden = false;
+      Object.assign(r.style, {
+        left: `${Math.min(x, drag.x0)}px`, top: `${Math.min(y, drag.y0)}px`,
+        width: `${Math.abs(x - drag.x0)}px`, height: `${Math.abs(y - drag.y0)}px`,
+      });
+      drag.x1 = x;
+      drag.y1 = y;
+    } else if (drag.kind === 'handle') {
+      handleMove(drag, x, y, e.shiftKey);
+    }
+  });
+
+  function handleMove(d, x, y, rotating) {
+    const { right, up, fwd } = app.camera.basis();
+    if (rotating) {
+      const axisName = $('rotAxis').value;
+      let degrees;
+      let axis;
+      if (axisName === 'view') {
+        // Angle swept around the handle's centroid on screen; clockwise on
+        // screen (y down) is a right-handed turn about the into-screen axis.
+        const a = Math.atan2(y - d.center[1], x - d.center[0]);
+        degrees = d.angle === null ? 0 : ((a - d.angle + 3 * Math.PI) % (2 * Math.PI) - Math.PI) * (180 / Math.PI);
+        d.angle = a;
+        axis = fwd;
+      } else {
+        degrees = (x - d.x) * 0.5;
+        axis = { x: [1, 0, 0], y: [0, 1, 0], z: [0, 0, 1] }[axisName];
+      }
+      d.x = x;
+      d.y = y;
+      if (degrees !== 0) sendDrag(d.k, [0, 0, 0], { axis, degrees });
+      return;
+    }
+    d.angle = null;
+    const dx = x - d.x, dy = y - d.y;
+    d.x = x;
+    d.y = y;
+    const t = add(scale(right, dx * d.unit), scale(up, -dy * d.unit));
+    d.center = [d.center[0] + dx, d.center[1] + dy];
+    sendDrag(d.k, t, null);
+  }
+
+  canvas.addEventListener('pointerup', (e) => {
+    if (!drag) return;
+    const d = drag;
+    drag = null;
+    canvas.releasePointerCapture(e.pointerId);
+    if (d.kind === 'box') {
+      $('boxRect').hidden = true;
+      if (d.x1 !== undefined) paint(box(screen(), d.x0, d.y0, d.x1, d.y1, visible()), d.erase);
+      strokeEnded();
+    } else if (d.kind === 'brush') {
+      strokeEnded();
+    } else if (d.kind === 'handle') {
+      send({ type: 'release', handle: serverHandle(d.k) });
+    }
+  });
+
+  canvas.addEventListener('wheel', (e) => {
+    e.preventDefault();
+    app.camera.zoom(Math.exp(e.deltaY * 0.001));
+    app.needsDraw = true;
+  }, { passive: false });
+}

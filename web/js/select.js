@@ -1,0 +1,75 @@
+// Screen-space selection of vertices: projection with the current camera,
+// brush (circle) and box, optionally only vertices whose normal faces the
+// eye (so a brush paints the visible side only).
+
+/** Projects vertex xyz (f32) through column-major `mvp` to CSS pixels.
+ * Returns Float32Array [x, y, depth] per vertex (depth > 1 = clipped). */
+export function project(positions, mvp, width, height) {
+  const n = positions.length / 3;
+  const out = new Float32Array(3 * n);
+  const m = mvp;
+  for (let i = 0; i < n; i++) {
+    const x = positions[3 * i], y = positions[3 * i + 1], z = positions[3 * i + 2];
+    const cx = m[0] * x + m[4] * y + m[8] * z + m[12];
+    const cy = m[1] * x + m[5] * y + m[9] * z + m[13];
+    const cz = m[2] * x + m[6] * y + m[10] * z + m[14];
+    const cw = m[3] * x + m[7] * y + m[11] * z + m[15];
+    out[3 * i] = (cx / cw * 0.5 + 0.5) * width;
+    out[3 * i + 1] = (1 - (cy / cw * 0.5 + 0.5)) * height;
+    out[3 * i + 2] = cw > 0 ? cz / cw : 2;
+  }
+  return out;
+}
+
+function facing(i, positions, normals, eye) {
+  const vx = eye[0] - positions[3 * i], vy = eye[1] - positions[3 * i + 1], vz = eye[2] - positions[3 * i + 2];
+  return vx * normals[3 * i] + vy * normals[3 * i + 1] + vz * normals[3 * i + 2] > 0;
+}
+
+/** Vertices within `radius` px of (x, y). */
+export function brush(screen, x, y, radius, visible) {
+  const out = [];
+  const r2 = radius * radius;
+  for (let i = 0; i < screen.length / 3; i++) {
+    const dx = screen[3 * i] - x, dy = screen[3 * i + 1] - y;
+    if (screen[3 * i + 2] <= 1 && dx * dx + dy * dy <= r2 && (!visible || visible(i))) out.push(i);
+  }
+  return out;
+}
+
+/** Vertices inside the screen rectangle spanned by two corners. */
+export function box(screen, x0, y0, x1, y1, visible) {
+  const [ax, bx] = [Math.min(x0, x1), Math.max(x0, x1)];
+  const [ay, by] = [Math.min(y0, y1), Math.max(y0, y1)];
+  const out = [];
+  for (let i = 0; i < screen.length / 3; i++) {
+    const sx = screen[3 * i], sy = screen[3 * i + 1];
+    if (screen[3 * i + 2] <= 1 && sx >= ax && sx <= bx && sy >= ay && sy <= by && (!visible || visible(i))) {
+      out.push(i);
+    }
+  }
+  return out;
+}
+
+/** A visibility predicate (front-facing w.r.t. the eye), or null. */
+export function frontFacing(positions, normals, eye) {
+  return (i) => facing(i, positions, normals, eye);
+}
+
+/** The nearest vertex to (x, y) within `radius` px among those `accept`ed,
+ * preferring the one closest to the eye among near ties. */
+export function pick(screen, x, y, radius, accept) {
+  let best = -1;
+  let bestScore = Infinity;
+  for (let i = 0; i < screen.length / 3; i++) {
+    if (screen[3 * i + 2] > 1 || (accept && !accept(i))) continue;
+    const d = Math.hypot(screen[3 * i] - x, screen[3 * i + 1] - y);
+    if (d > radius) continue;
+    const score = d + 40 * screen[3 * i + 2];
+    if (score < bestScore) {
+      bestScore = score;
+      best = i;
+    }
+  }
+  return best;
+}

@@ -1,0 +1,336 @@
+// Browser test of the reference client against the real `dend serve`:
+// headless Chromium (Debian's) driven by playwright-core.
+//
+//   DEND_BIN=target/debug/dend node web/tests/browser.test.mjs
+//
+// Starts the server on a free port, loads the page, generates the bar and
+// checks: a drag before constraints shows a readable error; painting a fixed
+// region and a handle, then dragging with mouse events, changes the pose
+// (server vertex buffers and screenshot pixels); fixed vertices stay put;
+// the client draws exactly the server's pose; a second tab opened from the
+// share link receives the same pose; Shift+drag twists the handle by the
+// angle sent. Screenshots go to web/test-artifacts/.
+
+import { spawn } from 'node:child_process';
+import { mkdirSync, writeFileSync, copyFileSync } from 'node:fs';
+import { dirname, join, resolve } from 'node:path';
+import { fileURLToPath } from 'node:url';
+import assert from 'node:assert/strict';
+import { chromium } from 'playwright-core';
+
+const here = dirname(fileURLToPath(import.meta.url));
+const root = resolve(here, '..', '..');
+const artifacts = join(root, 'web', 'test-artifacts');
+const bin = process.env.DEND_BIN || join(root, 'target', 'debug', 'dend');
+const chromiumPath = process.env.CHROMIUM || '/usr/bin/chromium';
+mkdirSync(artifacts, { recursive: true });
+
+function log(...a) { console.log('[web-test]', ...a); }
+
+/** Starts `dend serve` on a free port; resolves with {proc, base}. */
+function startServer() {
+  const proc = spawn(bin, ['serve', '--addr', '127.0.0.1:0'], { stdio: ['ignore', 'pipe', 'pipe'] });
+  let stderr = '';
+  proc.stderr.on('data', (d) => { stderr += d; });
+  return new Promise((res, rej) => {
+    const timer = setTimeout(() => rej(new Error(`server did not print its URL in 60 s; stderr:\n${stderr}`)), 60000);
+    let out = '';
+    proc.stdout.on('data', (d) => {
+      out += d;
+      const m = out.match(/listening on (http:\/\/[^\s]+)/);
+      if (m) {
+        clearTimeout(timer);
+        res({ proc, base: m[1] });
+      }
+    });
+    proc.on('exit', (code) => rej(new Error(`server exited with ${code}; stderr:\n${stderr}`)));
+    proc.on('error', rej);
+  });
+}
+
+async function waitFor(page, fn, arg, what, timeout = 30000) {
+  try {
+    await page.waitForFunction(fn, arg, { timeout, polling: 50 });
+  } catch (e) {
+    const stats = await page.evaluate(() => window.dend && window.dend.stats()).catch(() => null);
+    const err = await page.locator('#error').textContent().catch(() => '');
+    throw new Error(`timed out waiting for ${what}; stats ${JSON.stringify(stats)}; error banner "${err}"`);
+  }
+}
+
+async function serverPose(base, s) {
+  const r = await fetch(`${base}/v1/sessions/${s.id}/pose`, {
+    headers: { Authorization: `Bearer ${s.token}`, Accept: 'application/octet-stream' },
+  });
+  assert.equal(r.status, 200, `GET pose: ${r.status}`);
+  return new Float32Array(await r.arrayBuffer());
+}
+
+function maxDiff(a, b, idx) {
+  let m = 0;
+  for (const i of idx) for (let k = 0; k < 3; k++) m = Math.max(m, Math.abs(a[3 * i + k] - b[3 * i + k]));
+  return m;
+}
+
+/** Fraction of pixels that differ (any channel by > 24) between two PNGs,
+ * decoded by the browser. */
+async function pixelDiff(page, pngA, pngB) {
+  return page.evaluate(async ([a, b]) => {
+    const load = async (b64) => {
+      const img = new Image();
+      img.src = `data:image/png;base64,${b64}`;
+      await img.decode();
+      const c = document.createElement('canvas');
+      c.width = img.width;
+      c.height = img.height;
+      const g = c.getContext('2d');
+      g.drawImage(img, 0, 0);
+      return g.getImageData(0, 0, c.width, c.height).data;
+    };
+    const [x, y] = [await load(a), await load(b)];
+    if (x.length !== y.length) return 1;
+    let n = 0;
+    for (let i = 0; i < x.length; i += 4) {
+      if (Math.abs(x[i] - y[i]) > 24 || Math.abs(x[i + 1] - y[i + 1]) > 24 || Math.abs(x[i + 2] - y[i + 2]) > 24) n++;
+    }
+    return n / (x.length / 4);
+  }, [pngA.toString('base64'), pngB.toString('base64')]);
+}
+
+/** Distinct colours in a PNG (checks WebGL really drew something). */
+async function colourCount(page, png) {
+  return page.evaluate(async (b64) => {
+    const img = new Image();
+    img.src = `data:image/png;base64,${b64}`;
+    await img.decode();
+    const c = document.createElement('canvas');
+    [c.width, c.height] = [img.width, img.height];
+    const g = c.getContext('2d');
+    g.drawImage(img, 0, 0);
+    const d = g.getImageData(0, 0, c.width, c.height).data;
+    const s = new Set();
+    for (let i = 0; i < d.length; i += 16) s.add((d[i] >> 3) * 1024 + (d[i + 1] >> 3) * 32 + (d[i + 2] >> 3));
+    return s.size;
+  }, png.toString('base64'));
+}
+
+/** Screen box (CSS px, page coordinates) around the given vertices. */
+async function screenBox(page, idx, pad) {
+  const pts = await page.evaluate((i) => window.dend.project(i), idx);
+  const canvas = await page.locator('#view').boundingBox();
+  const xs = pts.map((p) => p[0]), ys = pts.map((p) => p[1]);
+  return {
+    x0: canvas.x + Math.min(...xs) - pad, y0: canvas.y + Math.min(...ys) - pad,
+    x1: canvas.x + Math.max(...xs) + pad, y1: canvas.y + Math.max(...ys) + pad,
+  };
+}
+
+async function boxSelect(page, b) {
+  await page.mouse.move(b.x0, b.y0);
+  await page.mouse.down();
+  await page.mouse.move(b.x1, b.y1, { steps: 5 });
+  await page.mouse.up();
+}
+
+async function main() {
+  const { proc, base } = await startServer();
+  log('server at', base);
+  const browser = await chromium.launch({
+    executablePath: chromiumPath,
+    args: ['--headless', '--no-sandbox', '--disable-gpu', '--disable-background-networking',
+      '--disable-component-update', '--disable-sync', '--disable-quic', '--no-first-run'],
+  });
+  const pageErrors = [];
+  try {
+    const ctx = await browser.newContext({ viewport: { width: 1200, height: 760 } });
+    const page = await ctx.newPage();
+    page.on('pageerror', (e) => pageErrors.push(`page: ${e.message}`));
+    page.on('console', (m) => { if (m.type() === 'error') pageErrors.push(`console: ${m.text()}`); });
+    await page.goto(base + '/');
+    await waitFor(page, () => window.dend && window.dend.app.renderer, null, 'the client to start');
+
+    // Generate the bar.
+    await page.selectOption('#shape', 'bar');
+    await page.click('#generate');
+    await waitFor(page, () => window.dend.app.positions && window.dend.app.ws, null, 'the bar');
+    const rest = Float32Array.from(await page.evaluate(() => window.dend.positions()));
+    const n = rest.length / 3;
+    log('bar vertices', n);
+    assert.ok(n > 100, `bar has ${n} vertices`);
+    const z = (i) => rest[3 * i + 2];
+    const zmax = Math.max(...Array.from({ length: n }, (_, i) => z(i)));
+    const fixedIdx = [...Array(n).keys()].filter((i) => z(i) < 0.08 * zmax);
+    const handleIdx = [...Array(n).keys()].filter((i) => z(i) > 0.92 * zmax);
+
+    // Side view (z to the right) so the ends are separate screen boxes.
+    await page.evaluate(() => {
+      const c = window.dend.app.camera;
+      c.yaw = Math.PI / 2;
+      c.pitch = 0.3;
+      window.dend.app.needsDraw = true;
+    });
+    await page.uncheck('#autoApply');
+
+    // Brush: a second handle painted and erased (Alt) on the visible side.
+    const cb = await page.locator('#view').boundingBox();
+    const mid = [...Array(n).keys()].filter((i) => Math.abs(z(i) - zmax / 2) < 0.2)
+      .sort((a, b) => rest[3 * b] - rest[3 * a])[0];
+    const [mx, my] = (await page.evaluate((i) => window.dend.project([i]), mid))[0];
+    await page.check('input[name=tool][value=brush]');
+    await page.click('#addHandle');
+    assert.equal(await page.inputValue('#target'), 'h1');
+    await page.mouse.click(cb.x + mx, cb.y + my);
+    const brushed = (await page.evaluate(() => window.dend.labels())).flatMap((l, i) => (l === 2 ? [i] : []));
+    log('brush painted', brushed.length, 'vertices');
+    assert.ok(brushed.includes(mid) && brushed.length < n / 4, 'the brush paints around the cursor');
+    const xs = Array.from({ length: n }, (_, i) => rest[3 * i]);
+    const xmid = (Math.min(...xs) + Math.max(...xs)) / 2;
+    assert.ok(brushed.every((i) => rest[3 * i] > xmid), 'without "through" only the visible side (+x) is painted');
+    await page.keyboard.down('Alt');
+    await page.mouse.click(cb.x + mx, cb.y + my);
+    await page.keyboard.up('Alt');
+    assert.ok((await page.evaluate(() => window.dend.labels())).every((l) => l !== 2), 'Alt+brush erases');
+
+    await page.check('input[name=tool][value=box]');
+    await page.check('#throughSel');
+
+    // Paint the handle only and drag it before any constraints: readable error.
+    await page.selectOption('#target', 'h0');
+    await boxSelect(page, await screenBox(page, handleIdx, 6));
+    await page.check('input[name=tool][value=navigate]');
+    const [hx, hy] = (await page.evaluate((i) => window.dend.project([i]), handleIdx[0]))[0];
+    await page.mouse.move(cb.x + hx, cb.y + hy);
+    await page.mouse.down();
+    await page.mouse.move(cb.x + hx, cb.y + hy - 40, { steps: 4 });
+    await page.mouse.up();
+    await page.locator('#error').waitFor({ state: 'visible', timeout: 10000 });
+    const errText = (await page.locator('#errorText').textContent()).trim();
+    log('error shown:', errText);
+    assert.match(errText, /^[a-z_]+: \S.{8,}/, 'error banner has a code and a sentence');
+    assert.doesNotMatch(errText, /\[object|undefined/);
+    await page.screenshot({ path: join(artifacts, '0-error.png') });
+    await page.click('#errorClose');
+
+    // Paint the fixed end, apply, wait for the factor.
+    await page.check('input[name=tool][value=box]');
+    await page.selectOption('#target', 'fixed');
+    await boxSelect(page, await screenBox(page, fixedIdx, 6));
+    const labels = await page.evaluate(() => window.dend.labels());
+    const fixed = labels.flatMap((l, i) => (l === -1 ? [i] : []));
+    const handle = labels.flatMap((l, i) => (l === 1 ? [i] : []));
+    log('painted fixed', fixed.length, 'handle', handle.length);
+    assert.ok(fixedIdx.every((i) => labels[i] === -1), 'every vertex of the fixed end is painted fixed');
+    assert.ok(handleIdx.every((i) => labels[i] === 1), 'every vertex of the far end is in handle 0');
+    await page.click('#apply');
+    await waitFor(page, () => window.dend.app.state === 'ready', null, 'constraints ready', 60000);
+    const session = await page.evaluate(() => window.dend.app.session);
+
+    // Second tab from the share link.
+    const link = await page.inputValue('#shareLink');
+    assert.match(link, /#session=[0-9a-f]+&token=[0-9a-f]+/);
+    const page2 = await ctx.newPage();
+    page2.on('pageerror', (e) => pageErrors.push(`page2: ${e.message}`));
+    await page2.goto(link);
+    await waitFor(page2, () => window.dend.app.positions && window.dend.app.ws && window.dend.app.state === 'ready', null, 'second tab joined');
+
+    await page.check('input[name=tool][value=navigate]');
+    await page.waitForTimeout(200);
+    const shotA = await page.locator('#view').screenshot({ path: join(artifacts, '1-before-drag.png') });
+    const before = await serverPose(base, session);
+
+    // Drag the handle upward with mouse events.
+    const [px, py] = (await page.evaluate((i) => window.dend.project([i]), handle[0]))[0];
+    await page.mouse.move(cb.x + px, cb.y + py);
+    await page.mouse.down();
+    await page.mouse.move(cb.x + px + 10, cb.y + py - 160, { steps: 16 });
+    await page.mouse.up();
+    const lastSeq = await page.evaluate(() => window.dend.app.seq);
+    await waitFor(page, (s) => {
+      const f = window.dend.app.last;
+      return f && f.ackSeq >= s && f.converged;
+    }, lastSeq, 'a converged frame acknowledging the drag', 60000);
+    const after = await serverPose(base, session);
+    const all = [...Array(n).keys()];
+    const moved = maxDiff(before, after, handle);
+    log('handle moved by', moved.toFixed(3), 'fixed moved by', maxDiff(before, after, fixed).toExponential(2));
+    assert.ok(moved > 0.1 * zmax, `the handle moved (${moved})`);
+    assert.ok(maxDiff(before, after, fixed) < 1e-5, 'fixed vertices stay put (hard constraints)');
+    const clientPose = await page.evaluate(() => window.dend.positions());
+    assert.ok(maxDiff(clientPose, after, all) < 1e-6, 'the client draws the server pose');
+    await page.waitForTimeout(200);
+    const shotB = await page.locator('#view').screenshot({ path: join(artifacts, '2-after-drag.png') });
+    const colours = await colourCount(page, shotA);
+    const changed = await pixelDiff(page, shotA, shotB);
+    log('distinct colours', colours, 'changed pixels', (100 * changed).toFixed(1) + '%');
+    assert.ok(colours > 20, `WebGL drew a shaded mesh (${colours} colours)`);
+    assert.ok(changed > 0.01, `the picture changed (${changed})`);
+    const stats = await page.evaluate(() => window.dend.stats());
+    log('frames', stats.frames, 'iteration', stats.last.iteration, 'latencies ms', stats.latencies.map((x) => x.toFixed(0)).join(' '));
+    assert.ok(stats.latencies.length > 0);
+    assert.match(await page.locator('#stLatency').textContent(), /\d+ ms/);
+
+    // The second tab got the same pose.
+    await waitFor(page2, (s) => window.dend.app.last && window.dend.app.last.ackSeq >= s && window.dend.app.last.converged, lastSeq, 'the pose in the second tab');
+    const pose2 = await page2.evaluate(() => window.dend.positions());
+    assert.ok(maxDiff(pose2, after, all) < 1e-6, 'second tab shows the server pose');
+    await page2.screenshot({ path: join(artifacts, '3-second-tab.png') });
+
+    // Shift+drag about z twists the handle by the angle sent (0.5°/px).
+    await page.selectOption('#rotAxis', 'z');
+    const [qx, qy] = (await page.evaluate((i) => window.dend.project([i]), handle[0]))[0];
+    await page.keyboard.down('Shift');
+    await page.mouse.move(cb.x + qx, cb.y + qy);
+    await page.mouse.down();
+    await page.mouse.move(cb.x + qx + 180, cb.y + qy, { steps: 18 });
+    await page.mouse.up();
+    await page.keyboard.up('Shift');
+    const seq2 = await page.evaluate(() => window.dend.app.seq);
+    assert.ok(seq2 > lastSeq, 'the twist sent drag messages');
+    await waitFor(page, (s) => window.dend.app.last.ackSeq >= s && window.dend.app.last.converged, seq2, 'the twist', 60000);
+    const twisted = await serverPose(base, session);
+    const ang = (p, i, c) => Math.atan2(p[3 * i + 1] - c[1], p[3 * i] - c[0]);
+    const cen = (p) => [0, 1].map((k) => handle.reduce((s, i) => s + p[3 * i + k], 0) / handle.length);
+    const [c0, c1] = [cen(after), cen(twisted)];
+    const turns = handle.filter((i) => Math.hypot(after[3 * i] - c0[0], after[3 * i + 1] - c0[1]) > 0.1)
+      .map((i) => (((ang(twisted, i, c1) - ang(after, i, c0)) * 180) / Math.PI + 540) % 360 - 180);
+    const mean = turns.reduce((a, b) => a + b, 0) / turns.length;
+    log('twist: expected 90°, handle turned', mean.toFixed(2), '°');
+    assert.ok(Math.abs(Math.abs(mean) - 90) < 2, `handle turned ${mean}° about z`);
+
+    // The README's screenshot: oblique view, after the twist.
+    await page.evaluate(() => {
+      const c = window.dend.app.camera;
+      c.yaw = 1.15;
+      c.pitch = 0.35;
+      window.dend.app.needsDraw = true;
+    });
+    await page.waitForTimeout(300);
+    await page.screenshot({ path: join(artifacts, '4-twisted.png') });
+    if (process.env.DEND_UPDATE_SCREENSHOT) copyFileSync(join(artifacts, '4-twisted.png'), join(root, 'docs', 'screenshot.png'));
+
+    // Upload: a 4×4 grid as OBJ through the file input.
+    const g = [];
+    for (let j = 0; j < 4; j++) for (let i = 0; i < 4; i++) g.push(`v ${i} ${j} 0`);
+    for (let j = 0; j < 3; j++) {
+      for (let i = 0; i < 3; i++) {
+        const a = 4 * j + i + 1;
+        g.push(`f ${a} ${a + 1} ${a + 5}`, `f ${a} ${a + 5} ${a + 4}`);
+      }
+    }
+    await page.setInputFiles('#upload', { name: 'grid.obj', mimeType: 'text/plain', buffer: Buffer.from(g.join('\n') + '\n') });
+    await waitFor(page, () => window.dend.app.positions && window.dend.app.positions.length === 48 && window.dend.app.ws, null, 'the uploaded grid');
+    assert.match(await page.locator('#meshinfo').textContent(), /^16 vertices, 18 triangles/);
+
+    assert.deepEqual(pageErrors, [], 'no page or console errors');
+    writeFileSync(join(artifacts, 'result.txt'), `ok\nlatencies_ms ${stats.latencies.join(' ')}\n`);
+    log('ok');
+  } finally {
+    await browser.close();
+    proc.kill('SIGTERM');
+  }
+}
+
+main().catch((e) => {
+  console.error('[web-test] FAILED:', e && e.stack ? e.stack : e);
+  process.exit(1);
+});
