@@ -11,8 +11,8 @@ mod curvature;
 mod deform;
 mod gen;
 mod info;
-mod measure;
 mod loadtest;
+mod measure;
 mod serve;
 
 /// Deform triangle meshes with Discrete Elastica Nonlinear Deformation.
