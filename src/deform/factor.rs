@@ -245,8 +245,18 @@ impl Factor {
             let mut mem = MemBuffer::try_new(req).map_err(|_| DeformError::OutOfMemory {
                 what: "factorisation scratch",
             })?;
-            symbolic
-                .factorize_numeric_llt::<Real>(
+            // A numerically semi-definite M (8th-order stencils on irregular
+            // meshes can lose definiteness in rounding) is retried once with a
+            // tiny diagonal shift: each iteration solves for the update from
+            // the unsquared residual, so the shift only slows convergence
+            // slightly and does not change the solution.
+            let mut m = m;
+            let max_diag = (0..n)
+                .filter_map(|j| sys.m.get(j, j).copied())
+                .fold(0.0, Real::max);
+            let mut shifted = false;
+            loop {
+                let r = symbolic.factorize_numeric_llt::<Real>(
                     &mut values,
                     m.as_ref(),
                     Side::Lower,
@@ -254,12 +264,33 @@ impl Factor {
                     par,
                     MemStack::new(&mut mem),
                     Default::default(),
-                )
-                .map_err(|e| match e {
-                    faer::linalg::cholesky::llt::factor::LltError::NonPositivePivot { index } => {
-                        DeformError::NotPositiveDefinite { pivot: index }
+                );
+                match r {
+                    Ok(_) => break,
+                    Err(faer::linalg::cholesky::llt::factor::LltError::NonPositivePivot {
+                        index,
+                    }) => {
+                        if shifted {
+                            return Err(DeformError::NotPositiveDefinite { pivot: index });
+                        }
+                        shifted = true;
+                        let shift = 1e-10 * max_diag;
+                        let (col_ptr, row_idx) = (
+                            m.symbolic().col_ptr().to_vec(),
+                            m.symbolic().row_idx().to_vec(),
+                        );
+                        let vals = m.val_mut();
+                        for j in 0..n {
+                            for p in col_ptr[j]..col_ptr[j + 1] {
+                                if row_idx[p] == j {
+                                    vals[p] += shift;
+                                }
+                            }
+                        }
+                        tracing::warn!(pivot = index, shift, "normal matrix not numerically positive definite; refactoring with a diagonal shift");
                     }
-                })?;
+                }
+            }
             (Some(symbolic), values, t2)
         };
         let t3 = Instant::now();
