@@ -4,7 +4,7 @@
 #   external oracle for the discrete operators and the ARAP baseline.
 set -euo pipefail
 cd "$(dirname "$0")/.."
-if [ ! -x .venv/bin/python ] || ! .venv/bin/python -c "import igl, numpy, scipy" 2>/dev/null; then
+if [ ! -x .venv/bin/python ] || ! .venv/bin/python -c "import igl, numpy, scipy, jsonschema" 2>/dev/null; then
   python3 -m venv .venv
-  .venv/bin/pip install --quiet --disable-pip-version-check libigl numpy scipy
+  .venv/bin/pip install --quiet --disable-pip-version-check libigl numpy scipy jsonschema
 fi

@@ -7,12 +7,16 @@
 //!   (dend.md §2);
 //! - [`deform`]: energies, constraints, the factor cache and the DEND
 //!   iteration (dend.md §3–6). Pure and synchronous: no I/O, no async.
+//! - [`session`], [`store`], [`server`], [`client`]: the deformation
+//!   server (live editing sessions, persistence seam, axum HTTP/WebSocket
+//!   API) and its Rust client.
 #![warn(missing_docs)]
 
+pub mod deform;
+pub mod measure;
 pub mod mesh;
 pub mod operators;
-pub mod deform;
+pub mod server;
 pub mod session;
 pub mod store;
-pub mod server;
 pub mod client;

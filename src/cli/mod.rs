@@ -9,6 +9,10 @@ use clap::{Parser, Subcommand};
 
 mod loadtest;
 mod serve;
+mod curvature;
+mod deform;
+mod gen;
+mod info;
 
 /// Deform triangle meshes with Discrete Elastica Nonlinear Deformation.
 #[derive(Debug, Parser)]
@@ -24,6 +28,14 @@ enum Command {
     Serve(serve::ServeArgs),
     /// Drive N server sessions with M drags each; report drag→frame latency.
     Loadtest(loadtest::LoadtestArgs),
+    /// Write a procedural test shape (bar, cylinder, flag, plane, bumpy-plane, torus).
+    Gen(gen::GenArgs),
+    /// Print counts, bounding box, topology and the validation result of a mesh file.
+    Info(info::InfoArgs),
+    /// Per-vertex area, mean, Gaussian curvature and G as CSV (mesh units).
+    Curvature(curvature::CurvatureArgs),
+    /// Deform a mesh with a constraints file or a survey .sel/.def pair.
+    Deform(deform::Args),
 }
 
 /// Parses the command line, runs the command, maps errors to exit code 2.
@@ -39,6 +51,10 @@ pub fn run() -> ExitCode {
     let result: anyhow::Result<()> = match cli.command {
         Command::Serve(a) => serve::run(a),
         Command::Loadtest(a) => loadtest::run(a),
+        Command::Gen(a) => gen::run(a),
+        Command::Info(a) => info::run(a),
+        Command::Curvature(a) => curvature::run(&a),
+        Command::Deform(a) => deform::run(a),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

@@ -280,7 +280,8 @@ fn is_zero_area(positions: &[Point], t: &[u32; 3]) -> bool {
     let (e0, e1, e2) = (sub(b, a), sub(c, a), sub(c, b));
     let lmax = dot(e0, e0).max(dot(e1, e1)).max(dot(e2, e2));
     let cr = norm(cross(e0, e1));
-    !(cr > 4.0 * Real::EPSILON * lmax)
+    // NaN compares as degenerate too
+    cr.partial_cmp(&(4.0 * Real::EPSILON * lmax)) != Some(std::cmp::Ordering::Greater)
 }
 
 /// Axis-aligned bounding box of a point set.

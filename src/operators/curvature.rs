@@ -79,14 +79,18 @@ pub fn laplacian_coordinates(l: &CsMat<Real>, positions: &[Point]) -> Vec<Point>
 /// Sign convention: **positive where the surface bends away from its normal**,
 /// e.g. `H = +1/r` on a sphere of radius `r` with outward normals (there
 /// `(L X)_i` points inwards, against the normal). The sign is taken from the
-/// area-weighted vertex normal; where that is zero, `H ≥ 0`.
+/// area-weighted vertex normal; where that is zero, or where `(L X)_i` is
+/// numerically tangential (`|(L X)_i · n_i| ≤ 1e-9 |(L X)_i|`, e.g. on the
+/// boundary of a flat region, where `(L X)_i` is the in-plane boundary
+/// term), `H ≥ 0`: the sign of round-off would otherwise flip under rigid
+/// motions.
 pub fn mean_curvature(laplacian: &[Point], normals: &[Point]) -> Vec<Real> {
     laplacian
         .iter()
         .zip(normals)
         .map(|(&lx, &n)| {
             let h = norm(lx) / 2.0;
-            if dot(lx, n) > 0.0 {
+            if dot(lx, n) > 1e-9 * norm(lx) {
                 -h
             } else {
                 h

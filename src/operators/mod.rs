@@ -58,8 +58,8 @@ impl Operators {
             .collect();
         let mut centroid = [0.0; 3];
         for &i in &refd {
-            for k in 0..3 {
-                centroid[k] += mesh.positions()[i][k];
+            for (c, x) in centroid.iter_mut().zip(mesh.positions()[i]) {
+                *c += x;
             }
         }
         for c in &mut centroid {

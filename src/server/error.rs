@@ -182,17 +182,7 @@ impl From<BytesRejection> for ApiError {
 impl From<DeformError> for ApiError {
     fn from(e: DeformError) -> Self {
         let msg = e.to_string();
-        match e {
-            DeformError::UnknownVertex { .. } => ApiError::VertexOutOfRange(msg),
-            DeformError::InvalidParams { .. } => ApiError::InvalidParams(msg),
-            DeformError::NonFinite { .. } => ApiError::NonFinite(msg),
-            DeformError::Mesh(_) => ApiError::InvalidMesh(msg),
-            DeformError::EmptyHandle { .. } | DeformError::OverlappingSets { .. } | DeformError::NoConstraints => {
-                ApiError::InvalidConstraints(msg)
-            }
-            #[allow(unreachable_patterns)]
-            _ => ApiError::SolveFailed(msg),
-        }
+        deform_ref(&e, msg)
     }
 }
 
@@ -223,14 +213,20 @@ impl From<&SessionError> for ApiError {
 fn deform_ref(d: &DeformError, msg: String) -> ApiError {
     match d {
         DeformError::UnknownVertex { .. } => ApiError::VertexOutOfRange(msg),
-        DeformError::InvalidParams { .. } => ApiError::InvalidParams(msg),
+        DeformError::InvalidParam { .. } => ApiError::InvalidParams(msg),
         DeformError::NonFinite { .. } => ApiError::NonFinite(msg),
         DeformError::Mesh(_) => ApiError::InvalidMesh(msg),
-        DeformError::EmptyHandle { .. } | DeformError::OverlappingSets { .. } | DeformError::NoConstraints => {
-            ApiError::InvalidConstraints(msg)
-        }
-        #[allow(unreachable_patterns)]
-        _ => ApiError::SolveFailed(msg),
+        DeformError::EmptyHandle { .. }
+        | DeformError::DuplicateHandle { .. }
+        | DeformError::OverlappingSets { .. }
+        | DeformError::NoConstraints
+        | DeformError::Unconstrained { .. }
+        | DeformError::InvalidTransform { .. }
+        | DeformError::PositionsMismatch { .. } => ApiError::InvalidConstraints(msg),
+        DeformError::OutOfMemory { .. } => ApiError::Internal(msg),
+        DeformError::NotPositiveDefinite { .. }
+        | DeformError::PoseLength { .. }
+        | DeformError::FactorMismatch => ApiError::SolveFailed(msg),
     }
 }
 

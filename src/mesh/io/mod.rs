@@ -1,1 +1,397 @@
-//! Mesh readers and writers.
+//! Mesh readers and writers: OBJ, OFF, PLY (ASCII, binary little- and
+//! big-endian), STL (ASCII and binary), plus a JSON form for the server and the
+//! Botsch–Sorkine survey `.sel`/`.def` files ([`survey`]).
+//!
+//! Reading has two stages: [`parse_bytes`] turns bytes into a [`RawMesh`]
+//! (positions and triangles, no validation; every malformed or truncated input
+//! is a [`ParseError`] with a line or byte position, never a panic), and
+//! [`read_bytes`] then validates it with [`Mesh::new`].
+//!
+//! Conventions shared by all readers:
+//! - **Polygons are triangulated by fan**: a face `v0 v1 … vk` becomes
+//!   `(v0, v1, v2), (v0, v2, v3), …, (v0, vk-1, vk)` (OBJ, OFF, PLY).
+//! - **STL is welded**: STL stores three corners per facet; corners whose
+//!   coordinates are *exactly* equal (bitwise, after mapping `-0.0` to `0.0`)
+//!   become one vertex, numbered in order of first appearance. Nearly-equal
+//!   corners are not merged.
+//! - Normals, texture coordinates, colours and other per-vertex properties are
+//!   ignored; unreferenced vertices are kept (see [`crate::mesh`]).
+//! - Header counts (OFF, PLY, STL) never drive allocation beyond what the
+//!   input's length can hold.
+//!
+//! The parsers are hand-written: the crates available (`tobj`, `ply-rs`,
+//! `stl_io`) report no line/byte position for errors and pre-allocate from
+//! header counts, which the error-position and bounded-allocation
+//! requirements rule out.
+
+mod obj;
+mod off;
+mod ply;
+mod stl;
+pub mod survey;
+
+use std::fmt;
+use std::path::{Path, PathBuf};
+
+use serde::{Deserialize, Serialize};
+use thiserror::Error;
+
+use super::{Mesh, MeshError, Point};
+
+/// A mesh file format, chosen from the file extension.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Format {
+    /// Wavefront OBJ (`.obj`): text, 1-based (or negative relative) indices.
+    Obj,
+    /// Object File Format (`.off`, also `COFF`/`NOFF` headers): text.
+    Off,
+    /// Polygon File Format (`.ply`): ASCII or binary.
+    Ply,
+    /// Stereolithography (`.stl`): ASCII or binary, triangle soup (welded).
+    Stl,
+}
+
+impl Format {
+    /// All formats, in a fixed order.
+    pub const ALL: [Format; 4] = [Format::Obj, Format::Off, Format::Ply, Format::Stl];
+
+    /// The format named by `path`'s extension (case-insensitive).
+    pub fn from_path(path: &Path) -> Result<Format, IoError> {
+        let ext = path
+            .extension()
+            .and_then(|e| e.to_str())
+            .map(|e| e.to_ascii_lowercase());
+        match ext.as_deref() {
+            Some("obj") => Ok(Format::Obj),
+            Some("off") => Ok(Format::Off),
+            Some("ply") => Ok(Format::Ply),
+            Some("stl") => Ok(Format::Stl),
+            _ => Err(IoError::UnknownFormat {
+                path: path.to_path_buf(),
+            }),
+        }
+    }
+
+    /// The usual file extension, without the dot.
+    pub fn extension(self) -> &'static str {
+        match self {
+            Format::Obj => "obj",
+            Format::Off => "off",
+            Format::Ply => "ply",
+            Format::Stl => "stl",
+        }
+    }
+}
+
+impl fmt::Display for Format {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(match self {
+            Format::Obj => "OBJ",
+            Format::Off => "OFF",
+            Format::Ply => "PLY",
+            Format::Stl => "STL",
+        })
+    }
+}
+
+/// How binary-capable formats (PLY, STL) are written. OBJ and OFF are always text.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Encoding {
+    /// Text. Coordinates are written in Rust's shortest round-trip form, so
+    /// reading them back gives the same `f64` values.
+    Ascii,
+    /// Binary little-endian (PLY: `double` coordinates, `uint` indices; STL:
+    /// `f32` coordinates as the format prescribes, so STL is lossy for f64).
+    #[default]
+    BinaryLittleEndian,
+    /// Binary big-endian (PLY only; STL is always little-endian).
+    BinaryBigEndian,
+}
+
+/// Where in the input a parse error happened.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Position {
+    /// 1-based line number (text formats).
+    Line(usize),
+    /// 0-based byte offset (binary formats).
+    Byte(usize),
+}
+
+impl fmt::Display for Position {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            Position::Line(l) => write!(f, "line {l}"),
+            Position::Byte(b) => write!(f, "byte {b}"),
+        }
+    }
+}
+
+/// A malformed or truncated input, with the position of the problem.
+#[derive(Debug, Clone, PartialEq, Eq, Error)]
+#[error("{position}: {message}")]
+pub struct ParseError {
+    /// Where the problem is.
+    pub position: Position,
+    /// What is wrong.
+    pub message: String,
+}
+
+impl ParseError {
+    pub(crate) fn line(line: usize, message: impl Into<String>) -> Self {
+        ParseError {
+            position: Position::Line(line),
+            message: message.into(),
+        }
+    }
+    pub(crate) fn byte(byte: usize, message: impl Into<String>) -> Self {
+        ParseError {
+            position: Position::Byte(byte),
+            message: message.into(),
+        }
+    }
+}
+
+/// Why a mesh could not be read or written.
+#[derive(Debug, Error)]
+pub enum IoError {
+    /// The file could not be opened, read or written. Fix: check the path and permissions.
+    #[error("{path}: {source}")]
+    Io {
+        /// The file.
+        path: PathBuf,
+        /// The operating-system error.
+        source: std::io::Error,
+    },
+    /// The extension names no supported format. Fix: use `.obj`, `.off`, `.ply` or `.stl`.
+    #[error("{path}: unknown mesh format (expected .obj, .off, .ply or .stl)")]
+    UnknownFormat {
+        /// The file.
+        path: PathBuf,
+    },
+    /// The content is malformed or truncated. Fix: repair or re-export the file.
+    #[error("{format} parse error at {position}: {message}")]
+    Parse {
+        /// The format being read.
+        format: Format,
+        /// Where the problem is.
+        position: Position,
+        /// What is wrong.
+        message: String,
+    },
+    /// The file parsed but the mesh is invalid (NaN, bad index, non-manifold, …).
+    #[error("invalid mesh: {0}")]
+    Mesh(#[from] MeshError),
+    /// The JSON form `{positions, triangles}` is malformed.
+    #[error("JSON mesh parse error at line {line}, column {column}: {message}")]
+    Json {
+        /// 1-based line.
+        line: usize,
+        /// 1-based column.
+        column: usize,
+        /// What is wrong.
+        message: String,
+    },
+}
+
+impl IoError {
+    fn parse(format: Format, e: ParseError) -> Self {
+        IoError::Parse {
+            format,
+            position: e.position,
+            message: e.message,
+        }
+    }
+}
+
+/// Positions and triangles as parsed, not yet validated.
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+pub struct RawMesh {
+    /// Vertex positions, `#V×3`.
+    pub positions: Vec<Point>,
+    /// Triangles, `#F×3` (polygons already fanned).
+    pub triangles: Vec<[u32; 3]>,
+}
+
+impl RawMesh {
+    /// Validates into a [`Mesh`].
+    pub fn into_mesh(self) -> Result<Mesh, MeshError> {
+        Mesh::new(self.positions, self.triangles)
+    }
+}
+
+/// Parses `bytes` in `format` without validating the mesh (used by the fuzzers).
+pub fn parse_bytes(bytes: &[u8], format: Format) -> Result<RawMesh, ParseError> {
+    match format {
+        Format::Obj => obj::parse(bytes),
+        Format::Off => off::parse(bytes),
+        Format::Ply => ply::parse(bytes),
+        Format::Stl => stl::parse(bytes),
+    }
+}
+
+/// Parses and validates `bytes` in `format`.
+pub fn read_bytes(bytes: &[u8], format: Format) -> Result<Mesh, IoError> {
+    let raw = parse_bytes(bytes, format).map_err(|e| IoError::parse(format, e))?;
+    Ok(raw.into_mesh()?)
+}
+
+/// Reads the file at `path` (format from its extension) without validating.
+pub fn parse_path(path: &Path) -> Result<RawMesh, IoError> {
+    let format = Format::from_path(path)?;
+    let bytes = std::fs::read(path).map_err(|source| IoError::Io {
+        path: path.to_path_buf(),
+        source,
+    })?;
+    parse_bytes(&bytes, format).map_err(|e| IoError::parse(format, e))
+}
+
+/// Reads and validates the mesh at `path` (format from its extension).
+pub fn read_path(path: &Path) -> Result<Mesh, IoError> {
+    Ok(parse_path(path)?.into_mesh()?)
+}
+
+/// Serialises `positions`/`triangles` (a rest mesh or a deformed pose) in
+/// `format` with the default [`Encoding`] (binary for PLY and STL).
+pub fn to_bytes(positions: &[Point], triangles: &[[u32; 3]], format: Format) -> Vec<u8> {
+    to_bytes_with(positions, triangles, format, Encoding::default())
+}
+
+/// Serialises `positions`/`triangles` in `format` with `encoding` (ignored by
+/// the text-only OBJ and OFF; STL has no big-endian form and writes
+/// little-endian).
+pub fn to_bytes_with(
+    positions: &[Point],
+    triangles: &[[u32; 3]],
+    format: Format,
+    encoding: Encoding,
+) -> Vec<u8> {
+    match format {
+        Format::Obj => obj::write(positions, triangles),
+        Format::Off => off::write(positions, triangles),
+        Format::Ply => ply::write(positions, triangles, encoding),
+        Format::Stl => stl::write(positions, triangles, encoding),
+    }
+}
+
+/// Writes `mesh` to `path` (format from the extension, default encoding).
+pub fn write_path(path: &Path, mesh: &Mesh) -> Result<(), IoError> {
+    write_path_with(
+        path,
+        mesh.positions(),
+        mesh.triangles(),
+        Encoding::default(),
+    )
+}
+
+/// Writes `positions`/`triangles` to `path` (format from the extension).
+pub fn write_path_with(
+    path: &Path,
+    positions: &[Point],
+    triangles: &[[u32; 3]],
+    encoding: Encoding,
+) -> Result<(), IoError> {
+    let format = Format::from_path(path)?;
+    std::fs::write(path, to_bytes_with(positions, triangles, format, encoding)).map_err(|source| {
+        IoError::Io {
+            path: path.to_path_buf(),
+            source,
+        }
+    })
+}
+
+/// The JSON form of a mesh used by the server:
+/// `{"positions": [[x,y,z], …], "triangles": [[i,j,k], …]}` (0-based indices).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct JsonMesh {
+    /// Vertex positions, `#V×3`.
+    pub positions: Vec<Point>,
+    /// Triangles, `#F×3`, 0-based.
+    pub triangles: Vec<[u32; 3]>,
+}
+
+/// Parses the JSON form without validating.
+pub fn parse_json(bytes: &[u8]) -> Result<RawMesh, IoError> {
+    let m: JsonMesh = serde_json::from_slice(bytes).map_err(|e| IoError::Json {
+        line: e.line(),
+        column: e.column(),
+        message: e.to_string(),
+    })?;
+    Ok(RawMesh {
+        positions: m.positions,
+        triangles: m.triangles,
+    })
+}
+
+/// Parses and validates the JSON form.
+pub fn read_json(bytes: &[u8]) -> Result<Mesh, IoError> {
+    Ok(parse_json(bytes)?.into_mesh()?)
+}
+
+// --- helpers shared by the text readers ------------------------------------
+
+/// Lines of `bytes` as `(1-based number, text)`, with `#` comments removed
+/// when `strip_comments`. Invalid UTF-8 is an error naming the line.
+pub(crate) fn text_lines(
+    bytes: &[u8],
+    strip_comments: bool,
+) -> impl Iterator<Item = Result<(usize, &str), ParseError>> {
+    bytes.split(|&b| b == b'\n').enumerate().map(move |(i, l)| {
+        let s = std::str::from_utf8(l)
+            .map_err(|_| ParseError::line(i + 1, "invalid UTF-8 (binary data in a text file?)"))?;
+        let s = if strip_comments {
+            s.split('#').next().unwrap_or("")
+        } else {
+            s
+        };
+        Ok((i + 1, s.trim_end_matches('\r')))
+    })
+}
+
+/// Parses a coordinate token.
+pub(crate) fn parse_real(tok: &str, line: usize, what: &str) -> Result<f64, ParseError> {
+    tok.parse::<f64>()
+        .map_err(|_| ParseError::line(line, format!("expected a number for {what}, found {tok:?}")))
+}
+
+/// Parses a non-negative count or index token.
+pub(crate) fn parse_count(tok: &str, line: usize, what: &str) -> Result<usize, ParseError> {
+    tok.parse::<usize>().map_err(|_| {
+        ParseError::line(
+            line,
+            format!("expected a non-negative integer for {what}, found {tok:?}"),
+        )
+    })
+}
+
+/// Converts a 0-based index to `u32`.
+pub(crate) fn index_u32(i: u64, pos: Position) -> Result<u32, ParseError> {
+    u32::try_from(i)
+        .ok()
+        .filter(|&i| i != u32::MAX)
+        .ok_or(ParseError {
+            position: pos,
+            message: format!("vertex index {i} too large"),
+        })
+}
+
+/// Fans polygon `poly` into `out`: `(p0, p_k, p_k+1)` for `k = 1..n-2`.
+pub(crate) fn fan(poly: &[u32], out: &mut Vec<[u32; 3]>) {
+    for k in 1..poly.len().saturating_sub(1) {
+        out.push([poly[0], poly[k], poly[k + 1]]);
+    }
+}
+
+/// A capacity guess bounded by what `input_len` bytes can hold at
+/// `min_bytes` per item.
+pub(crate) fn bounded_capacity(count: usize, input_len: usize, min_bytes: usize) -> usize {
+    count.min(input_len / min_bytes.max(1) + 1)
+}
+
+/// Formats an `f64` so that parsing it gives the same value.
+pub(crate) fn fmt_real(x: f64) -> String {
+    format!("{x:?}")
+}

@@ -1,0 +1,132 @@
+//! `dend info MESH`: counts, bounding box, topology and validation result.
+
+use std::path::PathBuf;
+
+use anyhow::anyhow;
+use clap::Args;
+use dend::mesh::io::parse_path;
+use serde::Serialize;
+
+/// Arguments of `dend info`.
+#[derive(Debug, Args)]
+pub struct InfoArgs {
+    /// The mesh file (.obj, .off, .ply, .stl).
+    mesh: PathBuf,
+    /// Print one JSON object instead of text.
+    #[arg(long)]
+    json: bool,
+}
+
+/// What `dend info` reports.
+#[derive(Debug, Serialize)]
+struct Info {
+    file: String,
+    vertices: usize,
+    triangles: usize,
+    valid: bool,
+    error: Option<String>,
+    bounding_box: Option<[[f64; 3]; 2]>,
+    edges: Option<usize>,
+    boundary_loops: Option<usize>,
+    components: Option<usize>,
+    closed: Option<bool>,
+    euler_characteristic: Option<i64>,
+    genus: Option<i64>,
+    unreferenced_vertices: Option<usize>,
+    warnings: Vec<String>,
+}
+
+/// Reads the mesh and prints the report; an invalid mesh is an error (exit 2)
+/// after the report.
+pub fn run(args: InfoArgs) -> anyhow::Result<()> {
+    let raw = parse_path(&args.mesh)?;
+    let mut info = Info {
+        file: args.mesh.display().to_string(),
+        vertices: raw.positions.len(),
+        triangles: raw.triangles.len(),
+        valid: false,
+        error: None,
+        bounding_box: None,
+        edges: None,
+        boundary_loops: None,
+        components: None,
+        closed: None,
+        euler_characteristic: None,
+        genus: None,
+        unreferenced_vertices: None,
+        warnings: Vec::new(),
+    };
+    match raw.into_mesh() {
+        Ok(m) => {
+            let topo = m.topology();
+            let (lo, hi) = m.bounding_box();
+            let loops = topo.boundary_loops().len();
+            let unref = m.unreferenced_vertices();
+            if !unref.is_empty() {
+                info.warnings.push(format!(
+                    "{} unreferenced vertices (kept), first: {}",
+                    unref.len(),
+                    unref[0]
+                ));
+            }
+            info.valid = true;
+            info.bounding_box = Some([lo, hi]);
+            info.edges = Some(topo.edges().len());
+            info.boundary_loops = Some(loops);
+            info.components = Some(topo.num_components());
+            info.closed = Some(loops == 0);
+            info.euler_characteristic = Some(m.euler_characteristic());
+            info.genus = Some(m.genus());
+            info.unreferenced_vertices = Some(unref.len());
+        }
+        Err(e) => info.error = Some(e.to_string()),
+    }
+    if args.json {
+        println!("{}", serde_json::to_string_pretty(&info)?);
+    } else {
+        print_text(&info);
+    }
+    match info.error {
+        Some(e) => Err(anyhow!("invalid mesh: {e}")),
+        None => Ok(()),
+    }
+}
+
+fn print_text(i: &Info) {
+    println!("file:        {}", i.file);
+    println!("vertices:    {}", i.vertices);
+    println!("triangles:   {}", i.triangles);
+    if let (Some([lo, hi]), Some(e), Some(b), Some(c), Some(x), Some(g)) = (
+        i.bounding_box,
+        i.edges,
+        i.boundary_loops,
+        i.components,
+        i.euler_characteristic,
+        i.genus,
+    ) {
+        println!("edges:       {e}");
+        println!(
+            "bbox:        [{}, {}, {}] .. [{}, {}, {}]",
+            lo[0], lo[1], lo[2], hi[0], hi[1], hi[2]
+        );
+        println!("components:  {c}");
+        if b == 0 {
+            println!("boundary:    closed");
+        } else {
+            println!("boundary:    {b} loops");
+        }
+        println!("euler char.: {x}");
+        if b == 0 {
+            println!("genus:       {g}");
+        } else {
+            println!("genus:       {g} (of the surface with its boundary loops capped)");
+        }
+        println!("validation:  ok");
+    }
+    for w in &i.warnings {
+        println!("warning:     {w}");
+    }
+    if let Some(e) = &i.error {
+        println!("validation:  FAILED: {e}");
+    }
+}

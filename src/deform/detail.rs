@@ -1,0 +1,380 @@
+//! The detail term's target `δ̂` (dend.md §5; paper eqs. 25–28) and the
+//! local rotations `T_i` (dend.md §8.2).
+//!
+//! STEP 1 ([`Mu::new`]) runs once per rest mesh; STEP 2 ([`Mu::delta_hat`])
+//! and [`local_rotations`] run every iteration and allocate nothing.
+
+use nalgebra::{Matrix3, SymmetricEigen, Vector3};
+use rayon::prelude::*;
+
+use super::params::Mode;
+use crate::mesh::{cross, norm, sub, Point, Real, Topology};
+
+/// Vertex count above which per-vertex loops run on the rayon pool.
+const PARALLEL_MIN: usize = 4096;
+
+/// The per-vertex coefficients `μ^i` of STEP 1 (paper eq. 25), for one mode.
+///
+/// Columns of vertex `i`'s 3×k system, in this order:
+/// - one per ring face `(i, j_t, j_{t+1})`: the face normal
+///   `n_t = (X_{j_t} - X_i) × (X_{j_{t+1}} - X_i)` (the paper's
+///   `(X_j - X_i) ⊗ (X_{j-1} - X_i)` up to sign, which `μ` absorbs), divided
+///   by the ring's mean rest edge length `ℓ̄_i` in [`Mode::Default`];
+/// - [`Mode::Default`] only (dend.md §8.3): one per ring neighbour, the edge
+///   `X_j - X_i`. These make `d_i(X) = δ_i` exact at rest even where `δ_i` has
+///   tangential parts and the ring is nearly planar.
+///
+/// `μ^i` is the minimum-norm solution (pseudo-inverse through the 3×3 Gram
+/// matrix, equivalent to the SVD solution).
+#[derive(Debug, Clone)]
+pub struct Mu {
+    mode: Mode,
+    offsets: Vec<u32>,
+    mu: Vec<Real>,
+    inv_ring_len: Vec<Real>,
+    delta_norm: Vec<Real>,
+}
+
+impl Mu {
+    /// STEP 1 on the rest positions `x` with Laplacian coordinates `delta`.
+    pub fn new(mode: Mode, topo: &Topology, x: &[Point], delta: &[Point]) -> Self {
+        let n = x.len();
+        let mut offsets = Vec::with_capacity(n + 1);
+        offsets.push(0u32);
+        for i in 0..n {
+            let k = num_columns(mode, topo, i);
+            offsets.push(offsets[i] + k as u32);
+        }
+        let mut mu = vec![0.0; *offsets.last().unwrap() as usize];
+        let mut inv_ring_len = vec![1.0; n];
+        // Solve each vertex independently; split `mu` by the offsets.
+        let mut slices: Vec<&mut [Real]> = Vec::with_capacity(n);
+        let mut rest = mu.as_mut_slice();
+        for i in 0..n {
+            let (a, b) = rest.split_at_mut((offsets[i + 1] - offsets[i]) as usize);
+            slices.push(a);
+            rest = b;
+        }
+        let solve = |(i, (out, inv_len)): (usize, (&mut &mut [Real], &mut Real))| {
+            let ring = topo.ring(i);
+            if ring.is_empty() {
+                return;
+            }
+            let xi = x[i];
+            if mode == Mode::Default {
+                let l: Real = ring
+                    .iter()
+                    .map(|&j| norm(sub(x[j as usize], xi)))
+                    .sum::<Real>()
+                    / ring.len() as Real;
+                *inv_len = 1.0 / l;
+            }
+            let cols = |k: usize| column(mode, topo, x, i, *inv_len, k);
+            let m = out.len();
+            let mut gram = Matrix3::<Real>::zeros();
+            for k in 0..m {
+                let c = Vector3::from(cols(k));
+                gram += c * c.transpose();
+            }
+            let eig = SymmetricEigen::new(gram);
+            let lmax = eig.eigenvalues.iter().cloned().fold(0.0, Real::max);
+            let mut pinv = Matrix3::<Real>::zeros();
+            for e in 0..3 {
+                let lam = eig.eigenvalues[e];
+                if lam > 1e-12 * lmax && lam > 0.0 {
+                    let v = eig.eigenvectors.column(e);
+                    pinv += v * v.transpose() / lam;
+                }
+            }
+            let y = pinv * Vector3::from(delta[i]);
+            for (k, o) in out.iter_mut().enumerate() {
+                *o = Vector3::from(cols(k)).dot(&y);
+            }
+        };
+        if n >= PARALLEL_MIN {
+            slices
+                .par_iter_mut()
+                .zip(inv_ring_len.par_iter_mut())
+                .enumerate()
+                .for_each(solve);
+        } else {
+            slices
+                .iter_mut()
+                .zip(inv_ring_len.iter_mut())
+                .enumerate()
+                .for_each(solve);
+        }
+        Mu {
+            mode,
+            offsets,
+            mu,
+            inv_ring_len,
+            delta_norm: delta.iter().map(|&d| norm(d)).collect(),
+        }
+    }
+
+    /// `d_i(Y) = Σ_k μ_k c_k(Y)` (paper eq. 27) for one vertex.
+    pub fn d(&self, topo: &Topology, y: &[Point], i: usize) -> Point {
+        let m = &self.mu[self.offsets[i] as usize..self.offsets[i + 1] as usize];
+        let mut d = [0.0; 3];
+        for (k, &mu) in m.iter().enumerate() {
+            let c = column(self.mode, topo, y, i, self.inv_ring_len[i], k);
+            d[0] += mu * c[0];
+            d[1] += mu * c[1];
+            d[2] += mu * c[2];
+        }
+        d
+    }
+
+    /// STEP 2 (paper eqs. 27–28): `δ̂_i = d_i / |d_i| · |δ_i|` on the pose `y`,
+    /// written into `out`. Where `|δ_i|` is ~0 (flat) `δ̂_i = d_i`; where
+    /// `|d_i|` is 0, `δ̂_i = 0`. Never NaN for finite `y`.
+    pub fn delta_hat(&self, topo: &Topology, y: &[Point], out: &mut [Point]) {
+        let f = |(i, o): (usize, &mut Point)| {
+            let d = self.d(topo, y, i);
+            let dn = norm(d);
+            let target = self.delta_norm[i];
+            *o = if target <= 1e-14 {
+                d
+            } else if dn > 1e-300 {
+                let s = target / dn;
+                [d[0] * s, d[1] * s, d[2] * s]
+            } else {
+                [0.0; 3]
+            };
+        };
+        if out.len() >= PARALLEL_MIN {
+            out.par_iter_mut().enumerate().for_each(f);
+        } else {
+            out.iter_mut().enumerate().for_each(f);
+        }
+    }
+}
+
+fn num_columns(mode: Mode, topo: &Topology, i: usize) -> usize {
+    let m = topo.ring(i).len();
+    if m == 0 {
+        return 0;
+    }
+    let faces = if topo.is_boundary(i) { m - 1 } else { m };
+    match mode {
+        Mode::Default => faces + m,
+        Mode::Paper => faces,
+    }
+}
+
+/// Column `k` of vertex `i`'s STEP 1 system on positions `p`.
+#[inline]
+fn column(mode: Mode, topo: &Topology, p: &[Point], i: usize, inv_len: Real, k: usize) -> Point {
+    let ring = topo.ring(i);
+    let m = ring.len();
+    let faces = if topo.is_boundary(i) { m - 1 } else { m };
+    let pi = p[i];
+    if k < faces {
+        let a = sub(p[ring[k] as usize], pi);
+        let b = sub(p[ring[(k + 1) % m] as usize], pi);
+        let c = cross(a, b);
+        match mode {
+            Mode::Default => [c[0] * inv_len, c[1] * inv_len, c[2] * inv_len],
+            Mode::Paper => c,
+        }
+    } else {
+        sub(p[ring[k - faces] as usize], pi)
+    }
+}
+
+/// The local rotations `T_i` (dend.md §8.2), one per vertex, fitted by
+/// Procrustes on the 1-ring edges (the ARAP local step, Sorkine & Alexa 2007):
+/// `T_i = argmin_{R ∈ SO(3)} Σ_j w_ij |(Y_j - Y_i) - R (X_j - X_i)|²`, with
+/// `w_ij = max(cot α_ij + cot β_ij, 0)` (negative cotangents clamped) plus a
+/// small uniform weight so that every ring edge counts.
+/// Written into `out` as rotation matrices. Unreferenced vertices get `I`.
+pub fn local_rotations(
+    topo: &Topology,
+    weights: &RingWeights,
+    x: &[Point],
+    y: &[Point],
+    out: &mut [Matrix3<Real>],
+) {
+    let f = |(i, o): (usize, &mut Matrix3<Real>)| {
+        let ring = topo.ring(i);
+        if ring.is_empty() {
+            *o = Matrix3::identity();
+            return;
+        }
+        let w = weights.of(i);
+        let mut s = Matrix3::<Real>::zeros();
+        for (k, &j) in ring.iter().enumerate() {
+            let e = Vector3::from(sub(x[j as usize], x[i]));
+            let e2 = Vector3::from(sub(y[j as usize], y[i]));
+            s += w[k] * e * e2.transpose();
+        }
+        *o = rotation_from_covariance(&s);
+    };
+    if out.len() >= PARALLEL_MIN {
+        out.par_iter_mut().enumerate().for_each(f);
+    } else {
+        out.iter_mut().enumerate().for_each(f);
+    }
+}
+
+/// The rotation `R = V Uᵀ` maximising `tr(R S)` for `S = U Σ Vᵀ`, with the
+/// sign of the smallest singular direction flipped if needed (`det R = +1`).
+pub fn rotation_from_covariance(s: &Matrix3<Real>) -> Matrix3<Real> {
+    let svd = s.svd(true, true);
+    let (Some(u), Some(vt)) = (svd.u, svd.v_t) else {
+        return Matrix3::identity();
+    };
+    let mut r = vt.transpose() * u.transpose();
+    if r.determinant() < 0.0 {
+        // flip the column of U with the smallest singular value
+        let (mut kmin, mut smin) = (0, Real::INFINITY);
+        for k in 0..3 {
+            if svd.singular_values[k] < smin {
+                smin = svd.singular_values[k];
+                kmin = k;
+            }
+        }
+        let mut u2 = u;
+        u2.column_mut(kmin).neg_mut();
+        r = vt.transpose() * u2.transpose();
+    }
+    if r.iter().all(|v| v.is_finite()) {
+        r
+    } else {
+        Matrix3::identity()
+    }
+}
+
+/// Procrustes weights per ring neighbour, aligned with [`Topology::ring`].
+#[derive(Debug, Clone)]
+pub struct RingWeights {
+    offsets: Vec<u32>,
+    w: Vec<Real>,
+}
+
+impl RingWeights {
+    /// `max(2 Lbar_ij, 0) + 0.01 · mean` for each ring neighbour `j` of `i`.
+    pub fn new(topo: &Topology, lbar: &sprs::CsMat<Real>) -> Self {
+        let n = lbar.rows();
+        let mut offsets = Vec::with_capacity(n + 1);
+        let mut w = Vec::new();
+        offsets.push(0u32);
+        for i in 0..n {
+            let row = lbar.outer_view(i);
+            let start = w.len();
+            for &j in topo.ring(i) {
+                let c = row.and_then(|r| r.get(j as usize).copied()).unwrap_or(0.0);
+                w.push((2.0 * c).max(0.0));
+            }
+            let m = (w.len() - start).max(1) as Real;
+            let mean = w[start..].iter().sum::<Real>() / m;
+            let floor = if mean > 0.0 { 0.01 * mean } else { 1.0 };
+            for v in &mut w[start..] {
+                *v += floor;
+            }
+            offsets.push(w.len() as u32);
+        }
+        RingWeights { offsets, w }
+    }
+
+    fn of(&self, i: usize) -> &[Real] {
+        &self.w[self.offsets[i] as usize..self.offsets[i + 1] as usize]
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::mesh::Mesh;
+    use crate::operators::Operators;
+    use nalgebra::{Rotation3, Unit};
+
+    /// An irregular open patch: a jittered grid lifted onto a saddle.
+    fn saddle() -> Mesh {
+        let k = 7;
+        let mut p = Vec::new();
+        for r in 0..k {
+            for c in 0..k {
+                let (x, y) = (
+                    c as f64 + 0.31 * ((r * 7 + c * 3) % 5) as f64 / 5.0,
+                    r as f64 + 0.27 * ((r * 2 + c * 5) % 7) as f64 / 7.0,
+                );
+                p.push([x, y, 0.05 * (x - 3.0) * (y - 3.0)]);
+            }
+        }
+        let mut t = Vec::new();
+        for r in 0..k as u32 - 1 {
+            for c in 0..k as u32 - 1 {
+                let v = r * k as u32 + c;
+                t.push([v, v + 1, v + k as u32 + 1]);
+                t.push([v, v + k as u32 + 1, v + k as u32]);
+            }
+        }
+        Mesh::new(p, t).unwrap()
+    }
+
+    #[test]
+    fn augmented_mu_reproduces_delta_at_rest() {
+        let m = saddle();
+        let ops = Operators::new(&m);
+        let mu = Mu::new(Mode::Default, m.topology(), &ops.positions, &ops.delta);
+        let mut out = vec![[0.0; 3]; m.num_vertices()];
+        mu.delta_hat(m.topology(), &ops.positions, &mut out);
+        for (a, b) in out.iter().zip(&ops.delta) {
+            assert!(
+                norm(sub(*a, *b)) < 1e-12 * (1.0 + norm(*b)),
+                "{a:?} vs {b:?}"
+            );
+        }
+    }
+
+    #[test]
+    fn cross_product_mu_misses_tangential_delta() {
+        // dend.md §8.3: the paper's columns cannot reproduce δ on irregular rings
+        let m = saddle();
+        let ops = Operators::new(&m);
+        let mu = Mu::new(Mode::Paper, m.topology(), &ops.positions, &ops.delta);
+        let mut out = vec![[0.0; 3]; m.num_vertices()];
+        mu.delta_hat(m.topology(), &ops.positions, &mut out);
+        let worst = out
+            .iter()
+            .zip(&ops.delta)
+            .map(|(a, b)| norm(sub(*a, *b)))
+            .fold(0.0, f64::max);
+        assert!(worst > 1e-3, "paper μ unexpectedly exact: {worst}");
+    }
+
+    #[test]
+    fn delta_hat_and_rotations_follow_a_rigid_motion() {
+        let m = saddle();
+        let ops = Operators::new(&m);
+        let rot =
+            Rotation3::from_axis_angle(&Unit::new_normalize(Vector3::new(1.0, 2.0, -0.5)), 1.1);
+        let y: Vec<Point> = ops
+            .positions
+            .iter()
+            .map(|&p| {
+                let q = rot * Vector3::from(p);
+                [q.x + 3.0, q.y - 1.0, q.z + 0.5]
+            })
+            .collect();
+        for mode in [Mode::Default, Mode::Paper] {
+            let mu = Mu::new(mode, m.topology(), &ops.positions, &ops.delta);
+            let mut at_rest = vec![[0.0; 3]; y.len()];
+            let mut moved = vec![[0.0; 3]; y.len()];
+            mu.delta_hat(m.topology(), &ops.positions, &mut at_rest);
+            mu.delta_hat(m.topology(), &y, &mut moved);
+            for (a, b) in at_rest.iter().zip(&moved) {
+                let ra = rot * Vector3::from(*a);
+                assert!((ra - Vector3::from(*b)).norm() < 1e-10);
+            }
+        }
+        let w = RingWeights::new(m.topology(), &ops.lbar);
+        let mut t = vec![Matrix3::identity(); y.len()];
+        local_rotations(m.topology(), &w, &ops.positions, &y, &mut t);
+        for ti in &t {
+            assert!((ti - rot.matrix()).norm() < 1e-10);
+        }
+    }
+}

@@ -1,0 +1,388 @@
+//! The factor cache (dend.md §4): one sparse Cholesky factor of the normal
+//! matrix `M` per (rest mesh, energy, λs, mode, constrained vertex set),
+//! reused for every drag and every iteration.
+//!
+//! Symbolic analysis (AMD fill-reducing ordering, supernodal structure) and
+//! numeric factorisation use faer's sparse Cholesky, the fastest well-kept
+//! Rust implementation measured for this matrix (see README).
+
+use std::collections::HashMap;
+use std::sync::atomic::{AtomicU64, Ordering};
+use std::sync::Arc;
+use std::time::{Duration, Instant};
+
+use faer::dyn_stack::{MemBuffer, MemStack, StackReq};
+use faer::linalg::cholesky::llt::factor::LltRegularization;
+use faer::sparse::linalg::cholesky::{
+    factorize_symbolic_cholesky, LltRef, SymbolicCholesky, SymmetricOrdering,
+};
+use faer::sparse::{SparseColMat, SymbolicSparseColMat};
+use faer::{Conj, MatMut, Par, Side};
+use parking_lot::Mutex;
+
+use super::constraints::Constraints;
+use super::params::{Energy, Mode, Params};
+use super::solver::Rest;
+use super::system::{energy_matrix, System};
+use super::DeformError;
+use crate::mesh::{Point, Real};
+
+/// What a factor depends on, and nothing else: two equal keys give the same
+/// matrix `M`. Handle *targets* are not part of it.
+#[derive(Debug, Clone, PartialEq, Eq, Hash)]
+pub struct FactorKey {
+    rest_id: u64,
+    energy: (u8, u64, u64),
+    lambda1: u64,
+    lambda2: u64,
+    mode: Mode,
+    constrained: Vec<u32>,
+}
+
+impl FactorKey {
+    /// The key of `params` and the constrained set of `constraints` on `rest`.
+    pub fn new(rest: &Rest, params: &Params, constraints: &Constraints) -> Self {
+        let energy = match params.energy {
+            Energy::Membrane => (0, 0, 0),
+            Energy::ThinPlate => (1, 0, 0),
+            Energy::Combined { ks, kb } => (2, ks.to_bits(), kb.to_bits()),
+            Energy::TotalCurvature => (3, 0, 0),
+            Energy::TotalCurvaturePaper => (4, 0, 0),
+        };
+        FactorKey {
+            rest_id: rest.id(),
+            energy,
+            lambda1: params.lambda1.to_bits(),
+            lambda2: params.lambda2.to_bits(),
+            mode: params.mode,
+            constrained: constraints.constrained(),
+        }
+    }
+}
+
+/// How long each stage of a factor build took.
+#[derive(Debug, Clone, Copy, Default)]
+pub struct FactorTimings {
+    /// Energy matrix, stacked rows and `M = JᵀJ`.
+    pub assembly: Duration,
+    /// Fill-reducing ordering and symbolic factorisation.
+    pub symbolic: Duration,
+    /// Numeric Cholesky factorisation.
+    pub numeric: Duration,
+}
+
+/// One factorised constraint set: the stacked rows, the rest-state target
+/// `A X`, and the Cholesky factor of `M`. Immutable and shareable.
+pub struct Factor {
+    key: FactorKey,
+    pub(crate) sys: System,
+    pub(crate) energy: Energy,
+    /// `A X` on the normalised rest positions, `#V×3`.
+    pub(crate) ax: Vec<Point>,
+    symbolic: Option<SymbolicCholesky<usize>>,
+    values: Vec<Real>,
+    timings: FactorTimings,
+}
+
+impl std::fmt::Debug for Factor {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Factor")
+            .field("unknowns", &self.sys.unknowns.len())
+            .field("factor_nnz", &self.values.len())
+            .field("timings", &self.timings)
+            .finish()
+    }
+}
+
+impl Factor {
+    /// Assembles and factorises `M` for `constraints`' constrained set.
+    ///
+    /// Errors: a connected component without any constrained vertex
+    /// ([`DeformError::Unconstrained`]); `M` not positive definite
+    /// ([`DeformError::NotPositiveDefinite`], with the pivot); allocation
+    /// failure ([`DeformError::OutOfMemory`]).
+    pub fn build(
+        rest: &Rest,
+        params: &Params,
+        constraints: &Constraints,
+    ) -> Result<Factor, DeformError> {
+        params.validate()?;
+        let key = FactorKey::new(rest, params, constraints);
+        let ops = rest.operators();
+        let mesh = rest.mesh();
+        // Every component needs a constrained vertex, or M is singular.
+        let mut pinned = vec![false; mesh.topology().num_components()];
+        for &c in &key.constrained {
+            if c as usize >= mesh.num_vertices() {
+                return Err(DeformError::UnknownVertex {
+                    index: c as u64,
+                    vertices: mesh.num_vertices(),
+                });
+            }
+            if let Some(k) = mesh.topology().component(c as usize) {
+                pinned[k as usize] = true;
+            }
+        }
+        if let Some(k) = pinned.iter().position(|&p| !p) {
+            let vertex = (0..mesh.num_vertices())
+                .find(|&v| mesh.topology().component(v) == Some(k as u32))
+                .unwrap_or(0) as u32;
+            return Err(DeformError::Unconstrained {
+                component: k,
+                vertex,
+            });
+        }
+        let t0 = Instant::now();
+        let a = energy_matrix(ops, params.energy);
+        let ax = crate::operators::laplacian_coordinates(&a, &ops.positions);
+        let sys = System::assemble(ops, &a, params, &key.constrained, rest.active())?;
+        let t1 = Instant::now();
+        let n = sys.unknowns.len();
+        let (symbolic, values, t2) = if n == 0 {
+            (None, Vec::new(), Instant::now())
+        } else {
+            let m = to_faer(&sys.m)?;
+            let symbolic = factorize_symbolic_cholesky(
+                m.symbolic(),
+                Side::Lower,
+                SymmetricOrdering::Amd,
+                Default::default(),
+            )
+            .map_err(|_| DeformError::OutOfMemory {
+                what: "symbolic factorisation",
+            })?;
+            let t2 = Instant::now();
+            let mut values = Vec::new();
+            values
+                .try_reserve_exact(symbolic.len_val())
+                .map_err(|_| DeformError::OutOfMemory {
+                    what: "Cholesky factor",
+                })?;
+            values.resize(symbolic.len_val(), 0.0);
+            let par = Par::rayon(0);
+            let req = symbolic.factorize_numeric_llt_scratch::<Real>(par, Default::default());
+            let mut mem = MemBuffer::try_new(req).map_err(|_| DeformError::OutOfMemory {
+                what: "factorisation scratch",
+            })?;
+            symbolic
+                .factorize_numeric_llt::<Real>(
+                    &mut values,
+                    m.as_ref(),
+                    Side::Lower,
+                    LltRegularization::default(),
+                    par,
+                    MemStack::new(&mut mem),
+                    Default::default(),
+                )
+                .map_err(|e| match e {
+                    faer::linalg::cholesky::llt::factor::LltError::NonPositivePivot { index } => {
+                        DeformError::NotPositiveDefinite { pivot: index }
+                    }
+                })?;
+            (Some(symbolic), values, t2)
+        };
+        let t3 = Instant::now();
+        Ok(Factor {
+            key,
+            sys,
+            energy: params.energy,
+            ax,
+            symbolic,
+            values,
+            timings: FactorTimings {
+                assembly: t1 - t0,
+                symbolic: t2 - t1,
+                numeric: t3 - t2,
+            },
+        })
+    }
+
+    /// The key this factor was built for.
+    pub fn key(&self) -> &FactorKey {
+        &self.key
+    }
+
+    /// Stage timings of the build.
+    pub fn timings(&self) -> FactorTimings {
+        self.timings
+    }
+
+    /// Number of unknowns (free vertices, or all vertices with soft constraints).
+    pub fn num_unknowns(&self) -> usize {
+        self.sys.unknowns.len()
+    }
+
+    /// Nonzeros of the Cholesky factor.
+    pub fn factor_nnz(&self) -> usize {
+        self.values.len()
+    }
+
+    /// Approximate heap bytes held: factor values and indices, `J`, `J_Uᵀ`, `M`.
+    pub fn memory_bytes(&self) -> usize {
+        let csr = |m: &sprs::CsMat<Real>| m.nnz() * 16 + (m.rows() + 1) * 8;
+        self.values.len() * 16
+            + csr(&self.sys.j)
+            + csr(&self.sys.jt_u)
+            + csr(&self.sys.m)
+            + self.ax.len() * 24
+            + self.sys.col_of.len() * 4
+    }
+
+    /// Scratch needed by [`Factor::solve_in_place`] for `k` right-hand sides.
+    pub(crate) fn solve_scratch(&self, k: usize) -> StackReq {
+        match &self.symbolic {
+            Some(s) => s.solve_in_place_scratch::<Real>(k, Par::Seq),
+            None => StackReq::EMPTY,
+        }
+    }
+
+    /// Solves `M X = B` in place for a column-major `|U| × k` block `b`.
+    pub(crate) fn solve_in_place(&self, b: MatMut<'_, Real>, stack: &mut MemStack) {
+        if let Some(s) = &self.symbolic {
+            LltRef::new(s, &self.values).solve_in_place_with_conj(Conj::No, b, Par::Seq, stack);
+        }
+    }
+}
+
+/// A symmetric sprs CSR matrix as a faer CSC matrix (same arrays: a symmetric
+/// CSR matrix is its own CSC transpose).
+fn to_faer(m: &sprs::CsMat<Real>) -> Result<SparseColMat<usize, Real>, DeformError> {
+    let n = m.rows();
+    let (indptr, indices, data) = (m.indptr(), m.indices(), m.data());
+    let col_ptr: Vec<usize> = indptr
+        .as_slice()
+        .map(|s| s.to_vec())
+        .unwrap_or_else(|| (0..=n).map(|i| indptr.index(i)).collect());
+    let base = col_ptr[0];
+    let col_ptr: Vec<usize> = col_ptr.iter().map(|&p| p - base).collect();
+    let row_idx = indices[base..base + col_ptr[n]].to_vec();
+    let values = data[base..base + col_ptr[n]].to_vec();
+    let sym = SymbolicSparseColMat::new_unsorted_checked(n, n, col_ptr, None, row_idx);
+    Ok(SparseColMat::new(sym, values))
+}
+
+/// An LRU cache of factors under a byte budget, shared by every session of a
+/// process. Evicts factors only (they are rebuilt on demand); counts builds
+/// and hits so that "changing only targets never refactors" is testable.
+pub struct FactorCache {
+    budget: usize,
+    inner: Mutex<CacheInner>,
+    builds: AtomicU64,
+    hits: AtomicU64,
+}
+
+struct CacheInner {
+    map: HashMap<FactorKey, (Arc<Factor>, u64)>,
+    tick: u64,
+    bytes: usize,
+}
+
+impl FactorCache {
+    /// An empty cache holding at most `budget_bytes` of factors (the most
+    /// recent one is always kept, even if it alone exceeds the budget).
+    pub fn new(budget_bytes: usize) -> Self {
+        FactorCache {
+            budget: budget_bytes,
+            inner: Mutex::new(CacheInner {
+                map: HashMap::new(),
+                tick: 0,
+                bytes: 0,
+            }),
+            builds: AtomicU64::new(0),
+            hits: AtomicU64::new(0),
+        }
+    }
+
+    /// The cached factor for this key, or a new one (built outside the lock).
+    pub fn get_or_build(
+        &self,
+        rest: &Rest,
+        params: &Params,
+        constraints: &Constraints,
+    ) -> Result<Arc<Factor>, DeformError> {
+        let key = FactorKey::new(rest, params, constraints);
+        {
+            let mut inner = self.inner.lock();
+            inner.tick += 1;
+            let tick = inner.tick;
+            if let Some((f, used)) = inner.map.get_mut(&key) {
+                *used = tick;
+                self.hits.fetch_add(1, Ordering::Relaxed);
+                return Ok(f.clone());
+            }
+        }
+        let factor = Arc::new(Factor::build(rest, params, constraints)?);
+        self.builds.fetch_add(1, Ordering::Relaxed);
+        let mut inner = self.inner.lock();
+        inner.tick += 1;
+        let tick = inner.tick;
+        let bytes = factor.memory_bytes();
+        if let Some((old, _)) = inner.map.insert(key.clone(), (factor.clone(), tick)) {
+            inner.bytes -= old.memory_bytes();
+        }
+        inner.bytes += bytes;
+        while inner.bytes > self.budget && inner.map.len() > 1 {
+            let victim = inner
+                .map
+                .iter()
+                .filter(|(k, _)| **k != key)
+                .min_by_key(|(_, (_, used))| *used)
+                .map(|(k, _)| k.clone());
+            match victim {
+                Some(k) => {
+                    if let Some((f, _)) = inner.map.remove(&k) {
+                        inner.bytes -= f.memory_bytes();
+                    }
+                }
+                None => break,
+            }
+        }
+        Ok(factor)
+    }
+
+    /// Drops every factor built on `rest_id` (e.g. when its mesh is deleted).
+    pub fn evict_rest(&self, rest_id: u64) {
+        let mut inner = self.inner.lock();
+        let keys: Vec<FactorKey> = inner
+            .map
+            .keys()
+            .filter(|k| k.rest_id == rest_id)
+            .cloned()
+            .collect();
+        for k in keys {
+            if let Some((f, _)) = inner.map.remove(&k) {
+                inner.bytes -= f.memory_bytes();
+            }
+        }
+    }
+
+    /// Factor builds so far.
+    pub fn builds(&self) -> u64 {
+        self.builds.load(Ordering::Relaxed)
+    }
+
+    /// Cache hits so far.
+    pub fn hits(&self) -> u64 {
+        self.hits.load(Ordering::Relaxed)
+    }
+
+    /// Bytes currently held.
+    pub fn bytes(&self) -> usize {
+        self.inner.lock().bytes
+    }
+
+    /// Factors currently held.
+    pub fn len(&self) -> usize {
+        self.inner.lock().map.len()
+    }
+
+    /// Whether the cache is empty.
+    pub fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+
+    /// The byte budget.
+    pub fn budget(&self) -> usize {
+        self.budget
+    }
+}

@@ -1,0 +1,539 @@
+//! The rest-mesh precomputation ([`Rest`]) and the DEND iteration
+//! ([`Deformer::step`], dend.md §6).
+
+use std::sync::atomic::{AtomicU64, Ordering};
+use std::sync::Arc;
+
+use faer::dyn_stack::{MemBuffer, MemStack};
+use faer::MatMut;
+use nalgebra::{Matrix3, Vector3};
+
+use super::anderson::Anderson;
+use super::constraints::Constraints;
+use super::detail::{local_rotations, Mu, RingWeights};
+use super::factor::Factor;
+use super::params::{DetailTerm, Energy, Mode, Params};
+use super::DeformError;
+use crate::mesh::{Mesh, Point, Real};
+use crate::operators::Operators;
+
+static NEXT_REST_ID: AtomicU64 = AtomicU64::new(1);
+
+/// Everything computed once per rest mesh: the operators (dend.md §2), STEP 1
+/// `μ` for both modes (§5) and the Procrustes weights. Share as `Arc<Rest>`.
+#[derive(Debug)]
+pub struct Rest {
+    id: u64,
+    mesh: Mesh,
+    ops: Operators,
+    mu_default: Mu,
+    mu_paper: Mu,
+    weights: RingWeights,
+    active: Vec<bool>,
+}
+
+impl Rest {
+    /// Builds the operators and STEP 1 on `mesh`. O(#F).
+    pub fn new(mesh: Mesh) -> Result<Rest, DeformError> {
+        let ops = Operators::new(&mesh);
+        if !(ops.scale.is_finite() && ops.scale > 0.0) {
+            return Err(DeformError::NonFinite {
+                what: "mean edge length",
+            });
+        }
+        let topo = mesh.topology();
+        let mu_default = Mu::new(Mode::Default, topo, &ops.positions, &ops.delta);
+        let mu_paper = Mu::new(Mode::Paper, topo, &ops.positions, &ops.delta);
+        let weights = RingWeights::new(topo, &ops.lbar);
+        let active = (0..mesh.num_vertices())
+            .map(|v| !topo.ring(v).is_empty())
+            .collect();
+        Ok(Rest {
+            id: NEXT_REST_ID.fetch_add(1, Ordering::Relaxed),
+            mesh,
+            ops,
+            mu_default,
+            mu_paper,
+            weights,
+            active,
+        })
+    }
+
+    /// A process-unique id (factor cache keys refer to it).
+    pub fn id(&self) -> u64 {
+        self.id
+    }
+
+    /// The rest mesh (mesh units).
+    pub fn mesh(&self) -> &Mesh {
+        &self.mesh
+    }
+
+    /// The rest operators (normalised copy).
+    pub fn operators(&self) -> &Operators {
+        &self.ops
+    }
+
+    /// Whether each vertex is referenced by a triangle.
+    pub fn active(&self) -> &[bool] {
+        &self.active
+    }
+
+    fn mu(&self, mode: Mode) -> &Mu {
+        match mode {
+            Mode::Default => &self.mu_default,
+            Mode::Paper => &self.mu_paper,
+        }
+    }
+}
+
+/// What one [`Deformer::step`] did.
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
+pub struct StepReport {
+    /// Iterations run.
+    pub iterations: usize,
+    /// The last iteration's largest vertex move, in mean edge lengths.
+    pub last_update: Real,
+    /// Whether the last update fell below `tol`.
+    pub converged: bool,
+    /// Whether the iteration stopped because its objective kept growing
+    /// (the best pose seen is kept).
+    pub diverged: bool,
+    /// The final objective value (squared residual of the stacked rows).
+    pub objective: Real,
+    /// The objective at the start of the step (targets applied, before any
+    /// iteration). A step that does not converge ends on the best pose it
+    /// saw, so then `objective <= initial_objective`.
+    pub initial_objective: Real,
+}
+
+/// One editing state: the current pose, warm-started across drags, and the
+/// scratch memory of the iteration (sized once per constraint set).
+pub struct Deformer {
+    rest: Arc<Rest>,
+    params: Params,
+    /// Normalised pose `Y`, `#V`.
+    y: Vec<Point>,
+    /// Pose in mesh units, kept in step with `y`.
+    pose: Vec<Point>,
+    scratch: Scratch,
+}
+
+#[derive(Default)]
+struct Scratch {
+    rot: Vec<Matrix3<Real>>,
+    tdelta: Vec<Point>,
+    lv: Vec<Point>,
+    dhat: Vec<Point>,
+    /// Residual `b - J Y`, column-major `2|R| × 3`.
+    r: Vec<Real>,
+    /// Right-hand side / solution, column-major `|U| × 3`.
+    rhs: Vec<Real>,
+    y_prev: Vec<Point>,
+    best: Vec<Point>,
+    targets: Vec<(u32, Point)>,
+    /// Anderson history and flat `3|U|` buffers (current iterate, candidate).
+    anderson: Anderson,
+    x_flat: Vec<Real>,
+    cand: Vec<Real>,
+    mem: Option<MemBuffer>,
+    sized_for: (usize, usize),
+}
+
+impl Deformer {
+    /// A deformer at the rest pose.
+    pub fn new(rest: Arc<Rest>, params: Params) -> Self {
+        let y = rest.ops.positions.clone();
+        let pose = rest.mesh.positions().to_vec();
+        Deformer {
+            rest,
+            params,
+            y,
+            pose,
+            scratch: Scratch::default(),
+        }
+    }
+
+    /// The rest state.
+    pub fn rest(&self) -> &Arc<Rest> {
+        &self.rest
+    }
+
+    /// The parameters.
+    pub fn params(&self) -> &Params {
+        &self.params
+    }
+
+    /// Replaces the parameters (the caller must use a matching factor).
+    pub fn set_params(&mut self, params: Params) -> Result<(), DeformError> {
+        params.validate()?;
+        self.params = params;
+        self.scratch.mem = None; // re-size the scratch (Anderson window) on the next step
+        Ok(())
+    }
+
+    /// The current pose, mesh units, `#V×3`.
+    pub fn pose(&self) -> &[Point] {
+        &self.pose
+    }
+
+    /// Sets the current pose (undo/redo, restore); rejects wrong lengths and
+    /// non-finite values.
+    pub fn set_pose(&mut self, pose: Vec<Point>) -> Result<(), DeformError> {
+        if pose.len() != self.pose.len() {
+            return Err(DeformError::PoseLength {
+                expected: self.pose.len(),
+                got: pose.len(),
+            });
+        }
+        if pose.iter().flatten().any(|v| !v.is_finite()) {
+            return Err(DeformError::NonFinite { what: "pose" });
+        }
+        self.y = pose.iter().map(|&p| self.rest.ops.normalise(p)).collect();
+        self.pose = pose;
+        Ok(())
+    }
+
+    /// Back to the rest pose.
+    pub fn reset(&mut self) {
+        self.y = self.rest.ops.positions.clone();
+        self.pose = self.rest.mesh.positions().to_vec();
+    }
+
+    /// Runs up to `max_iters` DEND iterations towards the handle targets of
+    /// `constraints`, warm-started from the current pose (dend.md §6):
+    /// each iteration is STEP 2 (and the local rotations) on the pose, then
+    /// one 3-column solve with the cached factor. Each step is safeguarded:
+    /// if the objective grows, the step is halved (up to 5 times); after
+    /// three consecutive growing steps the iteration stops, keeps the best
+    /// pose seen and reports `diverged`.
+    ///
+    /// `factor` must have been built for `constraints`' constrained set and
+    /// this deformer's rest mesh and parameters.
+    pub fn step(
+        &mut self,
+        factor: &Factor,
+        constraints: &Constraints,
+        max_iters: usize,
+    ) -> Result<StepReport, DeformError> {
+        let constrained = constraints.constrained();
+        if factor.sys.constrained != constrained
+            || factor.key() != &super::FactorKey::new(&self.rest, &self.params, constraints)
+        {
+            return Err(DeformError::FactorMismatch);
+        }
+        self.prepare(factor);
+        // Targets, normalised.
+        let ops = &self.rest.ops;
+        let s = &mut self.scratch;
+        s.targets.clear();
+        for &v in &constraints.fixed {
+            s.targets.push((v, ops.positions[v as usize]));
+        }
+        for h in &constraints.handles {
+            for (v, p) in h.target_positions() {
+                if p.iter().any(|c| !c.is_finite()) {
+                    return Err(DeformError::NonFinite {
+                        what: "handle target",
+                    });
+                }
+                s.targets.push((v, ops.normalise(p)));
+            }
+        }
+        let hard = factor.sys.lambda1 == 0.0;
+        if hard {
+            for &(v, p) in &s.targets {
+                self.y[v as usize] = p;
+            }
+        }
+        let mut f = self.evaluate(factor);
+        self.scratch.anderson.reset();
+        let accelerate = self.params.detail == DetailTerm::Nonlinear && self.params.anderson > 0;
+        let mut report = StepReport {
+            iterations: 0,
+            last_update: 0.0,
+            converged: false,
+            diverged: false,
+            objective: f,
+            initial_objective: f,
+        };
+        let mut best_f = f;
+        self.scratch.best.clone_from(&self.y);
+        let mut growing = 0;
+        let nu = factor.sys.unknowns.len();
+        if nu == 0 {
+            report.converged = true;
+            self.sync_pose();
+            return Ok(report);
+        }
+        for _ in 0..max_iters {
+            self.right_hand_side(factor);
+            {
+                let s = &mut self.scratch;
+                let b = MatMut::from_column_major_slice_mut(&mut s.rhs, nu, 3);
+                let mem = s.mem.as_mut().expect("scratch sized in prepare");
+                factor.solve_in_place(b, MemStack::new(mem));
+            }
+            if self.scratch.rhs.iter().any(|v| !v.is_finite()) {
+                self.y.clone_from(&self.scratch.best);
+                report.diverged = true;
+                break;
+            }
+            self.scratch.y_prev.clone_from(&self.y);
+            let max_dx = (0..nu)
+                .map(|k| {
+                    let r = &self.scratch.rhs;
+                    (r[k] * r[k] + r[nu + k] * r[nu + k] + r[2 * nu + k] * r[2 * nu + k]).sqrt()
+                })
+                .fold(0.0, Real::max);
+            // Anderson-accelerated candidate, accepted only if it lowers the objective.
+            let mut accepted = None;
+            if accelerate {
+                let s = &mut self.scratch;
+                for (k, &u) in factor.sys.unknowns.iter().enumerate() {
+                    let p = s.y_prev[u as usize];
+                    s.x_flat[k] = p[0];
+                    s.x_flat[nu + k] = p[1];
+                    s.x_flat[2 * nu + k] = p[2];
+                }
+                if s.anderson.step(&s.x_flat, &s.rhs, &mut s.cand) {
+                    let mut mv: Real = 0.0;
+                    for (k, &u) in factor.sys.unknowns.iter().enumerate() {
+                        let c = [s.cand[k], s.cand[nu + k], s.cand[2 * nu + k]];
+                        let p = s.y_prev[u as usize];
+                        mv = mv.max(
+                            ((c[0] - p[0]).powi(2) + (c[1] - p[1]).powi(2) + (c[2] - p[2]).powi(2))
+                                .sqrt(),
+                        );
+                        self.y[u as usize] = c;
+                    }
+                    let f_aa = self.evaluate(factor);
+                    if f_aa.is_finite() && f_aa <= f {
+                        accepted = Some((f_aa, mv));
+                    } else {
+                        self.scratch.anderson.reset();
+                    }
+                }
+            }
+            let (f_new, alpha, step_len) = match accepted {
+                Some((f_aa, mv)) => (f_aa, 1.0, mv),
+                None => {
+                    let mut alpha = 1.0;
+                    let mut f_new;
+                    loop {
+                        for (k, &u) in factor.sys.unknowns.iter().enumerate() {
+                            let p = self.scratch.y_prev[u as usize];
+                            let r = &self.scratch.rhs;
+                            self.y[u as usize] = [
+                                p[0] + alpha * r[k],
+                                p[1] + alpha * r[nu + k],
+                                p[2] + alpha * r[2 * nu + k],
+                            ];
+                        }
+                        f_new = self.evaluate(factor);
+                        if f_new <= 1.05 * f + 1e-20 || alpha < 1.0 / 16.0 {
+                            break;
+                        }
+                        alpha *= 0.5;
+                    }
+                    if alpha < 1.0 {
+                        self.scratch.anderson.reset();
+                    }
+                    (f_new, alpha, alpha * max_dx)
+                }
+            };
+            let _ = alpha;
+            report.iterations += 1;
+            report.last_update = step_len;
+            growing = if f_new > 1.05 * f + 1e-20 {
+                growing + 1
+            } else {
+                0
+            };
+            f = f_new;
+            if f < best_f {
+                best_f = f;
+                self.scratch.best.clone_from(&self.y);
+            }
+            if !f.is_finite() || growing >= 3 {
+                self.y.clone_from(&self.scratch.best);
+                f = best_f;
+                report.diverged = true;
+                break;
+            }
+            if report.last_update < self.params.tol {
+                report.converged = true;
+                break;
+            }
+        }
+        if !report.converged && f > best_f {
+            // an unconverged step ends on the best pose it saw
+            self.y.clone_from(&self.scratch.best);
+            f = best_f;
+        }
+        report.objective = f;
+        self.sync_pose();
+        Ok(report)
+    }
+
+    fn sync_pose(&mut self) {
+        let ops = &self.rest.ops;
+        for (p, &y) in self.pose.iter_mut().zip(&self.y) {
+            *p = ops.denormalise(y);
+        }
+    }
+
+    /// Sizes the scratch memory for `factor` (once per constraint set).
+    fn prepare(&mut self, factor: &Factor) {
+        let n = self.y.len();
+        let dims = (factor.sys.num_rows(), factor.sys.unknowns.len());
+        let s = &mut self.scratch;
+        if s.rot.len() != n {
+            s.rot = vec![Matrix3::identity(); n];
+            s.tdelta = vec![[0.0; 3]; n];
+            s.lv = vec![[0.0; 3]; n];
+            s.dhat = vec![[0.0; 3]; n];
+        }
+        if s.sized_for != dims || s.mem.is_none() {
+            s.r = vec![0.0; 3 * dims.0];
+            s.rhs = vec![0.0; 3 * dims.1];
+            s.mem = Some(MemBuffer::new(factor.solve_scratch(3)));
+            s.anderson = Anderson::new(self.params.anderson, 3 * dims.1);
+            s.x_flat = vec![0.0; 3 * dims.1];
+            s.cand = vec![0.0; 3 * dims.1];
+            s.sized_for = dims;
+        }
+    }
+
+    /// STEP 2 and the local rotations on the current pose, then the residual
+    /// `r = b - J Y` into scratch; returns the objective `|r|²` (+ the soft
+    /// constraint term).
+    fn evaluate(&mut self, factor: &Factor) -> Real {
+        let rest = &*self.rest;
+        let ops = &rest.ops;
+        let topo = rest.mesh.topology();
+        let s = &mut self.scratch;
+        let nonlinear = self.params.detail == DetailTerm::Nonlinear;
+        let rotated = nonlinear && self.params.mode == Mode::Default;
+        // δ̂ (paper eqs. 27–28), or δ for the linear term.
+        if nonlinear {
+            rest.mu(self.params.mode)
+                .delta_hat(topo, &self.y, &mut s.dhat);
+        } else {
+            s.dhat.copy_from_slice(&ops.delta);
+        }
+        // Internal target: P (T δ) in the default mode (dend.md §8.2), A X otherwise.
+        if rotated {
+            local_rotations(topo, &rest.weights, &ops.positions, &self.y, &mut s.rot);
+            let base = if factor.energy == Energy::TotalCurvaturePaper {
+                &factor.ax
+            } else {
+                &ops.delta
+            };
+            for ((t, r), d) in s.tdelta.iter_mut().zip(&s.rot).zip(base) {
+                let v = r * Vector3::from(*d);
+                *t = [v.x, v.y, v.z];
+            }
+            apply_p(factor.energy, ops, &mut s.tdelta, &mut s.lv);
+        }
+        let internal: &[Point] = if rotated { &s.tdelta } else { &factor.ax };
+        // r = b - J Y
+        let sys = &factor.sys;
+        let nr = sys.rows.len();
+        let nrows = 2 * nr;
+        let mut obj = 0.0;
+        for (row, jrow) in sys.j.outer_iterator().enumerate() {
+            let (r, target) = if row < nr {
+                let i = sys.rows[row] as usize;
+                (row, scale3(internal[i], sys.row_weight[row]))
+            } else {
+                let r = row - nr;
+                let i = sys.rows[r] as usize;
+                (r, scale3(s.dhat[i], sys.row_weight[r] * sys.sqrt_lambda2))
+            };
+            let _ = r;
+            let mut acc = target;
+            for (c, &v) in jrow.iter() {
+                let y = self.y[c];
+                acc[0] -= v * y[0];
+                acc[1] -= v * y[1];
+                acc[2] -= v * y[2];
+            }
+            for (k, a) in acc.iter().enumerate() {
+                s.r[k * nrows + row] = *a;
+                obj += a * a;
+            }
+        }
+        if sys.lambda1 > 0.0 {
+            for &(v, p) in &s.targets {
+                let y = self.y[v as usize];
+                let d2: Real = (0..3).map(|k| (y[k] - p[k]).powi(2)).sum();
+                obj += sys.lambda1 * d2;
+            }
+        }
+        obj
+    }
+
+    /// `rhs = J_Uᵀ r` (+ `λ1 (C - Y)` on constrained unknowns).
+    fn right_hand_side(&mut self, factor: &Factor) {
+        let sys = &factor.sys;
+        let s = &mut self.scratch;
+        let nu = sys.unknowns.len();
+        let nrows = sys.num_rows();
+        for (k, row) in sys.jt_u.outer_iterator().enumerate() {
+            let mut acc = [0.0; 3];
+            for (c, &v) in row.iter() {
+                acc[0] += v * s.r[c];
+                acc[1] += v * s.r[nrows + c];
+                acc[2] += v * s.r[2 * nrows + c];
+            }
+            s.rhs[k] = acc[0];
+            s.rhs[nu + k] = acc[1];
+            s.rhs[2 * nu + k] = acc[2];
+        }
+        if sys.lambda1 > 0.0 {
+            for &(v, p) in &s.targets {
+                let k = sys.col_of[v as usize];
+                if k == u32::MAX {
+                    continue;
+                }
+                let y = self.y[v as usize];
+                for d in 0..3 {
+                    s.rhs[d * nu + k as usize] += sys.lambda1 * (p[d] - y[d]);
+                }
+            }
+        }
+    }
+}
+
+/// `v ← P v`, the energy's pre-operator in `A = P L` (membrane `I`, thin
+/// plate `L`, combined `k_s I + k_b L`, total curvature `L - 2G`); the
+/// literal `L² - 2LG` has no such form and its target `T (A X)` is used as is.
+fn apply_p(energy: Energy, ops: &Operators, v: &mut [Point], lv: &mut [Point]) {
+    let (ci, cl, g2) = match energy {
+        Energy::Membrane | Energy::TotalCurvaturePaper => return,
+        Energy::ThinPlate => (0.0, 1.0, false),
+        Energy::Combined { ks, kb } => (ks, kb, false),
+        Energy::TotalCurvature => (0.0, 1.0, true),
+    };
+    for (i, row) in ops.l.outer_iterator().enumerate() {
+        let mut acc = [0.0; 3];
+        for (j, &w) in row.iter() {
+            acc[0] += w * v[j][0];
+            acc[1] += w * v[j][1];
+            acc[2] += w * v[j][2];
+        }
+        lv[i] = acc;
+    }
+    for (i, p) in v.iter_mut().enumerate() {
+        let g = if g2 { -2.0 * ops.g[i] } else { 0.0 };
+        for k in 0..3 {
+            p[k] = (ci + g) * p[k] + cl * lv[i][k];
+        }
+    }
+}
+
+#[inline]
+fn scale3(p: Point, s: Real) -> Point {
+    [p[0] * s, p[1] * s, p[2] * s]
+}

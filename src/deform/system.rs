@@ -1,0 +1,247 @@
+//! Assembly of the stacked least-squares rows of dend.md §4 and their normal
+//! matrix.
+//!
+//! For the free rows `R` (vertices not fixed, not in a handle), with
+//! `W = diag(√A_i)`:
+//!
+//! ```text
+//!   J = [ W R A      ]      internal term, A = the energy's matrix (§3)
+//!       [ √λ2 W R L  ]      detail term (paper eq. 16)
+//! ```
+//!
+//! Hard constraints: the unknowns `U` are the free vertices, the constrained
+//! columns move to the right-hand side, and `M = J_Uᵀ J_U`. Soft constraints
+//! (`λ1 > 0`): every vertex is unknown and `M = Jᵀ J + λ1 Sᵀ S`. `M` depends on
+//! the rest mesh, the energy, the λs and the constrained *set* only.
+
+use sprs::{CsMat, TriMat};
+
+use super::params::{Energy, Params};
+use super::DeformError;
+use crate::mesh::Real;
+use crate::operators::Operators;
+
+/// The energy matrix `A` of dend.md §3 (paper table, §5), `#V×#V`, CSR.
+pub fn energy_matrix(ops: &Operators, energy: Energy) -> CsMat<Real> {
+    let l = &ops.l;
+    match energy {
+        Energy::Membrane => l.clone(),
+        Energy::ThinPlate => l * l,
+        Energy::Combined { ks, kb } => {
+            let ll = l * l;
+            &l.map(|v| ks * v) + &ll.map(|v| kb * v)
+        }
+        Energy::TotalCurvature => {
+            // L² - 2 G L: scale the rows of L by G_i
+            let ll = l * l;
+            let gl = scale_rows(l, &ops.g, -2.0);
+            &ll + &gl
+        }
+        Energy::TotalCurvaturePaper => {
+            // L² - 2 L G: scale the columns of L by G_j
+            let ll = l * l;
+            let mut lg = l.clone();
+            for mut row in lg.outer_iterator_mut() {
+                for (j, v) in row.iter_mut() {
+                    *v *= -2.0 * ops.g[j];
+                }
+            }
+            &ll + &lg
+        }
+    }
+}
+
+fn scale_rows(m: &CsMat<Real>, s: &[Real], factor: Real) -> CsMat<Real> {
+    let mut out = m.clone();
+    for (i, mut row) in out.outer_iterator_mut().enumerate() {
+        for (_, v) in row.iter_mut() {
+            *v *= factor * s[i];
+        }
+    }
+    out
+}
+
+/// The assembled rows and the normal matrix of one constraint set.
+#[derive(Debug, Clone)]
+pub struct System {
+    /// Free rows `R` (vertex indices), sorted.
+    pub rows: Vec<u32>,
+    /// `√A_i` for each row in `R`.
+    pub row_weight: Vec<Real>,
+    /// `√λ2`.
+    pub sqrt_lambda2: Real,
+    /// `J`, `2|R| × #V`, CSR: first the internal rows, then the detail rows.
+    pub j: CsMat<Real>,
+    /// The unknown vertices `U`, sorted.
+    pub unknowns: Vec<u32>,
+    /// Vertex → position in `U`, or `u32::MAX`.
+    pub col_of: Vec<u32>,
+    /// `J_Uᵀ`, `|U| × 2|R|`, CSR.
+    pub jt_u: CsMat<Real>,
+    /// The normal matrix `M`, `|U| × |U|`, CSR, symmetric.
+    pub m: CsMat<Real>,
+    /// Constrained vertices (fixed ∪ handles), sorted.
+    pub constrained: Vec<u32>,
+    /// `λ1` (0: hard constraints).
+    pub lambda1: Real,
+}
+
+impl System {
+    /// Assembles `J`, `J_Uᵀ` and `M` for `constrained` (sorted) on `ops`.
+    /// Unreferenced vertices are neither rows nor unknowns.
+    pub fn assemble(
+        ops: &Operators,
+        a: &CsMat<Real>,
+        params: &Params,
+        constrained: &[u32],
+        active: &[bool],
+    ) -> Result<Self, DeformError> {
+        let n = ops.num_vertices();
+        let mut is_constrained = vec![false; n];
+        for &c in constrained {
+            is_constrained[c as usize] = true;
+        }
+        let rows: Vec<u32> = (0..n as u32)
+            .filter(|&v| active[v as usize] && !is_constrained[v as usize])
+            .collect();
+        let soft = params.lambda1 > 0.0;
+        let unknowns: Vec<u32> = if soft {
+            (0..n as u32).filter(|&v| active[v as usize]).collect()
+        } else {
+            rows.clone()
+        };
+        let mut col_of = vec![u32::MAX; n];
+        for (k, &u) in unknowns.iter().enumerate() {
+            col_of[u as usize] = k as u32;
+        }
+        let row_weight: Vec<Real> = rows.iter().map(|&i| ops.area[i as usize].sqrt()).collect();
+        let sqrt_lambda2 = params.lambda2.sqrt();
+        let nr = rows.len();
+        // J (all columns) and J_U (unknown columns), row by row.
+        let mut tj = TriMat::new((2 * nr, n));
+        let mut tju = TriMat::new((2 * nr, unknowns.len()));
+        for (r, &i) in rows.iter().enumerate() {
+            let w = row_weight[r];
+            for (block, mat, s) in [(0, a, w), (nr, &ops.l, w * sqrt_lambda2)] {
+                if s == 0.0 {
+                    continue;
+                }
+                if let Some(row) = mat.outer_view(i as usize) {
+                    for (c, &v) in row.iter() {
+                        tj.add_triplet(block + r, c, s * v);
+                        if col_of[c] != u32::MAX {
+                            tju.add_triplet(block + r, col_of[c] as usize, s * v);
+                        }
+                    }
+                }
+            }
+        }
+        let j: CsMat<Real> = tj.to_csr();
+        let j_u: CsMat<Real> = tju.to_csr();
+        let jt_u: CsMat<Real> = j_u.transpose_view().to_csr();
+        let mut m = &jt_u * &j_u;
+        if soft {
+            let mut diag = TriMat::new((unknowns.len(), unknowns.len()));
+            for &c in constrained {
+                let k = col_of[c as usize];
+                if k != u32::MAX {
+                    diag.add_triplet(k as usize, k as usize, params.lambda1);
+                }
+            }
+            let d: CsMat<Real> = diag.to_csr();
+            m = &m + &d;
+        }
+        Ok(System {
+            rows,
+            row_weight,
+            sqrt_lambda2,
+            j,
+            unknowns,
+            col_of,
+            jt_u,
+            m,
+            constrained: constrained.to_vec(),
+            lambda1: params.lambda1,
+        })
+    }
+
+    /// Number of stacked rows `2|R|`.
+    pub fn num_rows(&self) -> usize {
+        2 * self.rows.len()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::mesh::Mesh;
+
+    fn strip() -> Mesh {
+        let mut p = Vec::new();
+        for r in 0..4 {
+            for c in 0..6 {
+                p.push([c as f64, r as f64 * 0.9, 0.1 * ((c * r) % 3) as f64]);
+            }
+        }
+        let mut t = Vec::new();
+        for r in 0..3u32 {
+            for c in 0..5u32 {
+                let v = r * 6 + c;
+                t.push([v, v + 1, v + 7]);
+                t.push([v, v + 7, v + 6]);
+            }
+        }
+        Mesh::new(p, t).unwrap()
+    }
+
+    #[test]
+    fn energy_matrices_annihilate_constants_except_the_literal_paper_form() {
+        let m = strip();
+        let ops = Operators::new(&m);
+        for e in [
+            Energy::Membrane,
+            Energy::ThinPlate,
+            Energy::Combined { ks: 1.0, kb: 2.0 },
+            Energy::TotalCurvature,
+        ] {
+            let a = energy_matrix(&ops, e);
+            let r: Vec<f64> = a
+                .outer_iterator()
+                .map(|row| row.iter().map(|(_, v)| v).sum())
+                .collect();
+            assert!(r.iter().all(|v| v.abs() < 1e-12), "{e:?}: A·1 = {r:?}");
+        }
+        let a = energy_matrix(&ops, Energy::TotalCurvaturePaper);
+        let r: Vec<f64> = a
+            .outer_iterator()
+            .map(|row| row.iter().map(|(_, v)| v).sum())
+            .collect();
+        assert!(
+            r.iter().any(|v| v.abs() > 1e-6),
+            "L² - 2LG should not annihilate 1"
+        );
+    }
+
+    #[test]
+    fn normal_matrix_is_symmetric_and_matches_j() {
+        let m = strip();
+        let ops = Operators::new(&m);
+        let a = energy_matrix(&ops, Energy::TotalCurvature);
+        let active = vec![true; m.num_vertices()];
+        for lambda1 in [0.0, 3.0] {
+            let params = Params {
+                lambda1,
+                ..Params::default()
+            };
+            let sys = System::assemble(&ops, &a, &params, &[0, 6, 5, 11], &active).unwrap();
+            for (i, row) in sys.m.outer_iterator().enumerate() {
+                for (j, v) in row.iter() {
+                    let t = sys.m.get(j, i).copied().unwrap_or(0.0);
+                    assert!((v - t).abs() < 1e-12 * (1.0 + v.abs()));
+                }
+            }
+            assert_eq!(sys.num_rows(), 2 * (m.num_vertices() - 4));
+            assert_eq!(sys.unknowns.len(), if lambda1 > 0.0 { 24 } else { 20 });
+        }
+    }
+}

@@ -1,0 +1,114 @@
+//! Runs the built `dend` binary: `gen`, `info`, and exit code 2 on errors.
+
+use std::path::Path;
+use std::process::Command;
+
+fn dend(args: &[&str]) -> (i32, String, String) {
+    let out = Command::new(env!("CARGO_BIN_EXE_dend"))
+        .args(args)
+        .output()
+        .unwrap();
+    (
+        out.status.code().unwrap_or(-1),
+        String::from_utf8_lossy(&out.stdout).into_owned(),
+        String::from_utf8_lossy(&out.stderr).into_owned(),
+    )
+}
+
+#[test]
+fn gen_bar_then_info_reports_856_vertices_closed_genus_0() {
+    let dir = tempfile::tempdir().unwrap();
+    let bar = dir.path().join("bar.obj");
+    let bar = bar.to_str().unwrap();
+    let (code, _, err) = dend(&["gen", "bar", "-o", bar]);
+    assert_eq!(code, 0, "{err}");
+    let (code, out, err) = dend(&["info", bar]);
+    assert_eq!(code, 0, "{err}");
+    assert!(out.contains("vertices:    856"), "{out}");
+    assert!(out.contains("boundary:    closed"), "{out}");
+    assert!(out.contains("components:  1"), "{out}");
+    assert!(out.contains("genus:       0"), "{out}");
+    assert!(out.contains("validation:  ok"), "{out}");
+    let (code, out, _) = dend(&["info", "--json", bar]);
+    assert_eq!(code, 0);
+    let v: serde_json::Value = serde_json::from_str(&out).unwrap();
+    assert_eq!(v["vertices"], 856);
+    assert_eq!(v["genus"], 0);
+    assert_eq!(v["boundary_loops"], 0);
+}
+
+#[test]
+fn gen_every_shape_in_every_format() {
+    let dir = tempfile::tempdir().unwrap();
+    for (shape, nv, loops) in [
+        ("cylinder", 1088, 2),
+        ("flag", 289, 1),
+        ("plane", 2115, 1),
+        ("bumpy-plane", 2115, 1),
+        ("torus", 576, 0),
+    ] {
+        for ext in ["obj", "off", "ply", "stl"] {
+            let f = dir.path().join(format!("{shape}.{ext}"));
+            let f = f.to_str().unwrap();
+            let mut args = vec!["gen", shape, "-o", f];
+            if ext == "stl" {
+                args.push("--ascii"); // exact coordinates, so welding restores the vertices
+            }
+            assert_eq!(dend(&args).0, 0, "{shape}.{ext}");
+            let (code, out, err) = dend(&["info", "--json", f]);
+            assert_eq!(code, 0, "{shape}.{ext}: {err}");
+            let v: serde_json::Value = serde_json::from_str(&out).unwrap();
+            assert_eq!(v["vertices"], nv, "{shape}.{ext}");
+            assert_eq!(v["boundary_loops"], loops, "{shape}.{ext}");
+        }
+    }
+    let f = dir.path().join("small.off");
+    let (code, _, err) = dend(&[
+        "gen",
+        "torus",
+        "--nu",
+        "5",
+        "--nv",
+        "4",
+        "-o",
+        f.to_str().unwrap(),
+    ]);
+    assert_eq!(code, 0, "{err}");
+    let (_, out, _) = dend(&["info", f.to_str().unwrap()]);
+    assert!(
+        out.contains("vertices:    20") && out.contains("genus:       1"),
+        "{out}"
+    );
+}
+
+#[test]
+fn errors_exit_with_code_2_not_101() {
+    let broken = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/broken");
+    for f in [
+        "truncated.off",
+        "nonmanifold.ply",
+        "garbage.stl",
+        "nan.obj",
+        "empty.obj",
+    ] {
+        let (code, _, err) = dend(&["info", broken.join(f).to_str().unwrap()]);
+        assert_eq!(code, 2, "{f}: {err}");
+        assert!(err.starts_with("error: "), "{f}: {err}");
+    }
+    let (code, _, err) = dend(&["info", "/nonexistent/mesh.obj"]);
+    assert_eq!(code, 2, "{err}");
+    let (code, _, err) = dend(&["info", "mesh.xyz"]);
+    assert_eq!(code, 2, "{err}");
+    let dir = tempfile::tempdir().unwrap();
+    let (code, _, err) = dend(&[
+        "gen",
+        "torus",
+        "--size2",
+        "5",
+        "-o",
+        dir.path().join("t.obj").to_str().unwrap(),
+    ]);
+    assert_eq!(code, 2, "{err}");
+    let (code, _, _) = dend(&["gen", "sphere", "-o", "x.obj"]);
+    assert_eq!(code, 2);
+}

@@ -1,0 +1,188 @@
+//! `dend deform` end to end: the README's commands, the survey format, and
+//! errors with exit code 2.
+
+mod support;
+
+use std::path::Path;
+use std::process::Command;
+
+use dend::deform::ConstraintsSpec;
+use dend::mesh::io;
+
+fn dend(args: &[&str]) -> std::process::Output {
+    Command::new(env!("CARGO_BIN_EXE_dend"))
+        .args(args)
+        .output()
+        .unwrap()
+}
+
+#[test]
+fn readme_bar_twist_meets_the_handle_targets_and_keeps_the_section() {
+    let dir = tempfile::tempdir().unwrap();
+    let bar = dir.path().join("bar.obj");
+    let out = dir.path().join("out.obj");
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let example = root.join("examples/bar-twist-135.json");
+    assert!(dend(&["gen", "bar", "-o", bar.to_str().unwrap()])
+        .status
+        .success());
+    let o = dend(&[
+        "deform",
+        bar.to_str().unwrap(),
+        "--constraints",
+        example.to_str().unwrap(),
+        "-o",
+        out.to_str().unwrap(),
+    ]);
+    let stderr = String::from_utf8_lossy(&o.stderr);
+    assert!(o.status.success(), "{stderr}");
+    assert!(stderr.contains("converged"), "{stderr}");
+    assert!(stderr.contains("per iteration"), "{stderr}");
+    let rest = io::read_path(&bar).unwrap();
+    let pose = io::read_path(&out).unwrap();
+    assert_eq!(pose.triangles(), rest.triangles());
+    // handle vertices sit on their targets (OBJ keeps ~1e-6 relative precision)
+    let spec: ConstraintsSpec =
+        serde_json::from_str(&std::fs::read_to_string(&example).unwrap()).unwrap();
+    let c = spec.resolve(&rest).unwrap();
+    for (v, p) in c.handles[0].target_positions() {
+        let got = pose.positions()[v as usize];
+        assert!(
+            support::max_dist(&[got], &[p]) < 1e-5,
+            "handle vertex {v}: {got:?} vs {p:?}"
+        );
+    }
+    for &v in &c.fixed {
+        assert!(
+            support::max_dist(
+                &[pose.positions()[v as usize]],
+                &[rest.positions()[v as usize]]
+            ) < 1e-6
+        );
+    }
+    let fig = dend::measure::bar_slabs(rest.positions(), pose.positions(), 0.5, 5.5, 10);
+    assert!(fig.min_area() > 0.85, "cross-section collapsed: {fig:?}");
+    assert!(fig.twist_deviation(0.5, 5.5, 135.0) < 8.0, "{fig:?}");
+}
+
+#[test]
+fn survey_files_are_read_directly() {
+    let Some(meshes) = support::shared_meshes() else {
+        return;
+    };
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("cactus.off");
+    let p = |s: &str| meshes.join(s).to_str().unwrap().to_string();
+    let o = dend(&[
+        "deform",
+        &p("survey_cactus.off"),
+        "--sel",
+        &p("survey_cactus.sel"),
+        "--def",
+        &p("survey_cactus.def"),
+        "-o",
+        out.to_str().unwrap(),
+        "--max-iters",
+        "30",
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let rest = io::read_path(&meshes.join("survey_cactus.off")).unwrap();
+    let pose = io::read_path(&out).unwrap();
+    let sel = io::survey::read_sel(&meshes.join("survey_cactus.sel")).unwrap();
+    let def = io::survey::read_def(&meshes.join("survey_cactus.def")).unwrap();
+    // the handle follows the .def matrix (re-orthonormalised), the fixed part stays
+    for v in sel.indices(io::survey::VertexStatus::Handle) {
+        let want = def.apply(rest.positions()[v as usize]);
+        assert!(
+            support::max_dist(&[pose.positions()[v as usize]], &[want]) < 1e-3 * rest.diagonal()
+        );
+    }
+    for v in sel.indices(io::survey::VertexStatus::Fixed) {
+        assert!(
+            support::max_dist(
+                &[pose.positions()[v as usize]],
+                &[rest.positions()[v as usize]]
+            ) < 1e-9 * rest.diagonal()
+        );
+    }
+}
+
+#[test]
+fn bad_inputs_exit_with_code_2_and_a_message() {
+    let dir = tempfile::tempdir().unwrap();
+    let bar = dir.path().join("bar.off");
+    assert!(dend(&["gen", "bar", "-o", bar.to_str().unwrap()])
+        .status
+        .success());
+    let write = |name: &str, text: &str| {
+        let p = dir.path().join(name);
+        std::fs::write(&p, text).unwrap();
+        p.to_str().unwrap().to_string()
+    };
+    let cases = [
+        (
+            write(
+                "overlap.json",
+                r#"{"fixed": [0, 1], "handles": [{"vertices": [1]}]}"#,
+            ),
+            "already fixed",
+        ),
+        (
+            write("unknown.json", r#"{"fixed": [0, 100000]}"#),
+            "unknown vertex",
+        ),
+        (
+            write(
+                "empty.json",
+                r#"{"fixed": [0], "handles": [{"name": "h", "vertices": {"sphere": {"center": [9,9,9], "radius": 0.1}}}]}"#,
+            ),
+            "selects no vertex",
+        ),
+        (write("syntax.json", r#"{"fixed": [0"#), "parsing"),
+        (
+            write(
+                "nan.json",
+                r#"{"fixed": [0], "handles": [{"vertices": [5], "rotate": {"axis": [0,0,0], "degrees": 10}}]}"#,
+            ),
+            "axis is zero",
+        ),
+    ];
+    let out = dir.path().join("o.obj");
+    for (file, needle) in &cases {
+        let o = dend(&[
+            "deform",
+            bar.to_str().unwrap(),
+            "--constraints",
+            file,
+            "-o",
+            out.to_str().unwrap(),
+        ]);
+        let stderr = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(o.status.code(), Some(2), "{file}: {stderr}");
+        assert!(
+            stderr.contains("error:") && stderr.contains(needle),
+            "{file}: {stderr}"
+        );
+    }
+    // unreadable mesh, bad parameter
+    let o = dend(&[
+        "deform",
+        "/nonexistent.off",
+        "--constraints",
+        &cases[0].0,
+        "-o",
+        out.to_str().unwrap(),
+    ]);
+    assert_eq!(o.status.code(), Some(2));
+    let o = dend(&[
+        "deform",
+        bar.to_str().unwrap(),
+        "--constraints",
+        &cases[0].0,
+        "--lambda2",
+        "-1",
+        "-o",
+        out.to_str().unwrap(),
+    ]);
+    assert_eq!(o.status.code(), Some(2));
+}
