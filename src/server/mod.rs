@@ -8,6 +8,7 @@
 pub mod config;
 pub mod error;
 mod meshes;
+pub mod recover;
 pub mod metrics;
 mod sessions;
 pub mod ws;
@@ -181,7 +182,8 @@ pub fn spawn_idle_reaper(state: AppState, period: Duration) -> tokio::task::Join
 pub async fn serve(config: Config) -> anyhow::Result<()> {
     let listener = tokio::net::TcpListener::bind(config.addr).await?;
     let addr = listener.local_addr()?;
-    let state = AppState::new(config)?;
+    let store = recover::open_store(&config)?;
+    let state = AppState::with_store(config, store)?;
     let _reaper = spawn_idle_reaper(state.clone(), Duration::from_secs(10));
     println!("listening on http://{addr}");
     axum::serve(listener, app(state)).with_graceful_shutdown(shutdown_signal()).await?;

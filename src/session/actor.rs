@@ -20,7 +20,7 @@ const HISTORY_LIMIT: usize = 64;
 
 pub(super) enum Cmd {
     Drag { handle: usize, delta: Delta, seq: u64, reply: Option<(usize, Reply<PoseSnapshot>)> },
-    SetConstraints { spec: serde_json::Value, constraints: Constraints, reply: Reply<SessionState> },
+    SetConstraints { spec: serde_json::Value, constraints: Constraints, restore: Option<Restore>, reply: Reply<SessionState> },
     Undo(Reply<PoseSnapshot>),
     Redo(Reply<PoseSnapshot>),
     Reset(Reply<PoseSnapshot>),
@@ -40,6 +40,16 @@ enum Internal {
         generation: u64,
         result: Result<(), SessionError>,
     },
+}
+
+/// Re-opening a stored session: constraints already carry the recovered
+/// targets; the store is left as is (its checkpoint + journal stay valid
+/// until the first commit writes a new checkpoint).
+pub(super) struct Restore {
+    /// Warm start (the last checkpoint's pose).
+    pub pose: Option<Vec<[f64; 3]>>,
+    /// Highest sequence number included in the targets.
+    pub ack_seq: u64,
 }
 
 struct Snapshot {
@@ -160,8 +170,8 @@ impl Actor {
         }
         match cmd {
             Cmd::Drag { handle, delta, seq, reply } => self.on_drag(handle, delta, seq, reply),
-            Cmd::SetConstraints { spec, constraints, reply } => {
-                let _ = reply.send(self.on_set_constraints(spec, constraints));
+            Cmd::SetConstraints { spec, constraints, restore, reply } => {
+                let _ = reply.send(self.on_set_constraints(spec, constraints, restore));
             }
             Cmd::Undo(reply) => {
                 let r = self.undo_redo(true);
@@ -218,8 +228,23 @@ impl Actor {
         }
     }
 
-    fn on_set_constraints(&mut self, spec: serde_json::Value, constraints: Constraints) -> Result<SessionState, SessionError> {
-        self.opts.store.set_constraints(&self.inner.id, &spec)?;
+    fn on_set_constraints(
+        &mut self,
+        spec: serde_json::Value,
+        constraints: Constraints,
+        restore: Option<Restore>,
+    ) -> Result<SessionState, SessionError> {
+        match restore {
+            None => self.opts.store.set_constraints(&self.inner.id, &spec)?,
+            Some(r) => {
+                if let (Some(pose), Some(d)) = (r.pose, self.deformer.as_mut()) {
+                    d.set_pose(pose)?;
+                    self.pose = Arc::new(d.pose().to_vec());
+                }
+                self.last_seq = r.ack_seq;
+                self.applied_seq = r.ack_seq;
+            }
+        }
         self.generation += 1;
         self.state = SessionState::Building;
         self.inner.shared.lock().handles = constraints.handles.iter().map(|h| h.name.clone()).collect();
@@ -397,6 +422,7 @@ impl Actor {
     fn checkpoint(&mut self) {
         let cp = Checkpoint {
             revision: self.revision,
+            ack_seq: self.applied_seq,
             pose: self.pose.to_vec(),
             targets: self.targets().iter().map(stored).collect(),
         };

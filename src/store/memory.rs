@@ -122,7 +122,7 @@ mod tests {
         let drag = JournalEntry::Drag { handle: 0, rotation: [0.0, 0.0, 0.0, 1.0], translation: [1.0, 0.0, 0.0], seq: 1 };
         s.append("a", &[drag.clone(), drag.clone()])?;
         assert_eq!(s.journal("a")?, vec![drag.clone(), drag.clone()]);
-        let cp = Checkpoint { revision: 3, pose: vec![[0.0; 3]], targets: vec![] };
+        let cp = Checkpoint { revision: 3, ack_seq: 2, pose: vec![[0.0; 3]], targets: vec![] };
         s.checkpoint("a", &cp)?;
         assert!(s.journal("a")?.is_empty());
         assert_eq!(s.get_checkpoint("a")?, Some(cp));
