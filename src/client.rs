@@ -99,7 +99,10 @@ async fn check(r: reqwest::Response) -> Result<reqwest::Response, ClientError> {
 impl Client {
     /// A client of the server at `base` (e.g. `http://127.0.0.1:8080`).
     pub fn new(base: &str) -> Self {
-        Client { http: reqwest::Client::new(), base: base.trim_end_matches('/').to_owned() }
+        Client {
+            http: reqwest::Client::new(),
+            base: base.trim_end_matches('/').to_owned(),
+        }
     }
 
     /// The base URL.
@@ -109,12 +112,22 @@ impl Client {
 
     /// `GET /healthz`.
     pub async fn healthz(&self) -> Result<(), ClientError> {
-        let _ = check(self.http.get(format!("{}/healthz", self.base)).send().await?).await?;
+        let _ = check(
+            self.http
+                .get(format!("{}/healthz", self.base))
+                .send()
+                .await?,
+        )
+        .await?;
         Ok(())
     }
 
     /// Uploads a mesh as JSON.
-    pub async fn upload_json(&self, positions: &[[f64; 3]], triangles: &[[u32; 3]]) -> Result<MeshInfo, ClientError> {
+    pub async fn upload_json(
+        &self,
+        positions: &[[f64; 3]],
+        triangles: &[[u32; 3]],
+    ) -> Result<MeshInfo, ClientError> {
         let r = self
             .http
             .post(format!("{}/v1/meshes", self.base))
@@ -138,7 +151,12 @@ impl Client {
 
     /// Generates a mesh (`{"shape": .., ...}`).
     pub async fn generate(&self, body: Value) -> Result<MeshInfo, ClientError> {
-        let r = self.http.post(format!("{}/v1/meshes/generate", self.base)).json(&body).send().await?;
+        let r = self
+            .http
+            .post(format!("{}/v1/meshes/generate", self.base))
+            .json(&body)
+            .send()
+            .await?;
         Ok(check(r).await?.json().await?)
     }
 
@@ -149,7 +167,11 @@ impl Client {
     }
 
     /// Creates a session on a mesh.
-    pub async fn create_session(&self, mesh_id: &str, params: Value) -> Result<SessionClient, ClientError> {
+    pub async fn create_session(
+        &self,
+        mesh_id: &str,
+        params: Value,
+    ) -> Result<SessionClient, ClientError> {
         let r = self
             .http
             .post(format!("{}/v1/sessions", self.base))
@@ -182,7 +204,11 @@ impl SessionClient {
         format!("{}/v1/sessions/{}{}", self.base, self.id, tail)
     }
 
-    async fn post(&self, tail: &str, body: Option<Value>) -> Result<reqwest::Response, ClientError> {
+    async fn post(
+        &self,
+        tail: &str,
+        body: Option<Value>,
+    ) -> Result<reqwest::Response, ClientError> {
         let mut rq = self.http.post(self.url(tail)).bearer_auth(&self.token);
         if let Some(b) = body {
             rq = rq.json(&b);
@@ -192,13 +218,24 @@ impl SessionClient {
 
     /// `GET /v1/sessions/{id}`.
     pub async fn info(&self) -> Result<Value, ClientError> {
-        let r = self.http.get(self.url("")).bearer_auth(&self.token).send().await?;
+        let r = self
+            .http
+            .get(self.url(""))
+            .bearer_auth(&self.token)
+            .send()
+            .await?;
         Ok(check(r).await?.json().await?)
     }
 
     /// Sets constraints (202; the factor builds in the background).
     pub async fn set_constraints(&self, spec: &Value) -> Result<(), ClientError> {
-        let r = self.http.put(self.url("/constraints")).bearer_auth(&self.token).json(spec).send().await?;
+        let r = self
+            .http
+            .put(self.url("/constraints"))
+            .bearer_auth(&self.token)
+            .json(spec)
+            .send()
+            .await?;
         let _ = check(r).await?;
         Ok(())
     }
@@ -211,14 +248,21 @@ impl SessionClient {
             match v["state"].as_str() {
                 Some("ready") => return Ok(()),
                 Some("failed") => return Err(ClientError::Protocol("factor build failed".into())),
-                _ if tokio::time::Instant::now() > end => return Err(ClientError::Protocol("not ready in time".into())),
+                _ if tokio::time::Instant::now() > end => {
+                    return Err(ClientError::Protocol("not ready in time".into()))
+                }
                 _ => tokio::time::sleep(Duration::from_millis(20)).await,
             }
         }
     }
 
     /// HTTP drag: delta + solve, returns the pose.
-    pub async fn drag(&self, handle: Value, delta: Value, max_iters: Option<usize>) -> Result<Pose, ClientError> {
+    pub async fn drag(
+        &self,
+        handle: Value,
+        delta: Value,
+        max_iters: Option<usize>,
+    ) -> Result<Pose, ClientError> {
         let mut body = delta;
         body["handle"] = handle;
         if let Some(m) = max_iters {
@@ -229,7 +273,12 @@ impl SessionClient {
 
     /// `GET pose` as JSON.
     pub async fn pose(&self) -> Result<Pose, ClientError> {
-        let r = self.http.get(self.url("/pose")).bearer_auth(&self.token).send().await?;
+        let r = self
+            .http
+            .get(self.url("/pose"))
+            .bearer_auth(&self.token)
+            .send()
+            .await?;
         Ok(check(r).await?.json().await?)
     }
 
@@ -251,10 +300,15 @@ impl SessionClient {
             .collect())
     }
 
-    /// Export as `obj` or `ply` text.
-    pub async fn export(&self, format: &str) -> Result<String, ClientError> {
-        let r = self.http.get(self.url(&format!("/export?format={format}"))).bearer_auth(&self.token).send().await?;
-        Ok(check(r).await?.text().await?)
+    /// Export as a mesh file (`obj`, `off`, `ply`, `stl`).
+    pub async fn export(&self, format: &str) -> Result<Vec<u8>, ClientError> {
+        let r = self
+            .http
+            .get(self.url(&format!("/export?format={format}")))
+            .bearer_auth(&self.token)
+            .send()
+            .await?;
+        Ok(check(r).await?.bytes().await?.to_vec())
     }
 
     /// Undo.
@@ -274,15 +328,26 @@ impl SessionClient {
 
     /// Delete the session.
     pub async fn delete(&self) -> Result<(), ClientError> {
-        let r = self.http.delete(self.url("")).bearer_auth(&self.token).send().await?;
+        let r = self
+            .http
+            .delete(self.url(""))
+            .bearer_auth(&self.token)
+            .send()
+            .await?;
         let _ = check(r).await?;
         Ok(())
     }
 
     /// Opens the WebSocket (token in the query).
     pub async fn connect(&self) -> Result<WsClient, ClientError> {
-        let url = format!("{}/ws?token={}", self.url("").replacen("http", "ws", 1), self.token);
-        let (ws, _) = tokio_tungstenite::connect_async(url).await.map_err(Box::new)?;
+        let url = format!(
+            "{}/ws?token={}",
+            self.url("").replacen("http", "ws", 1),
+            self.token
+        );
+        let (ws, _) = tokio_tungstenite::connect_async(url)
+            .await
+            .map_err(Box::new)?;
         Ok(WsClient { ws })
     }
 }
@@ -300,18 +365,29 @@ pub enum WsEvent {
 
 /// A WebSocket connection to a session.
 pub struct WsClient {
-    ws: tokio_tungstenite::WebSocketStream<tokio_tungstenite::MaybeTlsStream<tokio::net::TcpStream>>,
+    ws: tokio_tungstenite::WebSocketStream<
+        tokio_tungstenite::MaybeTlsStream<tokio::net::TcpStream>,
+    >,
 }
 
 impl WsClient {
     /// Sends a JSON message.
     pub async fn send(&mut self, v: &Value) -> Result<(), ClientError> {
-        self.ws.send(Message::Text(v.to_string().into())).await.map_err(Box::new)?;
+        self.ws
+            .send(Message::Text(v.to_string().into()))
+            .await
+            .map_err(Box::new)?;
         Ok(())
     }
 
     /// Sends a drag delta (translation; rotation as quaternion `[x,y,z,w]`).
-    pub async fn drag(&mut self, handle: usize, translate: [f64; 3], quaternion: Option<[f64; 4]>, seq: u64) -> Result<(), ClientError> {
+    pub async fn drag(
+        &mut self,
+        handle: usize,
+        translate: [f64; 3],
+        quaternion: Option<[f64; 4]>,
+        seq: u64,
+    ) -> Result<(), ClientError> {
         let mut m = json!({"type": "drag", "handle": handle, "translate": translate, "seq": seq});
         if let Some(q) = quaternion {
             m["quaternion"] = json!(q);
@@ -330,9 +406,13 @@ impl WsClient {
                     return Ok(WsEvent::Frame(h, v));
                 }
                 Some(Ok(Message::Text(t))) => {
-                    return serde_json::from_str(&t).map(WsEvent::Event).map_err(|e| ClientError::Protocol(e.to_string()));
+                    return serde_json::from_str(&t)
+                        .map(WsEvent::Event)
+                        .map_err(|e| ClientError::Protocol(e.to_string()));
                 }
-                Some(Ok(Message::Close(c))) => return Ok(WsEvent::Closed(c.map(|c| c.code.into()))),
+                Some(Ok(Message::Close(c))) => {
+                    return Ok(WsEvent::Closed(c.map(|c| c.code.into())))
+                }
                 Some(Ok(_)) => continue,
             }
         }
@@ -343,17 +423,27 @@ impl WsClient {
         loop {
             match self.next().await? {
                 WsEvent::Event(v) if v["type"] == ty => return Ok(v),
-                WsEvent::Closed(c) => return Err(ClientError::Protocol(format!("closed ({c:?}) before `{ty}`"))),
+                WsEvent::Closed(c) => {
+                    return Err(ClientError::Protocol(format!(
+                        "closed ({c:?}) before `{ty}`"
+                    )))
+                }
                 _ => {}
             }
         }
     }
 
     /// Reads until a frame acknowledges `seq` (and is converged, if asked).
-    pub async fn frame_acking(&mut self, seq: u64, converged: bool) -> Result<(FrameHeader, Vec<[f32; 3]>), ClientError> {
+    pub async fn frame_acking(
+        &mut self,
+        seq: u64,
+        converged: bool,
+    ) -> Result<(FrameHeader, Vec<[f32; 3]>), ClientError> {
         loop {
             match self.next().await? {
-                WsEvent::Frame(h, v) if h.ack_seq >= seq && (h.converged || !converged) => return Ok((h, v)),
+                WsEvent::Frame(h, v) if h.ack_seq >= seq && (h.converged || !converged) => {
+                    return Ok((h, v))
+                }
                 WsEvent::Event(v) if v["type"] == "error" => {
                     return Err(ClientError::Protocol(format!("error event: {v}")));
                 }

@@ -12,12 +12,12 @@
 //!   API) and its Rust client.
 #![warn(missing_docs)]
 
+pub mod client;
 pub mod deform;
+pub mod fuzzing;
 pub mod measure;
 pub mod mesh;
 pub mod operators;
 pub mod server;
 pub mod session;
 pub mod store;
-pub mod client;
-pub mod fuzzing;

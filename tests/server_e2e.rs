@@ -26,17 +26,24 @@ fn params() -> serde_json::Value {
 fn delta(i: usize) -> ([f64; 3], UnitQuaternion<f64>) {
     let t = [0.01 * (i % 3) as f64, 0.02, 0.015];
     let axis = Unit::new_normalize(Vector3::new(1.0, 0.3 * (i % 5) as f64, 0.2));
-    (t, UnitQuaternion::from_axis_angle(&axis, 0.2_f64.to_radians()))
+    (
+        t,
+        UnitQuaternion::from_axis_angle(&axis, 0.2_f64.to_radians()),
+    )
 }
 
 #[tokio::test]
-async fn hundred_ws_drags_equal_the_library_result_for_the_composed_transform() -> Result<(), ClientError> {
+async fn hundred_ws_drags_equal_the_library_result_for_the_composed_transform(
+) -> Result<(), ClientError> {
     let (base, _state) = start(Config::default()).await;
     let c = Client::new(&base);
     c.healthz().await?;
     let (p, t) = grid(N);
     let mesh = c.upload_json(&p, &t).await?;
-    assert_eq!((mesh.vertices, mesh.triangles), (N * N, 2 * (N - 1) * (N - 1)));
+    assert_eq!(
+        (mesh.vertices, mesh.triangles),
+        (N * N, 2 * (N - 1) * (N - 1))
+    );
     let s = c.create_session(&mesh.id, params()).await?;
     s.set_constraints(&grid_constraints(N)).await?;
     s.wait_ready(Duration::from_secs(60)).await?;
@@ -44,7 +51,8 @@ async fn hundred_ws_drags_equal_the_library_result_for_the_composed_transform() 
     for i in 0..100 {
         let (tr, q) = delta(i);
         let q = q.coords;
-        ws.drag(0, tr, Some([q.x, q.y, q.z, q.w]), i as u64 + 1).await?;
+        ws.drag(0, tr, Some([q.x, q.y, q.z, q.w]), i as u64 + 1)
+            .await?;
     }
     let (h, frame) = ws.frame_acking(100, true).await?;
     assert!(h.converged);
@@ -71,7 +79,10 @@ async fn hundred_ws_drags_equal_the_library_result_for_the_composed_transform() 
             worst = worst.max((a[k] - b[k]).abs());
         }
     }
-    assert!(worst < 1e-6, "server pose differs from the library by {worst}");
+    assert!(
+        worst < 1e-6,
+        "server pose differs from the library by {worst}"
+    );
     // the f32 frame is the same pose rounded to f32
     for (a, b) in frame.iter().zip(d.pose()) {
         for k in 0..3 {
@@ -116,10 +127,18 @@ async fn http_drag_undo_redo_reset_export_delete() -> Result<(), ClientError> {
     s.set_constraints(&grid_constraints(N)).await?;
     s.wait_ready(Duration::from_secs(60)).await?;
     let top = N * N - 1;
-    let p1 = s.drag(json!("top"), json!({"translate": [0.0, 0.0, 1.0]}), None).await?;
+    let p1 = s
+        .drag(json!("top"), json!({"translate": [0.0, 0.0, 1.0]}), None)
+        .await?;
     assert!(p1.converged);
     assert!((p1.positions[top][2] - 1.0).abs() < 1e-6);
-    let p2 = s.drag(json!(0), json!({"rotate": {"axis": [1, 0, 0], "degrees": 10}}), None).await?;
+    let p2 = s
+        .drag(
+            json!(0),
+            json!({"rotate": {"axis": [1, 0, 0], "degrees": 10}}),
+            None,
+        )
+        .await?;
     assert!(p2.revision > p1.revision);
     let u = s.undo().await?;
     assert_eq!(u.positions, p1.positions);
@@ -128,12 +147,19 @@ async fn http_drag_undo_redo_reset_export_delete() -> Result<(), ClientError> {
     let z = s.reset().await?;
     assert_eq!(z.positions, p);
     let obj = s.export("obj").await?;
-    assert_eq!(obj.lines().filter(|l| l.starts_with("v ")).count(), N * N);
+    let back = dend::mesh::io::read_bytes(&obj, dend::mesh::io::Format::Obj)
+        .expect("exported OBJ reads back");
+    assert_eq!(back.num_vertices(), N * N);
+    for (a, b) in back.positions().iter().zip(&z.positions) {
+        assert!((0..3).all(|k| (a[k] - b[k]).abs() < 1e-9));
+    }
     let ply = s.export("ply").await?;
-    assert!(ply.starts_with("ply\n"));
+    assert!(ply.starts_with(b"ply\n"));
     s.delete().await?;
     match s.info().await {
-        Err(ClientError::Api { status: 404, code, .. }) => assert_eq!(code, "session_not_found"),
+        Err(ClientError::Api {
+            status: 404, code, ..
+        }) => assert_eq!(code, "session_not_found"),
         other => panic!("expected 404, got {other:?}"),
     }
     Ok(())
@@ -151,12 +177,18 @@ async fn wrong_or_missing_token_is_refused() -> Result<(), ClientError> {
     let url = format!("{base}/v1/sessions/{}", s.id);
     let r = http.get(&url).send().await?;
     assert_eq!(r.status(), 401);
-    assert_eq!(r.json::<serde_json::Value>().await?["code"], "missing_token");
+    assert_eq!(
+        r.json::<serde_json::Value>().await?["code"],
+        "missing_token"
+    );
     let r = http.get(&url).bearer_auth("0".repeat(64)).send().await?;
     assert_eq!(r.status(), 403);
     let body = r.json::<serde_json::Value>().await?;
     assert_eq!(body["code"], "forbidden");
-    assert!(!body["message"].as_str().unwrap_or("").contains(&s.token[..8]));
+    assert!(!body["message"]
+        .as_str()
+        .unwrap_or("")
+        .contains(&s.token[..8]));
     let r = http.delete(&url).bearer_auth("x").send().await?;
     assert_eq!(r.status(), 403);
     // WebSocket: wrong token in the query → 403 before the upgrade
@@ -167,10 +199,16 @@ async fn wrong_or_missing_token_is_refused() -> Result<(), ClientError> {
     }
     // WebSocket: no token → first message must authenticate
     let ws_url = format!("{}/ws", url.replacen("http", "ws", 1));
-    let (mut ws, _) = tokio_tungstenite::connect_async(ws_url).await.map_err(Box::new)?;
+    let (mut ws, _) = tokio_tungstenite::connect_async(ws_url)
+        .await
+        .map_err(Box::new)?;
     use futures_util::{SinkExt, StreamExt};
     use tokio_tungstenite::tungstenite::Message;
-    ws.send(Message::Text(json!({"type": "auth", "token": "bad"}).to_string().into())).await.map_err(Box::new)?;
+    ws.send(Message::Text(
+        json!({"type": "auth", "token": "bad"}).to_string().into(),
+    ))
+    .await
+    .map_err(Box::new)?;
     let mut close_code = None;
     while let Some(Ok(m)) = ws.next().await {
         if let Message::Close(Some(f)) = m {

@@ -19,50 +19,146 @@ async fn expect(r: reqwest::Response, status: u16, code: &str) {
 
 #[tokio::test]
 async fn each_bad_input_gets_its_code() -> Result<(), ClientError> {
-    let (base, _state) = start(Config { max_vertices: 100, ..Config::default() }).await;
+    let (base, _state) = start(Config {
+        max_vertices: 100,
+        ..Config::default()
+    })
+    .await;
     let http = reqwest::Client::new();
     let c = Client::new(&base);
     let post = |path: &str, body: &str, ct: &str| {
-        http.post(format!("{base}{path}")).header("content-type", ct).body(body.to_owned()).send()
+        http.post(format!("{base}{path}"))
+            .header("content-type", ct)
+            .body(body.to_owned())
+            .send()
     };
     let json_ct = "application/json";
-    expect(post("/v1/meshes", "{not json", json_ct).await?, 400, "invalid_json").await;
-    expect(post("/v1/meshes", r#"{"positions": [[0,0,0]], "triangles": [[0,1,2]]}"#, json_ct).await?, 422, "invalid_mesh").await;
-    expect(post("/v1/meshes", "v 0 0 0", "image/png").await?, 415, "unsupported_format").await;
+    expect(
+        post("/v1/meshes", "{not json", json_ct).await?,
+        400,
+        "invalid_json",
+    )
+    .await;
+    expect(
+        post(
+            "/v1/meshes",
+            r#"{"positions": [[0,0,0]], "triangles": [[0,1,2]]}"#,
+            json_ct,
+        )
+        .await?,
+        422,
+        "invalid_mesh",
+    )
+    .await;
+    expect(
+        post("/v1/meshes", "v 0 0 0", "image/png").await?,
+        415,
+        "unsupported_format",
+    )
+    .await;
     let (p, t) = grid(11);
     let big = json!({"positions": p, "triangles": t}).to_string();
-    expect(post("/v1/meshes", &big, json_ct).await?, 413, "too_many_vertices").await;
-    expect(post("/v1/sessions", r#"{"mesh_id": "nope"}"#, json_ct).await?, 404, "mesh_not_found").await;
-    expect(http.get(format!("{base}/v1/nothing")).send().await?, 404, "route_not_found").await;
+    expect(
+        post("/v1/meshes", &big, json_ct).await?,
+        413,
+        "too_many_vertices",
+    )
+    .await;
+    expect(
+        post("/v1/sessions", r#"{"mesh_id": "nope"}"#, json_ct).await?,
+        404,
+        "mesh_not_found",
+    )
+    .await;
+    expect(
+        http.get(format!("{base}/v1/nothing")).send().await?,
+        404,
+        "route_not_found",
+    )
+    .await;
 
     let (p, t) = grid(6);
     let mesh = c.upload_json(&p, &t).await?;
     let body = json!({"mesh_id": mesh.id, "params": {"tol": -1.0}}).to_string();
-    expect(post("/v1/sessions", &body, json_ct).await?, 422, "invalid_params").await;
+    expect(
+        post("/v1/sessions", &body, json_ct).await?,
+        422,
+        "invalid_params",
+    )
+    .await;
     let body = json!({"mesh_id": mesh.id, "params": {"bogus": 1}}).to_string();
-    expect(post("/v1/sessions", &body, json_ct).await?, 422, "invalid_params").await;
+    expect(
+        post("/v1/sessions", &body, json_ct).await?,
+        422,
+        "invalid_params",
+    )
+    .await;
     let s = c.create_session(&mesh.id, json!({})).await?;
     let auth = format!("Bearer {}", s.token);
     let sess = |m: reqwest::Method, tail: &str| {
-        http.request(m, format!("{base}/v1/sessions/{}{tail}", s.id)).header("authorization", auth.clone())
+        http.request(m, format!("{base}/v1/sessions/{}{tail}", s.id))
+            .header("authorization", auth.clone())
     };
-    expect(http.get(format!("{base}/v1/sessions/nope")).bearer_auth(&s.token).send().await?, 404, "session_not_found")
-        .await;
+    expect(
+        http.get(format!("{base}/v1/sessions/nope"))
+            .bearer_auth(&s.token)
+            .send()
+            .await?,
+        404,
+        "session_not_found",
+    )
+    .await;
     // drag before constraints are ready
     let drag = json!({"handle": 0, "translate": [0, 0, 1]});
-    expect(sess(reqwest::Method::POST, "/drag").json(&drag).send().await?, 409, "not_ready").await;
-    expect(sess(reqwest::Method::POST, "/undo").send().await?, 409, "not_ready").await;
+    expect(
+        sess(reqwest::Method::POST, "/drag")
+            .json(&drag)
+            .send()
+            .await?,
+        409,
+        "not_ready",
+    )
+    .await;
+    expect(
+        sess(reqwest::Method::POST, "/undo").send().await?,
+        409,
+        "not_ready",
+    )
+    .await;
     // constraints: out-of-range vertex, malformed, invalid JSON
     let bad = json!({"fixed": [0, 1, 999], "handles": [{"name": "h", "vertices": [30]}]});
-    expect(sess(reqwest::Method::PUT, "/constraints").json(&bad).send().await?, 422, "vertex_out_of_range").await;
+    expect(
+        sess(reqwest::Method::PUT, "/constraints")
+            .json(&bad)
+            .send()
+            .await?,
+        422,
+        "vertex_out_of_range",
+    )
+    .await;
     let bad = json!({"fixed": [0], "handles": [{"name": "h", "vertices": [30]}], "extra": true});
-    expect(sess(reqwest::Method::PUT, "/constraints").json(&bad).send().await?, 422, "invalid_constraints").await;
-    let r = sess(reqwest::Method::PUT, "/constraints").header("content-type", json_ct).body("[").send().await?;
+    expect(
+        sess(reqwest::Method::PUT, "/constraints")
+            .json(&bad)
+            .send()
+            .await?,
+        422,
+        "invalid_constraints",
+    )
+    .await;
+    let r = sess(reqwest::Method::PUT, "/constraints")
+        .header("content-type", json_ct)
+        .body("[")
+        .send()
+        .await?;
     expect(r, 400, "invalid_json").await;
     s.set_constraints(&grid_constraints(6)).await?;
     s.wait_ready(Duration::from_secs(60)).await?;
     // deltas: NaN (JS sends null, Python sends NaN), unknown handle, bad rotation
-    let r = sess(reqwest::Method::POST, "/drag").json(&json!({"handle": 0, "translate": [0, null, 1]})).send().await?;
+    let r = sess(reqwest::Method::POST, "/drag")
+        .json(&json!({"handle": 0, "translate": [0, null, 1]}))
+        .send()
+        .await?;
     expect(r, 422, "non_finite").await;
     let r = sess(reqwest::Method::POST, "/drag")
         .header("content-type", json_ct)
@@ -70,28 +166,54 @@ async fn each_bad_input_gets_its_code() -> Result<(), ClientError> {
         .send()
         .await?;
     expect(r, 422, "non_finite").await;
-    let r = sess(reqwest::Method::POST, "/drag").json(&json!({"handle": 0, "quaternion": [0, 0, 0, 0]})).send().await?;
+    let r = sess(reqwest::Method::POST, "/drag")
+        .json(&json!({"handle": 0, "quaternion": [0, 0, 0, 0]}))
+        .send()
+        .await?;
     expect(r, 422, "non_finite").await;
-    let r = sess(reqwest::Method::POST, "/drag").json(&json!({"handle": "nope", "translate": [0, 0, 1]})).send().await?;
+    let r = sess(reqwest::Method::POST, "/drag")
+        .json(&json!({"handle": "nope", "translate": [0, 0, 1]}))
+        .send()
+        .await?;
     expect(r, 422, "unknown_handle").await;
-    let r = sess(reqwest::Method::POST, "/drag").json(&json!({"handle": 0, "translation": [0, 0, 1]})).send().await?;
+    let r = sess(reqwest::Method::POST, "/drag")
+        .json(&json!({"handle": 0, "translation": [0, 0, 1]}))
+        .send()
+        .await?;
     expect(r, 400, "invalid_json").await;
-    expect(sess(reqwest::Method::POST, "/redo").send().await?, 409, "nothing_to_undo").await;
-    expect(sess(reqwest::Method::GET, "/export?format=fbx").send().await?, 415, "unsupported_format").await;
+    expect(
+        sess(reqwest::Method::POST, "/redo").send().await?,
+        409,
+        "nothing_to_undo",
+    )
+    .await;
+    expect(
+        sess(reqwest::Method::GET, "/export?format=fbx")
+            .send()
+            .await?,
+        415,
+        "unsupported_format",
+    )
+    .await;
     Ok(())
 }
 
 #[tokio::test]
 async fn session_limit_is_503() -> Result<(), ClientError> {
-    let (base, _state) = start(Config { max_sessions: 1, ..Config::default() }).await;
+    let (base, _state) = start(Config {
+        max_sessions: 1,
+        ..Config::default()
+    })
+    .await;
     let c = Client::new(&base);
     let (p, t) = grid(4);
     let mesh = c.upload_json(&p, &t).await?;
     let _s = c.create_session(&mesh.id, json!({})).await?;
     match c.create_session(&mesh.id, json!({})).await {
-        Err(ClientError::Api { status: 503, code, .. }) => assert_eq!(code, "too_many_sessions"),
+        Err(ClientError::Api {
+            status: 503, code, ..
+        }) => assert_eq!(code, "too_many_sessions"),
         other => panic!("expected 503, got {other:?}"),
     }
     Ok(())
 }
-

@@ -20,12 +20,18 @@ fn rss() -> Option<u64> {
 #[tokio::test]
 async fn oversize_upload_is_413_without_buffering() {
     let limit = 1 << 20;
-    let (base, _state) = start(Config { max_upload_bytes: limit, ..Config::default() }).await;
+    let (base, _state) = start(Config {
+        max_upload_bytes: limit,
+        ..Config::default()
+    })
+    .await;
     let addr = base.trim_start_matches("http://").to_owned();
     let before = rss();
 
     // 1. A declared 10 GB body: answered from the headers alone.
-    let mut sock = tokio::net::TcpStream::connect(&addr).await.expect("connect");
+    let mut sock = tokio::net::TcpStream::connect(&addr)
+        .await
+        .expect("connect");
     let head = format!(
         "POST /v1/meshes HTTP/1.1\r\nhost: {addr}\r\ncontent-type: application/json\r\ncontent-length: 10000000000\r\n\r\n"
     );
@@ -41,7 +47,9 @@ async fn oversize_upload_is_413_without_buffering() {
 
     // 2. A chunked body (no Content-Length) over the limit: cut off while streaming.
     static CHUNK: [u8; 64 << 10] = [b' '; 64 << 10];
-    let chunks = futures_util::stream::iter((0..1024).map(|_| Ok::<_, std::io::Error>(bytes::Bytes::from_static(&CHUNK))));
+    let chunks = futures_util::stream::iter(
+        (0..1024).map(|_| Ok::<_, std::io::Error>(bytes::Bytes::from_static(&CHUNK))),
+    );
     let r = reqwest::Client::new()
         .post(format!("{base}/v1/meshes"))
         .header("content-type", "application/json")
@@ -54,6 +62,10 @@ async fn oversize_upload_is_413_without_buffering() {
 
     if let (Some(b), Some(a)) = (before, rss()) {
         // 64 MiB were offered; buffering them would show
-        assert!(a < b + (24 << 20), "RSS grew by {} bytes", a.saturating_sub(b));
+        assert!(
+            a < b + (24 << 20),
+            "RSS grew by {} bytes",
+            a.saturating_sub(b)
+        );
     }
 }

@@ -49,7 +49,10 @@ fn openapi_and_router_list_the_same_routes() {
     assert!(!doc.is_empty());
     let only_doc: Vec<_> = doc.difference(&router).collect();
     let only_router: Vec<_> = router.difference(&doc).collect();
-    assert!(only_doc.is_empty() && only_router.is_empty(), "only in openapi: {only_doc:?}; only in router: {only_router:?}");
+    assert!(
+        only_doc.is_empty() && only_router.is_empty(),
+        "only in openapi: {only_doc:?}; only in router: {only_router:?}"
+    );
 }
 
 #[tokio::test]
@@ -65,12 +68,20 @@ async fn every_route_in_the_table_is_served() {
             .expect("request");
         let resp = router.clone().oneshot(req).await.expect("response");
         assert_ne!(resp.status().as_u16(), 405, "{method} {path}");
-        let body = axum::body::to_bytes(resp.into_body(), 1 << 20).await.expect("body");
+        let body = axum::body::to_bytes(resp.into_body(), 1 << 20)
+            .await
+            .expect("body");
         let text = String::from_utf8_lossy(&body);
-        assert!(!text.contains("route_not_found"), "{method} {path} fell through: {text}");
+        assert!(
+            !text.contains("route_not_found"),
+            "{method} {path} fell through: {text}"
+        );
     }
     // and the fallback does answer unknown routes
-    let req = Request::builder().uri("/v2/nope").body(Body::empty()).expect("request");
+    let req = Request::builder()
+        .uri("/v2/nope")
+        .body(Body::empty())
+        .expect("request");
     let resp = router.oneshot(req).await.expect("response");
     assert_eq!(resp.status().as_u16(), 404);
 }

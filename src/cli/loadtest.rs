@@ -95,15 +95,22 @@ async fn run_async(args: LoadtestArgs) -> anyhow::Result<()> {
             let addr = listener.local_addr()?;
             let store = server::recover::open_store(&config)?;
             let app = server::app(AppState::with_store(config, store)?);
-            drop(tokio::spawn(async move { axum::serve(listener, app).await }));
+            drop(tokio::spawn(
+                async move { axum::serve(listener, app).await },
+            ));
             format!("http://{addr}")
         }
     };
     let client = Client::new(&base);
     let mesh = match &args.mesh {
         Some(path) => {
-            let bytes = std::fs::read(path).with_context(|| format!("reading {}", path.display()))?;
-            let ext = path.extension().and_then(|e| e.to_str()).unwrap_or("").to_ascii_lowercase();
+            let bytes =
+                std::fs::read(path).with_context(|| format!("reading {}", path.display()))?;
+            let ext = path
+                .extension()
+                .and_then(|e| e.to_str())
+                .unwrap_or("")
+                .to_ascii_lowercase();
             client.upload_file(bytes, &ext).await?
         }
         None => {
@@ -113,7 +120,9 @@ async fn run_async(args: LoadtestArgs) -> anyhow::Result<()> {
     };
     let [lo, hi] = mesh.bbox;
     let ext: Vec<f64> = (0..3).map(|k| hi[k] - lo[k]).collect();
-    let k = (0..3).max_by(|a, b| ext[*a].total_cmp(&ext[*b])).unwrap_or(0);
+    let k = (0..3)
+        .max_by(|a, b| ext[*a].total_cmp(&ext[*b]))
+        .unwrap_or(0);
     let (mut fixed_max, mut handle_min) = (hi, lo);
     fixed_max[k] = lo[k] + 0.1 * ext[k];
     handle_min[k] = hi[k] - 0.1 * ext[k];
@@ -130,8 +139,11 @@ async fn run_async(args: LoadtestArgs) -> anyhow::Result<()> {
     let t0 = Instant::now();
     let mut tasks = vec![];
     for _ in 0..args.sessions {
-        let (client, mesh_id, spec, drags) = (client.clone(), mesh.id.clone(), spec.clone(), args.drags);
-        tasks.push(tokio::spawn(async move { one_session(client, mesh_id, spec, drags, step).await }));
+        let (client, mesh_id, spec, drags) =
+            (client.clone(), mesh.id.clone(), spec.clone(), args.drags);
+        tasks.push(tokio::spawn(async move {
+            one_session(client, mesh_id, spec, drags, step).await
+        }));
     }
     let mut all = vec![];
     let mut frames = 0;
@@ -143,7 +155,11 @@ async fn run_async(args: LoadtestArgs) -> anyhow::Result<()> {
         drag_time = drag_time.max(elapsed);
     }
     all.sort();
-    let pct = |p: f64| all.get(((all.len() as f64 - 1.0) * p).round() as usize).copied().unwrap_or_default();
+    let pct = |p: f64| {
+        all.get(((all.len() as f64 - 1.0) * p).round() as usize)
+            .copied()
+            .unwrap_or_default()
+    };
     let ms = |d: Duration| d.as_secs_f64() * 1e3;
     println!(
         "drag->frame latency: p50 {:.2} ms, p99 {:.2} ms, max {:.2} ms over {} drags",
@@ -242,7 +258,10 @@ async fn one_session(
     s.set_constraints(&spec).await?;
     s.wait_ready(Duration::from_secs(600)).await?;
     let mut ws = s.connect().await?;
-    let mut stats = SessionStats { latencies: Vec::with_capacity(drags as usize), frames: 0 };
+    let mut stats = SessionStats {
+        latencies: Vec::with_capacity(drags as usize),
+        frames: 0,
+    };
     let start = Instant::now();
     for seq in 1..=drags {
         let sent = Instant::now();

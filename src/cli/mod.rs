@@ -7,12 +7,12 @@ use std::process::ExitCode;
 
 use clap::{Parser, Subcommand};
 
-mod loadtest;
-mod serve;
 mod curvature;
 mod deform;
 mod gen;
 mod info;
+mod loadtest;
+mod serve;
 
 /// Deform triangle meshes with Discrete Elastica Nonlinear Deformation.
 #[derive(Debug, Parser)]
@@ -24,10 +24,6 @@ struct Cli {
 
 #[derive(Debug, Subcommand)]
 enum Command {
-    /// Run the deformation server (HTTP + WebSocket; prints its URL).
-    Serve(serve::ServeArgs),
-    /// Drive N server sessions with M drags each; report drag→frame latency.
-    Loadtest(loadtest::LoadtestArgs),
     /// Write a procedural test shape (bar, cylinder, flag, plane, bumpy-plane, torus).
     Gen(gen::GenArgs),
     /// Print counts, bounding box, topology and the validation result of a mesh file.
@@ -36,6 +32,10 @@ enum Command {
     Curvature(curvature::CurvatureArgs),
     /// Deform a mesh with a constraints file or a survey .sel/.def pair.
     Deform(deform::Args),
+    /// Run the deformation server (HTTP + WebSocket; prints its URL).
+    Serve(serve::ServeArgs),
+    /// Drive N server sessions with M drags each; report drag→frame latency.
+    Loadtest(loadtest::LoadtestArgs),
 }
 
 /// Parses the command line, runs the command, maps errors to exit code 2.
@@ -49,12 +49,12 @@ pub fn run() -> ExitCode {
         .init();
     let cli = Cli::parse();
     let result: anyhow::Result<()> = match cli.command {
-        Command::Serve(a) => serve::run(a),
-        Command::Loadtest(a) => loadtest::run(a),
         Command::Gen(a) => gen::run(a),
         Command::Info(a) => info::run(a),
         Command::Curvature(a) => curvature::run(&a),
         Command::Deform(a) => deform::run(a),
+        Command::Serve(a) => serve::run(a),
+        Command::Loadtest(a) => loadtest::run(a),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

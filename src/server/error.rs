@@ -148,7 +148,10 @@ impl ApiError {
         if let ApiError::Internal(detail) = self {
             tracing::error!(%detail, "internal error");
         }
-        ErrorBody { code: self.code().to_owned(), message: self.to_string() }
+        ErrorBody {
+            code: self.code().to_owned(),
+            message: self.to_string(),
+        }
     }
 }
 
@@ -200,7 +203,9 @@ impl From<&SessionError> for ApiError {
             SessionError::UnknownHandle { .. } => ApiError::UnknownHandle(msg),
             SessionError::NonFinite { .. } => ApiError::NonFinite(msg),
             SessionError::HandleGrabbed { .. } => ApiError::HandleGrabbed(msg),
-            SessionError::NothingToUndo | SessionError::NothingToRedo => ApiError::NothingToUndo(msg),
+            SessionError::NothingToUndo | SessionError::NothingToRedo => {
+                ApiError::NothingToUndo(msg)
+            }
             SessionError::InvalidConstraints(m) => ApiError::InvalidConstraints(m.clone()),
             SessionError::Deform(d) => deform_ref(d, msg),
             SessionError::Store(s) => ApiError::Internal(s.to_string()),
@@ -276,6 +281,9 @@ mod tests {
         let body = ApiError::Internal("secret path /etc".into()).body();
         assert!(!body.message.contains("secret"));
         assert_eq!(ApiError::WrongToken.code_status().1, StatusCode::FORBIDDEN);
-        assert_eq!(ApiError::MissingToken.code_status().1, StatusCode::UNAUTHORIZED);
+        assert_eq!(
+            ApiError::MissingToken.code_status().1,
+            StatusCode::UNAUTHORIZED
+        );
     }
 }

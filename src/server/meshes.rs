@@ -12,6 +12,8 @@ use serde::{Deserialize, Serialize};
 
 use super::error::ApiError;
 use super::AppState;
+use crate::mesh::gen::{self, ShapeSpec};
+use crate::mesh::io::{self, Format};
 use crate::mesh::Mesh;
 
 /// `?format=` of an upload.
@@ -20,16 +22,6 @@ use crate::mesh::Mesh;
 pub struct FormatQuery {
     /// `json`, `obj`, `off`, `ply` or `stl`.
     pub format: Option<String>,
-}
-
-/// A mesh as JSON.
-#[derive(Debug, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct MeshJson {
-    /// `#V×3` positions.
-    pub positions: Vec<[f64; 3]>,
-    /// `#F×3` vertex indices, counter-clockwise.
-    pub triangles: Vec<[u32; 3]>,
 }
 
 /// Answer of upload/generate/info.
@@ -47,7 +39,12 @@ pub struct MeshInfo {
 
 fn info_of(id: String, m: &Mesh) -> MeshInfo {
     let (lo, hi) = m.bounding_box();
-    MeshInfo { id, vertices: m.num_vertices(), triangles: m.num_triangles(), bbox: [lo, hi] }
+    MeshInfo {
+        id,
+        vertices: m.num_vertices(),
+        triangles: m.num_triangles(),
+        bbox: [lo, hi],
+    }
 }
 
 /// A new random 128-bit id, hex.
@@ -60,41 +57,72 @@ fn format_of(q: &FormatQuery, headers: &HeaderMap) -> Result<String, ApiError> {
     if let Some(f) = &q.format {
         return Ok(f.to_ascii_lowercase());
     }
-    let ct = headers.get(header::CONTENT_TYPE).and_then(|v| v.to_str().ok()).unwrap_or("");
-    let mime = ct.split(';').next().unwrap_or("").trim().to_ascii_lowercase();
+    let ct = headers
+        .get(header::CONTENT_TYPE)
+        .and_then(|v| v.to_str().ok())
+        .unwrap_or("");
+    let mime = ct
+        .split(';')
+        .next()
+        .unwrap_or("")
+        .trim()
+        .to_ascii_lowercase();
     Ok(match mime.as_str() {
         "application/json" => "json",
         "model/obj" | "text/x-obj" => "obj",
         "model/off" | "text/x-off" => "off",
         "model/ply" | "application/ply" | "text/x-ply" => "ply",
         "model/stl" | "application/sla" | "model/x.stl-binary" => "stl",
-        "" => return Err(ApiError::UnsupportedFormat("no Content-Type and no ?format=".into())),
-        other => return Err(ApiError::UnsupportedFormat(format!("Content-Type `{other}`"))),
+        "" => {
+            return Err(ApiError::UnsupportedFormat(
+                "no Content-Type and no ?format=".into(),
+            ))
+        }
+        other => {
+            return Err(ApiError::UnsupportedFormat(format!(
+                "Content-Type `{other}`"
+            )))
+        }
     }
     .to_owned())
 }
 
 fn check_vertices(st: &AppState, n: usize) -> Result<(), ApiError> {
     if n > st.config.max_vertices {
-        return Err(ApiError::TooManyVertices { got: n, limit: st.config.max_vertices });
+        return Err(ApiError::TooManyVertices {
+            got: n,
+            limit: st.config.max_vertices,
+        });
     }
     Ok(())
 }
 
 fn parse_mesh(format: &str, body: &[u8], max_vertices: usize) -> Result<Mesh, ApiError> {
-    match format {
-        "json" => {
-            let m: MeshJson = serde_json::from_slice(body).map_err(|e| ApiError::InvalidJson(e.to_string()))?;
-            if m.positions.len() > max_vertices {
-                return Err(ApiError::TooManyVertices { got: m.positions.len(), limit: max_vertices });
-            }
-            Mesh::new(m.positions, m.triangles).map_err(|e| ApiError::InvalidMesh(e.to_string()))
+    let raw = match format {
+        "json" => io::parse_json(body).map_err(|e| ApiError::InvalidJson(e.to_string()))?,
+        other => {
+            let f = parse_format(other)?;
+            io::parse_bytes(body, f).map_err(|e| ApiError::InvalidMesh(format!("{f}: {e}")))?
         }
-        "obj" | "off" | "ply" | "stl" => {
-            Err(ApiError::UnsupportedFormat(format!("`{format}` reader not available yet")))
-        }
-        other => Err(ApiError::UnsupportedFormat(format!("`{other}`"))),
+    };
+    if raw.positions.len() > max_vertices {
+        return Err(ApiError::TooManyVertices {
+            got: raw.positions.len(),
+            limit: max_vertices,
+        });
     }
+    raw.into_mesh()
+        .map_err(|e| ApiError::InvalidMesh(e.to_string()))
+}
+
+/// A mesh file format by name (`obj`, `off`, `ply`, `stl`).
+pub(crate) fn parse_format(name: &str) -> Result<Format, ApiError> {
+    Format::ALL
+        .into_iter()
+        .find(|f| f.extension() == name)
+        .ok_or_else(|| {
+            ApiError::UnsupportedFormat(format!("`{name}` (use json, obj, off, ply or stl)"))
+        })
 }
 
 async fn store_mesh(st: &AppState, mesh: Mesh) -> Result<(StatusCode, Json<MeshInfo>), ApiError> {
@@ -128,32 +156,28 @@ pub async fn upload(
     store_mesh(&st, mesh).await
 }
 
-/// `POST /v1/meshes/generate` body.
-#[derive(Debug, Deserialize)]
-pub struct GenerateRequest {
-    /// Shape name.
-    pub shape: String,
-    /// Shape parameters.
-    #[serde(flatten)]
-    pub params: serde_json::Map<String, serde_json::Value>,
-}
-
-/// `POST /v1/meshes/generate`: a procedural test shape.
+/// `POST /v1/meshes/generate`: a procedural test shape,
+/// `{"shape": "bar", "params": {"nu": .., "nv": .., "size": .., ...}}`.
 pub async fn generate(
     State(st): State<AppState>,
-    body: Result<Json<GenerateRequest>, axum::extract::rejection::JsonRejection>,
+    body: Result<Json<ShapeSpec>, axum::extract::rejection::JsonRejection>,
 ) -> Result<impl IntoResponse, ApiError> {
-    let Json(req) = body?;
-    let mesh = generate_mesh(&req)?;
+    let Json(spec) = body?;
+    let mesh = tokio::task::spawn_blocking(move || gen::generate(&spec))
+        .await
+        .map_err(|e| ApiError::Internal(e.to_string()))?
+        .map_err(|e| ApiError::InvalidParams(e.to_string()))?;
     store_mesh(&st, mesh).await
 }
 
-fn generate_mesh(req: &GenerateRequest) -> Result<Mesh, ApiError> {
-    Err(ApiError::InvalidParams(format!("unknown shape `{}` ({} parameters)", req.shape, req.params.len())))
-}
-
 /// `GET /v1/meshes/{id}`.
-pub async fn info(State(st): State<AppState>, Path(id): Path<String>) -> Result<Json<MeshInfo>, ApiError> {
-    let m = st.store.get_mesh(&id)?.ok_or_else(|| ApiError::MeshNotFound(id.clone()))?;
+pub async fn info(
+    State(st): State<AppState>,
+    Path(id): Path<String>,
+) -> Result<Json<MeshInfo>, ApiError> {
+    let m = st
+        .store
+        .get_mesh(&id)?
+        .ok_or_else(|| ApiError::MeshNotFound(id.clone()))?;
     Ok(Json(info_of(id, &m)))
 }

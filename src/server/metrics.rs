@@ -55,21 +55,41 @@ impl Metrics {
         let r = Registry::new_custom(Some("dend".into()), None)?;
         let latency = HistogramOpts::new("solve_seconds", "Wall time of one solve in seconds")
             .buckets(prometheus::exponential_buckets(0.0005, 2.0, 16)?);
-        let iters = HistogramOpts::new("solve_iterations", "DEND iterations per solve")
-            .buckets(vec![1.0, 2.0, 3.0, 5.0, 10.0, 20.0, 50.0, 100.0, 200.0, 500.0]);
+        let iters =
+            HistogramOpts::new("solve_iterations", "DEND iterations per solve").buckets(vec![
+                1.0, 2.0, 3.0, 5.0, 10.0, 20.0, 50.0, 100.0, 200.0, 500.0,
+            ]);
         Ok(Metrics {
             sessions: reg(&r, IntGauge::new("sessions", "Live sessions")?),
-            sessions_created: reg(&r, IntCounter::new("sessions_created_total", "Sessions created")?),
-            ws_clients: reg(&r, IntGauge::new("ws_clients", "Connected WebSocket clients")?),
+            sessions_created: reg(
+                &r,
+                IntCounter::new("sessions_created_total", "Sessions created")?,
+            ),
+            ws_clients: reg(
+                &r,
+                IntGauge::new("ws_clients", "Connected WebSocket clients")?,
+            ),
             solves: reg(&r, IntCounter::new("solves_total", "Solves run")?),
-            solves_converged: reg(&r, IntCounter::new("solves_converged_total", "Solves that converged")?),
+            solves_converged: reg(
+                &r,
+                IntCounter::new("solves_converged_total", "Solves that converged")?,
+            ),
             iterations: reg(&r, Histogram::with_opts(iters)?),
             solve_seconds: reg(&r, Histogram::with_opts(latency)?),
             meshes: reg(&r, IntGauge::new("meshes", "Meshes stored")?),
-            factor_cache_bytes: reg(&r, IntGauge::new("factor_cache_bytes", "Bytes held by cached factors")?),
+            factor_cache_bytes: reg(
+                &r,
+                IntGauge::new("factor_cache_bytes", "Bytes held by cached factors")?,
+            ),
             factor_cache_entries: reg(&r, IntGauge::new("factor_cache_entries", "Cached factors")?),
-            factor_cache_hits: reg(&r, IntGauge::new("factor_cache_hits", "Factor cache hits since start")?),
-            factor_cache_builds: reg(&r, IntGauge::new("factor_cache_builds", "Factors built since start")?),
+            factor_cache_hits: reg(
+                &r,
+                IntGauge::new("factor_cache_hits", "Factor cache hits since start")?,
+            ),
+            factor_cache_builds: reg(
+                &r,
+                IntGauge::new("factor_cache_builds", "Factors built since start")?,
+            ),
             registry: r,
         })
     }
@@ -103,5 +123,8 @@ pub async fn render(State(st): State<AppState>) -> Result<impl IntoResponse, Api
     m.factor_cache_hits.set(st.cache.hits() as i64);
     m.factor_cache_builds.set(st.cache.builds() as i64);
     m.sessions.set(st.sessions.read().len() as i64);
-    Ok(([(header::CONTENT_TYPE, "text/plain; version=0.0.4")], m.render()?))
+    Ok((
+        [(header::CONTENT_TYPE, "text/plain; version=0.0.4")],
+        m.render()?,
+    ))
 }

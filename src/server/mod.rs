@@ -99,8 +99,14 @@ fn route_list() -> Vec<(&'static str, MethodRouter<AppState>)> {
         ("/v1/meshes/generate", post(meshes::generate)),
         ("/v1/meshes/{id}", get(meshes::info)),
         ("/v1/sessions", post(sessions::create)),
-        ("/v1/sessions/{id}", get(sessions::info).merge(delete(sessions::remove))),
-        ("/v1/sessions/{id}/constraints", put(sessions::set_constraints)),
+        (
+            "/v1/sessions/{id}",
+            get(sessions::info).merge(delete(sessions::remove)),
+        ),
+        (
+            "/v1/sessions/{id}/constraints",
+            put(sessions::set_constraints),
+        ),
         ("/v1/sessions/{id}/drag", post(sessions::drag)),
         ("/v1/sessions/{id}/pose", get(sessions::pose)),
         ("/v1/sessions/{id}/export", get(sessions::export)),
@@ -132,7 +138,10 @@ pub fn app(state: AppState) -> Router {
                     }
                 }))
                 .timeout(timeout)
-                .layer(axum::middleware::from_fn_with_state(state.clone(), content_length_limit))
+                .layer(axum::middleware::from_fn_with_state(
+                    state.clone(),
+                    content_length_limit,
+                ))
                 .layer(DefaultBodyLimit::max(state.config.max_upload_bytes)),
         )
         .with_state(state)
@@ -167,7 +176,13 @@ pub fn spawn_idle_reaper(state: AppState, period: Duration) -> tokio::task::Join
             let _ = tick.tick().await;
             let idle: Vec<SessionHandle> = {
                 let timeout = state.config.idle_timeout();
-                state.sessions.read().values().filter(|s| s.is_idle(timeout)).cloned().collect()
+                state
+                    .sessions
+                    .read()
+                    .values()
+                    .filter(|s| s.is_idle(timeout))
+                    .cloned()
+                    .collect()
             };
             for s in idle {
                 tracing::info!(session = s.id(), "closing idle session");
@@ -186,7 +201,9 @@ pub async fn serve(config: Config) -> anyhow::Result<()> {
     let state = AppState::with_store(config, store)?;
     let _reaper = spawn_idle_reaper(state.clone(), Duration::from_secs(10));
     println!("listening on http://{addr}");
-    axum::serve(listener, app(state)).with_graceful_shutdown(shutdown_signal()).await?;
+    axum::serve(listener, app(state))
+        .with_graceful_shutdown(shutdown_signal())
+        .await?;
     Ok(())
 }
 
@@ -217,7 +234,10 @@ pub(crate) async fn rest_for(st: &AppState, mesh_id: &str) -> Result<Arc<Rest>, 
     if let Some(r) = st.rests.lock().get(mesh_id).and_then(Weak::upgrade) {
         return Ok(r);
     }
-    let mesh = st.store.get_mesh(mesh_id)?.ok_or_else(|| ApiError::MeshNotFound(mesh_id.to_owned()))?;
+    let mesh = st
+        .store
+        .get_mesh(mesh_id)?
+        .ok_or_else(|| ApiError::MeshNotFound(mesh_id.to_owned()))?;
     let rest = tokio::task::spawn_blocking(move || Rest::new((*mesh).clone()))
         .await
         .map_err(|e| ApiError::Internal(e.to_string()))??;

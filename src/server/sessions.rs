@@ -18,7 +18,7 @@ use sha2::{Digest, Sha256};
 use subtle::ConstantTimeEq;
 
 use super::error::ApiError;
-use super::meshes::new_id;
+use super::meshes::{new_id, parse_format};
 use super::{rest_for, AppState};
 use crate::deform::Params;
 use crate::session::{Delta, HandleRef, PoseSnapshot, SessionHandle, SessionOptions};
@@ -102,9 +102,13 @@ pub async fn create(
     body: Result<Json<CreateSession>, JsonRejection>,
 ) -> Result<impl IntoResponse, ApiError> {
     let Json(req) = body?;
-    let params_json = if req.params.is_null() { serde_json::json!({}) } else { req.params };
-    let params: Params =
-        serde_json::from_value(params_json.clone()).map_err(|e| ApiError::InvalidParams(e.to_string()))?;
+    let params_json = if req.params.is_null() {
+        serde_json::json!({})
+    } else {
+        req.params
+    };
+    let params: Params = serde_json::from_value(params_json.clone())
+        .map_err(|e| ApiError::InvalidParams(e.to_string()))?;
     params.validate()?;
     if st.sessions.read().len() >= st.config.max_sessions {
         return Err(ApiError::TooManySessions(st.config.max_sessions));
@@ -119,7 +123,10 @@ pub async fn create(
         token_sha256: hex::encode(hash),
         params: params_json,
         constraints: None,
-        created_unix: SystemTime::now().duration_since(UNIX_EPOCH).map(|d| d.as_secs()).unwrap_or(0),
+        created_unix: SystemTime::now()
+            .duration_since(UNIX_EPOCH)
+            .map(|d| d.as_secs())
+            .unwrap_or(0),
     })?;
     let opts = SessionOptions {
         cache: st.cache.clone(),
@@ -145,7 +152,15 @@ pub async fn create(
     st.metrics.sessions_created.inc();
     st.metrics.sessions.set(st.sessions.read().len() as i64);
     let state = handle.info().state;
-    Ok((StatusCode::CREATED, Json(Created { id, token, mesh_id: req.mesh_id, state })))
+    Ok((
+        StatusCode::CREATED,
+        Json(Created {
+            id,
+            token,
+            mesh_id: req.mesh_id,
+            state,
+        }),
+    ))
 }
 
 /// `GET /v1/sessions/{id}`.
@@ -176,7 +191,10 @@ pub async fn set_constraints(
 ) -> Result<impl IntoResponse, ApiError> {
     let Json(spec) = body?;
     let state = s.set_constraints(spec).await?;
-    Ok((StatusCode::ACCEPTED, Json(serde_json::json!({ "state": state }))))
+    Ok((
+        StatusCode::ACCEPTED,
+        Json(serde_json::json!({ "state": state })),
+    ))
 }
 
 /// A rotation as axis + degrees.
@@ -210,7 +228,11 @@ fn finite<const N: usize>(v: &[Option<f64>; N], what: &str) -> Result<[f64; N], 
     for (i, x) in v.iter().enumerate() {
         match x {
             Some(x) if x.is_finite() => out[i] = *x,
-            _ => return Err(ApiError::NonFinite(format!("`{what}[{i}]` is NaN, infinite or null"))),
+            _ => {
+                return Err(ApiError::NonFinite(format!(
+                    "`{what}[{i}]` is NaN, infinite or null"
+                )))
+            }
         }
     }
     Ok(out)
@@ -225,7 +247,9 @@ impl DeltaJson {
         };
         let rotation = match (&self.rotate, &self.quaternion) {
             (Some(_), Some(_)) => {
-                return Err(ApiError::InvalidJson("give `rotate` or `quaternion`, not both".into()));
+                return Err(ApiError::InvalidJson(
+                    "give `rotate` or `quaternion`, not both".into(),
+                ));
             }
             (Some(r), None) => {
                 let axis = finite(&r.axis, "rotate.axis")?;
@@ -244,7 +268,10 @@ impl DeltaJson {
             }
             (None, None) => UnitQuaternion::identity(),
         };
-        Ok(Delta { rotation, translation: t })
+        Ok(Delta {
+            rotation,
+            translation: t,
+        })
     }
 }
 
@@ -302,11 +329,16 @@ fn pose_json(p: PoseSnapshot) -> Json<PoseJson> {
 }
 
 /// `POST /v1/sessions/{id}/drag`: applies a delta and solves.
-pub async fn drag(Authed(s): Authed, body: Result<Bytes, BytesRejection>) -> Result<Json<PoseJson>, ApiError> {
+pub async fn drag(
+    Authed(s): Authed,
+    body: Result<Bytes, BytesRejection>,
+) -> Result<Json<PoseJson>, ApiError> {
     let req: DragRequest = parse_json(&body?)?;
     let delta = req.delta.to_delta()?;
     let max_iters = req.max_iters.unwrap_or(s.params().max_iters).max(1);
-    Ok(pose_json(s.drag_solve(&req.handle, delta, max_iters).await?))
+    Ok(pose_json(
+        s.drag_solve(&req.handle, delta, max_iters).await?,
+    ))
 }
 
 /// `GET /v1/sessions/{id}/pose`: JSON, or raw f32 LE xyz with
@@ -329,8 +361,14 @@ pub async fn pose(Authed(s): Authed, headers: HeaderMap) -> Result<Response, Api
     Ok((
         [
             (header::CONTENT_TYPE, "application/octet-stream".to_owned()),
-            (header::HeaderName::from_static("x-dend-revision"), p.revision.to_string()),
-            (header::HeaderName::from_static("x-dend-vertex-count"), p.positions.len().to_string()),
+            (
+                header::HeaderName::from_static("x-dend-revision"),
+                p.revision.to_string(),
+            ),
+            (
+                header::HeaderName::from_static("x-dend-vertex-count"),
+                p.positions.len().to_string(),
+            ),
         ],
         buf,
     )
@@ -341,50 +379,27 @@ pub async fn pose(Authed(s): Authed, headers: HeaderMap) -> Result<Response, Api
 #[derive(Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct ExportQuery {
-    /// `obj` (default) or `ply`.
+    /// `obj` (default), `off`, `ply` or `stl`.
     pub format: Option<String>,
 }
 
-/// `GET /v1/sessions/{id}/export?format=obj|ply`: the current pose.
+/// `GET /v1/sessions/{id}/export?format=obj|off|ply|stl`: the current
+/// pose as a mesh file (PLY and STL binary little-endian).
 pub async fn export(Authed(s): Authed, Query(q): Query<ExportQuery>) -> Result<Response, ApiError> {
     let p = s.pose().await?;
-    let mesh = s.rest().mesh();
-    let format = q.format.unwrap_or_else(|| "obj".into()).to_ascii_lowercase();
-    let (ct, text) = match format.as_str() {
-        "obj" => ("model/obj", write_obj(&p.positions, mesh.triangles())),
-        "ply" => ("model/ply", write_ply(&p.positions, mesh.triangles())),
-        other => return Err(ApiError::UnsupportedFormat(format!("export format `{other}`"))),
-    };
-    Ok(([(header::CONTENT_TYPE, ct)], text).into_response())
-}
-
-fn write_obj(v: &[[f64; 3]], f: &[[u32; 3]]) -> String {
-    use std::fmt::Write;
-    let mut s = String::with_capacity(v.len() * 40 + f.len() * 24);
-    for p in v {
-        let _ = writeln!(s, "v {} {} {}", p[0], p[1], p[2]);
-    }
-    for t in f {
-        let _ = writeln!(s, "f {} {} {}", t[0] + 1, t[1] + 1, t[2] + 1);
-    }
-    s
-}
-
-fn write_ply(v: &[[f64; 3]], f: &[[u32; 3]]) -> String {
-    use std::fmt::Write;
-    let mut s = format!(
-        "ply\nformat ascii 1.0\nelement vertex {}\nproperty double x\nproperty double y\nproperty double z\n\
-         element face {}\nproperty list uchar int vertex_indices\nend_header\n",
-        v.len(),
-        f.len()
-    );
-    for p in v {
-        let _ = writeln!(s, "{} {} {}", p[0], p[1], p[2]);
-    }
-    for t in f {
-        let _ = writeln!(s, "3 {} {} {}", t[0], t[1], t[2]);
-    }
-    s
+    let format = parse_format(
+        &q.format
+            .unwrap_or_else(|| "obj".into())
+            .to_ascii_lowercase(),
+    )?;
+    let rest = s.rest().clone();
+    let bytes = tokio::task::spawn_blocking(move || {
+        crate::mesh::io::to_bytes(&p.positions, rest.mesh().triangles(), format)
+    })
+    .await
+    .map_err(|e| ApiError::Internal(e.to_string()))?;
+    let ct = format!("model/{}", format.extension());
+    Ok(([(header::CONTENT_TYPE, ct)], bytes).into_response())
 }
 
 /// `POST /v1/sessions/{id}/undo`.

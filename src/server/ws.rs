@@ -148,10 +148,17 @@ pub enum ServerMsg {
 impl ServerMsg {
     fn error(e: &ApiError, seq: Option<u64>) -> Self {
         let b = e.body();
-        ServerMsg::Error { code: b.code, message: b.message, seq }
+        ServerMsg::Error {
+            code: b.code,
+            message: b.message,
+            seq,
+        }
     }
     fn state(you: ClientId, info: &SessionInfo) -> Self {
-        ServerMsg::State { you, session: serde_json::to_value(info).unwrap_or_default() }
+        ServerMsg::State {
+            you,
+            session: serde_json::to_value(info).unwrap_or_default(),
+        }
     }
     fn text(&self) -> WsMsg {
         WsMsg::Text(serde_json::to_string(self).unwrap_or_default())
@@ -176,7 +183,8 @@ struct Bucket {
 impl Bucket {
     fn take(&mut self) -> bool {
         let now = Instant::now();
-        self.tokens = (self.tokens + now.duration_since(self.at).as_secs_f64() * self.rate).min(self.rate);
+        self.tokens =
+            (self.tokens + now.duration_since(self.at).as_secs_f64() * self.rate).min(self.rate);
         self.at = now;
         if self.tokens >= 1.0 {
             self.tokens -= 1.0;
@@ -189,7 +197,11 @@ impl Bucket {
 
 /// Waits for the first message to be `{"type":"auth","token":..}`; `Err`
 /// carries the close to send.
-async fn authenticate<St, E>(stream: &mut St, s: &SessionHandle, cfg: &ConnConfig) -> Result<(), (ApiError, u16)>
+async fn authenticate<St, E>(
+    stream: &mut St,
+    s: &SessionHandle,
+    cfg: &ConnConfig,
+) -> Result<(), (ApiError, u16)>
 where
     St: Stream<Item = Result<WsMsg, E>> + Unpin,
 {
@@ -202,7 +214,11 @@ where
         _ => None,
     };
     check_token(s, token.as_deref()).map_err(|e| {
-        let code = if matches!(e, ApiError::MissingToken) { CLOSE_MISSING_TOKEN } else { CLOSE_WRONG_TOKEN };
+        let code = if matches!(e, ApiError::MissingToken) {
+            CLOSE_MISSING_TOKEN
+        } else {
+            CLOSE_WRONG_TOKEN
+        };
         (e, code)
     })
 }
@@ -234,7 +250,16 @@ pub async fn run_connection<Si, St, E>(
     if let Some(m) = &metrics {
         m.ws_clients.inc();
     }
-    let _ = run_loop(&mut sink, &mut stream, &s, me, &cfg, &mut events, &mut frames).await;
+    let _ = run_loop(
+        &mut sink,
+        &mut stream,
+        &s,
+        me,
+        &cfg,
+        &mut events,
+        &mut frames,
+    )
+    .await;
     s.leave(me);
     if let Some(m) = &metrics {
         m.ws_clients.dec();
@@ -263,7 +288,11 @@ where
         send(sink, WsMsg::Binary(f.bytes)).await?;
     }
     let rate = f64::from(cfg.max_messages_per_sec.max(1));
-    let mut bucket = Bucket { rate, tokens: rate, at: Instant::now() };
+    let mut bucket = Bucket {
+        rate,
+        tokens: rate,
+        at: Instant::now(),
+    };
     loop {
         tokio::select! {
             msg = stream.next() => {
@@ -321,7 +350,10 @@ async fn send<Si: Sink<WsMsg> + Unpin>(sink: &mut Si, m: WsMsg) -> Result<(), ()
 }
 
 fn seq_of(text: &str) -> Option<u64> {
-    serde_json::from_str::<serde_json::Value>(text).ok()?.get("seq")?.as_u64()
+    serde_json::from_str::<serde_json::Value>(text)
+        .ok()?
+        .get("seq")?
+        .as_u64()
 }
 
 /// Decodes one client message as the connection loop does (JSON →
@@ -350,8 +382,14 @@ async fn handle_message(s: &SessionHandle, me: ClientId, text: &str) -> Option<S
                 Ok(None)
             }
             ClientMsg::Grab { handle } => s.grab(me, &handle).map(|_| None).map_err(ApiError::from),
-            ClientMsg::Release { handle } => s.release(me, &handle).map(|_| None).map_err(ApiError::from),
-            ClientMsg::SetConstraints { constraints } => s.set_constraints(constraints).await.map(|_| None).map_err(ApiError::from),
+            ClientMsg::Release { handle } => {
+                s.release(me, &handle).map(|_| None).map_err(ApiError::from)
+            }
+            ClientMsg::SetConstraints { constraints } => s
+                .set_constraints(constraints)
+                .await
+                .map(|_| None)
+                .map_err(ApiError::from),
             ClientMsg::Undo => s.undo().await.map(|_| None).map_err(ApiError::from),
             ClientMsg::Redo => s.redo().await.map(|_| None).map_err(ApiError::from),
         }
@@ -401,9 +439,18 @@ pub async fn upgrade(
         .max_message_size(st.config.ws_max_message_bytes)
         .on_upgrade(move |socket: WebSocket| async move {
             let (sink, stream) = socket.split();
-            let sink = sink.with(|m: WsMsg| futures_util::future::ready(Ok::<_, axum::Error>(to_axum(m))));
+            let sink =
+                sink.with(|m: WsMsg| futures_util::future::ready(Ok::<_, axum::Error>(to_axum(m))));
             let stream = stream.filter_map(|m| futures_util::future::ready(from_axum(m)));
-            run_connection(Box::pin(sink), Box::pin(stream), s, authed, cfg, Some(metrics)).await;
+            run_connection(
+                Box::pin(sink),
+                Box::pin(stream),
+                s,
+                authed,
+                cfg,
+                Some(metrics),
+            )
+            .await;
         }))
 }
 
@@ -411,7 +458,10 @@ fn to_axum(m: WsMsg) -> Message {
     match m {
         WsMsg::Text(t) => Message::Text(t.into()),
         WsMsg::Binary(b) => Message::Binary(b),
-        WsMsg::Close(code, reason) => Message::Close(Some(CloseFrame { code, reason: reason.into() })),
+        WsMsg::Close(code, reason) => Message::Close(Some(CloseFrame {
+            code,
+            reason: reason.into(),
+        })),
     }
 }
 
@@ -419,7 +469,10 @@ fn from_axum(m: Result<Message, axum::Error>) -> Option<Result<WsMsg, axum::Erro
     match m {
         Ok(Message::Text(t)) => Some(Ok(WsMsg::Text(t.to_string()))),
         Ok(Message::Binary(b)) => Some(Ok(WsMsg::Binary(b))),
-        Ok(Message::Close(c)) => Some(Ok(WsMsg::Close(c.as_ref().map_or(1005, |c| c.code), String::new()))),
+        Ok(Message::Close(c)) => Some(Ok(WsMsg::Close(
+            c.as_ref().map_or(1005, |c| c.code),
+            String::new(),
+        ))),
         Ok(Message::Ping(_) | Message::Pong(_)) => None,
         Err(e) => Some(Err(e)),
     }

@@ -3,7 +3,7 @@
 use std::sync::Arc;
 use std::time::Duration;
 
-use futures_util::channel::mpsc;
+use futures_channel::mpsc;
 use futures_util::{SinkExt, StreamExt};
 
 use super::*;
@@ -33,6 +33,7 @@ pub(crate) fn grid(n: usize) -> Mesh {
 }
 
 const TOKEN: &str = "secret-token";
+const MAX_ITERS: usize = 40;
 
 fn session() -> SessionHandle {
     let rest = Arc::new(Rest::new(grid(6)).expect("rest"));
@@ -51,8 +52,18 @@ fn session() -> SessionHandle {
         created_unix: 0,
     };
     opts.store.put_session(&store_record).expect("store");
-    let params = Params { tol: 1e-6, max_iters: 200, ..Params::default() };
-    SessionHandle::spawn("s".into(), "m".into(), super::super::sessions::token_hash(TOKEN), rest, params, opts)
+    let params = Params {
+        max_iters: MAX_ITERS,
+        ..Params::default()
+    };
+    SessionHandle::spawn(
+        "s".into(),
+        "m".into(),
+        super::super::sessions::token_hash(TOKEN),
+        rest,
+        params,
+        opts,
+    )
 }
 
 fn constraints() -> serde_json::Value {
@@ -68,14 +79,31 @@ struct Client {
 fn connect(s: &SessionHandle, authed: bool, rate: u32) -> Client {
     let (to_server, server_in) = mpsc::channel(64);
     let (server_out, from_server) = mpsc::channel(64);
-    let cfg = ConnConfig { max_messages_per_sec: rate, auth_timeout: Duration::from_secs(5) };
-    let task = tokio::spawn(run_connection(server_out, server_in, s.clone(), authed, cfg, None));
-    Client { to_server, from_server, task }
+    let cfg = ConnConfig {
+        max_messages_per_sec: rate,
+        auth_timeout: Duration::from_secs(5),
+    };
+    let task = tokio::spawn(run_connection(
+        server_out,
+        server_in,
+        s.clone(),
+        authed,
+        cfg,
+        None,
+    ));
+    Client {
+        to_server,
+        from_server,
+        task,
+    }
 }
 
 impl Client {
     async fn send(&mut self, v: serde_json::Value) {
-        self.to_server.send(Ok(WsMsg::Text(v.to_string()))).await.expect("send");
+        self.to_server
+            .send(Ok(WsMsg::Text(v.to_string())))
+            .await
+            .expect("send");
     }
     async fn next(&mut self) -> WsMsg {
         tokio::time::timeout(Duration::from_secs(10), self.from_server.next())
@@ -94,12 +122,13 @@ impl Client {
             }
         }
     }
-    /// Frames until one acknowledges `seq` and is converged.
+    /// Frames until one acknowledges `seq` and the session settled
+    /// (converged, or `MAX_ITERS` iterations after the last delta).
     async fn settled_frame(&mut self, seq: u64) -> (crate::session::FrameHeader, Vec<[f32; 3]>) {
         loop {
             if let WsMsg::Binary(b) = self.next().await {
                 let (h, v) = decode_frame(&b).expect("frame");
-                if h.ack_seq >= seq && h.converged {
+                if h.ack_seq >= seq && (h.converged || h.iteration as usize >= MAX_ITERS) {
                     return (h, v);
                 }
             }
@@ -111,42 +140,69 @@ impl Client {
 async fn auth_by_first_message_and_refusals() {
     let s = session();
     let mut good = connect(&s, false, 100);
-    good.send(serde_json::json!({"type": "auth", "token": TOKEN})).await;
+    good.send(serde_json::json!({"type": "auth", "token": TOKEN}))
+        .await;
     assert_eq!(good.event("state").await["state"], "empty");
 
     let mut wrong = connect(&s, false, 100);
-    wrong.send(serde_json::json!({"type": "auth", "token": "nope"})).await;
+    wrong
+        .send(serde_json::json!({"type": "auth", "token": "nope"}))
+        .await;
     assert_eq!(wrong.event("error").await["code"], "forbidden");
-    assert_eq!(wrong.next().await, WsMsg::Close(CLOSE_WRONG_TOKEN, "forbidden".into()));
+    assert_eq!(
+        wrong.next().await,
+        WsMsg::Close(CLOSE_WRONG_TOKEN, "forbidden".into())
+    );
 
     let mut missing = connect(&s, false, 100);
     missing.send(serde_json::json!({"type": "ping"})).await;
     assert_eq!(missing.event("error").await["code"], "missing_token");
-    assert_eq!(missing.next().await, WsMsg::Close(CLOSE_MISSING_TOKEN, "missing_token".into()));
+    assert_eq!(
+        missing.next().await,
+        WsMsg::Close(CLOSE_MISSING_TOKEN, "missing_token".into())
+    );
 }
 
 #[tokio::test]
 async fn errors_pong_and_drags_acknowledged() {
     let s = session();
     let mut c = connect(&s, true, 1000);
-    c.send(serde_json::json!({"type": "ping", "nonce": 7})).await;
+    c.send(serde_json::json!({"type": "ping", "nonce": 7}))
+        .await;
     assert_eq!(c.event("pong").await["nonce"], 7);
-    c.send(serde_json::json!({"type": "drag", "handle": 0, "translate": [0, 0, 1], "seq": 1})).await;
+    c.send(serde_json::json!({"type": "drag", "handle": 0, "translate": [0, 0, 1], "seq": 1}))
+        .await;
     let e = c.event("error").await;
-    assert_eq!((e["code"].as_str(), e["seq"].as_u64()), (Some("not_ready"), Some(1)));
+    assert_eq!(
+        (e["code"].as_str(), e["seq"].as_u64()),
+        (Some("not_ready"), Some(1))
+    );
     c.send(serde_json::json!({"type": "bogus"})).await;
     assert_eq!(c.event("error").await["code"], "invalid_json");
-    c.send(serde_json::json!({"type": "set_constraints", "constraints": constraints()})).await;
+    c.send(serde_json::json!({"type": "set_constraints", "constraints": constraints()}))
+        .await;
     let _ = c.event("ready").await;
-    c.send(serde_json::json!({"type": "drag", "handle": "nope", "translate": [0, 0, 1], "seq": 3})).await;
+    c.send(serde_json::json!({"type": "drag", "handle": "nope", "translate": [0, 0, 1], "seq": 3}))
+        .await;
     assert_eq!(c.event("error").await["code"], "unknown_handle");
     c.to_server
-        .send(Ok(WsMsg::Text(r#"{"type":"drag","handle":0,"translate":[0,0,NaN],"seq":4}"#.into())))
+        .send(Ok(WsMsg::Text(
+            r#"{"type":"drag","handle":0,"translate":[0,0,NaN],"seq":4}"#.into(),
+        )))
         .await
         .expect("send");
-    assert_eq!(c.event("error").await["code"], "non_finite", "Python-style NaN literal");
-    c.send(serde_json::json!({"type": "drag", "handle": 0, "translate": [0, null, 0], "seq": 4})).await;
-    assert_eq!(c.event("error").await["code"], "non_finite", "JavaScript NaN arrives as null");
+    assert_eq!(
+        c.event("error").await["code"],
+        "non_finite",
+        "Python-style NaN literal"
+    );
+    c.send(serde_json::json!({"type": "drag", "handle": 0, "translate": [0, null, 0], "seq": 4}))
+        .await;
+    assert_eq!(
+        c.event("error").await["code"],
+        "non_finite",
+        "JavaScript NaN arrives as null"
+    );
     for seq in 5..=24 {
         c.send(serde_json::json!({"type": "drag", "handle": 0, "translate": [0.0, 0.0, 0.05], "seq": seq})).await;
     }
@@ -155,24 +211,31 @@ async fn errors_pong_and_drags_acknowledged() {
     // all 20 deltas composed: the handle row moved up by 20 × 0.05
     assert!((v[33][2] - 1.0).abs() < 1e-3, "handle z {}", v[33][2]);
     drop(c.to_server);
-    c.task.await.expect("connection ends when the client stream ends");
+    c.task
+        .await
+        .expect("connection ends when the client stream ends");
 }
 
 #[tokio::test]
 async fn two_clients_both_get_frames_and_grabs_are_exclusive() {
     let s = session();
-    assert_eq!(s.set_constraints(constraints()).await.expect("constraints"), crate::session::SessionState::Building);
+    assert_eq!(
+        s.set_constraints(constraints()).await.expect("constraints"),
+        crate::session::SessionState::Building
+    );
     let mut a = connect(&s, true, 1000);
     let mut b = connect(&s, true, 1000);
     let _ = a.event("state").await;
     let _ = b.event("state").await;
-    a.send(serde_json::json!({"type": "grab", "handle": 0})).await;
+    a.send(serde_json::json!({"type": "grab", "handle": 0}))
+        .await;
     let grabbed = b.event("handle_grabbed").await;
     assert_eq!(grabbed["handle"], 0);
     while s.info().state != crate::session::SessionState::Ready {
         tokio::time::sleep(Duration::from_millis(5)).await;
     }
-    b.send(serde_json::json!({"type": "drag", "handle": 0, "translate": [0, 0, 1], "seq": 1})).await;
+    b.send(serde_json::json!({"type": "drag", "handle": 0, "translate": [0, 0, 1], "seq": 1}))
+        .await;
     assert_eq!(b.event("error").await["code"], "handle_grabbed");
     for seq in 1..=10 {
         a.send(serde_json::json!({"type": "drag", "handle": 0, "translate": [0.0, 0.1, 0.0], "seq": seq})).await;
@@ -181,9 +244,17 @@ async fn two_clients_both_get_frames_and_grabs_are_exclusive() {
     let (hb, vb) = b.settled_frame(10).await;
     assert_eq!(ha.revision, hb.revision);
     assert_eq!(va, vb);
-    assert!((va[33][1] - 6.0).abs() < 1e-3, "ten deltas of 0.1 composed: {}", va[33][1]);
-    a.send(serde_json::json!({"type": "release", "handle": 0})).await;
-    assert_eq!(b.event("handle_released").await["client"], grabbed["client"]);
+    assert!(
+        (va[33][1] - 6.0).abs() < 1e-3,
+        "ten deltas of 0.1 composed: {}",
+        va[33][1]
+    );
+    a.send(serde_json::json!({"type": "release", "handle": 0}))
+        .await;
+    assert_eq!(
+        b.event("handle_released").await["client"],
+        grabbed["client"]
+    );
 }
 
 #[tokio::test]

@@ -19,8 +19,18 @@ type Reply<T> = oneshot::Sender<Result<T, SessionError>>;
 const HISTORY_LIMIT: usize = 64;
 
 pub(super) enum Cmd {
-    Drag { handle: usize, delta: Delta, seq: u64, reply: Option<(usize, Reply<PoseSnapshot>)> },
-    SetConstraints { spec: serde_json::Value, constraints: Constraints, restore: Option<Restore>, reply: Reply<SessionState> },
+    Drag {
+        handle: usize,
+        delta: Delta,
+        seq: u64,
+        reply: Option<(usize, Reply<PoseSnapshot>)>,
+    },
+    SetConstraints {
+        spec: serde_json::Value,
+        constraints: Constraints,
+        restore: Option<Restore>,
+        reply: Reply<SessionState>,
+    },
     Undo(Reply<PoseSnapshot>),
     Redo(Reply<PoseSnapshot>),
     Reset(Reply<PoseSnapshot>),
@@ -87,7 +97,11 @@ pub(super) struct Actor {
 }
 
 impl Actor {
-    pub(super) fn new(inner: Arc<Inner>, frames_tx: watch::Sender<Option<Frame>>, opts: SessionOptions) -> Self {
+    pub(super) fn new(
+        inner: Arc<Inner>,
+        frames_tx: watch::Sender<Option<Frame>>,
+        opts: SessionOptions,
+    ) -> Self {
         let (internal_tx, internal_rx) = mpsc::unbounded_channel();
         let deformer = Deformer::new(inner.rest.clone(), inner.params.clone());
         let pose = Arc::new(deformer.pose().to_vec());
@@ -120,10 +134,14 @@ impl Actor {
     }
 
     pub(super) async fn run(mut self, mut rx: mpsc::Receiver<Cmd>) {
-        let Some(mut internal_rx) = self.internal_rx.take() else { return };
+        let Some(mut internal_rx) = self.internal_rx.take() else {
+            return;
+        };
         loop {
             while self.deformer.is_some() {
-                let Some(cmd) = self.deferred.pop_front() else { break };
+                let Some(cmd) = self.deferred.pop_front() else {
+                    break;
+                };
                 if !self.on_cmd(cmd) {
                     return self.closed();
                 }
@@ -169,8 +187,18 @@ impl Actor {
             return true;
         }
         match cmd {
-            Cmd::Drag { handle, delta, seq, reply } => self.on_drag(handle, delta, seq, reply),
-            Cmd::SetConstraints { spec, constraints, restore, reply } => {
+            Cmd::Drag {
+                handle,
+                delta,
+                seq,
+                reply,
+            } => self.on_drag(handle, delta, seq, reply),
+            Cmd::SetConstraints {
+                spec,
+                constraints,
+                restore,
+                reply,
+            } => {
                 let _ = reply.send(self.on_set_constraints(spec, constraints, restore));
             }
             Cmd::Undo(reply) => {
@@ -193,7 +221,13 @@ impl Actor {
         true
     }
 
-    fn on_drag(&mut self, handle: usize, delta: Delta, seq: u64, reply: Option<(usize, Reply<PoseSnapshot>)>) {
+    fn on_drag(
+        &mut self,
+        handle: usize,
+        delta: Delta,
+        seq: u64,
+        reply: Option<(usize, Reply<PoseSnapshot>)>,
+    ) {
         let fail = |reply: Option<(usize, Reply<PoseSnapshot>)>, e: SessionError| {
             if let Some((_, r)) = reply {
                 let _ = r.send(Err(e));
@@ -207,7 +241,12 @@ impl Actor {
         };
         let c = Arc::make_mut(c);
         let Some(h) = c.handles.get_mut(handle) else {
-            return fail(reply, SessionError::UnknownHandle { handle: super::HandleRef::Index(handle) });
+            return fail(
+                reply,
+                SessionError::UnknownHandle {
+                    handle: super::HandleRef::Index(handle),
+                },
+            );
         };
         h.target = h.target.then(delta.rotation, delta.translation);
         let q = delta.rotation.coords;
@@ -247,7 +286,8 @@ impl Actor {
         }
         self.generation += 1;
         self.state = SessionState::Building;
-        self.inner.shared.lock().handles = constraints.handles.iter().map(|h| h.name.clone()).collect();
+        self.inner.shared.lock().handles =
+            constraints.handles.iter().map(|h| h.name.clone()).collect();
         self.inner.shared.lock().grabs.clear();
         self.journal.clear();
         self.history.clear();
@@ -256,7 +296,9 @@ impl Actor {
         self.dirty = false;
         self.settled = true;
         for (_, w) in self.waiters.drain(..) {
-            let _ = w.send(Err(SessionError::NotReady { state: SessionState::Building }));
+            let _ = w.send(Err(SessionError::NotReady {
+                state: SessionState::Building,
+            }));
         }
         let constraints = Arc::new(constraints);
         self.constraints = Some(constraints.clone());
@@ -264,9 +306,16 @@ impl Actor {
         self.sync_shared();
         let _ = self.inner.events.send(Event::State);
         let (generation, tx) = (self.generation, self.internal_tx.clone());
-        let (rest, params, cache) = (self.inner.rest.clone(), self.inner.params.clone(), self.opts.cache.clone());
+        let (rest, params, cache) = (
+            self.inner.rest.clone(),
+            self.inner.params.clone(),
+            self.opts.cache.clone(),
+        );
         drop(tokio::task::spawn_blocking(move || {
-            let result = cache.get_or_build(&rest, &params, &constraints).map(|_| ()).map_err(SessionError::from);
+            let result = cache
+                .get_or_build(&rest, &params, &constraints)
+                .map(|_| ())
+                .map_err(SessionError::from);
             let _ = tx.send(Internal::Built { generation, result });
         }));
         Ok(SessionState::Building)
@@ -276,13 +325,20 @@ impl Actor {
         if self.deformer.is_none() || self.state != SessionState::Ready {
             return;
         }
-        let Some(constraints) = self.constraints.clone() else { return };
+        let Some(constraints) = self.constraints.clone() else {
+            return;
+        };
         if self.dirty {
             self.iters_since_change = 0;
         }
         let max_iters = self.inner.params.max_iters;
         let budget = if !self.waiters.is_empty() {
-            self.waiters.iter().map(|w| w.0).max().unwrap_or(max_iters).max(1)
+            self.waiters
+                .iter()
+                .map(|w| w.0)
+                .max()
+                .unwrap_or(max_iters)
+                .max(1)
         } else if !self.settled {
             let remaining = max_iters.saturating_sub(self.iters_since_change);
             if remaining == 0 {
@@ -296,10 +352,20 @@ impl Actor {
         };
         self.inflight = self.waiters.drain(..).map(|w| w.1).collect();
         self.dirty = false;
-        let Some(mut deformer) = self.deformer.take() else { return };
+        let Some(mut deformer) = self.deformer.take() else {
+            return;
+        };
         let journal = std::mem::take(&mut self.journal);
-        let (id, store, cache) = (self.inner.id.clone(), self.opts.store.clone(), self.opts.cache.clone());
-        let (rest, params, tx) = (self.inner.rest.clone(), self.inner.params.clone(), self.internal_tx.clone());
+        let (id, store, cache) = (
+            self.inner.id.clone(),
+            self.opts.store.clone(),
+            self.opts.cache.clone(),
+        );
+        let (rest, params, tx) = (
+            self.inner.rest.clone(),
+            self.inner.params.clone(),
+            self.internal_tx.clone(),
+        );
         let applied_seq = self.last_seq;
         drop(tokio::task::spawn_blocking(move || {
             let t0 = Instant::now();
@@ -312,7 +378,13 @@ impl Actor {
             })();
             let seconds = t0.elapsed().as_secs_f64();
             let body = FrameBody::from_pose(deformer.pose());
-            let _ = tx.send(Internal::Solved { deformer, result, body, seconds, applied_seq });
+            let _ = tx.send(Internal::Solved {
+                deformer,
+                result,
+                body,
+                seconds,
+                applied_seq,
+            });
         }));
     }
 
@@ -332,7 +404,9 @@ impl Actor {
                         self.settled = false;
                         self.uncommitted = true;
                         self.sync_shared();
-                        let _ = self.inner.events.send(Event::Ready { revision: self.revision });
+                        let _ = self.inner.events.send(Event::Ready {
+                            revision: self.revision,
+                        });
                     }
                     Err(e) => {
                         self.state = SessionState::Failed;
@@ -342,7 +416,13 @@ impl Actor {
                     }
                 }
             }
-            Internal::Solved { deformer, result, body, seconds, applied_seq } => {
+            Internal::Solved {
+                deformer,
+                result,
+                body,
+                seconds,
+                applied_seq,
+            } => {
                 self.pose = Arc::new(deformer.pose().to_vec());
                 self.deformer = Some(deformer);
                 self.applied_seq = applied_seq;
@@ -350,8 +430,11 @@ impl Actor {
                     Ok(report) => {
                         self.iters_since_change += report.iterations;
                         self.converged = report.converged;
-                        self.opts.observer.solved(report.iterations, seconds, report.converged);
-                        let done = report.converged || self.iters_since_change >= self.inner.params.max_iters;
+                        self.opts
+                            .observer
+                            .solved(report.iterations, seconds, report.converged);
+                        let done = report.converged
+                            || self.iters_since_change >= self.inner.params.max_iters;
                         self.settled = !self.dirty && (done || report.diverged);
                         None
                     }
@@ -398,7 +481,10 @@ impl Actor {
     }
 
     fn targets(&self) -> Vec<RigidTransform> {
-        self.constraints.as_ref().map(|c| c.handles.iter().map(|h| h.target.clone()).collect()).unwrap_or_default()
+        self.constraints
+            .as_ref()
+            .map(|c| c.handles.iter().map(|h| h.target.clone()).collect())
+            .unwrap_or_default()
     }
 
     /// Records the settled state as a history entry and checkpoints it.
@@ -410,7 +496,10 @@ impl Actor {
         if !self.history.is_empty() {
             self.history.truncate(self.cursor + 1);
         }
-        self.history.push(Snapshot { pose: self.pose.clone(), targets: self.targets() });
+        self.history.push(Snapshot {
+            pose: self.pose.clone(),
+            targets: self.targets(),
+        });
         if self.history.len() > HISTORY_LIMIT {
             let _ = self.history.remove(0);
         }
@@ -432,7 +521,11 @@ impl Actor {
     }
 
     /// Restores a pose and targets without solving; publishes a converged frame.
-    fn restore(&mut self, pose: Arc<Vec<[f64; 3]>>, targets: &[RigidTransform]) -> Result<PoseSnapshot, SessionError> {
+    fn restore(
+        &mut self,
+        pose: Arc<Vec<[f64; 3]>>,
+        targets: &[RigidTransform],
+    ) -> Result<PoseSnapshot, SessionError> {
         if let Some(d) = self.deformer.as_mut() {
             d.set_pose(pose.to_vec())?;
         }
@@ -471,7 +564,9 @@ impl Actor {
             if self.uncommitted && !self.history.is_empty() {
                 Some(self.cursor)
             } else {
-                self.cursor.checked_sub(1).filter(|_| !self.history.is_empty())
+                self.cursor
+                    .checked_sub(1)
+                    .filter(|_| !self.history.is_empty())
             }
             .ok_or(SessionError::NothingToUndo)?
         } else {
@@ -479,7 +574,10 @@ impl Actor {
                 .filter(|i| !self.uncommitted && *i < self.history.len())
                 .ok_or(SessionError::NothingToRedo)?
         };
-        let (pose, targets) = (self.history[target].pose.clone(), self.history[target].targets.clone());
+        let (pose, targets) = (
+            self.history[target].pose.clone(),
+            self.history[target].targets.clone(),
+        );
         self.cursor = target;
         self.uncommitted = false;
         let snap = self.restore(pose, &targets)?;
@@ -493,7 +591,11 @@ impl Actor {
             return Err(SessionError::NotReady { state: self.state });
         }
         let rest = Arc::new(self.inner.rest.mesh().positions().to_vec());
-        let targets: Vec<RigidTransform> = self.targets().iter().map(|t| RigidTransform::identity(t.pivot)).collect();
+        let targets: Vec<RigidTransform> = self
+            .targets()
+            .iter()
+            .map(|t| RigidTransform::identity(t.pivot))
+            .collect();
         let snap = self.restore(rest, &targets)?;
         self.uncommitted = true;
         self.commit();
@@ -503,5 +605,9 @@ impl Actor {
 
 fn stored(t: &RigidTransform) -> StoredTransform {
     let q = t.rotation.coords;
-    StoredTransform { rotation: [q.x, q.y, q.z, q.w], translation: t.translation, pivot: t.pivot }
+    StoredTransform {
+        rotation: [q.x, q.y, q.z, q.w],
+        translation: t.translation,
+        pivot: t.pivot,
+    }
 }

@@ -91,7 +91,10 @@ pub enum FrameError {
 /// Decodes a frame into its header and f32 vertices.
 pub fn decode_frame(b: &[u8]) -> Result<(FrameHeader, Vec<[f32; 3]>), FrameError> {
     if b.len() < FRAME_HEADER_BYTES {
-        return Err(FrameError::Length { got: b.len(), expected: FRAME_HEADER_BYTES });
+        return Err(FrameError::Length {
+            got: b.len(),
+            expected: FRAME_HEADER_BYTES,
+        });
     }
     let u16_at = |o: usize| u16::from_le_bytes([b[o], b[o + 1]]);
     let u32_at = |o: usize| u32::from_le_bytes(b[o..o + 4].try_into().unwrap_or([0; 4]));
@@ -108,7 +111,10 @@ pub fn decode_frame(b: &[u8]) -> Result<(FrameHeader, Vec<[f32; 3]>), FrameError
     };
     let expected = FRAME_HEADER_BYTES + h.vertex_count as usize * 12;
     if b.len() != expected {
-        return Err(FrameError::Length { got: b.len(), expected });
+        return Err(FrameError::Length {
+            got: b.len(),
+            expected,
+        });
     }
     let f = |o: usize| f32::from_le_bytes(b[o..o + 4].try_into().unwrap_or([0; 4]));
     let verts = (0..h.vertex_count as usize)
@@ -127,7 +133,13 @@ mod tests {
     #[test]
     fn frame_round_trips_and_layout_is_fixed() {
         let pose = [[1.0, -2.0, 3.5], [0.25, 0.0, -1e3]];
-        let h = FrameHeader { revision: 7, ack_seq: 0x0102_0304_0506_0708, iteration: 9, converged: true, vertex_count: 2 };
+        let h = FrameHeader {
+            revision: 7,
+            ack_seq: 0x0102_0304_0506_0708,
+            iteration: 9,
+            converged: true,
+            vertex_count: 2,
+        };
         let bytes = FrameBody::from_pose(&pose).finish(&h);
         assert_eq!(bytes.len(), 32 + 24);
         assert_eq!(&bytes[0..4], b"DEND");
@@ -137,7 +149,16 @@ mod tests {
         let (h2, v) = decode_frame(&bytes).unwrap();
         assert_eq!(h2, h);
         assert_eq!(v, vec![[1.0, -2.0, 3.5], [0.25, 0.0, -1e3]]);
-        assert_eq!(decode_frame(&bytes[..40]), Err(FrameError::Length { got: 40, expected: 56 }));
-        assert_eq!(decode_frame(b"XEND0000000000000000000000000000"), Err(FrameError::Magic));
+        assert_eq!(
+            decode_frame(&bytes[..40]),
+            Err(FrameError::Length {
+                got: 40,
+                expected: 56
+            })
+        );
+        assert_eq!(
+            decode_frame(b"XEND0000000000000000000000000000"),
+            Err(FrameError::Magic)
+        );
     }
 }

@@ -9,7 +9,10 @@ use parking_lot::Mutex;
 use tokio::sync::{broadcast, mpsc, oneshot, watch};
 
 use super::actor::{Actor, Cmd, Restore};
-use super::{ClientId, Delta, Event, Frame, HandleRef, Observer, PoseSnapshot, Recovered, SessionError, SessionState};
+use super::{
+    ClientId, Delta, Event, Frame, HandleRef, Observer, PoseSnapshot, Recovered, SessionError,
+    SessionState,
+};
 use crate::deform::{ConstraintsSpec, FactorCache, Params, Rest};
 use crate::store::Store;
 
@@ -167,7 +170,8 @@ impl SessionHandle {
     pub fn is_idle(&self, timeout: std::time::Duration) -> bool {
         let now = self.inner.started.elapsed().as_millis() as u64;
         let last = self.inner.last_active_ms.load(Ordering::Relaxed);
-        self.inner.clients.load(Ordering::Relaxed) == 0 && now.saturating_sub(last) >= timeout.as_millis() as u64
+        self.inner.clients.load(Ordering::Relaxed) == 0
+            && now.saturating_sub(last) >= timeout.as_millis() as u64
     }
 
     /// Resolves a handle reference to its index.
@@ -180,12 +184,21 @@ impl SessionHandle {
         idx.ok_or_else(|| SessionError::UnknownHandle { handle: h.clone() })
     }
 
-    fn check_drag(&self, client: Option<ClientId>, h: &HandleRef, d: &Delta) -> Result<usize, SessionError> {
+    fn check_drag(
+        &self,
+        client: Option<ClientId>,
+        h: &HandleRef,
+        d: &Delta,
+    ) -> Result<usize, SessionError> {
         if !d.translation.iter().all(|x| x.is_finite()) {
-            return Err(SessionError::NonFinite { what: "translate".into() });
+            return Err(SessionError::NonFinite {
+                what: "translate".into(),
+            });
         }
         if !d.rotation.coords.iter().all(|x| x.is_finite()) {
-            return Err(SessionError::NonFinite { what: "rotate".into() });
+            return Err(SessionError::NonFinite {
+                what: "rotate".into(),
+            });
         }
         let state = self.inner.shared.lock().state;
         if state != SessionState::Ready {
@@ -202,10 +215,17 @@ impl SessionHandle {
 
     async fn send(&self, cmd: Cmd) -> Result<(), SessionError> {
         self.touch();
-        self.inner.cmd_tx.send(cmd).await.map_err(|_| SessionError::Closed)
+        self.inner
+            .cmd_tx
+            .send(cmd)
+            .await
+            .map_err(|_| SessionError::Closed)
     }
 
-    async fn call<T>(&self, make: impl FnOnce(oneshot::Sender<Result<T, SessionError>>) -> Cmd) -> Result<T, SessionError> {
+    async fn call<T>(
+        &self,
+        make: impl FnOnce(oneshot::Sender<Result<T, SessionError>>) -> Cmd,
+    ) -> Result<T, SessionError> {
         let (tx, rx) = oneshot::channel();
         self.send(make(tx)).await?;
         rx.await.map_err(|_| SessionError::Closed)?
@@ -213,28 +233,60 @@ impl SessionHandle {
 
     /// Queues a drag delta (WebSocket path): composed into the handle's
     /// target; the frame acknowledging `seq` follows. Returns once queued.
-    pub async fn drag(&self, client: ClientId, h: &HandleRef, delta: Delta, seq: u64) -> Result<(), SessionError> {
+    pub async fn drag(
+        &self,
+        client: ClientId,
+        h: &HandleRef,
+        delta: Delta,
+        seq: u64,
+    ) -> Result<(), SessionError> {
         let handle = self.check_drag(Some(client), h, &delta)?;
-        self.send(Cmd::Drag { handle, delta, seq, reply: None }).await
+        self.send(Cmd::Drag {
+            handle,
+            delta,
+            seq,
+            reply: None,
+        })
+        .await
     }
 
     /// Applies a drag delta and runs up to `max_iters` iterations (HTTP path),
     /// returning the resulting pose.
-    pub async fn drag_solve(&self, h: &HandleRef, delta: Delta, max_iters: usize) -> Result<PoseSnapshot, SessionError> {
+    pub async fn drag_solve(
+        &self,
+        h: &HandleRef,
+        delta: Delta,
+        max_iters: usize,
+    ) -> Result<PoseSnapshot, SessionError> {
         let handle = self.check_drag(None, h, &delta)?;
-        self.call(|tx| Cmd::Drag { handle, delta, seq: 0, reply: Some((max_iters, tx)) }).await
+        self.call(|tx| Cmd::Drag {
+            handle,
+            delta,
+            seq: 0,
+            reply: Some((max_iters, tx)),
+        })
+        .await
     }
 
     /// Validates and resolves a constraints spec against the mesh, then
     /// starts building its factor in the background (state `building`).
-    pub async fn set_constraints(&self, spec_json: serde_json::Value) -> Result<SessionState, SessionError> {
-        let spec: ConstraintsSpec =
-            serde_json::from_value(spec_json.clone()).map_err(|e| SessionError::InvalidConstraints(e.to_string()))?;
+    pub async fn set_constraints(
+        &self,
+        spec_json: serde_json::Value,
+    ) -> Result<SessionState, SessionError> {
+        let spec: ConstraintsSpec = serde_json::from_value(spec_json.clone())
+            .map_err(|e| SessionError::InvalidConstraints(e.to_string()))?;
         let rest = self.inner.rest.clone();
         let constraints = tokio::task::spawn_blocking(move || spec.resolve(rest.mesh()))
             .await
             .map_err(|_| SessionError::Closed)??;
-        self.call(|tx| Cmd::SetConstraints { spec: spec_json, constraints, restore: None, reply: tx }).await
+        self.call(|tx| Cmd::SetConstraints {
+            spec: spec_json,
+            constraints,
+            restore: None,
+            reply: tx,
+        })
+        .await
     }
 
     /// Re-opens the stored constraints `spec_json` of a session read back
@@ -243,7 +295,10 @@ impl SessionHandle {
     /// [`set_constraints`](Self::set_constraints). Stored data that does not
     /// fit is [`StoreError::Corrupt`](crate::store::StoreError::Corrupt).
     pub async fn restore(&self, spec_json: serde_json::Value, rec: Recovered) -> Result<SessionState, SessionError> {
-        let corrupt = |reason: String| crate::store::StoreError::Corrupt { what: format!("constraints of session `{}`", self.inner.id), reason };
+        let corrupt = |reason: String| crate::store::StoreError::Corrupt {
+            what: format!("constraints of session `{}`", self.inner.id),
+            reason,
+        };
         let spec: ConstraintsSpec = serde_json::from_value(spec_json.clone()).map_err(|e| corrupt(e.to_string()))?;
         let rest = self.inner.rest.clone();
         let ack_seq = rec.ack_seq;
@@ -306,14 +361,22 @@ impl SessionHandle {
     pub fn leave(&self, client: ClientId) {
         let released: Vec<usize> = {
             let mut s = self.inner.shared.lock();
-            let mine: Vec<usize> = s.grabs.iter().filter(|(_, c)| **c == client).map(|(h, _)| *h).collect();
+            let mine: Vec<usize> = s
+                .grabs
+                .iter()
+                .filter(|(_, c)| **c == client)
+                .map(|(h, _)| *h)
+                .collect();
             for h in &mine {
                 let _ = s.grabs.remove(h);
             }
             mine
         };
         for handle in released {
-            let _ = self.inner.events.send(Event::HandleReleased { handle, client });
+            let _ = self
+                .inner
+                .events
+                .send(Event::HandleReleased { handle, client });
         }
         let _ = self.inner.clients.fetch_sub(1, Ordering::Relaxed);
         let _ = self.inner.events.send(Event::PeerLeft { client });
@@ -326,14 +389,19 @@ impl SessionHandle {
         {
             let mut s = self.inner.shared.lock();
             match s.grabs.get(&handle) {
-                Some(&c) if c != client => return Err(SessionError::HandleGrabbed { handle: h.clone() }),
+                Some(&c) if c != client => {
+                    return Err(SessionError::HandleGrabbed { handle: h.clone() })
+                }
                 Some(_) => return Ok(handle),
                 None => {
                     let _ = s.grabs.insert(handle, client);
                 }
             }
         }
-        let _ = self.inner.events.send(Event::HandleGrabbed { handle, client });
+        let _ = self
+            .inner
+            .events
+            .send(Event::HandleGrabbed { handle, client });
         Ok(handle)
     }
 
@@ -350,7 +418,10 @@ impl SessionHandle {
             }
         };
         if released {
-            let _ = self.inner.events.send(Event::HandleReleased { handle, client });
+            let _ = self
+                .inner
+                .events
+                .send(Event::HandleReleased { handle, client });
         }
         Ok(handle)
     }

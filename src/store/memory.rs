@@ -49,7 +49,11 @@ impl Store for MemoryStore {
     }
 
     fn put_session(&self, record: &SessionRecord) -> Result<(), StoreError> {
-        self.sessions.lock().entry(record.id.clone()).or_default().record = Some(record.clone());
+        self.sessions
+            .lock()
+            .entry(record.id.clone())
+            .or_default()
+            .record = Some(record.clone());
         Ok(())
     }
 
@@ -58,7 +62,12 @@ impl Store for MemoryStore {
     }
 
     fn list_sessions(&self) -> Result<Vec<SessionRecord>, StoreError> {
-        Ok(self.sessions.lock().values().filter_map(|s| s.record.clone()).collect())
+        Ok(self
+            .sessions
+            .lock()
+            .values()
+            .filter_map(|s| s.record.clone())
+            .collect())
     }
 
     fn delete_session(&self, id: &str) -> Result<(), StoreError> {
@@ -84,7 +93,12 @@ impl Store for MemoryStore {
     }
 
     fn journal(&self, id: &str) -> Result<Vec<JournalEntry>, StoreError> {
-        Ok(self.sessions.lock().get(id).map(|s| s.journal.clone()).unwrap_or_default())
+        Ok(self
+            .sessions
+            .lock()
+            .get(id)
+            .map(|s| s.journal.clone())
+            .unwrap_or_default())
     }
 
     fn checkpoint(&self, id: &str, checkpoint: &Checkpoint) -> Result<(), StoreError> {
@@ -96,7 +110,11 @@ impl Store for MemoryStore {
     }
 
     fn get_checkpoint(&self, id: &str) -> Result<Option<Checkpoint>, StoreError> {
-        Ok(self.sessions.lock().get(id).and_then(|s| s.checkpoint.clone()))
+        Ok(self
+            .sessions
+            .lock()
+            .get(id)
+            .and_then(|s| s.checkpoint.clone()))
     }
 }
 
@@ -119,10 +137,20 @@ mod tests {
     fn journal_is_truncated_by_checkpoint_and_constraints() -> Result<(), StoreError> {
         let s = MemoryStore::new();
         s.put_session(&record("a"))?;
-        let drag = JournalEntry::Drag { handle: 0, rotation: [0.0, 0.0, 0.0, 1.0], translation: [1.0, 0.0, 0.0], seq: 1 };
+        let drag = JournalEntry::Drag {
+            handle: 0,
+            rotation: [0.0, 0.0, 0.0, 1.0],
+            translation: [1.0, 0.0, 0.0],
+            seq: 1,
+        };
         s.append("a", &[drag.clone(), drag.clone()])?;
         assert_eq!(s.journal("a")?, vec![drag.clone(), drag.clone()]);
-        let cp = Checkpoint { revision: 3, ack_seq: 2, pose: vec![[0.0; 3]], targets: vec![] };
+        let cp = Checkpoint {
+            revision: 3,
+            ack_seq: 2,
+            pose: vec![[0.0; 3]],
+            targets: vec![],
+        };
         s.checkpoint("a", &cp)?;
         assert!(s.journal("a")?.is_empty());
         assert_eq!(s.get_checkpoint("a")?, Some(cp));

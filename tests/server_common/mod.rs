@@ -6,12 +6,19 @@ use dend::server::{app, AppState, Config};
 
 /// Starts a server on 127.0.0.1:0; returns its base URL and state.
 pub async fn start(config: Config) -> (String, AppState) {
-    let config = Config { addr: ([127, 0, 0, 1], 0).into(), ..config };
-    let listener = tokio::net::TcpListener::bind(config.addr).await.expect("bind");
+    let config = Config {
+        addr: ([127, 0, 0, 1], 0).into(),
+        ..config
+    };
+    let listener = tokio::net::TcpListener::bind(config.addr)
+        .await
+        .expect("bind");
     let addr = listener.local_addr().expect("addr");
     let state = AppState::new(config).expect("state");
     let router = app(state.clone());
-    drop(tokio::spawn(async move { axum::serve(listener, router).await }));
+    drop(tokio::spawn(
+        async move { axum::serve(listener, router).await },
+    ));
     (format!("http://{addr}"), state)
 }
 
