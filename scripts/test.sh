@@ -1,8 +1,12 @@
 #!/usr/bin/env bash
 # Runs every test: the README's test command (`bash scripts/test.sh`).
+# Installs the test-only tools first (idempotent), then: formatting and lint
+# gates, the Rust test suite (unit, integration, CLI, server end to end).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 export DEND_MESHES="${DEND_MESHES:-$(cd .. && pwd)/shared/meshes}"
 export DEND_PYTHON="${DEND_PYTHON:-$(pwd)/.venv/bin/python}"
 bash scripts/setup-test-env.sh
+cargo fmt --all -- --check
+cargo clippy --all-targets -- -D warnings
 cargo test --all-targets

@@ -19,6 +19,7 @@ fn kind(e: &IoError) -> &'static str {
             MeshError::NonManifoldEdge { .. } => "non_manifold_edge",
             MeshError::InconsistentOrientation { .. } => "inconsistent_orientation",
             MeshError::NonManifoldVertex { .. } => "non_manifold_vertex",
+            MeshError::VertexCountMismatch { .. } => "vertex_count_mismatch",
         },
         IoError::Io { .. } => "io",
         IoError::UnknownFormat { .. } => "unknown_format",
@@ -41,11 +42,13 @@ fn every_broken_file_gives_its_expected_error() {
             Err(e) => e,
         };
         assert_eq!(kind(&err), expected, "{file}: {err}");
-        if let IoError::Parse { position, .. } = &err {
-            // binary inputs name a byte, text inputs a line (≥ 1)
-            if let Position::Line(l) = position {
-                assert!(*l >= 1, "{file}: {err}");
-            }
+        if let IoError::Parse {
+            position: Position::Line(l),
+            ..
+        } = &err
+        {
+            // text inputs name a 1-based line
+            assert!(*l >= 1, "{file}: {err}");
         }
         n += 1;
     }

@@ -45,6 +45,14 @@ pub enum MeshError {
         /// The largest supported count.
         max: usize,
     },
+    /// A pose with another vertex count than the mesh.
+    #[error("pose has {got} vertices, the mesh has {expected}")]
+    VertexCountMismatch {
+        /// The mesh's vertex count.
+        expected: usize,
+        /// The pose's.
+        got: usize,
+    },
     /// A coordinate is NaN or infinite. Fix: clean the file.
     #[error("vertex {vertex} has a non-finite coordinate {value:?}")]
     NonFinite {
@@ -219,10 +227,9 @@ impl Mesh {
     /// Validates the new positions (finite, no zero-area triangle).
     pub fn with_positions(&self, positions: Vec<Point>) -> Result<Self, MeshError> {
         if positions.len() != self.positions.len() {
-            return Err(MeshError::IndexOutOfRange {
-                face: 0,
-                index: positions.len() as u64,
-                vertices: self.positions.len(),
+            return Err(MeshError::VertexCountMismatch {
+                expected: self.positions.len(),
+                got: positions.len(),
             });
         }
         if let Some((vertex, p)) = positions

@@ -4,8 +4,6 @@
 //! part of validation): the ordered 1-ring of every vertex, the undirected
 //! edge list, boundary loops and connected components.
 
-use std::collections::HashMap;
-
 use super::MeshError;
 
 /// The adjacency of a validated mesh.
@@ -32,50 +30,68 @@ impl Topology {
     /// orientation and non-manifold vertices (in that order). Indices must
     /// already be in range and distinct within each face.
     pub fn build(nv: usize, triangles: &[[u32; 3]]) -> Result<Self, MeshError> {
-        // Undirected edge multiplicities, in face order so that the first
-        // offending edge is reported.
+        // Sorted keys instead of hash maps: O(F log F), cache friendly, and
+        // the first offending element (in face order) is still reported.
         let key = |a: u32, b: u32| ((a.min(b) as u64) << 32) | a.max(b) as u64;
-        let mut count: HashMap<u64, u32> = HashMap::with_capacity(triangles.len() * 2);
+        let dkey = |a: u32, b: u32| ((a as u64) << 32) | b as u64;
+        let mut ukeys: Vec<u64> = Vec::with_capacity(triangles.len() * 3);
         for t in triangles {
             for k in 0..3 {
-                *count.entry(key(t[k], t[(k + 1) % 3])).or_insert(0) += 1;
+                ukeys.push(key(t[k], t[(k + 1) % 3]));
             }
         }
-        for t in triangles {
-            for k in 0..3 {
-                let (a, b) = (t[k], t[(k + 1) % 3]);
-                let c = count[&key(a, b)];
-                if c > 2 {
-                    return Err(MeshError::NonManifoldEdge {
-                        a: a.min(b),
-                        b: a.max(b),
-                        faces: c as usize,
-                    });
+        ukeys.sort_unstable();
+        // Undirected edges shared by 3+ faces.
+        let mut bad: Vec<(u64, usize)> = Vec::new();
+        let mut edges: Vec<[u32; 2]> = Vec::with_capacity(ukeys.len() / 2 + 1);
+        let mut i = 0;
+        while i < ukeys.len() {
+            let mut j = i + 1;
+            while j < ukeys.len() && ukeys[j] == ukeys[i] {
+                j += 1;
+            }
+            if j - i > 2 {
+                bad.push((ukeys[i], j - i));
+            }
+            edges.push([(ukeys[i] >> 32) as u32, ukeys[i] as u32]);
+            i = j;
+        }
+        drop(ukeys);
+        if !bad.is_empty() {
+            for t in triangles {
+                for k in 0..3 {
+                    let (a, b) = (t[k], t[(k + 1) % 3]);
+                    if let Ok(p) = bad.binary_search_by_key(&key(a, b), |&(k, _)| k) {
+                        return Err(MeshError::NonManifoldEdge {
+                            a: a.min(b),
+                            b: a.max(b),
+                            faces: bad[p].1,
+                        });
+                    }
                 }
             }
         }
         // Directed half-edges: each may appear once.
-        let dkey = |a: u32, b: u32| ((a as u64) << 32) | b as u64;
-        let mut half: HashMap<u64, u32> = HashMap::with_capacity(triangles.len() * 3);
+        let mut half: Vec<(u64, u32)> = Vec::with_capacity(triangles.len() * 3);
         for (f, t) in triangles.iter().enumerate() {
             for k in 0..3 {
-                let (a, b) = (t[k], t[(k + 1) % 3]);
-                if let Some(&g) = half.get(&dkey(a, b)) {
-                    return Err(MeshError::InconsistentOrientation {
-                        face_a: g as usize,
-                        face_b: f,
-                        a,
-                        b,
-                    });
-                }
-                half.insert(dkey(a, b), f as u32);
+                half.push((dkey(t[k], t[(k + 1) % 3]), f as u32));
             }
         }
-        let mut edges: Vec<[u32; 2]> = count
-            .keys()
-            .map(|&k| [(k >> 32) as u32, k as u32])
-            .collect();
-        edges.sort_unstable();
+        half.sort_unstable();
+        if let Some(w) = half
+            .windows(2)
+            .filter(|w| w[0].0 == w[1].0)
+            .min_by_key(|w| w[1].1)
+        {
+            return Err(MeshError::InconsistentOrientation {
+                face_a: w[0].1 as usize,
+                face_b: w[1].1 as usize,
+                a: (w[0].0 >> 32) as u32,
+                b: w[0].0 as u32,
+            });
+        }
+        let has_half = |a: u32, b: u32| half.binary_search_by_key(&dkey(a, b), |&(k, _)| k).is_ok();
 
         // Corners per vertex (CSR): for vertex i in face (i, j, k): j -> k.
         let mut deg = vec![0u32; nv + 1];
@@ -137,31 +153,31 @@ impl Topology {
             ring_offsets.push(ring.len() as u32);
         }
 
-        // Boundary loops: half-edges a -> b without twin b -> a.
-        let mut bnext: HashMap<u32, u32> = HashMap::new();
-        for t in triangles {
-            for k in 0..3 {
-                let (a, b) = (t[k], t[(k + 1) % 3]);
-                if !half.contains_key(&dkey(b, a)) {
-                    bnext.insert(a, b);
-                }
+        // Boundary loops: half-edges a -> b without twin b -> a. Manifold
+        // vertices have at most one outgoing boundary half-edge.
+        let mut bnext = vec![u32::MAX; nv];
+        let mut starts = Vec::new();
+        for &(k, _) in &half {
+            let (a, b) = ((k >> 32) as u32, k as u32);
+            if !has_half(b, a) {
+                bnext[a as usize] = b;
+                starts.push(a);
             }
         }
-        let mut starts: Vec<u32> = bnext.keys().copied().collect();
         starts.sort_unstable();
-        let mut seen: HashMap<u32, bool> = HashMap::new();
+        let mut seen = vec![false; nv];
         let mut boundary_loops = Vec::new();
         for s in starts {
-            if seen.contains_key(&s) {
+            if seen[s as usize] {
                 continue;
             }
             let mut lp = vec![s];
-            seen.insert(s, true);
-            let mut v = bnext[&s];
-            while v != s {
+            seen[s as usize] = true;
+            let mut v = bnext[s as usize];
+            while v != s && v != u32::MAX && !seen[v as usize] {
                 lp.push(v);
-                seen.insert(v, true);
-                v = bnext[&v];
+                seen[v as usize] = true;
+                v = bnext[v as usize];
             }
             boundary_loops.push(lp);
         }
@@ -182,14 +198,18 @@ impl Topology {
             }
         }
         let mut label = vec![u32::MAX; nv];
-        let mut root_label: HashMap<u32, u32> = HashMap::new();
+        let mut root_label = vec![u32::MAX; nv];
+        let mut num_components = 0u32;
         for v in 0..nv {
             if ring_offsets[v] == ring_offsets[v + 1] {
                 continue;
             }
-            let r = find(&mut parent, v as u32);
-            let n = root_label.len() as u32;
-            label[v] = *root_label.entry(r).or_insert(n);
+            let r = find(&mut parent, v as u32) as usize;
+            if root_label[r] == u32::MAX {
+                root_label[r] = num_components;
+                num_components += 1;
+            }
+            label[v] = root_label[r];
         }
         Ok(Topology {
             ring_offsets,
@@ -198,7 +218,7 @@ impl Topology {
             edges,
             boundary_loops,
             component: label,
-            num_components: root_label.len(),
+            num_components: num_components as usize,
         })
     }
 
