@@ -13,7 +13,9 @@ fn small_mesh() -> &'static Mesh {
     static MESH: OnceLock<Mesh> = OnceLock::new();
     MESH.get_or_init(|| {
         let n = 4u32;
-        let positions = (0..n * n).map(|k| [(k % n) as f64, (k / n) as f64, 0.0]).collect();
+        let positions = (0..n * n)
+            .map(|k| [(k % n) as f64, (k / n) as f64, 0.0])
+            .collect();
         let mut triangles = vec![];
         for j in 0..n - 1 {
             for i in 0..n - 1 {
@@ -22,19 +24,24 @@ fn small_mesh() -> &'static Mesh {
                 triangles.push([a, a + n + 1, a + n]);
             }
         }
-        Mesh::new(positions, triangles).unwrap_or_else(|e| unreachable!("the fixed grid is valid: {e}"))
+        Mesh::new(positions, triangles)
+            .unwrap_or_else(|e| unreachable!("the fixed grid is valid: {e}"))
     })
 }
 
 /// Parses `data` as a constraints spec and resolves it on a small mesh;
 /// true when it resolved.
 pub fn constraints_json(data: &[u8]) -> bool {
-    let Ok(spec) = serde_json::from_slice::<ConstraintsSpec>(data) else { return false };
+    let Ok(spec) = serde_json::from_slice::<ConstraintsSpec>(data) else {
+        return false;
+    };
     match spec.resolve(small_mesh()) {
         Ok(c) => {
             // what the server does next with resolved constraints
             let _ = c.constrained();
-            c.handles.iter().all(|h| h.target.rotation.coords.iter().all(|x| x.is_finite()))
+            c.handles
+                .iter()
+                .all(|h| h.target.rotation.coords.iter().all(|x| x.is_finite()))
         }
         Err(e) => {
             let _ = crate::server::ApiError::from(e);
@@ -46,6 +53,8 @@ pub fn constraints_json(data: &[u8]) -> bool {
 /// Decodes `data` as a client WebSocket message as the server does; true
 /// when it was accepted.
 pub fn ws_message(data: &[u8]) -> bool {
-    let Ok(text) = std::str::from_utf8(data) else { return false };
+    let Ok(text) = std::str::from_utf8(data) else {
+        return false;
+    };
     decode_client_msg(text).is_ok()
 }

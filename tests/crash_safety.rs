@@ -44,7 +44,14 @@ struct Server {
 
 fn start(dir: &std::path::Path) -> Res<Server> {
     let mut child = Command::new(env!("CARGO_BIN_EXE_dend"))
-        .args(["serve", "--addr", "127.0.0.1:0", "--ws-max-messages-per-sec", "100000", "--data-dir"])
+        .args([
+            "serve",
+            "--addr",
+            "127.0.0.1:0",
+            "--ws-max-messages-per-sec",
+            "100000",
+            "--data-dir",
+        ])
         .arg(dir)
         .env("RUST_LOG", "warn")
         .stdout(Stdio::piped())
@@ -53,7 +60,9 @@ fn start(dir: &std::path::Path) -> Res<Server> {
     let stdout = child.stdout.take().ok_or("no stdout")?;
     let mut lines = BufReader::new(stdout).lines();
     let base = loop {
-        let line = lines.next().ok_or("server exited before printing its URL")??;
+        let line = lines
+            .next()
+            .ok_or("server exited before printing its URL")??;
         if let Some(url) = line.strip_prefix("listening on ") {
             break url.trim().to_owned();
         }
@@ -93,7 +102,9 @@ fn compose(initial: &RigidTransform, sent: &[Sent], upto: u64) -> RigidTransform
 
 fn close(a: &RigidTransform, b: &RigidTransform) -> bool {
     let d = (a.rotation.coords - b.rotation.coords).norm()
-        + (0..3).map(|k| (a.translation[k] - b.translation[k]).abs() + (a.pivot[k] - b.pivot[k]).abs()).sum::<f64>();
+        + (0..3)
+            .map(|k| (a.translation[k] - b.translation[k]).abs() + (a.pivot[k] - b.pivot[k]).abs())
+            .sum::<f64>();
     d < 1e-9
 }
 
@@ -103,7 +114,9 @@ async fn until_ready(ws: &mut WsClient) -> Res<()> {
         match ws.next().await? {
             WsEvent::Event(v) if v["type"] == "ready" => return Ok(()),
             WsEvent::Event(v) if v["type"] == "state" && v["state"] == "ready" => return Ok(()),
-            WsEvent::Event(v) if v["type"] == "error" => return Err(format!("error event {v}").into()),
+            WsEvent::Event(v) if v["type"] == "error" => {
+                return Err(format!("error event {v}").into())
+            }
             WsEvent::Closed(c) => return Err(format!("closed {c:?} before ready").into()),
             _ => {}
         }
@@ -111,14 +124,24 @@ async fn until_ready(ws: &mut WsClient) -> Res<()> {
 }
 
 /// Drags until the connection dies; every acknowledged seq goes to `acked`.
-async fn drag_loop(mut ws: WsClient, sent: Arc<Mutex<Vec<Sent>>>, acked: Arc<Mutex<u64>>, mut seq: u64, seed: u64) -> Res<()> {
+async fn drag_loop(
+    mut ws: WsClient,
+    sent: Arc<Mutex<Vec<Sent>>>,
+    acked: Arc<Mutex<u64>>,
+    mut seq: u64,
+    seed: u64,
+) -> Res<()> {
     let mut rng = StdRng::seed_from_u64(seed);
     loop {
         let burst = rng.random_range(1..=3);
         for _ in 0..burst {
             seq += 1;
             // dyadic components: exact in JSON both ways
-            let tr = [rng.random_range(-8..=8) as f64 / 1024.0, rng.random_range(1..=8) as f64 / 1024.0, 0.0];
+            let tr = [
+                rng.random_range(-8..=8) as f64 / 1024.0,
+                rng.random_range(1..=8) as f64 / 1024.0,
+                0.0,
+            ];
             let q = [0.0, 0.0, rng.random_range(-4..=4) as f64 / 512.0, 1.0];
             sent.lock().push((seq, tr, q));
             ws.drag(0, tr, Some(q), seq).await?;
@@ -132,7 +155,9 @@ async fn drag_loop(mut ws: WsClient, sent: Arc<Mutex<Vec<Sent>>>, acked: Arc<Mut
                         break;
                     }
                 }
-                WsEvent::Event(v) if v["type"] == "error" => return Err(format!("error event {v}").into()),
+                WsEvent::Event(v) if v["type"] == "error" => {
+                    return Err(format!("error event {v}").into())
+                }
                 WsEvent::Closed(c) => return Err(format!("closed {c:?}").into()),
                 WsEvent::Event(_) => {}
             }
@@ -146,7 +171,11 @@ async fn kill_9_loses_no_acknowledged_drag() -> Res<()> {
     let (positions, triangles) = server_common::grid(N);
     let mesh = Mesh::new(positions.clone(), triangles.clone())?;
     let spec_json = spec();
-    let initial = serde_json::from_value::<ConstraintsSpec>(spec_json.clone())?.resolve(&mesh)?.handles[0].target.clone();
+    let initial = serde_json::from_value::<ConstraintsSpec>(spec_json.clone())?
+        .resolve(&mesh)?
+        .handles[0]
+        .target
+        .clone();
 
     // set-up: mesh, sessions, constraints
     let mut server = start(dir.path())?;
@@ -154,7 +183,9 @@ async fn kill_9_loses_no_acknowledged_drag() -> Res<()> {
     let info = client.upload_json(&positions, &triangles).await?;
     let mut sessions = vec![];
     for _ in 0..SESSIONS {
-        let s = client.create_session(&info.id, json!({"max_iters": 8})).await?;
+        let s = client
+            .create_session(&info.id, json!({"max_iters": 8}))
+            .await?;
         s.set_constraints(&spec_json).await?;
         s.wait_ready(Duration::from_secs(30)).await?;
         sessions.push(Sess {
@@ -180,7 +211,13 @@ async fn kill_9_loses_no_acknowledged_drag() -> Res<()> {
                 let mut ws = client.session(&s.id, &s.token).connect().await?;
                 tokio::time::timeout(Duration::from_secs(30), until_ready(&mut ws)).await??;
                 let seed = (run * SESSIONS + k) as u64;
-                tasks.push(tokio::spawn(drag_loop(ws, s.sent.clone(), s.acked.clone(), s.next_seq, seed)));
+                tasks.push(tokio::spawn(drag_loop(
+                    ws,
+                    s.sent.clone(),
+                    s.acked.clone(),
+                    s.next_seq,
+                    seed,
+                )));
             }
             tokio::time::sleep(Duration::from_millis(rng.random_range(20..400))).await;
         } else {
@@ -188,7 +225,10 @@ async fn kill_9_loses_no_acknowledged_drag() -> Res<()> {
             for s in &sessions {
                 let c = client.session(&s.id, &s.token);
                 tasks.push(tokio::spawn(async move {
-                    c.connect().await.map(drop).map_err(|e| -> Box<dyn std::error::Error + Send + Sync> { Box::new(e) })
+                    c.connect()
+                        .await
+                        .map(drop)
+                        .map_err(|e| -> Box<dyn std::error::Error + Send + Sync> { Box::new(e) })
                 }));
             }
             tokio::time::sleep(Duration::from_millis(rng.random_range(0..30))).await;
@@ -204,25 +244,55 @@ async fn kill_9_loses_no_acknowledged_drag() -> Res<()> {
         let store = SqliteStore::open(dir.path())?;
         store.integrity_check()?;
         let records = store.list_sessions()?;
-        assert_eq!(records.len(), SESSIONS, "run {run}: every session is stored");
+        assert_eq!(
+            records.len(),
+            SESSIONS,
+            "run {run}: every session is stored"
+        );
         for s in &mut sessions {
             let record = store.get_session(&s.id)?.ok_or("session missing")?;
             let stored_spec = record.constraints.ok_or("constraints missing")?;
             let journal = store.journal(&s.id)?;
             let checkpoint = store.get_checkpoint(&s.id)?;
             journaled_total += journal.len();
-            let journaled_seq = journal.iter().map(|JournalEntry::Drag { seq, .. }| *seq).max().unwrap_or(0);
-            let rec = Recovered { ack_seq: checkpoint.as_ref().map_or(0, |c| c.ack_seq).max(journaled_seq), checkpoint, journal };
-            let mut constraints = serde_json::from_value::<ConstraintsSpec>(stored_spec)?.resolve(&mesh)?;
+            let journaled_seq = journal
+                .iter()
+                .map(|JournalEntry::Drag { seq, .. }| *seq)
+                .max()
+                .unwrap_or(0);
+            let rec = Recovered {
+                ack_seq: checkpoint
+                    .as_ref()
+                    .map_or(0, |c| c.ack_seq)
+                    .max(journaled_seq),
+                checkpoint,
+                journal,
+            };
+            let mut constraints =
+                serde_json::from_value::<ConstraintsSpec>(stored_spec)?.resolve(&mesh)?;
             rec.apply(&mut constraints)?;
             let acked = *s.acked.lock();
             let mut sent = s.sent.lock();
             let max_sent = sent.last().map_or(0, |x| x.0);
-            let new_acked = sent.iter().filter(|x| x.0 > s.next_seq && x.0 <= acked).count() as u64;
+            let new_acked = sent
+                .iter()
+                .filter(|x| x.0 > s.next_seq && x.0 <= acked)
+                .count() as u64;
             acked_total += new_acked;
-            lost += sent.iter().filter(|x| x.0 <= acked && x.0 > rec.ack_seq).count() as u64;
-            assert!(rec.ack_seq >= acked, "run {run}: acknowledged seq {acked} but recovered only {}", rec.ack_seq);
-            assert!(rec.ack_seq <= max_sent.max(s.next_seq), "run {run}: recovered seq {} never sent", rec.ack_seq);
+            lost += sent
+                .iter()
+                .filter(|x| x.0 <= acked && x.0 > rec.ack_seq)
+                .count() as u64;
+            assert!(
+                rec.ack_seq >= acked,
+                "run {run}: acknowledged seq {acked} but recovered only {}",
+                rec.ack_seq
+            );
+            assert!(
+                rec.ack_seq <= max_sent.max(s.next_seq),
+                "run {run}: recovered seq {} never sent",
+                rec.ack_seq
+            );
             let expected = compose(&initial, &sent, rec.ack_seq);
             assert!(
                 close(&constraints.handles[0].target, &expected),
@@ -242,7 +312,10 @@ async fn kill_9_loses_no_acknowledged_drag() -> Res<()> {
          {journaled_total} journal entries found after kills, lost {lost}"
     );
     assert_eq!(lost, 0);
-    assert!(acked_total > 0, "the test must acknowledge drags to mean anything");
+    assert!(
+        acked_total > 0,
+        "the test must acknowledge drags to mean anything"
+    );
 
     // a last restart: everything comes back ready with the recovered seq
     let mut server = start(dir.path())?;
@@ -255,12 +328,20 @@ async fn kill_9_loses_no_acknowledged_drag() -> Res<()> {
         let acked = *s.acked.lock();
         let seq = acked + 1;
         ws.drag(0, [0.0, 1.0 / 1024.0, 0.0], None, seq).await?;
-        let (h, pose) = tokio::time::timeout(Duration::from_secs(30), ws.frame_acking(seq, false)).await??;
+        let (h, pose) =
+            tokio::time::timeout(Duration::from_secs(30), ws.frame_acking(seq, false)).await??;
         assert_eq!(h.ack_seq, seq);
         assert_eq!(pose.len(), N * N);
         assert!(pose.iter().flatten().all(|x| x.is_finite()));
-        let moved = pose.iter().zip(&positions).map(|(p, q)| (p[1] as f64 - q[1]).abs()).fold(0.0, f64::max);
-        assert!(moved > 1e-3, "the recovered pose carries the drags (max move {moved})");
+        let moved = pose
+            .iter()
+            .zip(&positions)
+            .map(|(p, q)| (p[1] as f64 - q[1]).abs())
+            .fold(0.0, f64::max);
+        assert!(
+            moved > 1e-3,
+            "the recovered pose carries the drags (max move {moved})"
+        );
     }
     server.child.kill()?;
     let _ = server.child.wait()?;

@@ -59,8 +59,14 @@ async fn a_token_opens_its_own_session_only() -> Res {
         Err(tokio_tungstenite::tungstenite::Error::Http(resp)) => assert_eq!(resp.status(), 403),
         other => panic!("expected 403, got {:?}", other.map(|_| ())),
     }
-    let (mut ws, _) = tokio_tungstenite::connect_async(&ws_url).await.map_err(Box::new)?;
-    ws.send(Message::Text(json!({"type": "auth", "token": a.token}).to_string().into())).await.map_err(Box::new)?;
+    let (mut ws, _) = tokio_tungstenite::connect_async(&ws_url)
+        .await
+        .map_err(Box::new)?;
+    ws.send(Message::Text(
+        json!({"type": "auth", "token": a.token}).to_string().into(),
+    ))
+    .await
+    .map_err(Box::new)?;
     let mut close = None;
     while let Some(Ok(m)) = ws.next().await {
         match m {
@@ -87,9 +93,16 @@ async fn ids_and_tokens_are_random_128_bit_or_more() -> Res {
     let (mut ids, mut tokens, mut prefixes) = (HashSet::new(), HashSet::new(), HashSet::new());
     for _ in 0..40 {
         let s = c.create_session(&mesh.id, json!({})).await?;
-        assert!(s.id.len() >= 32 && s.id.chars().all(|ch| ch.is_ascii_hexdigit()), "id {}", s.id);
+        assert!(
+            s.id.len() >= 32 && s.id.chars().all(|ch| ch.is_ascii_hexdigit()),
+            "id {}",
+            s.id
+        );
         assert!(s.token.len() >= 32 && s.token.chars().all(|ch| ch.is_ascii_hexdigit()));
-        assert!(prefixes.insert(s.id[..8].to_owned()), "ids share a 32-bit prefix: not random");
+        assert!(
+            prefixes.insert(s.id[..8].to_owned()),
+            "ids share a 32-bit prefix: not random"
+        );
         assert!(ids.insert(s.id.clone()) && tokens.insert(s.token.clone()));
         assert!(!s.token.contains(&s.id) && !s.id.contains(&s.token[..8]));
         s.delete().await?;
@@ -117,12 +130,20 @@ async fn hostile_json_gets_typed_4xx() -> Res {
     };
     // deeply nested JSON, as a whole body and inside a field
     let deep = format!("{}{}", "[".repeat(100_000), "]".repeat(100_000));
-    for (m, tail) in [(reqwest::Method::PUT, "/constraints"), (reqwest::Method::POST, "/drag")] {
+    for (m, tail) in [
+        (reqwest::Method::PUT, "/constraints"),
+        (reqwest::Method::POST, "/drag"),
+    ] {
         let (status, code) = code_of(send(m.clone(), tail, deep.clone()).await?).await;
         assert_eq!((status, code.as_str()), (400, "invalid_json"), "{tail}");
     }
     let nested_field = format!(r#"{{"handle": 0, "translate": {deep}}}"#);
-    assert_eq!(code_of(send(reqwest::Method::POST, "/drag", nested_field).await?).await.0, 400);
+    assert_eq!(
+        code_of(send(reqwest::Method::POST, "/drag", nested_field).await?)
+            .await
+            .0,
+        400
+    );
     let r = http
         .post(format!("{base}/v1/meshes"))
         .header("content-type", "application/json")
@@ -133,14 +154,25 @@ async fn hostile_json_gets_typed_4xx() -> Res {
 
     // huge index lists: a million out-of-range indices, u64::MAX, and a million duplicates
     let huge: Vec<u64> = (0..1_000_000).collect();
-    let body = json!({"fixed": huge, "handles": [{"name": "h", "vertices": [n * n - 1]}]}).to_string();
+    let body =
+        json!({"fixed": huge, "handles": [{"name": "h", "vertices": [n * n - 1]}]}).to_string();
     let (status, code) = code_of(send(reqwest::Method::PUT, "/constraints", body).await?).await;
     assert_eq!(status, 422, "{code}");
-    let body = json!({"fixed": [u64::MAX], "handles": [{"name": "h", "vertices": [0]}]}).to_string();
-    assert_eq!(code_of(send(reqwest::Method::PUT, "/constraints", body).await?).await.0, 422);
+    let body =
+        json!({"fixed": [u64::MAX], "handles": [{"name": "h", "vertices": [0]}]}).to_string();
+    assert_eq!(
+        code_of(send(reqwest::Method::PUT, "/constraints", body).await?)
+            .await
+            .0,
+        422
+    );
     let dup = vec![0u64; 1_000_000];
-    let body = json!({"fixed": dup, "handles": [{"name": "h", "vertices": [n * n - 1]}]}).to_string();
-    let status = send(reqwest::Method::PUT, "/constraints", body).await?.status().as_u16();
+    let body =
+        json!({"fixed": dup, "handles": [{"name": "h", "vertices": [n * n - 1]}]}).to_string();
+    let status = send(reqwest::Method::PUT, "/constraints", body)
+        .await?
+        .status()
+        .as_u16();
     assert!(status == 202 || status == 422, "duplicates: {status}");
 
     // NaN / ±inf / null / out-of-range literals in every numeric field
@@ -165,8 +197,12 @@ async fn hostile_json_gets_typed_4xx() -> Res {
             if x == "null" && tpl.contains("max_iters") {
                 continue; // null = the default budget: a valid drag
             }
-            let (status, code) = code_of(send(reqwest::Method::POST, "/drag", tpl.replace('X', x)).await?).await;
-            assert!((400..500).contains(&status) && !code.is_empty(), "{tpl} with {x}: {status} {code}");
+            let (status, code) =
+                code_of(send(reqwest::Method::POST, "/drag", tpl.replace('X', x)).await?).await;
+            assert!(
+                (400..500).contains(&status) && !code.is_empty(),
+                "{tpl} with {x}: {status} {code}"
+            );
         }
     }
     let constraint_templates = [
@@ -181,16 +217,32 @@ async fn hostile_json_gets_typed_4xx() -> Res {
     ];
     for tpl in constraint_templates {
         for x in bads {
-            let (status, code) = code_of(send(reqwest::Method::PUT, "/constraints", tpl.replace('X', x)).await?).await;
-            assert!((400..500).contains(&status) && !code.is_empty(), "{tpl} with {x}: {status} {code}");
+            let (status, code) =
+                code_of(send(reqwest::Method::PUT, "/constraints", tpl.replace('X', x)).await?)
+                    .await;
+            assert!(
+                (400..500).contains(&status) && !code.is_empty(),
+                "{tpl} with {x}: {status} {code}"
+            );
         }
     }
     for field in ["tol", "lambda1", "lambda2", "max_iters", "anderson"] {
         for x in bads {
-            let body = format!(r#"{{"mesh_id": "{}", "params": {{"{field}": {x}}}}}"#, mesh.id);
-            let r = http.post(format!("{base}/v1/sessions")).header("content-type", "application/json").body(body).send().await?;
+            let body = format!(
+                r#"{{"mesh_id": "{}", "params": {{"{field}": {x}}}}}"#,
+                mesh.id
+            );
+            let r = http
+                .post(format!("{base}/v1/sessions"))
+                .header("content-type", "application/json")
+                .body(body)
+                .send()
+                .await?;
             let (status, code) = code_of(r).await;
-            assert!((400..500).contains(&status) && !code.is_empty(), "params.{field} = {x}: {status} {code}");
+            assert!(
+                (400..500).contains(&status) && !code.is_empty(),
+                "params.{field} = {x}: {status} {code}"
+            );
         }
     }
     // the session survived all of it
@@ -209,7 +261,10 @@ fn rss() -> Option<u64> {
 
 #[tokio::test]
 async fn floods_slow_readers_and_many_connections_stay_bounded() -> Res {
-    let config = Config { ws_max_messages_per_sec: 50, ..Config::default() };
+    let config = Config {
+        ws_max_messages_per_sec: 50,
+        ..Config::default()
+    };
     let (base, _state) = start(config).await;
     let c = Client::new(&base);
     let n = 20;
@@ -226,7 +281,10 @@ async fn floods_slow_readers_and_many_connections_stay_bounded() -> Res {
     }
     let (mut pongs, mut limited) = (0, 0);
     while pongs + limited < 1000 {
-        match tokio::time::timeout(Duration::from_secs(20), ws.next()).await.map_err(|_| ClientError::Protocol("flood answers stalled".into()))?? {
+        match tokio::time::timeout(Duration::from_secs(20), ws.next())
+            .await
+            .map_err(|_| ClientError::Protocol("flood answers stalled".into()))??
+        {
             WsEvent::Event(v) if v["type"] == "pong" => pongs += 1,
             WsEvent::Event(v) if v["type"] == "error" => {
                 assert_eq!(v["code"], "rate_limited");
@@ -236,7 +294,10 @@ async fn floods_slow_readers_and_many_connections_stay_bounded() -> Res {
             _ => {}
         }
     }
-    assert!(limited > 0 && pongs >= 50, "pongs {pongs}, rate limited {limited}");
+    assert!(
+        limited > 0 && pongs >= 50,
+        "pongs {pongs}, rate limited {limited}"
+    );
     drop(ws);
 
     // slow clients: 20 connections that drag but never read a frame
@@ -247,7 +308,11 @@ async fn floods_slow_readers_and_many_connections_stay_bounded() -> Res {
     }
     for (k, w) in slow.iter_mut().enumerate() {
         for seq in 1..=40u64 {
-            let _ = tokio::time::timeout(Duration::from_secs(2), w.drag(0, [0.0, 0.0, 1e-3 * k as f64], None, seq)).await;
+            let _ = tokio::time::timeout(
+                Duration::from_secs(2),
+                w.drag(0, [0.0, 0.0, 1e-3 * k as f64], None, seq),
+            )
+            .await;
         }
     }
     // many idle connections
@@ -264,7 +329,11 @@ async fn floods_slow_readers_and_many_connections_stay_bounded() -> Res {
     assert!(pose.positions.iter().flatten().all(|x| x.is_finite()));
     if let (Some(b), Some(a)) = (before, rss()) {
         // 220 connections × (64 KiB message limit + socket buffers) stays far below this
-        assert!(a < b + (200 << 20), "RSS grew by {} bytes", a.saturating_sub(b));
+        assert!(
+            a < b + (200 << 20),
+            "RSS grew by {} bytes",
+            a.saturating_sub(b)
+        );
     }
     let peers = s.info().await?["peers"].as_u64().unwrap_or(0);
     assert!(peers >= 220, "{peers} peers");

@@ -177,24 +177,48 @@ async fn run_async(args: LoadtestArgs) -> anyhow::Result<()> {
     );
     println!("errors: 0 (any error aborts the run)");
     if args.idle > 0 {
-        idle_sessions(&client, &mesh.id, (lo, hi, k), args.idle, args.factor_cache_bytes).await?;
+        idle_sessions(
+            &client,
+            &mesh.id,
+            (lo, hi, k),
+            args.idle,
+            args.factor_cache_bytes,
+        )
+        .await?;
     }
-    println!("peak RSS of this process (server + clients): {:.1} MiB", peak_rss_kib() as f64 / 1024.0);
+    println!(
+        "peak RSS of this process (server + clients): {:.1} MiB",
+        peak_rss_kib() as f64 / 1024.0
+    );
     Ok(())
 }
 
 /// `VmHWM` of this process in KiB (0 when unknown).
 fn peak_rss_kib() -> u64 {
     let status = std::fs::read_to_string("/proc/self/status").unwrap_or_default();
-    let line = status.lines().find(|l| l.starts_with("VmHWM:")).unwrap_or("");
-    line.split_whitespace().nth(1).and_then(|v| v.parse().ok()).unwrap_or(0)
+    let line = status
+        .lines()
+        .find(|l| l.starts_with("VmHWM:"))
+        .unwrap_or("");
+    line.split_whitespace()
+        .nth(1)
+        .and_then(|v| v.parse().ok())
+        .unwrap_or(0)
 }
 
 /// A gauge of the server's `/metrics`.
 async fn metric(base: &str, name: &str) -> anyhow::Result<f64> {
-    let text = reqwest::get(format!("{base}/metrics")).await?.text().await?;
-    let line = text.lines().find(|l| l.starts_with(name) && l[name.len()..].starts_with(' '));
-    Ok(line.and_then(|l| l.split_whitespace().nth(1)).and_then(|v| v.parse().ok()).unwrap_or(f64::NAN))
+    let text = reqwest::get(format!("{base}/metrics"))
+        .await?
+        .text()
+        .await?;
+    let line = text
+        .lines()
+        .find(|l| l.starts_with(name) && l[name.len()..].starts_with(' '));
+    Ok(line
+        .and_then(|l| l.split_whitespace().nth(1))
+        .and_then(|v| v.parse().ok())
+        .unwrap_or(f64::NAN))
 }
 
 /// Opens `n` idle sessions whose constraints all differ (so each needs its
@@ -221,7 +245,13 @@ async fn idle_sessions(
         });
         s.set_constraints(&spec).await?;
         s.wait_ready(Duration::from_secs(600)).await?;
-        let _ = s.drag(json!(0), json!({"translate": [0.0, 0.01 * ext, 0.0]}), Some(2)).await?;
+        let _ = s
+            .drag(
+                json!(0),
+                json!({"translate": [0.0, 0.01 * ext, 0.0]}),
+                Some(2),
+            )
+            .await?;
         sessions.push(s);
     }
     let base = client.base();
@@ -237,7 +267,9 @@ async fn idle_sessions(
     for s in &sessions {
         let p = s.pose().await?;
         moved += usize::from(p.positions.iter().flatten().all(|x| x.is_finite()) && p.revision > 0);
-        let _ = s.drag(json!(0), json!({"translate": [0.0, 0.0, 0.0]}), Some(1)).await?;
+        let _ = s
+            .drag(json!(0), json!({"translate": [0.0, 0.0, 0.0]}), Some(1))
+            .await?;
     }
     println!(
         "idle: {moved}/{n} sessions kept their pose and solved a drag after eviction; factor cache now {:.1} MiB, {} built",

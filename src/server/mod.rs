@@ -8,8 +8,8 @@
 pub mod config;
 pub mod error;
 mod meshes;
-pub mod recover;
 pub mod metrics;
+pub mod recover;
 mod sessions;
 pub mod ws;
 

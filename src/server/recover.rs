@@ -35,13 +35,17 @@ pub fn open_store(config: &Config) -> anyhow::Result<Arc<dyn Store>> {
 /// Re-opens the stored session `id` if it is not live; `None` when the
 /// store has no such session.
 pub(crate) async fn revive(st: &AppState, id: &str) -> Result<Option<SessionHandle>, ApiError> {
-    let Some(record) = st.store.get_session(id)? else { return Ok(None) };
-    let params: Params =
-        serde_json::from_value(record.params.clone()).map_err(|e| ApiError::Internal(format!("stored params: {e}")))?;
+    let Some(record) = st.store.get_session(id)? else {
+        return Ok(None);
+    };
+    let params: Params = serde_json::from_value(record.params.clone())
+        .map_err(|e| ApiError::Internal(format!("stored params: {e}")))?;
     let token_sha256: [u8; 32] = hex::decode(&record.token_sha256)
         .ok()
         .and_then(|h| h.try_into().ok())
-        .ok_or_else(|| ApiError::Internal(format!("stored token hash of session `{id}` is malformed")))?;
+        .ok_or_else(|| {
+            ApiError::Internal(format!("stored token hash of session `{id}` is malformed"))
+        })?;
     let rest = rest_for(st, &record.mesh_id).await?;
     let opts = SessionOptions {
         cache: st.cache.clone(),
@@ -49,14 +53,23 @@ pub(crate) async fn revive(st: &AppState, id: &str) -> Result<Option<SessionHand
         observer: st.metrics.clone(),
         iters_per_frame: st.config.iters_per_frame,
     };
-    let handle = SessionHandle::spawn(id.to_owned(), record.mesh_id.clone(), token_sha256, rest, params, opts);
+    let handle = SessionHandle::spawn(
+        id.to_owned(),
+        record.mesh_id.clone(),
+        token_sha256,
+        rest,
+        params,
+        opts,
+    );
     handle.touch();
     // Insert unless another request revived it meanwhile (then use that one).
     let existing = {
         let mut sessions = st.sessions.write();
         match sessions.get(id) {
             Some(other) => Ok(Some(other.clone())),
-            None if sessions.len() >= st.config.max_sessions => Err(ApiError::TooManySessions(st.config.max_sessions)),
+            None if sessions.len() >= st.config.max_sessions => {
+                Err(ApiError::TooManySessions(st.config.max_sessions))
+            }
             None => {
                 let _ = sessions.insert(id.to_owned(), handle.clone());
                 Ok(None)
@@ -78,13 +91,24 @@ pub(crate) async fn revive(st: &AppState, id: &str) -> Result<Option<SessionHand
     if let Some(spec) = record.constraints {
         let checkpoint = st.store.get_checkpoint(id)?;
         let journal = st.store.journal(id)?;
-        let journaled_seq = journal.iter().map(|JournalEntry::Drag { seq, .. }| *seq).max().unwrap_or(0);
+        let journaled_seq = journal
+            .iter()
+            .map(|JournalEntry::Drag { seq, .. }| *seq)
+            .max()
+            .unwrap_or(0);
         let recovered = Recovered {
-            ack_seq: checkpoint.as_ref().map_or(0, |c| c.ack_seq).max(journaled_seq),
+            ack_seq: checkpoint
+                .as_ref()
+                .map_or(0, |c| c.ack_seq)
+                .max(journaled_seq),
             checkpoint,
             journal,
         };
-        tracing::info!(session = id, drags = recovered.journal.len(), "re-opening a stored session");
+        tracing::info!(
+            session = id,
+            drags = recovered.journal.len(),
+            "re-opening a stored session"
+        );
         if let Err(e) = handle.restore(spec, recovered).await {
             // not left live half-restored: the next request tries again
             tracing::error!(session = id, error = %e, "restoring a stored session failed");

@@ -45,7 +45,9 @@ pub(crate) async fn find(st: &AppState, id: &str) -> Result<SessionHandle, ApiEr
     let live = st.sessions.read().get(id).cloned();
     match live {
         Some(s) => Ok(s),
-        None => super::recover::revive(st, id).await?.ok_or_else(|| ApiError::SessionNotFound(id.to_owned())),
+        None => super::recover::revive(st, id)
+            .await?
+            .ok_or_else(|| ApiError::SessionNotFound(id.to_owned())),
     }
 }
 

@@ -24,7 +24,10 @@ pub struct Recovered {
 }
 
 fn corrupt(reason: String) -> StoreError {
-    StoreError::Corrupt { what: "recovered session state".into(), reason }
+    StoreError::Corrupt {
+        what: "recovered session state".into(),
+        reason,
+    }
 }
 
 /// A stored `[x, y, z, w]` quaternion, which must be unit (±1e-9).
@@ -38,7 +41,11 @@ fn unit(q: [f64; 4]) -> Result<UnitQuaternion<f64>, StoreError> {
 
 /// A [`StoredTransform`] back as a [`RigidTransform`].
 pub fn transform(t: &StoredTransform) -> Result<RigidTransform, StoreError> {
-    Ok(RigidTransform { rotation: unit(t.rotation)?, translation: t.translation, pivot: t.pivot })
+    Ok(RigidTransform {
+        rotation: unit(t.rotation)?,
+        translation: t.translation,
+        pivot: t.pivot,
+    })
 }
 
 impl Recovered {
@@ -49,18 +56,27 @@ impl Recovered {
         let handles = &mut constraints.handles;
         if let Some(cp) = &self.checkpoint {
             if cp.targets.len() != handles.len() {
-                return Err(corrupt(format!("{} stored targets for {} handles", cp.targets.len(), handles.len())));
+                return Err(corrupt(format!(
+                    "{} stored targets for {} handles",
+                    cp.targets.len(),
+                    handles.len()
+                )));
             }
             for (h, t) in handles.iter_mut().zip(&cp.targets) {
                 h.target = transform(t)?;
             }
         }
         for (k, e) in self.journal.iter().enumerate() {
-            let JournalEntry::Drag { handle, rotation, translation, .. } = e;
+            let JournalEntry::Drag {
+                handle,
+                rotation,
+                translation,
+                ..
+            } = e;
             let n = handles.len();
-            let h = handles
-                .get_mut(*handle)
-                .ok_or_else(|| corrupt(format!("journal entry {k} names handle {handle} of {n}")))?;
+            let h = handles.get_mut(*handle).ok_or_else(|| {
+                corrupt(format!("journal entry {k} names handle {handle} of {n}"))
+            })?;
             h.target = h.target.then(unit(*rotation)?, *translation);
         }
         Ok(())

@@ -71,7 +71,10 @@ fn backend(e: impl std::fmt::Display) -> StoreError {
 }
 
 fn corrupt(what: impl Into<String>, reason: impl Into<String>) -> StoreError {
-    StoreError::Corrupt { what: what.into(), reason: reason.into() }
+    StoreError::Corrupt {
+        what: what.into(),
+        reason: reason.into(),
+    }
 }
 
 fn missing(id: &str) -> StoreError {
@@ -82,16 +85,27 @@ impl SqliteStore {
     /// Opens (creating if needed) the database in directory `dir` (created
     /// too), in WAL mode with `synchronous=FULL`, and migrates the schema.
     pub fn open(dir: &Path) -> Result<SqliteStore, StoreError> {
-        std::fs::create_dir_all(dir).map_err(|e| backend(format!("cannot create `{}`: {e}", dir.display())))?;
+        std::fs::create_dir_all(dir)
+            .map_err(|e| backend(format!("cannot create `{}`: {e}", dir.display())))?;
         let path = dir.join(DB_FILE);
-        let conn = Connection::open(&path).map_err(|e| backend(format!("cannot open `{}`: {e}", path.display())))?;
-        conn.busy_timeout(std::time::Duration::from_secs(10)).map_err(backend)?;
-        let mode: String = conn.query_row("PRAGMA journal_mode=WAL", [], |r| r.get(0)).map_err(backend)?;
+        let conn = Connection::open(&path)
+            .map_err(|e| backend(format!("cannot open `{}`: {e}", path.display())))?;
+        conn.busy_timeout(std::time::Duration::from_secs(10))
+            .map_err(backend)?;
+        let mode: String = conn
+            .query_row("PRAGMA journal_mode=WAL", [], |r| r.get(0))
+            .map_err(backend)?;
         if !mode.eq_ignore_ascii_case("wal") {
-            return Err(backend(format!("`{}` cannot use WAL mode (got `{mode}`)", path.display())));
+            return Err(backend(format!(
+                "`{}` cannot use WAL mode (got `{mode}`)",
+                path.display()
+            )));
         }
-        conn.execute_batch("PRAGMA synchronous=FULL; PRAGMA foreign_keys=ON;").map_err(backend)?;
-        let version: i64 = conn.query_row("PRAGMA user_version", [], |r| r.get(0)).map_err(backend)?;
+        conn.execute_batch("PRAGMA synchronous=FULL; PRAGMA foreign_keys=ON;")
+            .map_err(backend)?;
+        let version: i64 = conn
+            .query_row("PRAGMA user_version", [], |r| r.get(0))
+            .map_err(backend)?;
         if version > SCHEMA_VERSION {
             return Err(corrupt(
                 path.display().to_string(),
@@ -99,8 +113,12 @@ impl SqliteStore {
             ));
         }
         conn.execute_batch(SCHEMA).map_err(backend)?;
-        conn.pragma_update(None, "user_version", SCHEMA_VERSION).map_err(backend)?;
-        Ok(SqliteStore { conn: Mutex::new(conn), path })
+        conn.pragma_update(None, "user_version", SCHEMA_VERSION)
+            .map_err(backend)?;
+        Ok(SqliteStore {
+            conn: Mutex::new(conn),
+            path,
+        })
     }
 
     /// The database file.
@@ -113,7 +131,11 @@ impl SqliteStore {
     pub fn integrity_check(&self) -> Result<(), StoreError> {
         let conn = self.conn.lock();
         let mut stmt = conn.prepare("PRAGMA integrity_check").map_err(backend)?;
-        let rows: Vec<String> = stmt.query_map([], |r| r.get(0)).map_err(backend)?.collect::<Result<_, _>>().map_err(backend)?;
+        let rows: Vec<String> = stmt
+            .query_map([], |r| r.get(0))
+            .map_err(backend)?
+            .collect::<Result<_, _>>()
+            .map_err(backend)?;
         if rows == ["ok"] {
             Ok(())
         } else {
@@ -131,9 +153,16 @@ fn put_f64s(out: &mut Vec<u8>, xs: &[f64]) {
 }
 
 /// Splits `blob` into `stride`-byte records, or says why it cannot.
-fn records<'a>(blob: &'a [u8], stride: usize, what: &str) -> Result<std::slice::ChunksExact<'a, u8>, StoreError> {
+fn records<'a>(
+    blob: &'a [u8],
+    stride: usize,
+    what: &str,
+) -> Result<std::slice::ChunksExact<'a, u8>, StoreError> {
     if blob.len() % stride != 0 {
-        return Err(corrupt(what, format!("blob of {} bytes is not a multiple of {stride}", blob.len())));
+        return Err(corrupt(
+            what,
+            format!("blob of {} bytes is not a multiple of {stride}", blob.len()),
+        ));
     }
     Ok(blob.chunks_exact(stride))
 }
@@ -157,7 +186,9 @@ fn encode_points(p: &[[f64; 3]]) -> Vec<u8> {
 }
 
 fn decode_points(b: &[u8], what: &str) -> Result<Vec<[f64; 3]>, StoreError> {
-    Ok(records(b, 24, what)?.map(|r| f64_array::<3>(r, 0)).collect())
+    Ok(records(b, 24, what)?
+        .map(|r| f64_array::<3>(r, 0))
+        .collect())
 }
 
 fn encode_triangles(t: &[[u32; 3]]) -> Vec<u8> {
@@ -172,7 +203,11 @@ fn encode_triangles(t: &[[u32; 3]]) -> Vec<u8> {
 
 fn decode_triangles(b: &[u8], what: &str) -> Result<Vec<[u32; 3]>, StoreError> {
     Ok(records(b, 12, what)?
-        .map(|r| std::array::from_fn(|k| u32::from_le_bytes([r[4 * k], r[4 * k + 1], r[4 * k + 2], r[4 * k + 3]])))
+        .map(|r| {
+            std::array::from_fn(|k| {
+                u32::from_le_bytes([r[4 * k], r[4 * k + 1], r[4 * k + 2], r[4 * k + 3]])
+            })
+        })
         .collect())
 }
 
@@ -188,7 +223,11 @@ fn encode_targets(t: &[StoredTransform]) -> Vec<u8> {
 
 fn decode_targets(b: &[u8], what: &str) -> Result<Vec<StoredTransform>, StoreError> {
     Ok(records(b, 80, what)?
-        .map(|r| StoredTransform { rotation: f64_array(r, 0), translation: f64_array(r, 4), pivot: f64_array(r, 7) })
+        .map(|r| StoredTransform {
+            rotation: f64_array(r, 0),
+            translation: f64_array(r, 4),
+            pivot: f64_array(r, 7),
+        })
         .collect())
 }
 
@@ -202,7 +241,12 @@ const ENTRY_BYTES: usize = 1 + 8 + 32 + 24 + 8;
 pub fn encode_entry(e: &JournalEntry) -> Vec<u8> {
     let mut out = Vec::with_capacity(ENTRY_BYTES);
     match e {
-        JournalEntry::Drag { handle, rotation, translation, seq } => {
+        JournalEntry::Drag {
+            handle,
+            rotation,
+            translation,
+            seq,
+        } => {
             out.push(TAG_DRAG);
             out.extend_from_slice(&(*handle as u64).to_le_bytes());
             put_f64s(&mut out, rotation);
@@ -216,7 +260,10 @@ pub fn encode_entry(e: &JournalEntry) -> Vec<u8> {
 /// Decodes a record written by [`encode_entry`]; `what` names it in errors.
 pub fn decode_entry(b: &[u8], what: &str) -> Result<JournalEntry, StoreError> {
     if b.len() != ENTRY_BYTES {
-        return Err(corrupt(what, format!("{} bytes, expected {ENTRY_BYTES}", b.len())));
+        return Err(corrupt(
+            what,
+            format!("{} bytes, expected {ENTRY_BYTES}", b.len()),
+        ));
     }
     if b[0] != TAG_DRAG {
         return Err(corrupt(what, format!("unknown entry tag {}", b[0])));
@@ -226,14 +273,20 @@ pub fn decode_entry(b: &[u8], what: &str) -> Result<JournalEntry, StoreError> {
         a.copy_from_slice(&b[o..o + 8]);
         u64::from_le_bytes(a)
     };
-    let handle = usize::try_from(u64_at(1)).map_err(|_| corrupt(what, "handle index out of range"))?;
+    let handle =
+        usize::try_from(u64_at(1)).map_err(|_| corrupt(what, "handle index out of range"))?;
     let body = &b[9..9 + 56];
     let rotation: [f64; 4] = f64_array(body, 0);
     let translation: [f64; 3] = f64_array(body, 4);
     if !rotation.iter().chain(&translation).all(|x| x.is_finite()) {
         return Err(corrupt(what, "non-finite delta"));
     }
-    Ok(JournalEntry::Drag { handle, rotation, translation, seq: u64_at(65) })
+    Ok(JournalEntry::Drag {
+        handle,
+        rotation,
+        translation,
+        seq: u64_at(65),
+    })
 }
 
 fn decode_record(
@@ -246,24 +299,46 @@ fn decode_record(
 ) -> Result<SessionRecord, StoreError> {
     let what = || format!("session `{id}`");
     if hash.len() != 32 {
-        return Err(corrupt(what(), format!("token hash of {} bytes, expected 32", hash.len())));
+        return Err(corrupt(
+            what(),
+            format!("token hash of {} bytes, expected 32", hash.len()),
+        ));
     }
-    let params = serde_json::from_str(&params).map_err(|e| corrupt(what(), format!("params: {e}")))?;
+    let params =
+        serde_json::from_str(&params).map_err(|e| corrupt(what(), format!("params: {e}")))?;
     let constraints = match constraints {
-        Some(c) => Some(serde_json::from_str(&c).map_err(|e| corrupt(what(), format!("constraints: {e}")))?),
+        Some(c) => Some(
+            serde_json::from_str(&c).map_err(|e| corrupt(what(), format!("constraints: {e}")))?,
+        ),
         None => None,
     };
-    let created_unix = u64::try_from(created).map_err(|_| corrupt(what(), "negative creation time"))?;
-    Ok(SessionRecord { id, mesh_id, token_sha256: hex::encode(hash), params, constraints, created_unix })
+    let created_unix =
+        u64::try_from(created).map_err(|_| corrupt(what(), "negative creation time"))?;
+    Ok(SessionRecord {
+        id,
+        mesh_id,
+        token_sha256: hex::encode(hash),
+        params,
+        constraints,
+        created_unix,
+    })
 }
 
 type RawRecord = (String, String, Vec<u8>, String, Option<String>, i64);
 
 fn raw_record(r: &rusqlite::Row<'_>) -> rusqlite::Result<RawRecord> {
-    Ok((r.get(0)?, r.get(1)?, r.get(2)?, r.get(3)?, r.get(4)?, r.get(5)?))
+    Ok((
+        r.get(0)?,
+        r.get(1)?,
+        r.get(2)?,
+        r.get(3)?,
+        r.get(4)?,
+        r.get(5)?,
+    ))
 }
 
-const SELECT_SESSION: &str = "SELECT id, mesh_id, token_sha256, params, constraints, created_unix FROM sessions";
+const SELECT_SESSION: &str =
+    "SELECT id, mesh_id, token_sha256, params, constraints, created_unix FROM sessions";
 
 fn session_exists(conn: &Connection, id: &str) -> Result<bool, StoreError> {
     conn.query_row("SELECT 1 FROM sessions WHERE id = ?1", [id], |_| Ok(()))
@@ -274,10 +349,16 @@ fn session_exists(conn: &Connection, id: &str) -> Result<bool, StoreError> {
 
 impl Store for SqliteStore {
     fn put_mesh(&self, id: &str, mesh: Arc<Mesh>) -> Result<(), StoreError> {
-        let (p, t) = (encode_points(mesh.positions()), encode_triangles(mesh.triangles()));
+        let (p, t) = (
+            encode_points(mesh.positions()),
+            encode_triangles(mesh.triangles()),
+        );
         self.conn
             .lock()
-            .execute("INSERT OR REPLACE INTO meshes (id, positions, triangles) VALUES (?1, ?2, ?3)", params![id, p, t])
+            .execute(
+                "INSERT OR REPLACE INTO meshes (id, positions, triangles) VALUES (?1, ?2, ?3)",
+                params![id, p, t],
+            )
             .map_err(backend)?;
         Ok(())
     }
@@ -286,7 +367,11 @@ impl Store for SqliteStore {
         let row: Option<(Vec<u8>, Vec<u8>)> = self
             .conn
             .lock()
-            .query_row("SELECT positions, triangles FROM meshes WHERE id = ?1", [id], |r| Ok((r.get(0)?, r.get(1)?)))
+            .query_row(
+                "SELECT positions, triangles FROM meshes WHERE id = ?1",
+                [id],
+                |r| Ok((r.get(0)?, r.get(1)?)),
+            )
             .optional()
             .map_err(backend)?;
         let Some((p, t)) = row else { return Ok(None) };
@@ -297,7 +382,11 @@ impl Store for SqliteStore {
     }
 
     fn mesh_count(&self) -> Result<usize, StoreError> {
-        let n: i64 = self.conn.lock().query_row("SELECT COUNT(*) FROM meshes", [], |r| r.get(0)).map_err(backend)?;
+        let n: i64 = self
+            .conn
+            .lock()
+            .query_row("SELECT COUNT(*) FROM meshes", [], |r| r.get(0))
+            .map_err(backend)?;
         Ok(n as usize)
     }
 
@@ -305,7 +394,12 @@ impl Store for SqliteStore {
         let hash = hex::decode(&r.token_sha256)
             .ok()
             .filter(|h| h.len() == 32)
-            .ok_or_else(|| backend(format!("session `{}`: token hash is not 64 hex digits", r.id)))?;
+            .ok_or_else(|| {
+                backend(format!(
+                    "session `{}`: token hash is not 64 hex digits",
+                    r.id
+                ))
+            })?;
         let params = r.params.to_string();
         let constraints = r.constraints.as_ref().map(|c| c.to_string());
         let created = i64::try_from(r.created_unix).unwrap_or(i64::MAX);
@@ -332,46 +426,70 @@ impl Store for SqliteStore {
             .query_row(&format!("{SELECT_SESSION} WHERE id = ?1"), [id], raw_record)
             .optional()
             .map_err(backend)?;
-        raw.map(|(a, b, c, d, e, f)| decode_record(a, b, c, d, e, f)).transpose()
+        raw.map(|(a, b, c, d, e, f)| decode_record(a, b, c, d, e, f))
+            .transpose()
     }
 
     fn list_sessions(&self) -> Result<Vec<SessionRecord>, StoreError> {
         let raws: Vec<RawRecord> = {
             let conn = self.conn.lock();
-            let mut stmt = conn.prepare(&format!("{SELECT_SESSION} ORDER BY created_unix, id")).map_err(backend)?;
+            let mut stmt = conn
+                .prepare(&format!("{SELECT_SESSION} ORDER BY created_unix, id"))
+                .map_err(backend)?;
             let rows = stmt.query_map([], raw_record).map_err(backend)?;
             rows.collect::<Result<_, _>>().map_err(backend)?
         };
-        raws.into_iter().map(|(a, b, c, d, e, f)| decode_record(a, b, c, d, e, f)).collect()
+        raws.into_iter()
+            .map(|(a, b, c, d, e, f)| decode_record(a, b, c, d, e, f))
+            .collect()
     }
 
     fn delete_session(&self, id: &str) -> Result<(), StoreError> {
-        let _ = self.conn.lock().execute("DELETE FROM sessions WHERE id = ?1", [id]).map_err(backend)?;
+        let _ = self
+            .conn
+            .lock()
+            .execute("DELETE FROM sessions WHERE id = ?1", [id])
+            .map_err(backend)?;
         Ok(())
     }
 
     fn set_constraints(&self, id: &str, spec: &serde_json::Value) -> Result<(), StoreError> {
         let mut conn = self.conn.lock();
-        let tx = conn.transaction_with_behavior(TransactionBehavior::Immediate).map_err(backend)?;
-        let n = tx.execute("UPDATE sessions SET constraints = ?2 WHERE id = ?1", params![id, spec.to_string()]);
+        let tx = conn
+            .transaction_with_behavior(TransactionBehavior::Immediate)
+            .map_err(backend)?;
+        let n = tx.execute(
+            "UPDATE sessions SET constraints = ?2 WHERE id = ?1",
+            params![id, spec.to_string()],
+        );
         if n.map_err(backend)? == 0 {
             return Err(missing(id));
         }
-        let _ = tx.execute("DELETE FROM journal WHERE session = ?1", [id]).map_err(backend)?;
-        let _ = tx.execute("DELETE FROM checkpoints WHERE session = ?1", [id]).map_err(backend)?;
+        let _ = tx
+            .execute("DELETE FROM journal WHERE session = ?1", [id])
+            .map_err(backend)?;
+        let _ = tx
+            .execute("DELETE FROM checkpoints WHERE session = ?1", [id])
+            .map_err(backend)?;
         tx.commit().map_err(backend)
     }
 
     fn append(&self, id: &str, entries: &[JournalEntry]) -> Result<(), StoreError> {
         let mut conn = self.conn.lock();
-        let tx = conn.transaction_with_behavior(TransactionBehavior::Immediate).map_err(backend)?;
+        let tx = conn
+            .transaction_with_behavior(TransactionBehavior::Immediate)
+            .map_err(backend)?;
         if !session_exists(&tx, id)? {
             return Err(missing(id));
         }
         {
-            let mut stmt = tx.prepare_cached("INSERT INTO journal (session, entry) VALUES (?1, ?2)").map_err(backend)?;
+            let mut stmt = tx
+                .prepare_cached("INSERT INTO journal (session, entry) VALUES (?1, ?2)")
+                .map_err(backend)?;
             for e in entries {
-                let _ = stmt.execute(params![id, encode_entry(e)]).map_err(backend)?;
+                let _ = stmt
+                    .execute(params![id, encode_entry(e)])
+                    .map_err(backend)?;
             }
         }
         tx.commit().map_err(backend)
@@ -380,11 +498,18 @@ impl Store for SqliteStore {
     fn journal(&self, id: &str) -> Result<Vec<JournalEntry>, StoreError> {
         let blobs: Vec<(i64, Vec<u8>)> = {
             let conn = self.conn.lock();
-            let mut stmt = conn.prepare_cached("SELECT n, entry FROM journal WHERE session = ?1 ORDER BY n").map_err(backend)?;
-            let rows = stmt.query_map([id], |r| Ok((r.get(0)?, r.get(1)?))).map_err(backend)?;
+            let mut stmt = conn
+                .prepare_cached("SELECT n, entry FROM journal WHERE session = ?1 ORDER BY n")
+                .map_err(backend)?;
+            let rows = stmt
+                .query_map([id], |r| Ok((r.get(0)?, r.get(1)?)))
+                .map_err(backend)?;
             rows.collect::<Result<_, _>>().map_err(backend)?
         };
-        blobs.iter().map(|(n, b)| decode_entry(b, &format!("journal entry {n} of session `{id}`"))).collect()
+        blobs
+            .iter()
+            .map(|(n, b)| decode_entry(b, &format!("journal entry {n} of session `{id}`")))
+            .collect()
     }
 
     fn checkpoint(&self, id: &str, cp: &Checkpoint) -> Result<(), StoreError> {
@@ -392,7 +517,9 @@ impl Store for SqliteStore {
         let revision = i64::try_from(cp.revision).unwrap_or(i64::MAX);
         let ack_seq = cp.ack_seq as i64; // the u64's bits, cast back on read
         let mut conn = self.conn.lock();
-        let tx = conn.transaction_with_behavior(TransactionBehavior::Immediate).map_err(backend)?;
+        let tx = conn
+            .transaction_with_behavior(TransactionBehavior::Immediate)
+            .map_err(backend)?;
         if !session_exists(&tx, id)? {
             return Err(missing(id));
         }
@@ -403,7 +530,9 @@ impl Store for SqliteStore {
                 params![id, revision, ack_seq, pose, targets],
             )
             .map_err(backend)?;
-        let _ = tx.execute("DELETE FROM journal WHERE session = ?1", [id]).map_err(backend)?;
+        let _ = tx
+            .execute("DELETE FROM journal WHERE session = ?1", [id])
+            .map_err(backend)?;
         tx.commit().map_err(backend)
     }
 
@@ -411,12 +540,16 @@ impl Store for SqliteStore {
         let row: Option<(i64, i64, Vec<u8>, Vec<u8>)> = self
             .conn
             .lock()
-            .query_row("SELECT revision, ack_seq, pose, targets FROM checkpoints WHERE session = ?1", [id], |r| {
-                Ok((r.get(0)?, r.get(1)?, r.get(2)?, r.get(3)?))
-            })
+            .query_row(
+                "SELECT revision, ack_seq, pose, targets FROM checkpoints WHERE session = ?1",
+                [id],
+                |r| Ok((r.get(0)?, r.get(1)?, r.get(2)?, r.get(3)?)),
+            )
             .optional()
             .map_err(backend)?;
-        let Some((revision, ack_seq, pose, targets)) = row else { return Ok(None) };
+        let Some((revision, ack_seq, pose, targets)) = row else {
+            return Ok(None);
+        };
         let what = format!("checkpoint of session `{id}`");
         let revision = u64::try_from(revision).map_err(|_| corrupt(&what, "negative revision"))?;
         let pose = decode_points(&pose, &what)?;
@@ -424,11 +557,22 @@ impl Store for SqliteStore {
             return Err(corrupt(&what, "non-finite pose coordinate"));
         }
         let targets = decode_targets(&targets, &what)?;
-        let finite = targets.iter().all(|t| t.rotation.iter().chain(&t.translation).chain(&t.pivot).all(|x| x.is_finite()));
+        let finite = targets.iter().all(|t| {
+            t.rotation
+                .iter()
+                .chain(&t.translation)
+                .chain(&t.pivot)
+                .all(|x| x.is_finite())
+        });
         if !finite {
             return Err(corrupt(&what, "non-finite target"));
         }
-        Ok(Some(Checkpoint { revision, ack_seq: ack_seq as u64, pose, targets }))
+        Ok(Some(Checkpoint {
+            revision,
+            ack_seq: ack_seq as u64,
+            pose,
+            targets,
+        }))
     }
 }
 

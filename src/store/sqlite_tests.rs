@@ -2,7 +2,9 @@ use super::*;
 
 /// An `n`×`n` vertex grid of the unit square scaled by `h`, two triangles per cell.
 fn grid(n: u32, h: f64) -> Result<Mesh, StoreError> {
-    let positions = (0..n * n).map(|k| [(k % n) as f64 * h / 3.0, (k / n) as f64 * h, 0.25]).collect();
+    let positions = (0..n * n)
+        .map(|k| [(k % n) as f64 * h / 3.0, (k / n) as f64 * h, 0.25])
+        .collect();
     let mut triangles = vec![];
     for j in 0..n - 1 {
         for i in 0..n - 1 {
@@ -38,8 +40,14 @@ fn checkpoint(rev: u64, n: usize) -> Checkpoint {
     Checkpoint {
         revision: rev,
         ack_seq: rev * 10 + u64::MAX / 2,
-        pose: (0..n).map(|i| [i as f64 / 7.0, -(i as f64), std::f64::consts::PI]).collect(),
-        targets: vec![StoredTransform { rotation: [0.0, 0.0, 0.6, 0.8], translation: [1.0, 2.0, 3.0], pivot: [0.1, 0.2, 0.3] }],
+        pose: (0..n)
+            .map(|i| [i as f64 / 7.0, -(i as f64), std::f64::consts::PI])
+            .collect(),
+        targets: vec![StoredTransform {
+            rotation: [0.0, 0.0, 0.6, 0.8],
+            translation: [1.0, 2.0, 3.0],
+            pivot: [0.1, 0.2, 0.3],
+        }],
     }
 }
 
@@ -83,7 +91,11 @@ fn journal_append_and_truncate_on_checkpoint() -> Result<(), StoreError> {
     let cp = checkpoint(4, 10);
     s.checkpoint("a", &cp)?;
     assert!(s.journal("a")?.is_empty());
-    assert_eq!(s.journal("b")?, vec![drag(9)], "other sessions' journals are untouched");
+    assert_eq!(
+        s.journal("b")?,
+        vec![drag(9)],
+        "other sessions' journals are untouched"
+    );
     assert_eq!(s.get_checkpoint("a")?, Some(cp));
     s.append("a", &[drag(5)])?;
     assert_eq!(s.journal("a")?, vec![drag(5)]);
@@ -94,7 +106,10 @@ fn journal_append_and_truncate_on_checkpoint() -> Result<(), StoreError> {
     s.set_constraints("a", &serde_json::json!({"fixed": [2]}))?;
     assert!(s.journal("a")?.is_empty());
     assert!(s.get_checkpoint("a")?.is_none());
-    assert_eq!(s.get_session("a")?.map(|r| r.constraints), Some(Some(serde_json::json!({"fixed": [2]}))));
+    assert_eq!(
+        s.get_session("a")?.map(|r| r.constraints),
+        Some(Some(serde_json::json!({"fixed": [2]})))
+    );
     s.append("a", &[drag(6)])?;
     s.delete_session("a")?;
     assert!(s.get_session("a")?.is_none());
@@ -117,7 +132,10 @@ fn everything_survives_reopen() -> Result<(), StoreError> {
         s.append("a", &[drag(1), drag(2)])?;
     }
     let s = SqliteStore::open(dir.path())?;
-    assert_eq!(s.get_mesh("m")?.map(|m| m.positions().to_vec()), Some(mesh.positions().to_vec()));
+    assert_eq!(
+        s.get_mesh("m")?.map(|m| m.positions().to_vec()),
+        Some(mesh.positions().to_vec())
+    );
     assert_eq!(s.list_sessions()?, vec![record("a")]);
     assert_eq!(s.get_checkpoint("a")?, Some(checkpoint(2, 9)));
     assert_eq!(s.journal("a")?, vec![drag(1), drag(2)]);
@@ -130,9 +148,13 @@ fn newer_schema_is_refused() -> Result<(), StoreError> {
     let dir = tempfile::tempdir().map_err(backend)?;
     drop(SqliteStore::open(dir.path())?);
     let conn = Connection::open(dir.path().join(DB_FILE)).map_err(backend)?;
-    conn.pragma_update(None, "user_version", SCHEMA_VERSION + 1).map_err(backend)?;
+    conn.pragma_update(None, "user_version", SCHEMA_VERSION + 1)
+        .map_err(backend)?;
     drop(conn);
-    assert!(matches!(SqliteStore::open(dir.path()), Err(StoreError::Corrupt { .. })));
+    assert!(matches!(
+        SqliteStore::open(dir.path()),
+        Err(StoreError::Corrupt { .. })
+    ));
     Ok(())
 }
 
@@ -146,16 +168,33 @@ fn damaged_blobs_are_corrupt_errors() -> Result<(), StoreError> {
     s.put_mesh("m", Arc::new(grid(2, 1.0)?))?;
     {
         let c = s.conn.lock();
-        let _ = c.execute("UPDATE journal SET entry = x'0102'", []).map_err(backend)?;
-        let _ = c.execute("UPDATE checkpoints SET pose = x'00112233'", []).map_err(backend)?;
+        let _ = c
+            .execute("UPDATE journal SET entry = x'0102'", [])
+            .map_err(backend)?;
+        let _ = c
+            .execute("UPDATE checkpoints SET pose = x'00112233'", [])
+            .map_err(backend)?;
         // a triangle index past the vertex count
-        let _ = c.execute("UPDATE meshes SET triangles = x'000000000100000063000000'", []).map_err(backend)?;
-        let _ = c.execute("UPDATE sessions SET params = '{not json'", []).map_err(backend)?;
+        let _ = c
+            .execute(
+                "UPDATE meshes SET triangles = x'000000000100000063000000'",
+                [],
+            )
+            .map_err(backend)?;
+        let _ = c
+            .execute("UPDATE sessions SET params = '{not json'", [])
+            .map_err(backend)?;
     }
     assert!(matches!(s.journal("a"), Err(StoreError::Corrupt { .. })));
-    assert!(matches!(s.get_checkpoint("a"), Err(StoreError::Corrupt { .. })));
+    assert!(matches!(
+        s.get_checkpoint("a"),
+        Err(StoreError::Corrupt { .. })
+    ));
     assert!(matches!(s.get_mesh("m"), Err(StoreError::Corrupt { .. })));
-    assert!(matches!(s.get_session("a"), Err(StoreError::Corrupt { .. })));
+    assert!(matches!(
+        s.get_session("a"),
+        Err(StoreError::Corrupt { .. })
+    ));
     assert!(matches!(s.list_sessions(), Err(StoreError::Corrupt { .. })));
     Ok(())
 }
@@ -165,8 +204,16 @@ fn entry_decoder_rejects_every_bad_shape() {
     let good = encode_entry(&drag(3));
     assert_eq!(decode_entry(&good, "e").ok(), Some(drag(3)));
     for len in [0, 1, ENTRY_BYTES - 1, ENTRY_BYTES + 1] {
-        let b: Vec<u8> = good.iter().copied().chain(std::iter::repeat(0)).take(len).collect();
-        assert!(matches!(decode_entry(&b, "e"), Err(StoreError::Corrupt { .. })), "len {len}");
+        let b: Vec<u8> = good
+            .iter()
+            .copied()
+            .chain(std::iter::repeat(0))
+            .take(len)
+            .collect();
+        assert!(
+            matches!(decode_entry(&b, "e"), Err(StoreError::Corrupt { .. })),
+            "len {len}"
+        );
     }
     let mut tag = good.clone();
     tag[0] = 9;
