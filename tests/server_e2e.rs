@@ -70,7 +70,7 @@ async fn hundred_ws_drags_equal_the_library_result_for_the_composed_transform(
         cons.handles[0].target = cons.handles[0].target.then(q, tr);
     }
     let factor = Factor::build(&rest, &lib_params, &cons).expect("factor");
-    let mut d = Deformer::new(rest.clone(), lib_params.clone());
+    let mut d = Deformer::new(rest.clone(), lib_params);
     let report = d.step(&factor, &cons, lib_params.max_iters).expect("solve");
     assert!(report.converged);
     let mut worst = 0.0f64;

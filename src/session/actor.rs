@@ -38,6 +38,8 @@ pub(super) enum Cmd {
     Close,
 }
 
+// One message per solve, moved once: boxing the deformer would buy nothing.
+#[allow(clippy::large_enum_variant)]
 enum Internal {
     Solved {
         deformer: Deformer,
@@ -103,7 +105,7 @@ impl Actor {
         opts: SessionOptions,
     ) -> Self {
         let (internal_tx, internal_rx) = mpsc::unbounded_channel();
-        let deformer = Deformer::new(inner.rest.clone(), inner.params.clone());
+        let deformer = Deformer::new(inner.rest.clone(), inner.params);
         let pose = Arc::new(deformer.pose().to_vec());
         Actor {
             inner,
@@ -308,7 +310,7 @@ impl Actor {
         let (generation, tx) = (self.generation, self.internal_tx.clone());
         let (rest, params, cache) = (
             self.inner.rest.clone(),
-            self.inner.params.clone(),
+            self.inner.params,
             self.opts.cache.clone(),
         );
         drop(tokio::task::spawn_blocking(move || {
@@ -363,7 +365,7 @@ impl Actor {
         );
         let (rest, params, tx) = (
             self.inner.rest.clone(),
-            self.inner.params.clone(),
+            self.inner.params,
             self.internal_tx.clone(),
         );
         let applied_seq = self.last_seq;
@@ -483,7 +485,7 @@ impl Actor {
     fn targets(&self) -> Vec<RigidTransform> {
         self.constraints
             .as_ref()
-            .map(|c| c.handles.iter().map(|h| h.target.clone()).collect())
+            .map(|c| c.handles.iter().map(|h| h.target).collect())
             .unwrap_or_default()
     }
 
@@ -531,7 +533,7 @@ impl Actor {
         }
         if let Some(c) = self.constraints.as_mut() {
             for (h, t) in Arc::make_mut(c).handles.iter_mut().zip(targets) {
-                h.target = t.clone();
+                h.target = *t;
             }
         }
         self.pose = pose;
