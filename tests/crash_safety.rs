@@ -92,7 +92,7 @@ struct Sess {
 }
 
 fn compose(initial: &RigidTransform, sent: &[Sent], upto: u64) -> RigidTransform {
-    let mut t = initial.clone();
+    let mut t = *initial;
     for (_, tr, q) in sent.iter().filter(|s| s.0 <= upto) {
         let rot = UnitQuaternion::from_quaternion(Quaternion::new(q[3], q[0], q[1], q[2]));
         t = t.then(rot, *tr);
@@ -174,8 +174,7 @@ async fn kill_9_loses_no_acknowledged_drag() -> Res<()> {
     let initial = serde_json::from_value::<ConstraintsSpec>(spec_json.clone())?
         .resolve(&mesh)?
         .handles[0]
-        .target
-        .clone();
+        .target;
 
     // set-up: mesh, sessions, constraints
     let mut server = start(dir.path())?;
