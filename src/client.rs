@@ -160,6 +160,17 @@ impl Client {
         Ok(check(r).await?.json().await?)
     }
 
+    /// An existing session, opened with its id and token (e.g. to
+    /// reconnect after a server restart).
+    pub fn session(&self, id: &str, token: &str) -> SessionClient {
+        SessionClient {
+            http: self.http.clone(),
+            base: self.base.clone(),
+            id: id.to_owned(),
+            token: token.to_owned(),
+        }
+    }
+
     /// Creates a session on a mesh.
     pub async fn create_session(
         &self,

@@ -14,6 +14,7 @@
 
 pub mod client;
 pub mod deform;
+pub mod fuzzing;
 pub mod measure;
 pub mod mesh;
 pub mod operators;

@@ -31,6 +31,21 @@ pub struct LoadtestArgs {
     /// Iterations per frame of the in-process server.
     #[arg(long, default_value_t = 1)]
     iters_per_frame: usize,
+    /// Side of the generated grid mesh (vertices per side) when no `--mesh`.
+    #[arg(long, default_value_t = 100)]
+    grid: usize,
+    /// The in-process server stores in this directory (SQLite, fsynced
+    /// journal) instead of memory.
+    #[arg(long)]
+    data_dir: Option<PathBuf>,
+    /// Factor cache budget of the in-process server, bytes.
+    #[arg(long, default_value_t = 2 << 30)]
+    factor_cache_bytes: usize,
+    /// After the drag phase, open this many sessions with distinct
+    /// constraints and leave them idle; report the factor cache against its
+    /// budget, then check each one still answers its pose and a drag.
+    #[arg(long, default_value_t = 0)]
+    idle: usize,
 }
 
 /// Runs the load test and prints its report.
@@ -70,11 +85,16 @@ async fn run_async(args: LoadtestArgs) -> anyhow::Result<()> {
                 addr: ([127, 0, 0, 1], 0).into(),
                 iters_per_frame: args.iters_per_frame,
                 ws_max_messages_per_sec: 1_000_000,
+                factor_cache_bytes: args.factor_cache_bytes,
+                max_sessions: (args.sessions + args.idle + 8).max(256),
+                in_memory: args.data_dir.is_none(),
+                data_dir: args.data_dir.clone().unwrap_or_default(),
                 ..Config::default()
             };
             let listener = tokio::net::TcpListener::bind(config.addr).await?;
             let addr = listener.local_addr()?;
-            let app = server::app(AppState::new(config)?);
+            let store = server::recover::open_store(&config)?;
+            let app = server::app(AppState::with_store(config, store)?);
             drop(tokio::spawn(
                 async move { axum::serve(listener, app).await },
             ));
@@ -94,7 +114,7 @@ async fn run_async(args: LoadtestArgs) -> anyhow::Result<()> {
             client.upload_file(bytes, &ext).await?
         }
         None => {
-            let (p, t) = grid(100);
+            let (p, t) = grid(args.grid.max(2));
             client.upload_json(&p, &t).await?
         }
     };
@@ -154,6 +174,107 @@ async fn run_async(args: LoadtestArgs) -> anyhow::Result<()> {
         all.len() as f64 / drag_time.as_secs_f64(),
         drag_time.as_secs_f64(),
         t0.elapsed().as_secs_f64()
+    );
+    println!("errors: 0 (any error aborts the run)");
+    if args.idle > 0 {
+        idle_sessions(
+            &client,
+            &mesh.id,
+            (lo, hi, k),
+            args.idle,
+            args.factor_cache_bytes,
+        )
+        .await?;
+    }
+    println!(
+        "peak RSS of this process (server + clients): {:.1} MiB",
+        peak_rss_kib() as f64 / 1024.0
+    );
+    Ok(())
+}
+
+/// `VmHWM` of this process in KiB (0 when unknown).
+fn peak_rss_kib() -> u64 {
+    let status = std::fs::read_to_string("/proc/self/status").unwrap_or_default();
+    let line = status
+        .lines()
+        .find(|l| l.starts_with("VmHWM:"))
+        .unwrap_or("");
+    line.split_whitespace()
+        .nth(1)
+        .and_then(|v| v.parse().ok())
+        .unwrap_or(0)
+}
+
+/// A gauge of the server's `/metrics`.
+async fn metric(base: &str, name: &str) -> anyhow::Result<f64> {
+    let text = reqwest::get(format!("{base}/metrics"))
+        .await?
+        .text()
+        .await?;
+    let line = text
+        .lines()
+        .find(|l| l.starts_with(name) && l[name.len()..].starts_with(' '));
+    Ok(line
+        .and_then(|l| l.split_whitespace().nth(1))
+        .and_then(|v| v.parse().ok())
+        .unwrap_or(f64::NAN))
+}
+
+/// Opens `n` idle sessions whose constraints all differ (so each needs its
+/// own factor), reports the cache against its budget, then checks every
+/// session kept its data: pose readable, a drag solved (factor rebuilt).
+async fn idle_sessions(
+    client: &Client,
+    mesh_id: &str,
+    (lo, hi, k): ([f64; 3], [f64; 3], usize),
+    n: usize,
+    budget: usize,
+) -> anyhow::Result<()> {
+    let t0 = Instant::now();
+    let mut sessions = vec![];
+    for i in 0..n {
+        let s = client.create_session(mesh_id, json!({})).await?;
+        let ext = hi[k] - lo[k];
+        let (mut fixed_max, mut handle_min) = (hi, lo);
+        fixed_max[k] = lo[k] + (0.05 + 0.3 * i as f64 / n as f64) * ext;
+        handle_min[k] = hi[k] - 0.1 * ext;
+        let spec = json!({
+            "fixed": {"box": {"min": lo, "max": fixed_max}},
+            "handles": [{"name": "h", "vertices": {"box": {"min": handle_min, "max": hi}}}],
+        });
+        s.set_constraints(&spec).await?;
+        s.wait_ready(Duration::from_secs(600)).await?;
+        let _ = s
+            .drag(
+                json!(0),
+                json!({"translate": [0.0, 0.01 * ext, 0.0]}),
+                Some(2),
+            )
+            .await?;
+        sessions.push(s);
+    }
+    let base = client.base();
+    println!(
+        "idle: {n} sessions opened in {:.1} s; factor cache {:.1} MiB in {} factors (budget {:.1} MiB), {} built",
+        t0.elapsed().as_secs_f64(),
+        metric(base, "factor_cache_bytes").await? / 1048576.0,
+        metric(base, "factor_cache_entries").await?,
+        budget as f64 / 1048576.0,
+        metric(base, "factor_cache_builds").await?,
+    );
+    let mut moved = 0;
+    for s in &sessions {
+        let p = s.pose().await?;
+        moved += usize::from(p.positions.iter().flatten().all(|x| x.is_finite()) && p.revision > 0);
+        let _ = s
+            .drag(json!(0), json!({"translate": [0.0, 0.0, 0.0]}), Some(1))
+            .await?;
+    }
+    println!(
+        "idle: {moved}/{n} sessions kept their pose and solved a drag after eviction; factor cache now {:.1} MiB, {} built",
+        metric(base, "factor_cache_bytes").await? / 1048576.0,
+        metric(base, "factor_cache_builds").await?,
     );
     Ok(())
 }

@@ -3,7 +3,7 @@
 //! default for every field.
 
 use std::net::SocketAddr;
-use std::path::Path;
+use std::path::{Path, PathBuf};
 use std::time::Duration;
 
 use serde::{Deserialize, Serialize};
@@ -50,6 +50,14 @@ pub struct Config {
     /// DEND iterations per pushed WebSocket frame while a drag settles.
     #[arg(long, env = "DEND_ITERS_PER_FRAME", default_value_t = 1)]
     pub iters_per_frame: usize,
+    /// Directory of the session store (SQLite file `dend.sqlite3`, created
+    /// if missing): meshes, sessions, constraints, checkpoints and the drag
+    /// journal survive restarts and crashes.
+    #[arg(long, env = "DEND_DATA_DIR", default_value = "./dend-data")]
+    pub data_dir: PathBuf,
+    /// Keep everything in memory instead (nothing survives a restart).
+    #[arg(long, env = "DEND_IN_MEMORY")]
+    pub in_memory: bool,
 }
 
 impl Default for Config {
@@ -66,6 +74,8 @@ impl Default for Config {
             ws_max_message_bytes: 64 << 10,
             ws_max_messages_per_sec: 500,
             iters_per_frame: 1,
+            data_dir: PathBuf::from("./dend-data"),
+            in_memory: false,
         }
     }
 }

@@ -9,6 +9,7 @@ pub mod config;
 pub mod error;
 mod meshes;
 pub mod metrics;
+pub mod recover;
 mod sessions;
 pub mod web;
 pub mod ws;
@@ -199,7 +200,8 @@ pub fn spawn_idle_reaper(state: AppState, period: Duration) -> tokio::task::Join
 pub async fn serve(config: Config) -> anyhow::Result<()> {
     let listener = tokio::net::TcpListener::bind(config.addr).await?;
     let addr = listener.local_addr()?;
-    let state = AppState::new(config)?;
+    let store = recover::open_store(&config)?;
+    let state = AppState::with_store(config, store)?;
     let _reaper = spawn_idle_reaper(state.clone(), Duration::from_secs(10));
     println!("listening on http://{addr}");
     axum::serve(listener, app(state))

@@ -39,13 +39,16 @@ pub(crate) fn check_token(s: &SessionHandle, token: Option<&str>) -> Result<(), 
     }
 }
 
-/// Looks a live session up.
-pub(crate) fn find(st: &AppState, id: &str) -> Result<SessionHandle, ApiError> {
-    st.sessions
-        .read()
-        .get(id)
-        .cloned()
-        .ok_or_else(|| ApiError::SessionNotFound(id.to_owned()))
+/// Looks a live session up, re-opening a stored one after a restart
+/// (see `recover`).
+pub(crate) async fn find(st: &AppState, id: &str) -> Result<SessionHandle, ApiError> {
+    let live = st.sessions.read().get(id).cloned();
+    match live {
+        Some(s) => Ok(s),
+        None => super::recover::revive(st, id)
+            .await?
+            .ok_or_else(|| ApiError::SessionNotFound(id.to_owned())),
+    }
 }
 
 /// Extractor: the session named in the path, opened by the bearer token.
@@ -59,7 +62,7 @@ impl FromRequestParts<AppState> for Authed {
             .await
             .map_err(|e| ApiError::InvalidJson(e.body_text()))?;
         let token = bearer(&parts.headers);
-        let s = find(st, &id)?;
+        let s = find(st, &id).await?;
         check_token(&s, token)?;
         s.touch();
         Ok(Authed(s))

@@ -356,6 +356,16 @@ fn seq_of(text: &str) -> Option<u64> {
         .as_u64()
 }
 
+/// Decodes one client message as the connection loop does (JSON →
+/// [`ClientMsg`]; a drag's delta validated too), without applying it.
+pub fn decode_client_msg(text: &str) -> Result<ClientMsg, ApiError> {
+    let msg = parse_json::<ClientMsg>(text.as_bytes())?;
+    if let ClientMsg::Drag { delta, .. } = &msg {
+        let _ = delta.to_delta()?;
+    }
+    Ok(msg)
+}
+
 /// Applies one client message; returns the direct reply, if any.
 async fn handle_message(s: &SessionHandle, me: ClientId, text: &str) -> Option<ServerMsg> {
     let msg = match parse_json::<ClientMsg>(text.as_bytes()) {
@@ -406,7 +416,7 @@ pub async fn upgrade(
     headers: HeaderMap,
     ws: WebSocketUpgrade,
 ) -> Result<Response, ApiError> {
-    let s = find(&st, &id)?;
+    let s = find(&st, &id).await?;
     let header_token = headers
         .get(header::AUTHORIZATION)
         .and_then(|v| v.to_str().ok())

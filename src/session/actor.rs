@@ -28,6 +28,7 @@ pub(super) enum Cmd {
     SetConstraints {
         spec: serde_json::Value,
         constraints: Constraints,
+        restore: Option<Restore>,
         reply: Reply<SessionState>,
     },
     Undo(Reply<PoseSnapshot>),
@@ -37,7 +38,7 @@ pub(super) enum Cmd {
     Close,
 }
 
-// The solver state travels by value once per solve; boxing it buys nothing.
+// One message per solve, moved once: boxing the deformer would buy nothing.
 #[allow(clippy::large_enum_variant)]
 enum Internal {
     Solved {
@@ -51,6 +52,16 @@ enum Internal {
         generation: u64,
         result: Result<(), SessionError>,
     },
+}
+
+/// Re-opening a stored session: constraints already carry the recovered
+/// targets; the store is left as is (its checkpoint + journal stay valid
+/// until the first commit writes a new checkpoint).
+pub(super) struct Restore {
+    /// Warm start (the last checkpoint's pose).
+    pub pose: Option<Vec<[f64; 3]>>,
+    /// Highest sequence number included in the targets.
+    pub ack_seq: u64,
 }
 
 struct Snapshot {
@@ -187,9 +198,10 @@ impl Actor {
             Cmd::SetConstraints {
                 spec,
                 constraints,
+                restore,
                 reply,
             } => {
-                let _ = reply.send(self.on_set_constraints(spec, constraints));
+                let _ = reply.send(self.on_set_constraints(spec, constraints, restore));
             }
             Cmd::Undo(reply) => {
                 let r = self.undo_redo(true);
@@ -261,8 +273,19 @@ impl Actor {
         &mut self,
         spec: serde_json::Value,
         constraints: Constraints,
+        restore: Option<Restore>,
     ) -> Result<SessionState, SessionError> {
-        self.opts.store.set_constraints(&self.inner.id, &spec)?;
+        match restore {
+            None => self.opts.store.set_constraints(&self.inner.id, &spec)?,
+            Some(r) => {
+                if let (Some(pose), Some(d)) = (r.pose, self.deformer.as_mut()) {
+                    d.set_pose(pose)?;
+                    self.pose = Arc::new(d.pose().to_vec());
+                }
+                self.last_seq = r.ack_seq;
+                self.applied_seq = r.ack_seq;
+            }
+        }
         self.generation += 1;
         self.state = SessionState::Building;
         self.inner.shared.lock().handles =
@@ -490,6 +513,7 @@ impl Actor {
     fn checkpoint(&mut self) {
         let cp = Checkpoint {
             revision: self.revision,
+            ack_seq: self.applied_seq,
             pose: self.pose.to_vec(),
             targets: self.targets().iter().map(stored).collect(),
         };

@@ -8,9 +8,10 @@ use std::time::Instant;
 use parking_lot::Mutex;
 use tokio::sync::{broadcast, mpsc, oneshot, watch};
 
-use super::actor::{Actor, Cmd};
+use super::actor::{Actor, Cmd, Restore};
 use super::{
-    ClientId, Delta, Event, Frame, HandleRef, Observer, PoseSnapshot, SessionError, SessionState,
+    ClientId, Delta, Event, Frame, HandleRef, Observer, PoseSnapshot, Recovered, SessionError,
+    SessionState,
 };
 use crate::deform::{ConstraintsSpec, FactorCache, Params, Rest};
 use crate::store::Store;
@@ -282,6 +283,43 @@ impl SessionHandle {
         self.call(|tx| Cmd::SetConstraints {
             spec: spec_json,
             constraints,
+            restore: None,
+            reply: tx,
+        })
+        .await
+    }
+
+    /// Re-opens the stored constraints `spec_json` of a session read back
+    /// from the store, with the [`Recovered`] targets and pose (see
+    /// `server::recover`); the factor builds as after
+    /// [`set_constraints`](Self::set_constraints). Stored data that does not
+    /// fit is [`StoreError::Corrupt`](crate::store::StoreError::Corrupt).
+    pub async fn restore(
+        &self,
+        spec_json: serde_json::Value,
+        rec: Recovered,
+    ) -> Result<SessionState, SessionError> {
+        let corrupt = |reason: String| crate::store::StoreError::Corrupt {
+            what: format!("constraints of session `{}`", self.inner.id),
+            reason,
+        };
+        let spec: ConstraintsSpec =
+            serde_json::from_value(spec_json.clone()).map_err(|e| corrupt(e.to_string()))?;
+        let rest = self.inner.rest.clone();
+        let ack_seq = rec.ack_seq;
+        let (constraints, pose) =
+            tokio::task::spawn_blocking(move || -> Result<_, SessionError> {
+                let mut c = spec.resolve(rest.mesh())?;
+                rec.apply(&mut c)?;
+                Ok((c, rec.pose(rest.mesh().num_vertices())))
+            })
+            .await
+            .map_err(|_| SessionError::Closed)??;
+        let restore = Some(Restore { pose, ack_seq });
+        self.call(|tx| Cmd::SetConstraints {
+            spec: spec_json,
+            constraints,
+            restore,
             reply: tx,
         })
         .await

@@ -16,9 +16,11 @@
 mod actor;
 pub mod frame;
 mod handle;
+mod recovery;
 
 pub use frame::{decode_frame, FrameError, FrameHeader};
 pub use handle::{SessionHandle, SessionInfo, SessionOptions};
+pub use recovery::{transform, Recovered};
 
 use std::sync::Arc;
 

@@ -147,6 +147,7 @@ mod tests {
         assert_eq!(s.journal("a")?, vec![drag.clone(), drag.clone()]);
         let cp = Checkpoint {
             revision: 3,
+            ack_seq: 2,
             pose: vec![[0.0; 3]],
             targets: vec![],
         };

@@ -15,15 +15,17 @@
 //!   ([`Store::checkpoint`]). The undo history itself is not persisted.
 //!
 //! Recovering a session = its record + its last checkpoint + replaying the
-//! journal entries after it. [`MemoryStore`] is the embedded default; a
-//! SQLite implementation can sit behind the same trait.
+//! journal entries after it. [`SqliteStore`] (WAL, fsynced appends) is the
+//! server's default; [`MemoryStore`] keeps nothing across restarts.
 //!
 //! All methods are synchronous and may block briefly (disk I/O); the server
 //! calls the per-drag ones ([`Store::append`]) from its blocking solver pool.
 
 mod memory;
+mod sqlite;
 
 pub use memory::MemoryStore;
+pub use sqlite::{SqliteStore, DB_FILE, SCHEMA_VERSION};
 
 use std::sync::Arc;
 
@@ -100,6 +102,10 @@ pub enum JournalEntry {
 pub struct Checkpoint {
     /// Session revision at the snapshot.
     pub revision: u64,
+    /// The last client sequence number included in `targets` (acknowledged
+    /// in frames; 0 when none).
+    #[serde(default)]
+    pub ack_seq: u64,
     /// Current pose (mesh units), `#V×3`.
     pub pose: Vec<[f64; 3]>,
     /// Current handle targets, one per handle.
