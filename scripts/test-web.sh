@@ -26,7 +26,12 @@ apt_install() {
 
 CHROMIUM="${CHROMIUM:-/usr/bin/chromium}"
 if [ ! -x "$CHROMIUM" ] || ! command -v node >/dev/null || ! command -v npm >/dev/null; then
-  apt_install chromium chromium-driver nodejs npm || skip_or_fail "could not install chromium/nodejs/npm"
+  # node and npm usually come with the machine (nodesource's nodejs bundles
+  # npm and conflicts with Debian's npm package): only add them when missing.
+  pkgs="chromium chromium-driver"
+  command -v node >/dev/null || pkgs="$pkgs nodejs"
+  command -v npm >/dev/null || pkgs="$pkgs npm"
+  apt_install $pkgs || skip_or_fail "could not install $pkgs"
 fi
 [ -x "$CHROMIUM" ] || skip_or_fail "no chromium at $CHROMIUM"
 

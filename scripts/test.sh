@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # Runs every test: the README's test command (`bash scripts/test.sh`).
 # Installs the test-only tools first (idempotent), then: formatting and lint
-# gates, the Rust test suite (unit, integration, CLI, server end to end).
+# gates, the Rust test suite (unit, integration, CLI, server end to end),
+# then the browser test of the web client.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 export DEND_MESHES="${DEND_MESHES:-$(cd .. && pwd)/shared/meshes}"
@@ -10,3 +11,4 @@ bash scripts/setup-test-env.sh
 cargo fmt --all -- --check
 cargo clippy --all-targets -- -D warnings
 cargo test --all-targets
+bash scripts/test-web.sh
