@@ -10,5 +10,6 @@ export DEND_PYTHON="${DEND_PYTHON:-$(pwd)/.venv/bin/python}"
 bash scripts/setup-test-env.sh
 cargo fmt --all -- --check
 cargo clippy --all-targets -- -D warnings
-cargo test --all-targets
+# benches are compiled by clippy above; running them is `cargo bench`
+cargo test --lib --bins --tests --examples
 bash scripts/test-web.sh
