@@ -138,6 +138,11 @@ struct Scratch {
     cand: Vec<Real>,
     mem: Option<MemBuffer>,
     sized_for: (usize, usize),
+    /// `(factor id, objective)` when `r` (and `rot`, `dhat`) hold the
+    /// evaluation of the current pose `y` with that factor: the next step
+    /// then starts without re-evaluating (a one-iteration settle frame costs
+    /// one evaluation, not two).
+    evaluated: Option<(u64, Real)>,
 }
 
 impl Deformer {
@@ -168,6 +173,7 @@ impl Deformer {
     pub fn set_params(&mut self, params: Params) -> Result<(), DeformError> {
         params.validate()?;
         self.params = params;
+        self.scratch.evaluated = None;
         self.scratch.mem = None; // re-size the scratch (Anderson window) on the next step
         Ok(())
     }
@@ -191,11 +197,13 @@ impl Deformer {
         }
         self.y = pose.iter().map(|&p| self.rest.ops.normalise(p)).collect();
         self.pose = pose;
+        self.scratch.evaluated = None;
         Ok(())
     }
 
     /// Back to the rest pose.
     pub fn reset(&mut self) {
+        self.scratch.evaluated = None;
         self.y = self.rest.ops.positions.clone();
         self.pose = self.rest.mesh.positions().to_vec();
     }
@@ -241,12 +249,20 @@ impl Deformer {
             }
         }
         let hard = factor.sys.lambda1 == 0.0;
+        let mut moved = !hard; // soft constraints: the objective depends on the targets
         if hard {
             for &(v, p) in &s.targets {
-                self.y[v as usize] = p;
+                let y = &mut self.y[v as usize];
+                moved |= *y != p;
+                *y = p;
             }
         }
-        let mut f = self.evaluate(factor);
+        let mut f = match s.evaluated.take() {
+            Some((id, f)) if id == factor.id() && !moved => f,
+            _ => self.evaluate(factor),
+        };
+        // whether scratch holds the evaluation of the current `y`
+        let mut evaluated = true;
         // Anderson history restarts with every step call. (Keeping it across
         // one-iteration calls while targets are unchanged stalled the server's
         // tol 1e-10 end-to-end settle; to be revisited.)
@@ -279,6 +295,7 @@ impl Deformer {
             }
             if self.scratch.rhs.iter().any(|v| !v.is_finite()) {
                 self.y.clone_from(&self.scratch.best);
+                evaluated = false;
                 report.diverged = true;
                 break;
             }
@@ -360,6 +377,7 @@ impl Deformer {
             }
             if !f.is_finite() || growing >= 3 {
                 self.y.clone_from(&self.scratch.best);
+                evaluated = false;
                 f = best_f;
                 report.diverged = true;
                 break;
@@ -372,9 +390,13 @@ impl Deformer {
         if !report.converged && f > best_f {
             // an unconverged step ends on the best pose it saw
             self.y.clone_from(&self.scratch.best);
+            evaluated = false;
             f = best_f;
         }
         report.objective = f;
+        if evaluated {
+            self.scratch.evaluated = Some((factor.id(), f));
+        }
         self.sync_pose();
         Ok(report)
     }
