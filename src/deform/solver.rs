@@ -289,10 +289,12 @@ impl Deformer {
         };
         // whether scratch holds the evaluation of the current `y`
         let mut evaluated = true;
-        // Anderson history restarts with every step call. (Keeping it across
-        // one-iteration calls while targets are unchanged stalled the server's
-        // tol 1e-10 end-to-end settle; to be revisited.)
-        self.scratch.anderson.reset();
+        // The Anderson history continues along a chain of steps on unchanged
+        // targets (its pairs are iterates of the same fixed-point map) and
+        // restarts whenever the targets or the pose were changed.
+        if !continued {
+            self.scratch.anderson.reset();
+        }
         let accelerate = self.params.detail == DetailTerm::Nonlinear && self.params.anderson > 0;
         let mut report = StepReport {
             iterations: 0,
