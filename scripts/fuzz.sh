@@ -51,11 +51,11 @@ for t in "${targets[@]}"; do
     entries=$(find "$corpus" -type f | wc -l)
     found=$(($(find "fuzz/artifacts/$t" -type f | wc -l) - before))
     [ "$status" -ne 0 ] && [ "$found" -eq 0 ] && found="exit $status"
-    rows+=("$(printf '| %-16s | %5s | %11s | %7s | %9s | %7s | %s |' \
+    rows+=("$(printf '| %-16s | %7s | %11s | %7s | %9s | %7s | %s |' \
         "$t" "$secs" "${execs:-?}" "${rate:-?}" "${cov:-?}" "$entries" "$found")")
 done
 
-printf '| %-16s | %5s | %11s | %7s | %9s | %7s | %s |\n' \
+printf '| %-16s | %7s | %11s | %7s | %9s | %7s | %s |\n' \
     target seconds execs exec/s cov/ft corpus findings
-echo '|------------------|-------|-------------|---------|-----------|---------|----------|'
+echo '|------------------|---------|-------------|---------|-----------|---------|----------|'
 printf '%s\n' "${rows[@]}"
