@@ -416,6 +416,26 @@ fn changing_only_targets_never_refactors() {
     assert_eq!(d.step(&f, &c, 1), Err(DeformError::FactorMismatch));
 }
 
+/// Sessions opened together on one mesh and constraint set share one build:
+/// concurrent requests wait for the first factorisation.
+#[test]
+fn concurrent_requests_for_one_set_build_one_factor() {
+    let m = tube(1.0, 5.0, 6, 30);
+    let rest = Arc::new(Rest::new(m.clone()).unwrap());
+    let cache = Arc::new(FactorCache::new(1 << 30));
+    let c = tube_spec(&m, handle(None, None)).resolve(&m).unwrap();
+    let params = Params::default();
+    let ids: Vec<u64> = std::thread::scope(|scope| {
+        let hs: Vec<_> = (0..6)
+            .map(|_| scope.spawn(|| cache.get_or_build(&rest, &params, &c).unwrap().id()))
+            .collect();
+        hs.into_iter().map(|h| h.join().unwrap()).collect()
+    });
+    assert_eq!(cache.builds(), 1, "{ids:?}");
+    assert_eq!(cache.hits(), 5);
+    assert!(ids.iter().all(|&i| i == ids[0]), "{ids:?}");
+}
+
 #[test]
 fn near_degenerate_triangles_give_finite_poses() {
     // a sliver: one vertex pushed almost onto the opposite edge

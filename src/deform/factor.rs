@@ -415,6 +415,10 @@ pub struct FactorCache {
 
 struct CacheInner {
     map: HashMap<FactorKey, (Arc<Factor>, u64)>,
+    /// One gate per key being built: concurrent requests for the same
+    /// constraint set (sessions opened together on one mesh) wait for the
+    /// first build instead of each factoring `M` again.
+    building: HashMap<FactorKey, Arc<Mutex<()>>>,
     tick: u64,
     bytes: usize,
 }
@@ -427,6 +431,7 @@ impl FactorCache {
             budget: budget_bytes,
             inner: Mutex::new(CacheInner {
                 map: HashMap::new(),
+                building: HashMap::new(),
                 tick: 0,
                 bytes: 0,
             }),
@@ -443,19 +448,37 @@ impl FactorCache {
         constraints: &Constraints,
     ) -> Result<Arc<Factor>, DeformError> {
         let key = FactorKey::new(rest, params, constraints);
-        {
-            let mut inner = self.inner.lock();
+        let lookup = |inner: &mut CacheInner| {
             inner.tick += 1;
             let tick = inner.tick;
-            if let Some((f, used)) = inner.map.get_mut(&key) {
+            inner.map.get_mut(&key).map(|(f, used)| {
                 *used = tick;
+                f.clone()
+            })
+        };
+        let gate = {
+            let mut inner = self.inner.lock();
+            if let Some(f) = lookup(&mut inner) {
                 self.hits.fetch_add(1, Ordering::Relaxed);
-                return Ok(f.clone());
+                return Ok(f);
             }
+            inner.building.entry(key.clone()).or_default().clone()
+        };
+        // Single flight: whoever holds the gate builds; the others find the
+        // factor in the map once it is released (or build themselves if
+        // that build failed).
+        let _building = gate.lock();
+        if let Some(f) = lookup(&mut self.inner.lock()) {
+            self.hits.fetch_add(1, Ordering::Relaxed);
+            return Ok(f);
         }
-        let factor = Arc::new(Factor::build(rest, params, constraints)?);
-        self.builds.fetch_add(1, Ordering::Relaxed);
+        let built = Factor::build(rest, params, constraints);
         let mut inner = self.inner.lock();
+        // Waiters hold their own copy of the gate; later requests find the
+        // factor (inserted below under this same lock) or build anew.
+        inner.building.remove(&key);
+        let factor = Arc::new(built?);
+        self.builds.fetch_add(1, Ordering::Relaxed);
         inner.tick += 1;
         let tick = inner.tick;
         let bytes = factor.memory_bytes();

@@ -246,6 +246,11 @@ pub(crate) async fn rest_for(st: &AppState, mesh_id: &str) -> Result<Arc<Rest>, 
         .map_err(|e| ApiError::Internal(e.to_string()))??;
     let rest = Arc::new(rest);
     let mut rests = st.rests.lock();
+    // Sessions created together may have built it concurrently: keep the
+    // first one, so that they share its id and hence their factors.
+    if let Some(r) = rests.get(mesh_id).and_then(Weak::upgrade) {
+        return Ok(r);
+    }
     rests.retain(|_, w| w.strong_count() > 0);
     let _ = rests.insert(mesh_id.to_owned(), Arc::downgrade(&rest));
     Ok(rest)
