@@ -23,6 +23,7 @@ mod detail;
 mod factor;
 mod params;
 mod solver;
+mod square;
 mod system;
 
 pub use constraints::{
@@ -31,7 +32,7 @@ pub use constraints::{
 };
 pub use detail::{local_rotations, rotation_from_covariance, Mu, RingWeights};
 pub use factor::{Factor, FactorCache, FactorKey, FactorTimings, SolveOptions, SolverChoice};
-pub use params::{DetailTerm, Energy, Mode, Params};
+pub use params::{DetailTerm, Energy, Formulation, Mode, Params};
 pub use solver::{Deformer, Rest, StepReport};
 pub use system::energy_matrix;
 
