@@ -8,6 +8,7 @@ use nalgebra::{Matrix3, SymmetricEigen, Vector3};
 use rayon::prelude::*;
 
 use super::params::Mode;
+use super::rotation::fit_rotation;
 use crate::mesh::{cross, norm, sub, Point, Real, Topology};
 
 /// Vertex count above which per-vertex loops run on the rayon pool.
@@ -188,7 +189,9 @@ fn column(mode: Mode, topo: &Topology, p: &[Point], i: usize, inv_len: Real, k: 
 /// `T_i = argmin_{R ∈ SO(3)} Σ_j w_ij |(Y_j - Y_i) - R (X_j - X_i)|²`, with
 /// `w_ij = max(cot α_ij + cot β_ij, 0)` (negative cotangents clamped) plus a
 /// small uniform weight so that every ring edge counts.
-/// Written into `out` as rotation matrices. Unreferenced vertices get `I`.
+/// Written into `out` as rotation matrices; `out`'s previous contents are the
+/// warm start of [`fit_rotation`] (Newton on SO(3); start from `I` when no
+/// better guess exists). Unreferenced vertices get `I`.
 pub fn local_rotations(
     topo: &Topology,
     weights: &RingWeights,
@@ -203,46 +206,19 @@ pub fn local_rotations(
             return;
         }
         let w = weights.of(i);
-        let mut s = Matrix3::<Real>::zeros();
+        // A = Σ_j w_ij (Y_j - Y_i)(X_j - X_i)ᵀ; T_i = argmax tr(Tᵀ A)
+        let mut a = Matrix3::<Real>::zeros();
         for (k, &j) in ring.iter().enumerate() {
             let e = Vector3::from(sub(x[j as usize], x[i]));
             let e2 = Vector3::from(sub(y[j as usize], y[i]));
-            s += w[k] * e * e2.transpose();
+            a += w[k] * e2 * e.transpose();
         }
-        *o = rotation_from_covariance(&s);
+        *o = fit_rotation(&a, o);
     };
     if out.len() >= PARALLEL_MIN {
         out.par_iter_mut().enumerate().for_each(f);
     } else {
         out.iter_mut().enumerate().for_each(f);
-    }
-}
-
-/// The rotation `R = V Uᵀ` maximising `tr(R S)` for `S = U Σ Vᵀ`, with the
-/// sign of the smallest singular direction flipped if needed (`det R = +1`).
-pub fn rotation_from_covariance(s: &Matrix3<Real>) -> Matrix3<Real> {
-    let svd = s.svd(true, true);
-    let (Some(u), Some(vt)) = (svd.u, svd.v_t) else {
-        return Matrix3::identity();
-    };
-    let mut r = vt.transpose() * u.transpose();
-    if r.determinant() < 0.0 {
-        // flip the column of U with the smallest singular value
-        let (mut kmin, mut smin) = (0, Real::INFINITY);
-        for k in 0..3 {
-            if svd.singular_values[k] < smin {
-                smin = svd.singular_values[k];
-                kmin = k;
-            }
-        }
-        let mut u2 = u;
-        u2.column_mut(kmin).neg_mut();
-        r = vt.transpose() * u2.transpose();
-    }
-    if r.iter().all(|v| v.is_finite()) {
-        r
-    } else {
-        Matrix3::identity()
     }
 }
 

@@ -75,9 +75,13 @@ pub struct FactorTimings {
     pub numeric: Duration,
 }
 
+static NEXT_FACTOR_ID: AtomicU64 = AtomicU64::new(1);
+
 /// One factorised constraint set: the stacked rows, the rest-state target
 /// `A X`, and the Cholesky factor of `M`. Immutable and shareable.
 pub struct Factor {
+    /// Process-unique id (a deformer's cached evaluation refers to it).
+    id: u64,
     key: FactorKey,
     pub(crate) sys: System,
     pub(crate) energy: Energy,
@@ -248,6 +252,7 @@ impl Factor {
             {
                 cg = cg_of(&sys);
                 return Ok(Factor {
+                    id: NEXT_FACTOR_ID.fetch_add(1, Ordering::Relaxed),
                     key,
                     sys,
                     energy: params.energy,
@@ -327,6 +332,7 @@ impl Factor {
         };
         let t3 = Instant::now();
         Ok(Factor {
+            id: NEXT_FACTOR_ID.fetch_add(1, Ordering::Relaxed),
             key,
             sys,
             energy: params.energy,
@@ -343,6 +349,11 @@ impl Factor {
                 numeric: t3 - t2,
             },
         })
+    }
+
+    /// A process-unique id of this factor.
+    pub fn id(&self) -> u64 {
+        self.id
     }
 
     /// The key this factor was built for.

@@ -22,6 +22,7 @@ mod constraints;
 mod detail;
 mod factor;
 mod params;
+mod rotation;
 mod solver;
 mod square;
 mod system;
@@ -30,9 +31,10 @@ pub use constraints::{
     select, BoxSel, Constraints, ConstraintsSpec, HandleGroup, HandleSpec, RigidTransform,
     RotationSpec, SphereSel, VertexSet,
 };
-pub use detail::{local_rotations, rotation_from_covariance, Mu, RingWeights};
+pub use detail::{local_rotations, Mu, RingWeights};
 pub use factor::{Factor, FactorCache, FactorKey, FactorTimings, SolveOptions, SolverChoice};
 pub use params::{DetailTerm, Energy, Formulation, Mode, Params};
+pub use rotation::{best_rotation, fit_rotation, rotation_from_covariance};
 pub use solver::{Deformer, Rest, StepReport};
 pub use system::energy_matrix;
 

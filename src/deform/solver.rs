@@ -19,6 +19,17 @@ use crate::operators::Operators;
 
 static NEXT_REST_ID: AtomicU64 = AtomicU64::new(1);
 
+/// The safeguard's slack: a step may raise the objective by this factor
+/// (the fixed point of the lagged iteration is not a minimiser of the
+/// objective, so it may rise a little near convergence); beyond it the step
+/// is halved, and three such steps in a row stop the iteration.
+const SLACK: Real = 1.05;
+
+/// Objective rises below `FLOOR ×` the objective at the start of a step (or
+/// of a chain of steps) still halve the step but do not count towards
+/// `diverged`: near convergence the objective fluctuates at that level.
+const FLOOR: Real = 1e-6;
+
 /// Everything computed once per rest mesh: the operators (dend.md §2), STEP 1
 /// `μ` for both modes (§5) and the Procrustes weights. Share as `Arc<Rest>`.
 #[derive(Debug)]
@@ -102,8 +113,8 @@ pub struct StepReport {
     /// The final objective value (squared residual of the stacked rows).
     pub objective: Real,
     /// The objective at the start of the step (targets applied, before any
-    /// iteration). A step that does not converge ends on the best pose it
-    /// saw, so then `objective <= initial_objective`.
+    /// iteration). A step that does not converge ends within 5 % of the best
+    /// objective it saw, so then `objective <= 1.05 · initial_objective`.
     pub initial_objective: Real,
 }
 
@@ -138,6 +149,17 @@ struct Scratch {
     cand: Vec<Real>,
     mem: Option<MemBuffer>,
     sized_for: (usize, usize),
+    /// `(factor id, objective)` when `r` (and `rot`, `dhat`) hold the
+    /// evaluation of the current pose `y` with that factor: the next step
+    /// then starts without re-evaluating (a one-iteration settle frame costs
+    /// one evaluation, not two).
+    evaluated: Option<(u64, Real)>,
+    /// The safeguard's state `(growing steps, best objective, objective at
+    /// the start of the chain)` at the end of
+    /// the last step, valid with `evaluated`: a chain of steps on unchanged
+    /// targets (the server's settle frames) is safeguarded like one long
+    /// step, and `best` still holds the best pose of the chain.
+    chain: (usize, Real, Real),
 }
 
 impl Deformer {
@@ -168,6 +190,7 @@ impl Deformer {
     pub fn set_params(&mut self, params: Params) -> Result<(), DeformError> {
         params.validate()?;
         self.params = params;
+        self.scratch.evaluated = None;
         self.scratch.mem = None; // re-size the scratch (Anderson window) on the next step
         Ok(())
     }
@@ -191,11 +214,13 @@ impl Deformer {
         }
         self.y = pose.iter().map(|&p| self.rest.ops.normalise(p)).collect();
         self.pose = pose;
+        self.scratch.evaluated = None;
         Ok(())
     }
 
     /// Back to the rest pose.
     pub fn reset(&mut self) {
+        self.scratch.evaluated = None;
         self.y = self.rest.ops.positions.clone();
         self.pose = self.rest.mesh.positions().to_vec();
     }
@@ -241,12 +266,21 @@ impl Deformer {
             }
         }
         let hard = factor.sys.lambda1 == 0.0;
+        let mut moved = !hard; // soft constraints: the objective depends on the targets
         if hard {
             for &(v, p) in &s.targets {
-                self.y[v as usize] = p;
+                let y = &mut self.y[v as usize];
+                moved |= *y != p;
+                *y = p;
             }
         }
-        let mut f = self.evaluate(factor);
+        let continued = matches!(s.evaluated, Some((id, _)) if id == factor.id() && !moved);
+        let mut f = match s.evaluated.take() {
+            Some((_, f)) if continued => f,
+            _ => self.evaluate(factor),
+        };
+        // whether scratch holds the evaluation of the current `y`
+        let mut evaluated = true;
         // Anderson history restarts with every step call. (Keeping it across
         // one-iteration calls while targets are unchanged stalled the server's
         // tol 1e-10 end-to-end settle; to be revisited.)
@@ -260,9 +294,14 @@ impl Deformer {
             objective: f,
             initial_objective: f,
         };
-        let mut best_f = f;
-        self.scratch.best.clone_from(&self.y);
-        let mut growing = 0;
+        let (mut growing, mut best_f, f_start) = if continued {
+            self.scratch.chain
+        } else {
+            self.scratch.best.clone_from(&self.y);
+            (0, f, f)
+        };
+        // rises of the objective below this are not divergence
+        let floor = FLOOR * f_start + 1e-20;
         let nu = factor.sys.unknowns.len();
         if nu == 0 {
             report.converged = true;
@@ -279,6 +318,7 @@ impl Deformer {
             }
             if self.scratch.rhs.iter().any(|v| !v.is_finite()) {
                 self.y.clone_from(&self.scratch.best);
+                evaluated = false;
                 report.diverged = true;
                 break;
             }
@@ -334,7 +374,7 @@ impl Deformer {
                             ];
                         }
                         f_new = self.evaluate(factor);
-                        if f_new <= 1.05 * f + 1e-20 || alpha < 1.0 / 16.0 {
+                        if f_new <= SLACK * f + 1e-20 || alpha < 1.0 / 16.0 {
                             break;
                         }
                         alpha *= 0.5;
@@ -348,7 +388,7 @@ impl Deformer {
             let _ = alpha;
             report.iterations += 1;
             report.last_update = step_len;
-            growing = if f_new > 1.05 * f + 1e-20 {
+            growing = if f_new > SLACK * f + floor {
                 growing + 1
             } else {
                 0
@@ -360,6 +400,7 @@ impl Deformer {
             }
             if !f.is_finite() || growing >= 3 {
                 self.y.clone_from(&self.scratch.best);
+                evaluated = false;
                 f = best_f;
                 report.diverged = true;
                 break;
@@ -369,12 +410,19 @@ impl Deformer {
                 break;
             }
         }
-        if !report.converged && f > best_f {
-            // an unconverged step ends on the best pose it saw
+        if !report.converged && f > SLACK * best_f + floor {
+            // an unconverged step ends within the safeguard's slack of the
+            // best pose of its chain (not on the best pose itself: a chain of
+            // one-iteration steps would then never leave it)
             self.y.clone_from(&self.scratch.best);
+            evaluated = false;
             f = best_f;
         }
         report.objective = f;
+        if evaluated {
+            self.scratch.evaluated = Some((factor.id(), f));
+            self.scratch.chain = (growing, best_f, f_start);
+        }
         self.sync_pose();
         Ok(report)
     }
