@@ -20,4 +20,5 @@ pub mod mesh;
 pub mod operators;
 pub mod server;
 pub mod session;
+pub mod sparse;
 pub mod store;

@@ -620,3 +620,52 @@ fn real_edit_converges_on_an_irregular_grid() {
         }
     }
 }
+
+/// A chain of one-iteration steps on unchanged targets (the server's settle
+/// frames) follows the same iterates as one long step: the safeguard state,
+/// the best pose and the Anderson history carry over between the calls.
+#[test]
+fn chained_one_iteration_steps_equal_one_long_step() {
+    let m = tube(1.0, 6.0, 5, 25);
+    let spec = tube_spec(
+        &m,
+        handle(
+            Some([0.3, 0.0, 0.0]),
+            Some(RotationSpec::AxisAngle {
+                axis: [0.0, 0.0, 1.0],
+                degrees: 90.0,
+            }),
+        ),
+    );
+    let c = spec.resolve(&m).unwrap();
+    for params in [
+        Params::default(),
+        Params {
+            anderson: 0,
+            ..Params::default()
+        },
+    ] {
+        let rest = Arc::new(Rest::new(m.clone()).unwrap());
+        let f = Factor::build(&rest, &params, &c).unwrap();
+        let mut long = Deformer::new(rest.clone(), params);
+        let rep = long.step(&f, &c, 200).unwrap();
+        assert!(rep.converged, "{rep:?}");
+        let mut chained = Deformer::new(rest, params);
+        let mut calls = 0;
+        loop {
+            let r = chained.step(&f, &c, 1).unwrap();
+            calls += 1;
+            if r.converged || calls == 400 {
+                break;
+            }
+        }
+        assert_eq!(calls, rep.iterations, "anderson {}", params.anderson);
+        let diff = long
+            .pose()
+            .iter()
+            .zip(chained.pose())
+            .map(|(a, b)| (0..3).map(|k| (a[k] - b[k]).abs()).fold(0.0, f64::max))
+            .fold(0.0, f64::max);
+        assert!(diff < 1e-9 * m.diagonal(), "poses differ by {diff:e}");
+    }
+}

@@ -38,7 +38,9 @@ pub struct Rest {
     mesh: Mesh,
     ops: Operators,
     mu_default: Mu,
-    mu_paper: Mu,
+    /// STEP 1 of the literal paper, built on first use (most sessions never
+    /// use it).
+    mu_paper: std::sync::OnceLock<Mu>,
     weights: RingWeights,
     active: Vec<bool>,
 }
@@ -54,7 +56,6 @@ impl Rest {
         }
         let topo = mesh.topology();
         let mu_default = Mu::new(Mode::Default, topo, &ops.positions, &ops.delta);
-        let mu_paper = Mu::new(Mode::Paper, topo, &ops.positions, &ops.delta);
         let weights = RingWeights::new(topo, &ops.lbar);
         let active = (0..mesh.num_vertices())
             .map(|v| !topo.ring(v).is_empty())
@@ -64,7 +65,7 @@ impl Rest {
             mesh,
             ops,
             mu_default,
-            mu_paper,
+            mu_paper: std::sync::OnceLock::new(),
             weights,
             active,
         })
@@ -93,7 +94,14 @@ impl Rest {
     fn mu(&self, mode: Mode) -> &Mu {
         match mode {
             Mode::Default => &self.mu_default,
-            Mode::Paper => &self.mu_paper,
+            Mode::Paper => self.mu_paper.get_or_init(|| {
+                Mu::new(
+                    Mode::Paper,
+                    self.mesh.topology(),
+                    &self.ops.positions,
+                    &self.ops.delta,
+                )
+            }),
         }
     }
 }
@@ -281,10 +289,12 @@ impl Deformer {
         };
         // whether scratch holds the evaluation of the current `y`
         let mut evaluated = true;
-        // Anderson history restarts with every step call. (Keeping it across
-        // one-iteration calls while targets are unchanged stalled the server's
-        // tol 1e-10 end-to-end settle; to be revisited.)
-        self.scratch.anderson.reset();
+        // The Anderson history continues along a chain of steps on unchanged
+        // targets (its pairs are iterates of the same fixed-point map) and
+        // restarts whenever the targets or the pose were changed.
+        if !continued {
+            self.scratch.anderson.reset();
+        }
         let accelerate = self.params.detail == DetailTerm::Nonlinear && self.params.anderson > 0;
         let mut report = StepReport {
             iterations: 0,

@@ -20,26 +20,27 @@ use super::params::{Energy, Params};
 use super::DeformError;
 use crate::mesh::Real;
 use crate::operators::Operators;
+use crate::sparse::matmul;
 
 /// The energy matrix `A` of dend.md §3 (paper table, §5), `#V×#V`, CSR.
 pub fn energy_matrix(ops: &Operators, energy: Energy) -> CsMat<Real> {
     let l = &ops.l;
     match energy {
         Energy::Membrane => l.clone(),
-        Energy::ThinPlate => l * l,
+        Energy::ThinPlate => matmul(l, l),
         Energy::Combined { ks, kb } => {
-            let ll = l * l;
+            let ll = matmul(l, l);
             &l.map(|v| ks * v) + &ll.map(|v| kb * v)
         }
         Energy::TotalCurvature => {
             // L² - 2 G L: scale the rows of L by G_i
-            let ll = l * l;
+            let ll = matmul(l, l);
             let gl = scale_rows(l, &ops.g, -2.0);
             &ll + &gl
         }
         Energy::TotalCurvaturePaper => {
             // L² - 2 L G: scale the columns of L by G_j
-            let ll = l * l;
+            let ll = matmul(l, l);
             let mut lg = l.clone();
             for mut row in lg.outer_iterator_mut() {
                 for (j, v) in row.iter_mut() {
@@ -139,7 +140,7 @@ impl System {
         let j: CsMat<Real> = tj.to_csr();
         let j_u: CsMat<Real> = tju.to_csr();
         let jt_u: CsMat<Real> = j_u.transpose_view().to_csr();
-        let mut m = &jt_u * &j_u;
+        let mut m = matmul(&jt_u, &j_u);
         if soft {
             let mut diag = TriMat::new((unknowns.len(), unknowns.len()));
             for &c in constrained {
