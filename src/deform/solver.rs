@@ -13,6 +13,7 @@ use super::constraints::Constraints;
 use super::detail::{local_rotations, Mu, RingWeights};
 use super::factor::Factor;
 use super::params::{DetailTerm, Energy, Mode, Params};
+use super::square::apply_p;
 use super::DeformError;
 use crate::mesh::{Mesh, Point, Real};
 use crate::operators::Operators;
@@ -578,37 +579,6 @@ impl Deformer {
                     s.rhs[d * nu + k as usize] += sys.lambda1 * (p[d] - y[d]);
                 }
             }
-        }
-    }
-}
-
-/// `v ← P v`, the energy's pre-operator in `A = P L` (membrane `I`, thin
-/// plate `L`, combined `k_s I + k_b L`, total curvature `L - 2G`), its
-/// identity part multiplied by `sign` (`-1`: the eq. (23) Euler–Lagrange
-/// signs, `deform::square`); the literal `L² - 2LG` has no such form and its
-/// target `T (A X)` is used as is.
-fn apply_p(energy: Energy, sign: Real, ops: &Operators, v: &mut [Point], lv: &mut [Point]) {
-    let (ci, cl, g2) = match energy {
-        Energy::TotalCurvaturePaper => return,
-        Energy::Membrane if sign == 1.0 => return,
-        Energy::Membrane => (sign, 0.0, false),
-        Energy::ThinPlate => (0.0, 1.0, false),
-        Energy::Combined { ks, kb } => (sign * ks, kb, false),
-        Energy::TotalCurvature => (0.0, 1.0, true),
-    };
-    for (i, row) in ops.l.outer_iterator().enumerate() {
-        let mut acc = [0.0; 3];
-        for (j, &w) in row.iter() {
-            acc[0] += w * v[j][0];
-            acc[1] += w * v[j][1];
-            acc[2] += w * v[j][2];
-        }
-        lv[i] = acc;
-    }
-    for (i, p) in v.iter_mut().enumerate() {
-        let g = if g2 { -2.0 * ops.g[i] } else { 0.0 };
-        for k in 0..3 {
-            p[k] = (ci + g) * p[k] + cl * lv[i][k];
         }
     }
 }

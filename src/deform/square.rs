@@ -38,6 +38,7 @@ use super::system::System;
 use super::DeformError;
 use crate::mesh::{Point, Real};
 use crate::operators::Operators;
+use crate::sparse::matmul;
 
 /// The eq. (23) operators of one constraint set.
 #[derive(Debug, Clone)]
@@ -81,7 +82,7 @@ fn scale_entries(m: &CsMat<Real>, f: impl Fn(usize, usize) -> Real) -> CsMat<Rea
 fn internal_operators(ops: &Operators, energy: Energy) -> (CsMat<Real>, CsMat<Real>) {
     let lbar = &ops.lbar;
     let neg_lbar = || lbar.map(|v| -v);
-    let ldl = || lbar * &ops.l; // Lbar D Lbar
+    let ldl = || matmul(lbar, &ops.l); // Lbar D Lbar
     let g = &ops.g;
     // 2 G^{1/2} (−Lbar) G^{1/2}
     let g_sym = || scale_entries(lbar, |i, j| -2.0 * (g[i] * g[j]).sqrt());
@@ -167,7 +168,7 @@ pub(crate) fn assemble(
     for &r in &rows {
         in_r[r as usize] = lambda2;
     }
-    let detail = &ops.lbar * &scale_rows(&ops.l, &in_r);
+    let detail = matmul(&ops.lbar, &scale_rows(&ops.l, &in_r));
     let k_full = &k_int + &detail;
     let n_full = &n_int + &detail;
     let k = select(&k_full, &unknowns, n, Some);
@@ -282,5 +283,42 @@ impl Square {
             merit += (r[k] * r[k] + r[nu + k] * r[nu + k] + r[2 * nu + k] * r[2 * nu + k]) / a;
         }
         merit
+    }
+}
+
+/// `v ← P v`, the energy's pre-operator in `A = P L` (membrane `I`, thin
+/// plate `L`, combined `k_s I + k_b L`, total curvature `L - 2G`), its
+/// identity part multiplied by `sign` (`-1`: the eq. (23) Euler–Lagrange
+/// signs, module docs); the literal `L² - 2LG` has no such form and its
+/// target `T (A X)` is used as is.
+pub(super) fn apply_p(
+    energy: Energy,
+    sign: Real,
+    ops: &Operators,
+    v: &mut [Point],
+    lv: &mut [Point],
+) {
+    let (ci, cl, g2) = match energy {
+        Energy::TotalCurvaturePaper => return,
+        Energy::Membrane if sign == 1.0 => return,
+        Energy::Membrane => (sign, 0.0, false),
+        Energy::ThinPlate => (0.0, 1.0, false),
+        Energy::Combined { ks, kb } => (sign * ks, kb, false),
+        Energy::TotalCurvature => (0.0, 1.0, true),
+    };
+    for (i, row) in ops.l.outer_iterator().enumerate() {
+        let mut acc = [0.0; 3];
+        for (j, &w) in row.iter() {
+            acc[0] += w * v[j][0];
+            acc[1] += w * v[j][1];
+            acc[2] += w * v[j][2];
+        }
+        lv[i] = acc;
+    }
+    for (i, p) in v.iter_mut().enumerate() {
+        let g = if g2 { -2.0 * ops.g[i] } else { 0.0 };
+        for k in 0..3 {
+            p[k] = (ci + g) * p[k] + cl * lv[i][k];
+        }
     }
 }
