@@ -220,7 +220,10 @@ impl Factor {
         let mut lu = None;
         let (symbolic, values, t2) = if n == 0 {
             (None, Vec::new(), Instant::now())
-        } else if let Some(k_uu) = square.as_ref().and_then(|s| s.k_uu.as_ref()) {
+        } else if let (Formulation::SquareLu, Some(k_uu)) = (
+            params.formulation,
+            square.as_ref().and_then(|s| s.k_uu.as_ref()),
+        ) {
             let csc = k_uu.to_csc();
             let (p, i, v) = (csc.indptr(), csc.indices(), csc.data());
             let col_ptr: Vec<usize> = (0..=n).map(|j| p.index(j)).collect();
@@ -411,7 +414,25 @@ impl Factor {
 
     /// Solves `M X = B` in place for a column-major `|U| × k` block `b`.
     pub(crate) fn solve_in_place(&self, b: MatMut<'_, Real>, stack: &mut MemStack) {
-        if let Some(s) = &self.symbolic {
+        if let (Some(s), Some(k_uu)) = (
+            &self.symbolic,
+            self.square.as_ref().and_then(|q| q.k_uu.as_ref()),
+        ) {
+            // eq. (23): GMRES on the exact K_UU, preconditioned by N's Cholesky
+            let llt = LltRef::new(s, &self.values);
+            let mut b = b;
+            for j in 0..b.ncols() {
+                let mut col: Vec<Real> = (0..b.nrows()).map(|i| b[(i, j)]).collect();
+                let precond = |v: &mut [Real]| {
+                    let m = MatMut::from_column_major_slice_mut(v, v.len(), 1);
+                    llt.solve_in_place_with_conj(Conj::No, m, Par::Seq, stack);
+                };
+                square::gmres(k_uu, &mut col, precond, 1e-6, 60);
+                for (i, v) in col.into_iter().enumerate() {
+                    b[(i, j)] = v;
+                }
+            }
+        } else if let Some(s) = &self.symbolic {
             LltRef::new(s, &self.values).solve_in_place_with_conj(Conj::No, b, Par::Seq, stack);
         } else if let Some(lu) = &self.lu {
             use faer::linalg::solvers::SolveCore;

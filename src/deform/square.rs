@@ -50,8 +50,9 @@ pub(crate) struct Square {
     ld: CsMat<Real>,
     /// `A_u` for each unknown `u` (the `D⁻¹` of the internal target).
     mass: Vec<Real>,
-    /// `K_UU + λ1 SᵀS` (exact, non-symmetric), kept for
-    /// [`Formulation::SquareLu`] only.
+    /// `K_UU + λ1 SᵀS` (exact, non-symmetric): factored by LU
+    /// ([`Formulation::SquareLu`]) or solved by GMRES preconditioned with
+    /// the Cholesky of `N` ([`Formulation::Square`]).
     pub(crate) k_uu: Option<CsMat<Real>>,
 }
 
@@ -185,7 +186,7 @@ pub(crate) fn assemble(
         let d: CsMat<Real> = diag.to_csr();
         m = &m + &d;
     }
-    let k_uu = (params.formulation == Formulation::SquareLu).then(|| {
+    let k_uu = (params.formulation != Formulation::LeastSquares).then(|| {
         let mut k_uu = select(&k_full, &unknowns, unknowns.len(), col);
         if soft {
             let mut diag = TriMat::new((unknowns.len(), unknowns.len()));
@@ -321,4 +322,102 @@ pub(super) fn apply_p(
             p[k] = (ci + g) * p[k] + cl * lv[i][k];
         }
     }
+}
+
+/// Solves `K x = b` in place (`b` → `x`) by right-preconditioned restarted
+/// GMRES (Saad & Schultz 1986), `precond(v)` applying `N⁻¹` in place; stops
+/// at relative residual `tol` or after `max_iters` inner steps. Returns the
+/// inner steps taken.
+pub(crate) fn gmres(
+    k: &CsMat<Real>,
+    b: &mut [Real],
+    mut precond: impl FnMut(&mut [Real]),
+    tol: Real,
+    max_iters: usize,
+) -> usize {
+    const RESTART: usize = 20;
+    let n = b.len();
+    let matvec = |x: &[Real], out: &mut [Real]| {
+        for (o, row) in out.iter_mut().zip(k.outer_iterator()) {
+            *o = row.iter().map(|(c, &v)| v * x[c]).sum();
+        }
+    };
+    let norm = |v: &[Real]| v.iter().map(|x| x * x).sum::<Real>().sqrt();
+    let b0 = b.to_vec();
+    let bnorm = norm(&b0);
+    let mut x = vec![0.0; n];
+    if bnorm == 0.0 {
+        return 0;
+    }
+    let mut steps = 0;
+    let mut w = vec![0.0; n];
+    let mut z = vec![0.0; n];
+    while steps < max_iters {
+        // r = b - K x
+        matvec(&x, &mut w);
+        let r: Vec<Real> = b0.iter().zip(&w).map(|(b, kx)| b - kx).collect();
+        let beta = norm(&r);
+        if beta <= tol * bnorm {
+            break;
+        }
+        let mut v: Vec<Vec<Real>> = vec![r.iter().map(|x| x / beta).collect()];
+        let mut zs: Vec<Vec<Real>> = Vec::new();
+        let mut h = vec![[0.0; RESTART + 1]; RESTART];
+        let (mut cs, mut sn) = ([0.0; RESTART], [0.0; RESTART]);
+        let mut g = [0.0; RESTART + 1];
+        g[0] = beta;
+        let mut m = 0;
+        while m < RESTART && steps < max_iters {
+            z.copy_from_slice(&v[m]);
+            precond(&mut z);
+            matvec(&z, &mut w);
+            zs.push(z.clone());
+            for (i, vi) in v.iter().enumerate() {
+                let hij: Real = w.iter().zip(vi).map(|(a, b)| a * b).sum();
+                h[m][i] = hij;
+                for (wk, vk) in w.iter_mut().zip(vi) {
+                    *wk -= hij * vk;
+                }
+            }
+            let hn = norm(&w);
+            h[m][m + 1] = hn;
+            for i in 0..m {
+                let t = cs[i] * h[m][i] + sn[i] * h[m][i + 1];
+                h[m][i + 1] = -sn[i] * h[m][i] + cs[i] * h[m][i + 1];
+                h[m][i] = t;
+            }
+            let d = (h[m][m] * h[m][m] + hn * hn).sqrt();
+            (cs[m], sn[m]) = if d == 0.0 {
+                (1.0, 0.0)
+            } else {
+                (h[m][m] / d, hn / d)
+            };
+            h[m][m] = d;
+            h[m][m + 1] = 0.0;
+            g[m + 1] = -sn[m] * g[m];
+            g[m] *= cs[m];
+            steps += 1;
+            m += 1;
+            if g[m].abs() <= tol * bnorm || hn == 0.0 {
+                break;
+            }
+            v.push(w.iter().map(|x| x / hn).collect());
+        }
+        // back substitution, x += Z y
+        let mut y = [0.0; RESTART];
+        for i in (0..m).rev() {
+            let s: Real = (i + 1..m).map(|j| h[j][i] * y[j]).sum();
+            y[i] = (g[i] - s) / h[i][i];
+        }
+        for (j, zj) in zs.iter().enumerate().take(m) {
+            for (xk, zk) in x.iter_mut().zip(zj) {
+                *xk += y[j] * zk;
+            }
+        }
+        if g[m].abs() <= tol * bnorm {
+            break;
+        }
+    }
+    b.copy_from_slice(&x);
+    steps
 }
