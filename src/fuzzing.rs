@@ -5,6 +5,7 @@
 use std::sync::OnceLock;
 
 use crate::deform::ConstraintsSpec;
+use crate::mesh::io::{parse_bytes, survey, Format};
 use crate::mesh::Mesh;
 use crate::server::ws::decode_client_msg;
 
@@ -57,4 +58,20 @@ pub fn ws_message(data: &[u8]) -> bool {
         return false;
     };
     decode_client_msg(text).is_ok()
+}
+
+/// Reads `data` as a mesh file in `format` and validates the result as
+/// `Mesh::new` does; true when it gave a mesh.
+pub fn mesh_file(data: &[u8], format: Format) -> bool {
+    parse_bytes(data, format).is_ok_and(|raw| raw.into_mesh().is_ok())
+}
+
+/// Reads `data` as a survey `.sel` vertex-status file; true when it parsed.
+pub fn sel_file(data: &[u8]) -> bool {
+    survey::parse_sel(data).is_ok()
+}
+
+/// Reads `data` as a survey `.def` handle transform; true when it parsed.
+pub fn def_file(data: &[u8]) -> bool {
+    survey::parse_def(data).is_ok()
 }

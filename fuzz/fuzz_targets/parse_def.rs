@@ -1,7 +1,8 @@
-//! Fuzzes the survey .def reader: any bytes parse or give an error, never a panic.
+//! Fuzzes the survey .def reader: any bytes parse or give a typed error,
+//! never a panic (replayed by `tests/fuzz_replay.rs`).
 #![no_main]
 use libfuzzer_sys::fuzz_target;
 
 fuzz_target!(|data: &[u8]| {
-    let _ = dend::mesh::io::survey::parse_def(data);
+    dend::fuzzing::def_file(data);
 });

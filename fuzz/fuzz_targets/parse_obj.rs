@@ -1,10 +1,9 @@
-//! Fuzzes the Obj reader: any bytes parse or give an error, never a panic.
+//! Fuzzes the Obj reader and the mesh validation after it: any bytes give
+//! a mesh or a typed error, never a panic (replayed by `tests/fuzz_replay.rs`).
 #![no_main]
-use dend::mesh::io::{parse_bytes, Format};
+use dend::mesh::io::Format;
 use libfuzzer_sys::fuzz_target;
 
 fuzz_target!(|data: &[u8]| {
-    if let Ok(raw) = parse_bytes(data, Format::Obj) {
-        let _ = raw.into_mesh();
-    }
+    dend::fuzzing::mesh_file(data, Format::Obj);
 });

@@ -1,7 +1,8 @@
-//! Fuzzes the survey .sel reader: any bytes parse or give an error, never a panic.
+//! Fuzzes the survey .sel reader: any bytes parse or give a typed error,
+//! never a panic (replayed by `tests/fuzz_replay.rs`).
 #![no_main]
 use libfuzzer_sys::fuzz_target;
 
 fuzz_target!(|data: &[u8]| {
-    let _ = dend::mesh::io::survey::parse_sel(data);
+    dend::fuzzing::sel_file(data);
 });
