@@ -4,7 +4,7 @@
 //! ```text
 //! cargo run --release --example dend_bench -- MESH [--sets FILE.json]
 //!     [--iters 30] [--cg] [--subdivide K] [--write-sets FILE.json]
-//!     [--write-mesh FILE.off]
+//!     [--write-mesh FILE.off] [--formulation least_squares|square|square_lu|both|all]
 //! ```
 //!
 //! MESH is a file (OFF/OBJ/PLY) or `tube:N` (a generated tube of about N
@@ -20,12 +20,15 @@
 //! build), `iteration` (median of one-iteration steps, chained from the rest
 //! pose towards the target), `converge` (a full solve from rest), and with
 //! `--cg` the same iteration with Jacobi-PCG at tolerance 1e-4 and no factor.
+//! `--formulation both` measures eq. (24) and eq. (23) in the same process and
+//! prints one JSON line each, then a line of square / least-squares ratios.
 
 use std::sync::Arc;
 use std::time::Instant;
 
 use dend::deform::{
-    Constraints, Deformer, Factor, Params, Rest, RigidTransform, SolveOptions, SolverChoice,
+    Constraints, Deformer, Factor, Formulation, Params, Rest, RigidTransform, SolveOptions,
+    SolverChoice,
 };
 use dend::mesh::{Mesh, Point};
 
@@ -90,23 +93,94 @@ fn run() -> Result<(), String> {
     if let Some(path) = arg::<String>(&args, "--write-sets") {
         write_sets(&constraints, &path)?;
     }
-    let params = Params::default();
     let t = Instant::now();
     let rest = Arc::new(Rest::new(mesh.clone()).map_err(|e| e.to_string())?);
     let rest_ms = ms(t.elapsed());
+    let which = arg::<String>(&args, "--formulation").unwrap_or("least_squares".into());
+    let formulations = match which.as_str() {
+        "both" => vec![Formulation::LeastSquares, Formulation::Square],
+        "all" => vec![
+            Formulation::LeastSquares,
+            Formulation::Square,
+            Formulation::SquareLu,
+        ],
+        name => vec![Formulation::from_name(name).ok_or(format!("bad formulation {name:?}"))?],
+    };
+    let mut lines = Vec::new();
+    for formulation in formulations {
+        let params = Params {
+            formulation,
+            ..Params::default()
+        };
+        let out = bench(
+            spec,
+            &mesh,
+            &rest,
+            rest_ms,
+            &params,
+            &constraints,
+            iters,
+            with_cg,
+        )?;
+        println!("{out}");
+        lines.push(out);
+    }
+    for sq in lines.iter().skip(1) {
+        let ls = &lines[0];
+        let ratio =
+            |k: &str| sq[k].as_f64().unwrap_or(f64::NAN) / ls[k].as_f64().unwrap_or(f64::NAN);
+        let keys = [
+            "factor_nnz",
+            "symbolic_ms",
+            "numeric_ms",
+            "precompute_ms",
+            "iteration_ms",
+            "converge_ms",
+            "converge_iterations",
+            "session_bytes",
+        ];
+        let ratios: serde_json::Map<String, serde_json::Value> = keys
+            .iter()
+            .map(|&k| (k.to_string(), ratio(k).into()))
+            .collect();
+        let name = format!(
+            "{}_over_least_squares",
+            sq["formulation"].as_str().unwrap_or("?")
+        );
+        println!("{}", serde_json::json!({ name: ratios }));
+    }
+    Ok(())
+}
+
+#[allow(clippy::too_many_arguments)]
+fn bench(
+    spec: &str,
+    mesh: &Mesh,
+    rest: &Arc<Rest>,
+    rest_ms: f64,
+    params: &Params,
+    constraints: &Constraints,
+    iters: usize,
+    with_cg: bool,
+) -> Result<serde_json::Value, String> {
+    let params = *params;
     let direct = SolveOptions {
         solver: SolverChoice::Direct,
         ..SolveOptions::default()
     };
+    let rss0 = rss_bytes();
     let t = Instant::now();
     let factor =
-        Factor::build_with(&rest, &params, &constraints, &direct).map_err(|e| e.to_string())?;
+        Factor::build_with(rest, &params, constraints, &direct).map_err(|e| e.to_string())?;
     let build_ms = ms(t.elapsed());
+    let rss_growth = rss_bytes().saturating_sub(rss0);
     let ft = factor.timings();
-    let (iteration, converge, conv_iters) = time_iterations(&rest, &factor, &constraints, iters)?;
+    let (iteration, converge, conv_iters, converged) =
+        time_iterations(rest, &params, &factor, constraints, iters)?;
     let n = mesh.num_vertices();
     let mut out = serde_json::json!({
         "mesh": spec,
+        "formulation": params.formulation,
         "vertices": n,
         "unknowns": factor.num_unknowns(),
         "threads": rayon::current_num_threads(),
@@ -119,9 +193,11 @@ fn run() -> Result<(), String> {
         "iteration_ms": iteration,
         "converge_ms": converge,
         "converge_iterations": conv_iters,
+        "converged": converged,
         "factor_nnz": factor.factor_nnz(),
         "factor_bytes": factor.factor_nnz() * 16,
         "session_bytes": factor.memory_bytes(),
+        "rss_growth_bytes": rss_growth,
         "bytes_per_vertex": factor.memory_bytes() as f64 / n as f64,
     });
     if with_cg {
@@ -130,30 +206,30 @@ fn run() -> Result<(), String> {
             ..SolveOptions::default()
         };
         let t = Instant::now();
-        let cg = Factor::build_with(&rest, &params, &constraints, &cg_opts)
-            .map_err(|e| e.to_string())?;
+        let cg =
+            Factor::build_with(rest, &params, constraints, &cg_opts).map_err(|e| e.to_string())?;
         let cg_build = ms(t.elapsed());
         let before = cg.cg_iterations();
         let cg_iters = iters.min(3);
-        let (it, _, _) = time_iterations(&rest, &cg, &constraints, cg_iters)?;
+        let (it, _, _, _) = time_iterations(rest, &params, &cg, constraints, cg_iters)?;
         let per_solve = (cg.cg_iterations() - before) as f64 / (cg_iters + 2) as f64 / 3.0;
         out["cg_build_ms"] = cg_build.into();
         out["cg_iteration_ms"] = it.into();
         out["cg_iterations_per_column"] = per_solve.into();
     }
-    println!("{out}");
-    Ok(())
+    Ok(out)
 }
 
 /// Median time of one-iteration steps chained from rest (as an interactive
 /// drag does), and the time and count of a full solve from rest.
 fn time_iterations(
     rest: &Arc<Rest>,
+    params: &Params,
     factor: &Factor,
     constraints: &Constraints,
     iters: usize,
-) -> Result<(f64, f64, usize), String> {
-    let params = Params::default();
+) -> Result<(f64, f64, usize, bool), String> {
+    let params = *params;
     let mut d = Deformer::new(rest.clone(), params);
     d.step(factor, constraints, 2).map_err(|e| e.to_string())?;
     let mut times = Vec::with_capacity(iters);
@@ -167,7 +243,16 @@ fn time_iterations(
     let r = d
         .step(factor, constraints, params.max_iters)
         .map_err(|e| e.to_string())?;
-    Ok((median(times), ms(t.elapsed()), r.iterations))
+    Ok((median(times), ms(t.elapsed()), r.iterations, r.converged))
+}
+
+/// Resident set size (Linux `/proc/self/statm`), 0 elsewhere: the growth
+/// around a factor build measures the LU, whose size faer does not expose.
+fn rss_bytes() -> usize {
+    std::fs::read_to_string("/proc/self/statm")
+        .ok()
+        .and_then(|s| s.split_whitespace().nth(1)?.parse::<usize>().ok())
+        .map_or(0, |pages| pages * 4096)
 }
 
 fn write_sets(c: &Constraints, path: &str) -> Result<(), String> {

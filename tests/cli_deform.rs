@@ -186,3 +186,37 @@ fn bad_inputs_exit_with_code_2_and_a_message() {
     ]);
     assert_eq!(o.status.code(), Some(2));
 }
+
+#[test]
+fn formulation_flag_selects_the_square_system_and_rejects_unknown_names() {
+    let dir = tempfile::tempdir().unwrap();
+    let bar = dir.path().join("bar.off");
+    let out = dir.path().join("out.off");
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let example = root.join("examples/bar-twist-135.json");
+    assert!(dend(&["gen", "bar", "-o", bar.to_str().unwrap()])
+        .status
+        .success());
+    let run = |formulation: &str| {
+        dend(&[
+            "deform",
+            bar.to_str().unwrap(),
+            "--constraints",
+            example.to_str().unwrap(),
+            "--formulation",
+            formulation,
+            "-o",
+            out.to_str().unwrap(),
+        ])
+    };
+    let o = run("square_lu");
+    let stderr = String::from_utf8_lossy(&o.stderr);
+    assert!(o.status.success(), "{stderr}");
+    let rest = io::read_path(&bar).unwrap();
+    let pose = io::read_path(&out).unwrap();
+    assert!(support::max_dist(pose.positions(), rest.positions()) > 0.1);
+    let o = run("cubic");
+    let stderr = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(2), "{stderr}");
+    assert!(stderr.contains("unknown formulation"), "{stderr}");
+}

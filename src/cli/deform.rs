@@ -7,8 +7,8 @@ use std::time::{Duration, Instant};
 
 use anyhow::{bail, Context};
 use dend::deform::{
-    Constraints, ConstraintsSpec, Deformer, DetailTerm, Energy, Factor, Mode, Params, Rest,
-    RigidTransform,
+    Constraints, ConstraintsSpec, Deformer, DetailTerm, Energy, Factor, Formulation, Mode, Params,
+    Rest, RigidTransform,
 };
 use dend::mesh::io::{self, survey};
 
@@ -64,6 +64,10 @@ pub struct Args {
     /// Convergence tolerance (largest vertex move, in mean edge lengths).
     #[arg(long, default_value_t = 1e-3)]
     tol: f64,
+    /// System solved: least_squares (paper eq. 24, default) or square
+    /// (paper eq. 23, 4th order, sparser factor).
+    #[arg(long, default_value = "least_squares")]
+    formulation: String,
 }
 
 /// Runs `dend deform`.
@@ -124,6 +128,12 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         tol: args.tol,
         max_iters: args.max_iters,
         anderson: args.anderson,
+        formulation: Formulation::from_name(&args.formulation).with_context(|| {
+            format!(
+                "unknown formulation {:?} (least_squares, square)",
+                args.formulation
+            )
+        })?,
     };
     params.validate()?;
     if args.steps == 0 {

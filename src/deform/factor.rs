@@ -22,8 +22,9 @@ use parking_lot::Mutex;
 
 use super::cg::Cg;
 use super::constraints::Constraints;
-use super::params::{Energy, Mode, Params};
+use super::params::{Energy, Formulation, Mode, Params};
 use super::solver::Rest;
+use super::square::{self, Square};
 use super::system::{energy_matrix, System};
 use super::DeformError;
 use crate::mesh::{Point, Real};
@@ -37,6 +38,7 @@ pub struct FactorKey {
     lambda1: u64,
     lambda2: u64,
     mode: Mode,
+    formulation: Formulation,
     constrained: Vec<u32>,
 }
 
@@ -56,6 +58,7 @@ impl FactorKey {
             lambda1: params.lambda1.to_bits(),
             lambda2: params.lambda2.to_bits(),
             mode: params.mode,
+            formulation: params.formulation,
             constrained: constraints.constrained(),
         }
     }
@@ -82,10 +85,15 @@ pub struct Factor {
     key: FactorKey,
     pub(crate) sys: System,
     pub(crate) energy: Energy,
+    /// The eq. (23) operators when built for [`Formulation::Square`]
+    /// (then `sys` holds no stacked rows and `sys.m` is its SPD `N`).
+    pub(crate) square: Option<Square>,
     /// `A X` on the normalised rest positions, `#V×3`.
     pub(crate) ax: Vec<Point>,
     symbolic: Option<SymbolicCholesky<usize>>,
     values: Vec<Real>,
+    /// The sparse LU of `K_UU` ([`Formulation::SquareLu`]).
+    lu: Option<faer::sparse::linalg::solvers::Lu<usize, Real>>,
     /// Set when `M` is solved by preconditioned CG instead of a factor.
     cg: Option<Cg>,
     cg_iterations: AtomicU64,
@@ -193,15 +201,40 @@ impl Factor {
             });
         }
         let t0 = Instant::now();
-        let a = energy_matrix(ops, params.energy);
-        let ax = crate::operators::laplacian_coordinates(&a, &ops.positions);
-        let sys = System::assemble(ops, &a, params, &key.constrained, rest.active())?;
+        let (sys, square, ax) = match params.formulation {
+            Formulation::LeastSquares => {
+                let a = energy_matrix(ops, params.energy);
+                let ax = crate::operators::laplacian_coordinates(&a, &ops.positions);
+                let sys = System::assemble(ops, &a, params, &key.constrained, rest.active())?;
+                (sys, None, ax)
+            }
+            Formulation::Square | Formulation::SquareLu => {
+                let (sys, sq, ax) = square::assemble(ops, params, &key.constrained, rest.active())?;
+                (sys, Some(sq), ax)
+            }
+        };
         let t1 = Instant::now();
         let n = sys.unknowns.len();
         let cg_of = |sys: &System| Some(Cg::new(&sys.m, options.cg_tol, options.cg_max_iters));
         let mut cg = None;
+        let mut lu = None;
         let (symbolic, values, t2) = if n == 0 {
             (None, Vec::new(), Instant::now())
+        } else if let (Formulation::SquareLu, Some(k_uu)) = (
+            params.formulation,
+            square.as_ref().and_then(|s| s.k_uu.as_ref()),
+        ) {
+            let csc = k_uu.to_csc();
+            let (p, i, v) = (csc.indptr(), csc.indices(), csc.data());
+            let col_ptr: Vec<usize> = (0..=n).map(|j| p.index(j)).collect();
+            let sym = SymbolicSparseColMat::new_unsorted_checked(n, n, col_ptr, None, i.to_vec());
+            let mat = SparseColMat::new(sym, v.to_vec());
+            let t2 = Instant::now();
+            lu = Some(
+                mat.sp_lu()
+                    .map_err(|_| DeformError::NotPositiveDefinite { pivot: 0 })?,
+            );
+            (None, Vec::new(), t2)
         } else if options.solver == SolverChoice::Cg {
             cg = cg_of(&sys);
             (None, Vec::new(), Instant::now())
@@ -226,9 +259,11 @@ impl Factor {
                     key,
                     sys,
                     energy: params.energy,
+                    square,
                     ax,
                     symbolic: None,
                     values: Vec::new(),
+                    lu: None,
                     cg,
                     cg_iterations: AtomicU64::new(0),
                     timings: FactorTimings {
@@ -304,9 +339,11 @@ impl Factor {
             key,
             sys,
             energy: params.energy,
+            square,
             ax,
             symbolic,
             values,
+            lu,
             cg,
             cg_iterations: AtomicU64::new(0),
             timings: FactorTimings {
@@ -363,6 +400,7 @@ impl Factor {
             + self.ax.len() * 24
             + self.sys.col_of.len() * 4
             + self.cg.as_ref().map_or(0, |_| self.sys.unknowns.len() * 8)
+            + self.square.as_ref().map_or(0, Square::memory_bytes)
     }
 
     /// Scratch needed by [`Factor::solve_in_place`] for `k` right-hand sides.
@@ -370,14 +408,35 @@ impl Factor {
         match (&self.symbolic, &self.cg) {
             (Some(s), _) => s.solve_in_place_scratch::<Real>(k, Par::Seq),
             (None, Some(_)) => Cg::scratch(self.sys.unknowns.len()),
-            (None, None) => StackReq::EMPTY,
+            (None, None) => StackReq::EMPTY, // LU allocates its own
         }
     }
 
     /// Solves `M X = B` in place for a column-major `|U| × k` block `b`.
     pub(crate) fn solve_in_place(&self, b: MatMut<'_, Real>, stack: &mut MemStack) {
-        if let Some(s) = &self.symbolic {
+        if let (Some(s), Some(k_uu)) = (
+            &self.symbolic,
+            self.square.as_ref().and_then(|q| q.k_uu.as_ref()),
+        ) {
+            // eq. (23): GMRES on the exact K_UU, preconditioned by N's Cholesky
+            let llt = LltRef::new(s, &self.values);
+            let mut b = b;
+            for j in 0..b.ncols() {
+                let mut col: Vec<Real> = (0..b.nrows()).map(|i| b[(i, j)]).collect();
+                let precond = |v: &mut [Real]| {
+                    let m = MatMut::from_column_major_slice_mut(v, v.len(), 1);
+                    llt.solve_in_place_with_conj(Conj::No, m, Par::Seq, stack);
+                };
+                square::gmres(k_uu, &mut col, precond, 1e-6, 60);
+                for (i, v) in col.into_iter().enumerate() {
+                    b[(i, j)] = v;
+                }
+            }
+        } else if let Some(s) = &self.symbolic {
             LltRef::new(s, &self.values).solve_in_place_with_conj(Conj::No, b, Par::Seq, stack);
+        } else if let Some(lu) = &self.lu {
+            use faer::linalg::solvers::SolveCore;
+            lu.solve_in_place_with_conj(Conj::No, b);
         } else if let Some(cg) = &self.cg {
             let stats = cg.solve_in_place(&self.sys.m, b, stack);
             self.cg_iterations

@@ -24,6 +24,7 @@ mod factor;
 mod params;
 mod rotation;
 mod solver;
+mod square;
 mod system;
 
 pub use constraints::{
@@ -32,7 +33,7 @@ pub use constraints::{
 };
 pub use detail::{local_rotations, Mu, RingWeights};
 pub use factor::{Factor, FactorCache, FactorKey, FactorTimings, SolveOptions, SolverChoice};
-pub use params::{DetailTerm, Energy, Mode, Params};
+pub use params::{DetailTerm, Energy, Formulation, Mode, Params};
 pub use rotation::{best_rotation, fit_rotation, rotation_from_covariance};
 pub use solver::{Deformer, Rest, StepReport};
 pub use system::energy_matrix;

@@ -71,6 +71,37 @@ pub enum Mode {
     Paper,
 }
 
+/// Which system the DEND iteration solves (dend.md §4).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default, Hash)]
+#[serde(rename_all = "snake_case")]
+pub enum Formulation {
+    /// Paper eq. (24): the internal and detail terms stacked as weighted
+    /// least-squares rows, normal matrix `JᵀJ` (8th order for `E_T`, 4-ring
+    /// stencil). The default.
+    #[default]
+    LeastSquares,
+    /// Paper eq. (23): the square, mass-weighted Euler–Lagrange system
+    /// (4th order, 2-ring stencil), solved with a symmetric approximate
+    /// Jacobian (see `deform::square`).
+    Square,
+    /// Eq. (23) solved with a sparse LU factor of its exact, non-symmetric
+    /// linear part (measured beside [`Formulation::Square`]; no CG fallback).
+    SquareLu,
+}
+
+impl Formulation {
+    /// Parses the CLI spelling: `least_squares` (or `least-squares`, `eq24`),
+    /// `square` (or `eq23`).
+    pub fn from_name(name: &str) -> Option<Self> {
+        Some(match name {
+            "least_squares" | "least-squares" | "eq24" => Formulation::LeastSquares,
+            "square" | "eq23" => Formulation::Square,
+            "square_lu" | "square-lu" => Formulation::SquareLu,
+            _ => return None,
+        })
+    }
+}
+
 /// Every solver parameter, with documented defaults.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 #[serde(default, deny_unknown_fields)]
@@ -93,6 +124,8 @@ pub struct Params {
     /// Anderson acceleration window of the nonlinear iteration (Peng et al.
     /// 2018); `0` disables it. Default 5 (2–3× fewer iterations measured).
     pub anderson: usize,
+    /// Eq. (24) least squares (default) or the eq. (23) square system.
+    pub formulation: Formulation,
 }
 
 impl Default for Params {
@@ -106,6 +139,7 @@ impl Default for Params {
             tol: 1e-3,
             max_iters: 100,
             anderson: 5,
+            formulation: Formulation::LeastSquares,
         }
     }
 }

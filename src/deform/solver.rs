@@ -13,6 +13,7 @@ use super::constraints::Constraints;
 use super::detail::{local_rotations, Mu, RingWeights};
 use super::factor::Factor;
 use super::params::{DetailTerm, Energy, Mode, Params};
+use super::square::apply_p;
 use super::DeformError;
 use crate::mesh::{Mesh, Point, Real};
 use crate::operators::Operators;
@@ -456,7 +457,7 @@ impl Deformer {
             s.dhat = vec![[0.0; 3]; n];
         }
         if s.sized_for != dims || s.mem.is_none() {
-            s.r = vec![0.0; 3 * dims.0];
+            s.r = vec![0.0; 3 * dims.0.max(dims.1)];
             s.rhs = vec![0.0; 3 * dims.1];
             s.mem = Some(MemBuffer::new(factor.solve_scratch(3)));
             s.anderson = Anderson::new(self.params.anderson, 3 * dims.1);
@@ -495,9 +496,20 @@ impl Deformer {
                 let v = r * Vector3::from(*d);
                 *t = [v.x, v.y, v.z];
             }
-            apply_p(factor.energy, ops, &mut s.tdelta, &mut s.lv);
+            let sign = if factor.square.is_some() { -1.0 } else { 1.0 };
+            apply_p(factor.energy, sign, ops, &mut s.tdelta, &mut s.lv);
         }
         let internal: &[Point] = if rotated { &s.tdelta } else { &factor.ax };
+        if let Some(sq) = &factor.square {
+            return sq.residual(
+                &factor.sys,
+                internal,
+                &s.dhat,
+                &self.y,
+                &s.targets,
+                &mut s.r,
+            );
+        }
         // r = b - J Y
         let sys = &factor.sys;
         let nr = sys.rows.len();
@@ -541,6 +553,10 @@ impl Deformer {
         let s = &mut self.scratch;
         let nu = sys.unknowns.len();
         let nrows = sys.num_rows();
+        if factor.square.is_some() {
+            s.rhs.copy_from_slice(&s.r[..3 * nu]); // the residual is already on the unknown rows
+            return;
+        }
         for (k, row) in sys.jt_u.outer_iterator().enumerate() {
             let mut acc = [0.0; 3];
             for (c, &v) in row.iter() {
@@ -563,33 +579,6 @@ impl Deformer {
                     s.rhs[d * nu + k as usize] += sys.lambda1 * (p[d] - y[d]);
                 }
             }
-        }
-    }
-}
-
-/// `v ← P v`, the energy's pre-operator in `A = P L` (membrane `I`, thin
-/// plate `L`, combined `k_s I + k_b L`, total curvature `L - 2G`); the
-/// literal `L² - 2LG` has no such form and its target `T (A X)` is used as is.
-fn apply_p(energy: Energy, ops: &Operators, v: &mut [Point], lv: &mut [Point]) {
-    let (ci, cl, g2) = match energy {
-        Energy::Membrane | Energy::TotalCurvaturePaper => return,
-        Energy::ThinPlate => (0.0, 1.0, false),
-        Energy::Combined { ks, kb } => (ks, kb, false),
-        Energy::TotalCurvature => (0.0, 1.0, true),
-    };
-    for (i, row) in ops.l.outer_iterator().enumerate() {
-        let mut acc = [0.0; 3];
-        for (j, &w) in row.iter() {
-            acc[0] += w * v[j][0];
-            acc[1] += w * v[j][1];
-            acc[2] += w * v[j][2];
-        }
-        lv[i] = acc;
-    }
-    for (i, p) in v.iter_mut().enumerate() {
-        let g = if g2 { -2.0 * ops.g[i] } else { 0.0 };
-        for k in 0..3 {
-            p[k] = (ci + g) * p[k] + cl * lv[i][k];
         }
     }
 }
