@@ -17,6 +17,7 @@
 //! it is the unrotated `A X` (the paper's `A (X' - X)`).
 
 mod anderson;
+mod cache;
 mod cg;
 mod constraints;
 mod detail;
@@ -27,12 +28,13 @@ mod solver;
 mod square;
 mod system;
 
+pub use cache::FactorCache;
 pub use constraints::{
     select, BoxSel, Constraints, ConstraintsSpec, HandleGroup, HandleSpec, RigidTransform,
     RotationSpec, SphereSel, VertexSet,
 };
 pub use detail::{local_rotations, Mu, RingWeights};
-pub use factor::{Factor, FactorCache, FactorKey, FactorTimings, SolveOptions, SolverChoice};
+pub use factor::{Factor, FactorKey, FactorTimings, SolveOptions, SolverChoice};
 pub use params::{DetailTerm, Energy, Formulation, Mode, Params};
 pub use rotation::{best_rotation, fit_rotation, rotation_from_covariance};
 pub use solver::{Deformer, Rest, StepReport};
