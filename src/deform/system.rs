@@ -118,27 +118,33 @@ impl System {
         let row_weight: Vec<Real> = rows.iter().map(|&i| ops.area[i as usize].sqrt()).collect();
         let sqrt_lambda2 = params.lambda2.sqrt();
         let nr = rows.len();
-        // J (all columns) and J_U (unknown columns), row by row.
-        let mut tj = TriMat::new((2 * nr, n));
-        let mut tju = TriMat::new((2 * nr, unknowns.len()));
-        for (r, &i) in rows.iter().enumerate() {
-            let w = row_weight[r];
-            for (block, mat, s) in [(0, a, w), (nr, &ops.l, w * sqrt_lambda2)] {
-                if s == 0.0 {
-                    continue;
-                }
-                if let Some(row) = mat.outer_view(i as usize) {
-                    for (c, &v) in row.iter() {
-                        tj.add_triplet(block + r, c, s * v);
-                        if col_of[c] != u32::MAX {
-                            tju.add_triplet(block + r, col_of[c] as usize, s * v);
+        // J (all columns) and J_U (unknown columns), built directly in CSR
+        // order: every source row is sorted and has no repeated column, and
+        // `col_of` is increasing, so no sort or merge is needed.
+        let nu = unknowns.len();
+        let mut j_parts = (vec![0usize], Vec::new(), Vec::new());
+        let mut ju_parts = (vec![0usize], Vec::new(), Vec::new());
+        for (mat, scale) in [(a, 1.0), (&ops.l, sqrt_lambda2)] {
+            for (r, &i) in rows.iter().enumerate() {
+                let s = row_weight[r] * scale;
+                if s != 0.0 {
+                    if let Some(row) = mat.outer_view(i as usize) {
+                        for (c, &v) in row.iter() {
+                            j_parts.1.push(c);
+                            j_parts.2.push(s * v);
+                            if col_of[c] != u32::MAX {
+                                ju_parts.1.push(col_of[c] as usize);
+                                ju_parts.2.push(s * v);
+                            }
                         }
                     }
                 }
+                j_parts.0.push(j_parts.1.len());
+                ju_parts.0.push(ju_parts.1.len());
             }
         }
-        let j: CsMat<Real> = tj.to_csr();
-        let j_u: CsMat<Real> = tju.to_csr();
+        let j: CsMat<Real> = CsMat::new((2 * nr, n), j_parts.0, j_parts.1, j_parts.2);
+        let j_u: CsMat<Real> = CsMat::new((2 * nr, nu), ju_parts.0, ju_parts.1, ju_parts.2);
         let jt_u: CsMat<Real> = j_u.transpose_view().to_csr();
         let mut m = matmul(&jt_u, &j_u);
         if soft {
