@@ -1,4 +1,4 @@
-//! Sparse matrix products for operator assembly.
+//! Sparse matrix products and entry scalings for operator assembly.
 //!
 //! The operators are kept as `sprs` CSR matrices (their assembly and
 //! interop), but `sprs`'s generic product was the largest cost of building a
@@ -38,6 +38,17 @@ pub fn matmul(a: &CsMat<Real>, b: &CsMat<Real>) -> CsMat<Real> {
     CsMat::new_from_unsorted((nrows_ct, ncols_ct), col_ptr, row_idx, val)
         .map_err(|e| e.3)
         .expect("faer's product is a valid compressed matrix")
+}
+
+/// `m` with entry `(i, j)` multiplied by `f(i, j)` (same pattern).
+pub fn scale_entries(m: &CsMat<Real>, f: impl Fn(usize, usize) -> Real) -> CsMat<Real> {
+    let mut out = m.clone();
+    for (i, mut row) in out.outer_iterator_mut().enumerate() {
+        for (j, v) in row.iter_mut() {
+            *v *= f(i, j);
+        }
+    }
+    out
 }
 
 /// The CSC view of `Mᵀ` on the arrays of the CSR matrix `m` (`ptr` its

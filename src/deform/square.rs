@@ -34,11 +34,11 @@
 use sprs::{CsMat, TriMat};
 
 use super::params::{Energy, Formulation, Params};
-use super::system::System;
+use super::system::{add_soft_diagonal, partition, System};
 use super::DeformError;
 use crate::mesh::{Point, Real};
 use crate::operators::Operators;
-use crate::sparse::matmul;
+use crate::sparse::{matmul, scale_entries};
 
 /// The eq. (23) operators of one constraint set.
 #[derive(Debug, Clone)]
@@ -54,28 +54,6 @@ pub(crate) struct Square {
     /// ([`Formulation::SquareLu`]) or solved by GMRES preconditioned with
     /// the Cholesky of `N` ([`Formulation::Square`]).
     pub(crate) k_uu: Option<CsMat<Real>>,
-}
-
-/// `m` with row `i` scaled by `s[i]`.
-fn scale_rows(m: &CsMat<Real>, s: &[Real]) -> CsMat<Real> {
-    let mut out = m.clone();
-    for (i, mut row) in out.outer_iterator_mut().enumerate() {
-        for (_, v) in row.iter_mut() {
-            *v *= s[i];
-        }
-    }
-    out
-}
-
-/// `m` with entry `(i, j)` scaled by `f(i, j)`.
-fn scale_entries(m: &CsMat<Real>, f: impl Fn(usize, usize) -> Real) -> CsMat<Real> {
-    let mut out = m.clone();
-    for (i, mut row) in out.outer_iterator_mut().enumerate() {
-        for (j, v) in row.iter_mut() {
-            *v *= f(i, j);
-        }
-    }
-    out
 }
 
 /// The internal term over all vertices: `(D⁻¹ P L` exact, its symmetric
@@ -138,23 +116,8 @@ pub(crate) fn assemble(
     active: &[bool],
 ) -> Result<(System, Square, Vec<Point>), DeformError> {
     let n = ops.num_vertices();
-    let mut is_constrained = vec![false; n];
-    for &c in constrained {
-        is_constrained[c as usize] = true;
-    }
-    let rows: Vec<u32> = (0..n as u32)
-        .filter(|&v| active[v as usize] && !is_constrained[v as usize])
-        .collect();
     let soft = params.lambda1 > 0.0;
-    let unknowns: Vec<u32> = if soft {
-        (0..n as u32).filter(|&v| active[v as usize]).collect()
-    } else {
-        rows.clone()
-    };
-    let mut col_of = vec![u32::MAX; n];
-    for (k, &u) in unknowns.iter().enumerate() {
-        col_of[u as usize] = k as u32;
-    }
+    let (rows, unknowns, col_of) = partition(n, constrained, active, soft);
     let (k_int, n_int) = internal_operators(ops, params.energy);
     // rest target A X = D (K_int X)
     let kx = crate::operators::laplacian_coordinates(&k_int, &ops.positions);
@@ -169,35 +132,19 @@ pub(crate) fn assemble(
     for &r in &rows {
         in_r[r as usize] = lambda2;
     }
-    let detail = matmul(&ops.lbar, &scale_rows(&ops.l, &in_r));
+    let detail = matmul(&ops.lbar, &scale_entries(&ops.l, |i, _| in_r[i]));
     let k_full = &k_int + &detail;
     let n_full = &n_int + &detail;
     let k = select(&k_full, &unknowns, n, Some);
     let col = |c: usize| (col_of[c] != u32::MAX).then(|| col_of[c] as usize);
     let mut m = select(&n_full, &unknowns, unknowns.len(), col);
     if soft {
-        let mut diag = TriMat::new((unknowns.len(), unknowns.len()));
-        for &c in constrained {
-            let k = col_of[c as usize];
-            if k != u32::MAX {
-                diag.add_triplet(k as usize, k as usize, params.lambda1);
-            }
-        }
-        let d: CsMat<Real> = diag.to_csr();
-        m = &m + &d;
+        m = add_soft_diagonal(&m, constrained, &col_of, params.lambda1);
     }
     let k_uu = (params.formulation != Formulation::LeastSquares).then(|| {
         let mut k_uu = select(&k_full, &unknowns, unknowns.len(), col);
         if soft {
-            let mut diag = TriMat::new((unknowns.len(), unknowns.len()));
-            for &c in constrained {
-                let k = col_of[c as usize];
-                if k != u32::MAX {
-                    diag.add_triplet(k as usize, k as usize, params.lambda1);
-                }
-            }
-            let d: CsMat<Real> = diag.to_csr();
-            k_uu = &k_uu + &d;
+            k_uu = add_soft_diagonal(&k_uu, constrained, &col_of, params.lambda1);
         }
         k_uu
     });

@@ -20,7 +20,7 @@ use super::params::{Energy, Params};
 use super::DeformError;
 use crate::mesh::Real;
 use crate::operators::Operators;
-use crate::sparse::matmul;
+use crate::sparse::{matmul, scale_entries};
 
 /// The energy matrix `A` of dend.md §3 (paper table, §5), `#V×#V`, CSR.
 pub fn energy_matrix(ops: &Operators, energy: Energy) -> CsMat<Real> {
@@ -35,31 +35,63 @@ pub fn energy_matrix(ops: &Operators, energy: Energy) -> CsMat<Real> {
         Energy::TotalCurvature => {
             // L² - 2 G L: scale the rows of L by G_i
             let ll = matmul(l, l);
-            let gl = scale_rows(l, &ops.g, -2.0);
+            let gl = scale_entries(l, |i, _| -2.0 * ops.g[i]);
             &ll + &gl
         }
         Energy::TotalCurvaturePaper => {
             // L² - 2 L G: scale the columns of L by G_j
             let ll = matmul(l, l);
-            let mut lg = l.clone();
-            for mut row in lg.outer_iterator_mut() {
-                for (j, v) in row.iter_mut() {
-                    *v *= -2.0 * ops.g[j];
-                }
-            }
+            let lg = scale_entries(l, |_, j| -2.0 * ops.g[j]);
             &ll + &lg
         }
     }
 }
 
-fn scale_rows(m: &CsMat<Real>, s: &[Real], factor: Real) -> CsMat<Real> {
-    let mut out = m.clone();
-    for (i, mut row) in out.outer_iterator_mut().enumerate() {
-        for (_, v) in row.iter_mut() {
-            *v *= factor * s[i];
+/// The free rows `R` (active, not constrained), the unknowns `U` (`R`, or
+/// every active vertex with soft constraints) and vertex → position in `U`
+/// (`u32::MAX` if not an unknown): the partition both formulations use.
+pub(crate) fn partition(
+    n: usize,
+    constrained: &[u32],
+    active: &[bool],
+    soft: bool,
+) -> (Vec<u32>, Vec<u32>, Vec<u32>) {
+    let mut is_constrained = vec![false; n];
+    for &c in constrained {
+        is_constrained[c as usize] = true;
+    }
+    let rows: Vec<u32> = (0..n as u32)
+        .filter(|&v| active[v as usize] && !is_constrained[v as usize])
+        .collect();
+    let unknowns: Vec<u32> = if soft {
+        (0..n as u32).filter(|&v| active[v as usize]).collect()
+    } else {
+        rows.clone()
+    };
+    let mut col_of = vec![u32::MAX; n];
+    for (k, &u) in unknowns.iter().enumerate() {
+        col_of[u as usize] = k as u32;
+    }
+    (rows, unknowns, col_of)
+}
+
+/// `m + λ1 SᵀS` on the unknowns: `λ1` added to the diagonal of every
+/// constrained vertex that is an unknown (soft constraints).
+pub(crate) fn add_soft_diagonal(
+    m: &CsMat<Real>,
+    constrained: &[u32],
+    col_of: &[u32],
+    lambda1: Real,
+) -> CsMat<Real> {
+    let mut diag = TriMat::new((m.rows(), m.cols()));
+    for &c in constrained {
+        let k = col_of[c as usize];
+        if k != u32::MAX {
+            diag.add_triplet(k as usize, k as usize, lambda1);
         }
     }
-    out
+    let d: CsMat<Real> = diag.to_csr();
+    m + &d
 }
 
 /// The assembled rows and the normal matrix of one constraint set.
@@ -98,23 +130,8 @@ impl System {
         active: &[bool],
     ) -> Result<Self, DeformError> {
         let n = ops.num_vertices();
-        let mut is_constrained = vec![false; n];
-        for &c in constrained {
-            is_constrained[c as usize] = true;
-        }
-        let rows: Vec<u32> = (0..n as u32)
-            .filter(|&v| active[v as usize] && !is_constrained[v as usize])
-            .collect();
         let soft = params.lambda1 > 0.0;
-        let unknowns: Vec<u32> = if soft {
-            (0..n as u32).filter(|&v| active[v as usize]).collect()
-        } else {
-            rows.clone()
-        };
-        let mut col_of = vec![u32::MAX; n];
-        for (k, &u) in unknowns.iter().enumerate() {
-            col_of[u as usize] = k as u32;
-        }
+        let (rows, unknowns, col_of) = partition(n, constrained, active, soft);
         let row_weight: Vec<Real> = rows.iter().map(|&i| ops.area[i as usize].sqrt()).collect();
         let sqrt_lambda2 = params.lambda2.sqrt();
         let nr = rows.len();
@@ -148,15 +165,7 @@ impl System {
         let jt_u: CsMat<Real> = j_u.transpose_view().to_csr();
         let mut m = matmul(&jt_u, &j_u);
         if soft {
-            let mut diag = TriMat::new((unknowns.len(), unknowns.len()));
-            for &c in constrained {
-                let k = col_of[c as usize];
-                if k != u32::MAX {
-                    diag.add_triplet(k as usize, k as usize, params.lambda1);
-                }
-            }
-            let d: CsMat<Real> = diag.to_csr();
-            m = &m + &d;
+            m = add_soft_diagonal(&m, constrained, &col_of, params.lambda1);
         }
         Ok(System {
             rows,
