@@ -680,12 +680,7 @@ fn chained_one_iteration_steps_equal_one_long_step() {
             }
         }
         assert_eq!(calls, rep.iterations, "anderson {}", params.anderson);
-        let diff = long
-            .pose()
-            .iter()
-            .zip(chained.pose())
-            .map(|(a, b)| (0..3).map(|k| (a[k] - b[k]).abs()).fold(0.0, f64::max))
-            .fold(0.0, f64::max);
+        let diff = max_dist(long.pose(), chained.pose());
         assert!(diff < 1e-9 * m.diagonal(), "poses differ by {diff:e}");
     }
 }

@@ -10,7 +10,7 @@ use parking_lot::Mutex;
 use super::constraints::Constraints;
 use super::factor::{Factor, FactorKey};
 use super::params::Params;
-use super::solver::Rest;
+use super::rest::Rest;
 use super::DeformError;
 
 /// An LRU cache of factors under a byte budget, shared by every session of a

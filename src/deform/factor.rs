@@ -20,7 +20,7 @@ use faer::{Conj, MatMut, Par, Side};
 use super::cg::Cg;
 use super::constraints::Constraints;
 use super::params::{Energy, Formulation, Mode, Params};
-use super::solver::Rest;
+use super::rest::Rest;
 use super::square::{self, Square};
 use super::system::{energy_matrix, System};
 use super::DeformError;

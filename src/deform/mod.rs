@@ -23,6 +23,7 @@ mod constraints;
 mod detail;
 mod factor;
 mod params;
+mod rest;
 mod rotation;
 mod solver;
 mod square;
@@ -36,8 +37,9 @@ pub use constraints::{
 pub use detail::{local_rotations, Mu, RingWeights};
 pub use factor::{Factor, FactorKey, FactorTimings, SolveOptions, SolverChoice};
 pub use params::{DetailTerm, Energy, Formulation, Mode, Params};
+pub use rest::Rest;
 pub use rotation::{best_rotation, fit_rotation, rotation_from_covariance};
-pub use solver::{Deformer, Rest, StepReport};
+pub use solver::{Deformer, StepReport};
 pub use system::energy_matrix;
 
 use thiserror::Error;

@@ -1,7 +1,5 @@
-//! The rest-mesh precomputation ([`Rest`]) and the DEND iteration
-//! ([`Deformer::step`], dend.md §6).
+//! The DEND iteration ([`Deformer::step`], dend.md §6).
 
-use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::Arc;
 
 use faer::dyn_stack::{MemBuffer, MemStack};
@@ -10,15 +8,13 @@ use nalgebra::{Matrix3, Vector3};
 
 use super::anderson::Anderson;
 use super::constraints::Constraints;
-use super::detail::{local_rotations, Mu, RingWeights};
+use super::detail::local_rotations;
 use super::factor::Factor;
 use super::params::{DetailTerm, Energy, Mode, Params};
+use super::rest::Rest;
 use super::square::apply_p;
 use super::DeformError;
-use crate::mesh::{Mesh, Point, Real};
-use crate::operators::Operators;
-
-static NEXT_REST_ID: AtomicU64 = AtomicU64::new(1);
+use crate::mesh::{Point, Real};
 
 /// The safeguard's slack: a step may raise the objective by this factor
 /// (the fixed point of the lagged iteration is not a minimiser of the
@@ -30,82 +26,6 @@ const SLACK: Real = 1.05;
 /// of a chain of steps) still halve the step but do not count towards
 /// `diverged`: near convergence the objective fluctuates at that level.
 const FLOOR: Real = 1e-6;
-
-/// Everything computed once per rest mesh: the operators (dend.md §2), STEP 1
-/// `μ` for both modes (§5) and the Procrustes weights. Share as `Arc<Rest>`.
-#[derive(Debug)]
-pub struct Rest {
-    id: u64,
-    mesh: Mesh,
-    ops: Operators,
-    mu_default: Mu,
-    /// STEP 1 of the literal paper, built on first use (most sessions never
-    /// use it).
-    mu_paper: std::sync::OnceLock<Mu>,
-    weights: RingWeights,
-    active: Vec<bool>,
-}
-
-impl Rest {
-    /// Builds the operators and STEP 1 on `mesh`. O(#F).
-    pub fn new(mesh: Mesh) -> Result<Rest, DeformError> {
-        let ops = Operators::new(&mesh);
-        if !(ops.scale.is_finite() && ops.scale > 0.0) {
-            return Err(DeformError::NonFinite {
-                what: "mean edge length",
-            });
-        }
-        let topo = mesh.topology();
-        let mu_default = Mu::new(Mode::Default, topo, &ops.positions, &ops.delta);
-        let weights = RingWeights::new(topo, &ops.lbar);
-        let active = (0..mesh.num_vertices())
-            .map(|v| !topo.ring(v).is_empty())
-            .collect();
-        Ok(Rest {
-            id: NEXT_REST_ID.fetch_add(1, Ordering::Relaxed),
-            mesh,
-            ops,
-            mu_default,
-            mu_paper: std::sync::OnceLock::new(),
-            weights,
-            active,
-        })
-    }
-
-    /// A process-unique id (factor cache keys refer to it).
-    pub fn id(&self) -> u64 {
-        self.id
-    }
-
-    /// The rest mesh (mesh units).
-    pub fn mesh(&self) -> &Mesh {
-        &self.mesh
-    }
-
-    /// The rest operators (normalised copy).
-    pub fn operators(&self) -> &Operators {
-        &self.ops
-    }
-
-    /// Whether each vertex is referenced by a triangle.
-    pub fn active(&self) -> &[bool] {
-        &self.active
-    }
-
-    fn mu(&self, mode: Mode) -> &Mu {
-        match mode {
-            Mode::Default => &self.mu_default,
-            Mode::Paper => self.mu_paper.get_or_init(|| {
-                Mu::new(
-                    Mode::Paper,
-                    self.mesh.topology(),
-                    &self.ops.positions,
-                    &self.ops.delta,
-                )
-            }),
-        }
-    }
-}
 
 /// What one [`Deformer::step`] did.
 #[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
@@ -158,17 +78,27 @@ struct Scratch {
     cand: Vec<Real>,
     mem: Option<MemBuffer>,
     sized_for: (usize, usize),
-    /// `(factor id, objective)` when `r` (and `rot`, `dhat`) hold the
-    /// evaluation of the current pose `y` with that factor: the next step
-    /// then starts without re-evaluating (a one-iteration settle frame costs
-    /// one evaluation, not two).
-    evaluated: Option<(u64, Real)>,
-    /// The safeguard's state `(growing steps, best objective, objective at
-    /// the start of the chain)` at the end of
-    /// the last step, valid with `evaluated`: a chain of steps on unchanged
-    /// targets (the server's settle frames) is safeguarded like one long
-    /// step, and `best` still holds the best pose of the chain.
-    chain: (usize, Real, Real),
+    /// Set when `r` (and `rot`, `dhat`) hold the evaluation of the current
+    /// pose `y`: the next step on unchanged targets continues this chain.
+    evaluated: Option<Chain>,
+}
+
+/// The state a step leaves for the next one on unchanged targets: the next
+/// step starts without re-evaluating (a one-iteration settle frame costs one
+/// evaluation, not two) and is safeguarded like the continuation of one long
+/// step (`Scratch::best` still holds the chain's best pose).
+#[derive(Clone, Copy)]
+struct Chain {
+    /// The factor the evaluation was made with.
+    factor: u64,
+    /// The objective at the current pose.
+    f: Real,
+    /// Consecutive growing steps so far.
+    growing: usize,
+    /// The best objective of the chain.
+    best_f: Real,
+    /// The objective at the start of the chain.
+    f_start: Real,
 }
 
 impl Deformer {
@@ -283,10 +213,14 @@ impl Deformer {
                 *y = p;
             }
         }
-        let continued = matches!(s.evaluated, Some((id, _)) if id == factor.id() && !moved);
-        let mut f = match s.evaluated.take() {
-            Some((_, f)) if continued => f,
-            _ => self.evaluate(factor),
+        let chain = s
+            .evaluated
+            .take()
+            .filter(|c| c.factor == factor.id() && !moved);
+        let continued = chain.is_some();
+        let mut f = match chain {
+            Some(c) => c.f,
+            None => self.evaluate(factor),
         };
         // whether scratch holds the evaluation of the current `y`
         let mut evaluated = true;
@@ -305,11 +239,12 @@ impl Deformer {
             objective: f,
             initial_objective: f,
         };
-        let (mut growing, mut best_f, f_start) = if continued {
-            self.scratch.chain
-        } else {
-            self.scratch.best.clone_from(&self.y);
-            (0, f, f)
+        let (mut growing, mut best_f, f_start) = match chain {
+            Some(c) => (c.growing, c.best_f, c.f_start),
+            None => {
+                self.scratch.best.clone_from(&self.y);
+                (0, f, f)
+            }
         };
         // rises of the objective below this are not divergence
         let floor = FLOOR * f_start + 1e-20;
@@ -431,8 +366,13 @@ impl Deformer {
         }
         report.objective = f;
         if evaluated {
-            self.scratch.evaluated = Some((factor.id(), f));
-            self.scratch.chain = (growing, best_f, f_start);
+            self.scratch.evaluated = Some(Chain {
+                factor: factor.id(),
+                f,
+                growing,
+                best_f,
+                f_start,
+            });
         }
         self.sync_pose();
         Ok(report)
