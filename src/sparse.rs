@@ -8,6 +8,8 @@
 //! a CSR matrix's arrays are the CSC arrays of its transpose, so
 //! `C = A B` in CSR is `Cᵀ = Bᵀ Aᵀ` in CSC.
 
+use std::borrow::Cow;
+
 use faer::sparse::linalg::matmul::sparse_sparse_matmul;
 use faer::sparse::{SparseColMatRef, SymbolicSparseColMatRef};
 use faer::Par;
@@ -20,8 +22,7 @@ use crate::mesh::Real;
 /// when the product does not fit in memory.
 pub fn matmul(a: &CsMat<Real>, b: &CsMat<Real>) -> CsMat<Real> {
     assert_eq!(a.cols(), b.rows(), "sparse product shape mismatch");
-    let a = a.to_csr();
-    let b = b.to_csr();
+    let (a, b) = (as_csr(a), as_csr(b));
     let (ap, bp) = (a.proper_indptr(), b.proper_indptr());
     let at = csc_of_transpose(&a, &ap);
     let bt = csc_of_transpose(&b, &bp);
@@ -38,6 +39,17 @@ pub fn matmul(a: &CsMat<Real>, b: &CsMat<Real>) -> CsMat<Real> {
     CsMat::new_from_unsorted((nrows_ct, ncols_ct), col_ptr, row_idx, val)
         .map_err(|e| e.3)
         .expect("faer's product is a valid compressed matrix")
+}
+
+/// `m` itself when it is CSR with its storage starting at 0 (every matrix
+/// the operators build), else a converted copy: the product reads the raw
+/// index and value arrays.
+fn as_csr(m: &CsMat<Real>) -> Cow<'_, CsMat<Real>> {
+    if m.is_csr() && m.indptr().index(0) == 0 {
+        Cow::Borrowed(m)
+    } else {
+        Cow::Owned(m.to_csr())
+    }
 }
 
 /// `m` with entry `(i, j)` multiplied by `f(i, j)` (same pattern).
