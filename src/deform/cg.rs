@@ -176,7 +176,7 @@ fn matvec(m: &CsMat<Real>, p: &[Real], q: &mut [Real]) {
 }
 
 #[cfg(test)]
-mod tests {
+pub(super) mod tests {
     use std::sync::Arc;
 
     use faer::dyn_stack::{MemBuffer, MemStack};
@@ -188,7 +188,7 @@ mod tests {
     use crate::mesh::Mesh;
 
     /// A wavy `k × k` grid in the xy plane.
-    fn grid(k: usize) -> Mesh {
+    pub(in crate::deform) fn grid(k: usize) -> Mesh {
         let mut p = Vec::new();
         for r in 0..k {
             for c in 0..k {
@@ -208,7 +208,7 @@ mod tests {
         Mesh::new(p, t).unwrap()
     }
 
-    fn edit(mesh: &Mesh, k: usize) -> Constraints {
+    pub(in crate::deform) fn edit(mesh: &Mesh, k: usize) -> Constraints {
         let fixed: Vec<u32> = (0..k as u32).map(|r| r * k as u32).collect();
         let handle: Vec<u32> = (0..k as u32).map(|r| r * k as u32 + k as u32 - 1).collect();
         let mut t = RigidTransform::identity([0.0; 3]);
@@ -225,7 +225,7 @@ mod tests {
     }
 
     /// Solves `M X = B` with `f` for a fixed pseudo-random `B` (`n × 3`).
-    fn solve(f: &Factor, b: &[f64]) -> Vec<f64> {
+    pub(in crate::deform) fn solve(f: &Factor, b: &[f64]) -> Vec<f64> {
         let n = f.num_unknowns();
         let mut x = b.to_vec();
         let mut mem = MemBuffer::new(f.solve_scratch(3));
@@ -236,7 +236,7 @@ mod tests {
         x
     }
 
-    fn residual(f: &Factor, x: &[f64], b: &[f64]) -> f64 {
+    pub(in crate::deform) fn residual(f: &Factor, x: &[f64], b: &[f64]) -> f64 {
         let n = f.num_unknowns();
         let mut worst: f64 = 0.0;
         for c in 0..3 {

@@ -2,7 +2,8 @@
 //! matrix `M` per (rest mesh, energy, λs, mode, constrained vertex set),
 //! reused for every drag and every iteration.
 //!
-//! Symbolic analysis (AMD fill-reducing ordering, supernodal structure) and
+//! Symbolic analysis (fill-reducing ordering: AMD, or METIS nested
+//! dissection on large systems; supernodal structure) and
 //! numeric factorisation use faer's sparse Cholesky, the fastest well-kept
 //! Rust implementation measured for this matrix (see README).
 
@@ -12,17 +13,19 @@ use std::time::{Duration, Instant};
 use faer::dyn_stack::{MemBuffer, MemStack, StackReq};
 use faer::linalg::cholesky::llt::factor::LltRegularization;
 use faer::sparse::linalg::cholesky::{
-    factorize_symbolic_cholesky, LltRef, SymbolicCholesky, SymmetricOrdering,
+    factorize_symbolic_cholesky, LltRef, SymbolicCholesky, SymbolicCholeskyRaw, SymmetricOrdering,
 };
 use faer::sparse::{SparseColMat, SymbolicSparseColMat};
 use faer::{Conj, MatMut, Par, Side};
 
 use super::cg::Cg;
 use super::constraints::Constraints;
+use super::ordering::{self, FillOrdering};
 use super::params::{Energy, Formulation, Mode, Params};
 use super::rest::Rest;
 use super::square::{self, Square};
 use super::system::{energy_matrix, System};
+use super::trisolve;
 use super::DeformError;
 use crate::mesh::{Point, Real};
 
@@ -122,17 +125,20 @@ pub struct SolveOptions {
     pub cg_tol: Real,
     /// CG iteration cap per column and solve.
     pub cg_max_iters: usize,
+    /// Fill-reducing ordering of the Cholesky factor.
+    pub ordering: FillOrdering,
 }
 
 impl Default for SolveOptions {
     /// Auto, a 2 GiB factor budget, CG tolerance `1e-4` (the paper's),
-    /// at most 5000 CG iterations per column.
+    /// at most 5000 CG iterations per column, [`FillOrdering::Auto`].
     fn default() -> Self {
         SolveOptions {
             solver: SolverChoice::Auto,
             factor_budget_bytes: 2 << 30,
             cg_tol: 1e-4,
             cg_max_iters: 5000,
+            ordering: FillOrdering::Auto,
         }
     }
 }
@@ -237,10 +243,22 @@ impl Factor {
             (None, Vec::new(), Instant::now())
         } else {
             let m = to_faer(&sys.m)?;
+            let nd = match options.ordering.resolve(n) {
+                FillOrdering::NestedDissection => {
+                    ordering::nested_dissection(m.symbolic().col_ptr(), m.symbolic().row_idx())
+                }
+                _ => None, // AMD (also when METIS fails)
+            };
+            let ordering = match &nd {
+                Some((fwd, inv)) => {
+                    SymmetricOrdering::Custom(faer::perm::PermRef::new_checked(fwd, inv, n))
+                }
+                None => SymmetricOrdering::Amd,
+            };
             let symbolic = factorize_symbolic_cholesky(
                 m.symbolic(),
                 Side::Lower,
-                SymmetricOrdering::Amd,
+                ordering,
                 Default::default(),
             )
             .map_err(|_| DeformError::OutOfMemory {
@@ -351,6 +369,15 @@ impl Factor {
         })
     }
 
+    /// Whether the factor is supernodal (then its solves use
+    /// [`trisolve`]; small systems get faer's simplicial factor).
+    pub fn is_supernodal(&self) -> bool {
+        matches!(
+            self.symbolic.as_ref().map(|s| s.raw()),
+            Some(SymbolicCholeskyRaw::Supernodal(_))
+        )
+    }
+
     /// A process-unique id of this factor.
     pub fn id(&self) -> u64 {
         self.id
@@ -403,7 +430,15 @@ impl Factor {
     /// Scratch needed by [`Factor::solve_in_place`] for `k` right-hand sides.
     pub(crate) fn solve_scratch(&self, k: usize) -> StackReq {
         match (&self.symbolic, &self.cg) {
-            (Some(s), _) => s.solve_in_place_scratch::<Real>(k, Par::Seq),
+            (Some(s), _) => match s.raw() {
+                SymbolicCholeskyRaw::Supernodal(sn) => StackReq::all_of(&[
+                    StackReq::new::<trisolve::Lanes>(sn.nrows()),
+                    StackReq::new::<trisolve::Lanes>(trisolve::scratch_rows(sn)),
+                    // the eq. (23) preconditioner still uses faer's solve
+                    s.solve_in_place_scratch::<Real>(k, Par::Seq),
+                ]),
+                SymbolicCholeskyRaw::Simplicial(_) => s.solve_in_place_scratch::<Real>(k, Par::Seq),
+            },
             (None, Some(_)) => Cg::scratch(self.sys.unknowns.len()),
             (None, None) => StackReq::EMPTY, // LU allocates its own
         }
@@ -430,7 +465,13 @@ impl Factor {
                 }
             }
         } else if let Some(s) = &self.symbolic {
-            LltRef::new(s, &self.values).solve_in_place_with_conj(Conj::No, b, Par::Seq, stack);
+            match s.raw() {
+                SymbolicCholeskyRaw::Supernodal(sn) => {
+                    trisolve::solve_in_place(sn, s.perm(), &self.values, b, stack)
+                }
+                SymbolicCholeskyRaw::Simplicial(_) => LltRef::new(s, &self.values)
+                    .solve_in_place_with_conj(Conj::No, b, Par::Seq, stack),
+            }
         } else if let Some(lu) = &self.lu {
             use faer::linalg::solvers::SolveCore;
             lu.solve_in_place_with_conj(Conj::No, b);

@@ -22,12 +22,14 @@ mod cg;
 mod constraints;
 mod detail;
 mod factor;
+mod ordering;
 mod params;
 mod rest;
 mod rotation;
 mod solver;
 mod square;
 mod system;
+mod trisolve;
 
 pub use cache::FactorCache;
 pub use constraints::{
@@ -36,6 +38,7 @@ pub use constraints::{
 };
 pub use detail::{local_rotations, Mu, RingWeights};
 pub use factor::{Factor, FactorKey, FactorTimings, SolveOptions, SolverChoice};
+pub use ordering::{FillOrdering, NESTED_DISSECTION_MIN_UNKNOWNS};
 pub use params::{DetailTerm, Energy, Formulation, Mode, Params};
 pub use rest::Rest;
 pub use rotation::{best_rotation, fit_rotation, rotation_from_covariance};
