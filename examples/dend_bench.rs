@@ -5,6 +5,7 @@
 //! cargo run --release --example dend_bench -- MESH [--sets FILE.json]
 //!     [--iters 30] [--cg] [--subdivide K] [--write-sets FILE.json]
 //!     [--write-mesh FILE.off] [--formulation least_squares|square|square_lu|both|all]
+//!     [--precision double|single|both]
 //! ```
 //!
 //! MESH is a file (OFF/OBJ/PLY) or `tube:N` (a generated tube of about N
@@ -21,14 +22,16 @@
 //! pose towards the target), `converge` (a full solve from rest), and with
 //! `--cg` the same iteration with Jacobi-PCG at tolerance 1e-4 and no factor.
 //! `--formulation both` measures eq. (24) and eq. (23) in the same process and
-//! prints one JSON line each, then a line of square / least-squares ratios.
+//! prints one JSON line each, then a line of square / least-squares ratios;
+//! `--precision both` likewise the factor stored in `f64` (the default) and
+//! in `f32`, with the ratios of the second over the first.
 
 use std::sync::Arc;
 use std::time::Instant;
 
 use dend::deform::{
-    Constraints, Deformer, Factor, Formulation, Params, Rest, RigidTransform, SolveOptions,
-    SolverChoice,
+    Constraints, Deformer, Factor, FactorPrecision, Formulation, Params, Rest, RigidTransform,
+    SolveOptions, SolverChoice,
 };
 use dend::mesh::{Mesh, Point};
 
@@ -106,24 +109,33 @@ fn run() -> Result<(), String> {
         ],
         name => vec![Formulation::from_name(name).ok_or(format!("bad formulation {name:?}"))?],
     };
+    let precisions = match arg::<String>(&args, "--precision").as_deref() {
+        None | Some("double") => vec![FactorPrecision::Double],
+        Some("single") => vec![FactorPrecision::Single],
+        Some("both") => vec![FactorPrecision::Double, FactorPrecision::Single],
+        Some(p) => return Err(format!("bad precision {p:?}")),
+    };
     let mut lines = Vec::new();
     for formulation in formulations {
-        let params = Params {
-            formulation,
-            ..Params::default()
-        };
-        let out = bench(
-            spec,
-            &mesh,
-            &rest,
-            rest_ms,
-            &params,
-            &constraints,
-            iters,
-            with_cg,
-        )?;
-        println!("{out}");
-        lines.push(out);
+        for &precision in &precisions {
+            let params = Params {
+                formulation,
+                ..Params::default()
+            };
+            let out = bench(
+                spec,
+                &mesh,
+                &rest,
+                rest_ms,
+                &params,
+                precision,
+                &constraints,
+                iters,
+                with_cg,
+            )?;
+            println!("{out}");
+            lines.push(out);
+        }
     }
     for sq in lines.iter().skip(1) {
         let ls = &lines[0];
@@ -144,8 +156,11 @@ fn run() -> Result<(), String> {
             .map(|&k| (k.to_string(), ratio(k).into()))
             .collect();
         let name = format!(
-            "{}_over_least_squares",
-            sq["formulation"].as_str().unwrap_or("?")
+            "{}_{}_over_{}_{}",
+            sq["formulation"].as_str().unwrap_or("?"),
+            sq["precision"].as_str().unwrap_or("?"),
+            lines[0]["formulation"].as_str().unwrap_or("?"),
+            lines[0]["precision"].as_str().unwrap_or("?"),
         );
         println!("{}", serde_json::json!({ name: ratios }));
     }
@@ -159,6 +174,7 @@ fn bench(
     rest: &Arc<Rest>,
     rest_ms: f64,
     params: &Params,
+    precision: FactorPrecision,
     constraints: &Constraints,
     iters: usize,
     with_cg: bool,
@@ -166,6 +182,7 @@ fn bench(
     let params = *params;
     let direct = SolveOptions {
         solver: SolverChoice::Direct,
+        precision,
         ..SolveOptions::default()
     };
     let rss0 = rss_bytes();
@@ -181,6 +198,7 @@ fn bench(
     let mut out = serde_json::json!({
         "mesh": spec,
         "formulation": params.formulation,
+        "precision": format!("{precision:?}").to_lowercase(),
         "vertices": n,
         "unknowns": factor.num_unknowns(),
         "threads": rayon::current_num_threads(),
@@ -195,7 +213,7 @@ fn bench(
         "converge_iterations": conv_iters,
         "converged": converged,
         "factor_nnz": factor.factor_nnz(),
-        "factor_bytes": factor.factor_nnz() * 16,
+        "factor_bytes": factor.factor_bytes(),
         "session_bytes": factor.memory_bytes(),
         "rss_growth_bytes": rss_growth,
         "bytes_per_vertex": factor.memory_bytes() as f64 / n as f64,

@@ -91,7 +91,11 @@ pub struct Factor {
     /// `A X` on the normalised rest positions, `#V×3`.
     pub(crate) ax: Vec<Point>,
     symbolic: Option<SymbolicCholesky<usize>>,
+    /// Factor values in double precision (empty when kept in single).
     values: Vec<Real>,
+    /// Factor values rounded to single precision
+    /// ([`FactorPrecision::Single`]; empty otherwise).
+    values32: Vec<f32>,
     /// The sparse LU of `K_UU` ([`Formulation::SquareLu`]).
     lu: Option<faer::sparse::linalg::solvers::Lu<usize, Real>>,
     /// Set when `M` is solved by preconditioned CG instead of a factor.
@@ -127,11 +131,37 @@ pub struct SolveOptions {
     pub cg_max_iters: usize,
     /// Fill-reducing ordering of the Cholesky factor.
     pub ordering: FillOrdering,
+    /// Precision the factor is stored in after the (double-precision)
+    /// numeric factorisation.
+    pub precision: FactorPrecision,
+}
+
+/// How a Cholesky factor is stored between solves.
+///
+/// The factorisation always runs in `f64`. Each DEND iteration solves for
+/// an *update* from a residual computed in `f64` (dend.md §4), so a factor
+/// rounded to `f32` changes the step of an iteration by the solve's
+/// relative error (measured 1e-5 to 2e-4 on the benchmark meshes), not the
+/// fixed point the iteration converges to. Single precision halves the
+/// factor's memory and the bytes each solve streams (an iteration 0–25 %
+/// faster), but on eth_hand_14k its inexact steps made the safeguard
+/// reject more candidates (100 iterations took 1.5x as long), so it is an
+/// option for memory-bound servers, not the default (docs/performance.md).
+/// Only supernodal eq. (24) factors are rounded; simplicial (small) factors
+/// and the eq. (23) preconditioner stay in `f64`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum FactorPrecision {
+    /// `f64` values.
+    #[default]
+    Double,
+    /// `f32` values, `f64` arithmetic in the solves.
+    Single,
 }
 
 impl Default for SolveOptions {
     /// Auto, a 2 GiB factor budget, CG tolerance `1e-4` (the paper's),
-    /// at most 5000 CG iterations per column, [`FillOrdering::Auto`].
+    /// at most 5000 CG iterations per column, [`FillOrdering::Auto`],
+    /// [`FactorPrecision::Double`].
     fn default() -> Self {
         SolveOptions {
             solver: SolverChoice::Auto,
@@ -139,6 +169,7 @@ impl Default for SolveOptions {
             cg_tol: 1e-4,
             cg_max_iters: 5000,
             ordering: FillOrdering::Auto,
+            precision: FactorPrecision::Double,
         }
     }
 }
@@ -147,7 +178,7 @@ impl std::fmt::Debug for Factor {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         f.debug_struct("Factor")
             .field("unknowns", &self.sys.unknowns.len())
-            .field("factor_nnz", &self.values.len())
+            .field("factor_nnz", &self.factor_nnz())
             .field("timings", &self.timings)
             .finish()
     }
@@ -278,6 +309,7 @@ impl Factor {
                     ax,
                     symbolic: None,
                     values: Vec::new(),
+                    values32: Vec::new(),
                     lu: None,
                     cg,
                     cg_iterations: AtomicU64::new(0),
@@ -348,6 +380,16 @@ impl Factor {
             }
             (Some(symbolic), values, t2)
         };
+        let mut values = values;
+        let mut values32 = Vec::new();
+        let supernodal = matches!(
+            symbolic.as_ref().map(|s| s.raw()),
+            Some(SymbolicCholeskyRaw::Supernodal(_))
+        );
+        if options.precision == FactorPrecision::Single && supernodal && square.is_none() {
+            values32 = values.iter().map(|&v| v as f32).collect();
+            values = Vec::new();
+        }
         let t3 = Instant::now();
         Ok(Factor {
             id: NEXT_FACTOR_ID.fetch_add(1, Ordering::Relaxed),
@@ -358,6 +400,7 @@ impl Factor {
             ax,
             symbolic,
             values,
+            values32,
             lu,
             cg,
             cg_iterations: AtomicU64::new(0),
@@ -400,7 +443,18 @@ impl Factor {
 
     /// Nonzeros of the Cholesky factor (0 when solved by CG).
     pub fn factor_nnz(&self) -> usize {
-        self.values.len()
+        self.values.len().max(self.values32.len())
+    }
+
+    /// Bytes of the Cholesky factor: values (8 or 4 per nonzero, see
+    /// [`FactorPrecision`]) and its row indices.
+    pub fn factor_bytes(&self) -> usize {
+        let indices = match self.symbolic.as_ref().map(|s| s.raw()) {
+            Some(SymbolicCholeskyRaw::Supernodal(sn)) => sn.row_idx().len() * 8,
+            Some(SymbolicCholeskyRaw::Simplicial(_)) => self.values.len() * 8,
+            None => 0,
+        };
+        self.values.len() * 8 + self.values32.len() * 4 + indices
     }
 
     /// Whether solves run preconditioned CG instead of a Cholesky factor.
@@ -417,7 +471,7 @@ impl Factor {
     /// Approximate heap bytes held: factor values and indices, `J`, `J_Uᵀ`, `M`.
     pub fn memory_bytes(&self) -> usize {
         let csr = |m: &sprs::CsMat<Real>| m.nnz() * 16 + (m.rows() + 1) * 8;
-        self.values.len() * 16
+        self.factor_bytes()
             + csr(&self.sys.j)
             + csr(&self.sys.jt_u)
             + csr(&self.sys.m)
@@ -466,6 +520,9 @@ impl Factor {
             }
         } else if let Some(s) = &self.symbolic {
             match s.raw() {
+                SymbolicCholeskyRaw::Supernodal(sn) if self.values.is_empty() => {
+                    trisolve::solve_in_place(sn, s.perm(), &self.values32, b, stack)
+                }
                 SymbolicCholeskyRaw::Supernodal(sn) => {
                     trisolve::solve_in_place(sn, s.perm(), &self.values, b, stack)
                 }

@@ -37,7 +37,7 @@ pub use constraints::{
     RotationSpec, SphereSel, VertexSet,
 };
 pub use detail::{local_rotations, Mu, RingWeights};
-pub use factor::{Factor, FactorKey, FactorTimings, SolveOptions, SolverChoice};
+pub use factor::{Factor, FactorKey, FactorPrecision, FactorTimings, SolveOptions, SolverChoice};
 pub use ordering::{FillOrdering, NESTED_DISSECTION_MIN_UNKNOWNS};
 pub use params::{DetailTerm, Energy, Formulation, Mode, Params};
 pub use rest::Rest;

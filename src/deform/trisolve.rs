@@ -24,13 +24,33 @@ use crate::mesh::Real;
 /// Four right-hand-side lanes of one row.
 pub(crate) type Lanes = [Real; 4];
 
+/// A stored factor value: `f64`, or `f32` widened on load
+/// ([`super::FactorPrecision`]). The arithmetic is `f64` either way.
+pub(crate) trait FactorValue: Copy + Send + Sync {
+    fn get(self) -> Real;
+}
+
+impl FactorValue for f64 {
+    #[inline(always)]
+    fn get(self) -> Real {
+        self
+    }
+}
+
+impl FactorValue for f32 {
+    #[inline(always)]
+    fn get(self) -> Real {
+        self as Real
+    }
+}
+
 /// `M X = B` for a supernodal factor with [`solve_llt`], four
 /// columns of `b` at a time: gathered into the factor's row order, solved,
 /// scattered back.
-pub(crate) fn solve_in_place(
+pub(crate) fn solve_in_place<V: FactorValue>(
     sn: &SymbolicSupernodalCholesky<usize>,
     perm: Option<faer::perm::PermRef<'_, usize>>,
-    values: &[Real],
+    values: &[V],
     mut b: MatMut<'_, Real>,
     stack: &mut MemStack,
 ) {
@@ -78,9 +98,9 @@ pub(crate) fn scratch_rows(sym: &SymbolicSupernodalCholesky<usize>) -> usize {
 /// column-major block, diagonal block on top of the off-diagonal rows), `x`
 /// holds `b` in the factor's (permuted) row order, four lanes per row, and
 /// `tmp` has at least [`scratch_rows`] rows.
-pub(crate) fn solve_llt(
+pub(crate) fn solve_llt<V: FactorValue>(
     sym: &SymbolicSupernodalCholesky<usize>,
-    values: &[Real],
+    values: &[V],
     x: &mut [Lanes],
     tmp: &mut [Lanes],
 ) {
@@ -95,18 +115,18 @@ pub(crate) fn solve_llt(
             return;
         }
     }
-    sweeps::<false>(sym, values, x, tmp);
+    sweeps::<V, false>(sym, values, x, tmp);
 }
 
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2,fma")]
-unsafe fn solve_avx2_fma(
+unsafe fn solve_avx2_fma<V: FactorValue>(
     sym: &SymbolicSupernodalCholesky<usize>,
-    values: &[Real],
+    values: &[V],
     x: &mut [Lanes],
     tmp: &mut [Lanes],
 ) {
-    sweeps::<true>(sym, values, x, tmp);
+    sweeps::<V, true>(sym, values, x, tmp);
 }
 
 /// `acc - l·v` lane-wise (fused when `FMA`).
@@ -138,9 +158,9 @@ fn add_mul<const FMA: bool>(acc: Lanes, l: Real, v: Lanes) -> Lanes {
 }
 
 #[inline(always)]
-fn sweeps<const FMA: bool>(
+fn sweeps<V: FactorValue, const FMA: bool>(
     sym: &SymbolicSupernodalCholesky<usize>,
-    values: &[Real],
+    values: &[V],
     x: &mut [Lanes],
     tmp: &mut [Lanes],
 ) {
@@ -162,14 +182,14 @@ fn sweeps<const FMA: bool>(
         let xs = &mut x[c0..c0 + w];
         for j in 0..w {
             let col = &block[j * h..(j + 1) * h];
-            let d = col[j];
+            let d = col[j].get();
             let xj = xs[j].map(|v| v / d);
             xs[j] = xj;
             for (xi, &l) in xs[j + 1..].iter_mut().zip(&col[j + 1..w]) {
-                *xi = sub_mul::<FMA>(*xi, l, xj);
+                *xi = sub_mul::<FMA>(*xi, l.get(), xj);
             }
             for (ti, &l) in t.iter_mut().zip(&col[w..]) {
-                *ti = add_mul::<FMA>(*ti, l, xj);
+                *ti = add_mul::<FMA>(*ti, l.get(), xj);
             }
         }
         for (ti, &r) in t.iter().zip(pattern) {
@@ -197,17 +217,17 @@ fn sweeps<const FMA: bool>(
             let off = &col[w..];
             let mut pairs = t.chunks_exact(2).zip(off.chunks_exact(2));
             for (tp, lp) in &mut pairs {
-                a0 = sub_mul::<FMA>(a0, lp[0], tp[0]);
-                a1 = sub_mul::<FMA>(a1, lp[1], tp[1]);
+                a0 = sub_mul::<FMA>(a0, lp[0].get(), tp[0]);
+                a1 = sub_mul::<FMA>(a1, lp[1].get(), tp[1]);
             }
             if t.len() % 2 == 1 {
                 let k = t.len() - 1;
-                a0 = sub_mul::<FMA>(a0, off[k], t[k]);
+                a0 = sub_mul::<FMA>(a0, off[k].get(), t[k]);
             }
             for (xi, &l) in xs[j + 1..].iter().zip(&col[j + 1..w]) {
-                a0 = sub_mul::<FMA>(a0, l, *xi);
+                a0 = sub_mul::<FMA>(a0, l.get(), *xi);
             }
-            let d = col[j];
+            let d = col[j].get();
             xs[j] = [0, 1, 2, 3].map(|k| (a0[k] + a1[k]) / d);
         }
     }
@@ -348,7 +368,7 @@ mod tests {
         };
         let mut tmp = vec![[0.0; 4]; scratch_rows(sn)];
         let mut plain = gather();
-        sweeps::<false>(sn, &values, &mut plain, &mut tmp);
+        sweeps::<f64, false>(sn, &values, &mut plain, &mut tmp);
         let mut dispatched = gather();
         solve_llt(sn, &values, &mut dispatched, &mut tmp);
         let scale = plain.iter().flatten().fold(0.0f64, |m, v| m.max(v.abs()));
@@ -358,5 +378,64 @@ mod tests {
             .zip(dispatched.iter().flatten())
             .fold(0.0f64, |m, (a, b)| m.max((a - b).abs()));
         assert!(diff < 1e-12 * scale, "diff {diff}");
+    }
+
+    #[test]
+    fn a_single_precision_factor_halves_the_values_and_keeps_the_deformation() {
+        use crate::deform::cg::tests::{edit, grid, residual, solve};
+        use crate::deform::{
+            Deformer, Factor, FactorPrecision, Params, Rest, SolveOptions, SolverChoice,
+        };
+        use std::sync::Arc;
+        let k = 40;
+        let mesh = grid(k);
+        let rest = Arc::new(Rest::new(mesh.clone()).unwrap());
+        let c = edit(&mesh, k);
+        let params = Params::default();
+        let build = |precision| {
+            let opts = SolveOptions {
+                solver: SolverChoice::Direct,
+                precision,
+                ..SolveOptions::default()
+            };
+            Factor::build_with(&rest, &params, &c, &opts).unwrap()
+        };
+        let (f64_, f32_) = (
+            build(FactorPrecision::Double),
+            build(FactorPrecision::Single),
+        );
+        assert!(f32_.is_supernodal());
+        assert_eq!(f32_.factor_nnz(), f64_.factor_nnz());
+        // values 8 -> 4 bytes; the row indices stay
+        assert!(f32_.factor_bytes() < f64_.factor_bytes());
+        assert!(f64_.factor_bytes() - f32_.factor_bytes() == 4 * f64_.factor_nnz());
+        let n = f64_.num_unknowns();
+        let b: Vec<f64> = (0..3 * n)
+            .map(|i| ((i * 7919 % 1013) as f64 / 1013.0) - 0.5)
+            .collect();
+        let (x64, x32) = (solve(&f64_, &b), solve(&f32_, &b));
+        assert!(residual(&f64_, &x64, &b) < 1e-9);
+        // the error the rounding adds: small, but not zero
+        let norm = |v: &[f64]| v.iter().map(|a| a * a).sum::<f64>().sqrt();
+        let err: Vec<f64> = x64.iter().zip(&x32).map(|(a, b)| a - b).collect();
+        let rel = norm(&err) / norm(&x64);
+        assert!(
+            rel > 0.0 && rel < 1e-3,
+            "single-precision relative error {rel}"
+        );
+        // the fixed point does not depend on the factor's precision
+        let pose = |f: &Factor| {
+            let mut d = Deformer::new(rest.clone(), params);
+            let r = d.step(f, &c, 200).unwrap();
+            assert!(r.converged, "{r:?}");
+            d.pose().to_vec()
+        };
+        let (p64, p32) = (pose(&f64_), pose(&f32_));
+        let diff = p64
+            .iter()
+            .zip(&p32)
+            .flat_map(|(a, b)| (0..3).map(move |i| (a[i] - b[i]).abs()))
+            .fold(0.0f64, f64::max);
+        assert!(diff < 1e-3 * mesh.diagonal(), "poses differ by {diff}");
     }
 }
