@@ -96,6 +96,8 @@ pub struct Factor {
     /// Factor values rounded to single precision
     /// ([`FactorPrecision::Single`]; empty otherwise).
     values32: Vec<f32>,
+    /// The two-thread split of the supernodal solves (large factors).
+    plan: Option<trisolve::SolvePlan>,
     /// The sparse LU of `K_UU` ([`Formulation::SquareLu`]).
     lu: Option<faer::sparse::linalg::solvers::Lu<usize, Real>>,
     /// Set when `M` is solved by preconditioned CG instead of a factor.
@@ -310,6 +312,7 @@ impl Factor {
                     symbolic: None,
                     values: Vec::new(),
                     values32: Vec::new(),
+                    plan: None,
                     lu: None,
                     cg,
                     cg_iterations: AtomicU64::new(0),
@@ -390,6 +393,12 @@ impl Factor {
             values32 = values.iter().map(|&v| v as f32).collect();
             values = Vec::new();
         }
+        let plan = match symbolic.as_ref().map(|s| s.raw()) {
+            Some(SymbolicCholeskyRaw::Supernodal(sn)) if rayon::current_num_threads() > 1 => {
+                trisolve::SolvePlan::new(sn)
+            }
+            _ => None,
+        };
         let t3 = Instant::now();
         Ok(Factor {
             id: NEXT_FACTOR_ID.fetch_add(1, Ordering::Relaxed),
@@ -401,6 +410,7 @@ impl Factor {
             symbolic,
             values,
             values32,
+            plan,
             lu,
             cg,
             cg_iterations: AtomicU64::new(0),
@@ -472,6 +482,7 @@ impl Factor {
     pub fn memory_bytes(&self) -> usize {
         let csr = |m: &sprs::CsMat<Real>| m.nnz() * 16 + (m.rows() + 1) * 8;
         self.factor_bytes()
+            + self.plan.as_ref().map_or(0, |p| p.memory_bytes())
             + csr(&self.sys.j)
             + csr(&self.sys.jt_u)
             + csr(&self.sys.m)
@@ -486,8 +497,7 @@ impl Factor {
         match (&self.symbolic, &self.cg) {
             (Some(s), _) => match s.raw() {
                 SymbolicCholeskyRaw::Supernodal(sn) => StackReq::all_of(&[
-                    StackReq::new::<trisolve::Lanes>(sn.nrows()),
-                    StackReq::new::<trisolve::Lanes>(trisolve::scratch_rows(sn)),
+                    trisolve::scratch(sn, self.plan.as_ref()),
                     // the eq. (23) preconditioner still uses faer's solve
                     s.solve_in_place_scratch::<Real>(k, Par::Seq),
                 ]),
@@ -521,10 +531,12 @@ impl Factor {
         } else if let Some(s) = &self.symbolic {
             match s.raw() {
                 SymbolicCholeskyRaw::Supernodal(sn) if self.values.is_empty() => {
-                    trisolve::solve_in_place(sn, s.perm(), &self.values32, b, stack)
+                    let plan = self.plan.as_ref();
+                    trisolve::solve_in_place(sn, s.perm(), &self.values32, plan, b, stack)
                 }
                 SymbolicCholeskyRaw::Supernodal(sn) => {
-                    trisolve::solve_in_place(sn, s.perm(), &self.values, b, stack)
+                    let plan = self.plan.as_ref();
+                    trisolve::solve_in_place(sn, s.perm(), &self.values, plan, b, stack)
                 }
                 SymbolicCholeskyRaw::Simplicial(_) => LltRef::new(s, &self.values)
                     .solve_in_place_with_conj(Conj::No, b, Par::Seq, stack),
