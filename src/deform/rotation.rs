@@ -10,6 +10,9 @@
 //!   the Newton model is not concave, and the SVD as the last resort. In
 //!   the DEND iteration it takes ~2 Newton steps per vertex and cut the
 //!   rotations' share of an iteration from ~50 % to ~19 % (docs/performance.md).
+//!   Steps are taken by a trigonometry-free retraction ([`retract`]), and a
+//!   Newton step below `1e-7` rad ends the iteration without a confirming
+//!   step.
 //!
 //! Newton step (derivation): with `R' = exp([ω]ₓ) R` and `B = A Rᵀ`,
 //! `tr(R'ᵀ A) ≈ tr B + g·ω − ½ ωᵀ H ω` where `g = Σ_c r_c × a_c`
@@ -19,7 +22,7 @@
 //! (semi-)definite, so the iteration converges quadratically from a nearby
 //! guess, which is what an iteration of DEND provides.
 
-use nalgebra::{Matrix3, Rotation3, Unit, UnitQuaternion};
+use nalgebra::{Matrix3, Quaternion, Rotation3, UnitQuaternion, Vector3};
 
 use crate::mesh::Real;
 
@@ -78,11 +81,16 @@ pub fn fit_rotation(a: &Matrix3<Real>, guess: &Matrix3<Real>) -> Matrix3<Real> {
         let tr = b.trace();
         let h = Matrix3::identity() * tr - 0.5 * (b + b.transpose());
         let newton = h.cholesky().map(|c| c.solve(&g));
-        let omega = match newton {
-            Some(w) if w.iter().all(|v| v.is_finite()) => w,
-            _ => g / (tr.abs() + 1e-12),
+        let (omega, is_newton) = match newton {
+            Some(w) if w.iter().all(|v| v.is_finite()) => (w, true),
+            _ => (g / (tr.abs() + 1e-12), false),
         };
         let angle = omega.norm();
+        if is_newton && angle < CONVERGED_STEP {
+            // H is positive definite here, so this is a maximum, and the
+            // quadratic convergence leaves an error of ~angle² after the step
+            return retract(&q, &omega).to_rotation_matrix().into_inner();
+        }
         if angle < 1e-13 {
             // converged: accept only a maximum (H positive semi-definite)
             if h.cholesky().is_some() || h.symmetric_eigenvalues().min() > -1e-9 {
@@ -93,9 +101,23 @@ pub fn fit_rotation(a: &Matrix3<Real>, guess: &Matrix3<Real>) -> Matrix3<Real> {
         // limit the step to a quarter turn: far from the maximum the
         // quadratic model is poor
         let step = angle.min(std::f64::consts::FRAC_PI_2);
-        q = UnitQuaternion::from_axis_angle(&Unit::new_unchecked(omega / angle), step) * q;
+        q = retract(&q, &(omega * (step / angle)));
     }
     rotation_from_covariance(&a.transpose())
+}
+
+/// A Newton step this short ends the iteration (after being taken).
+const CONVERGED_STEP: Real = 1e-7;
+
+/// `q` moved by the rotation vector `ω`: `normalise((1, ω/2) q)`, a
+/// retraction on SO(3) (first-order exact: its rotation angle is
+/// `2 atan(|ω|/2) = |ω| + O(|ω|³)`), which keeps Riemannian Newton's
+/// quadratic convergence (Absil, Mahony & Sepulchre 2008, Thm. 6.3.2)
+/// without the trigonometric functions of `exp`.
+#[inline]
+fn retract(q: &UnitQuaternion<Real>, omega: &Vector3<Real>) -> UnitQuaternion<Real> {
+    let d = Quaternion::new(1.0, 0.5 * omega.x, 0.5 * omega.y, 0.5 * omega.z);
+    UnitQuaternion::new_normalize(d * q.into_inner())
 }
 
 /// `argmax_{R ∈ SO(3)} tr(Rᵀ A)` from a cold start (the SVD).
@@ -106,7 +128,7 @@ pub fn best_rotation(a: &Matrix3<Real>) -> Matrix3<Real> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use nalgebra::Vector3;
+    use nalgebra::Unit;
     use proptest::prelude::*;
 
     fn mat(v: &[f64]) -> Matrix3<f64> {
