@@ -118,8 +118,37 @@ impl Mu {
     pub fn d(&self, topo: &Topology, y: &[Point], i: usize) -> Point {
         let m = &self.mu[self.offsets[i] as usize..self.offsets[i + 1] as usize];
         let mut d = [0.0; 3];
-        for (k, &mu) in m.iter().enumerate() {
-            let c = column(self.mode, topo, y, i, self.inv_ring_len[i], k);
+        let ring = topo.ring(i);
+        if m.is_empty() || ring.is_empty() {
+            return d;
+        }
+        // The columns of `column`, in the same order and with the same
+        // arithmetic (so the same rounding), without its per-column ring
+        // lookups: each edge vector is formed once for the face columns.
+        let len = ring.len();
+        let faces = if topo.is_boundary(i) { len - 1 } else { len };
+        let pi = y[i];
+        let inv_len = self.inv_ring_len[i];
+        let first = sub(y[ring[0] as usize], pi);
+        let mut a = first;
+        for (k, &mu) in m[..faces].iter().enumerate() {
+            let b = if k + 1 < len {
+                sub(y[ring[k + 1] as usize], pi)
+            } else {
+                first
+            };
+            let c = cross(a, b);
+            let c = match self.mode {
+                Mode::Default => [c[0] * inv_len, c[1] * inv_len, c[2] * inv_len],
+                Mode::Paper => c,
+            };
+            d[0] += mu * c[0];
+            d[1] += mu * c[1];
+            d[2] += mu * c[2];
+            a = b;
+        }
+        for (&mu, &j) in m[faces..].iter().zip(ring) {
+            let c = sub(y[j as usize], pi);
             d[0] += mu * c[0];
             d[1] += mu * c[1];
             d[2] += mu * c[2];
@@ -288,6 +317,35 @@ mod tests {
             }
         }
         Mesh::new(p, t).unwrap()
+    }
+
+    #[test]
+    fn d_is_the_mu_weighted_sum_of_the_step1_columns() {
+        // d_i(Y) = Σ_k μ_k c_k(Y) (eq. 27), summed column by column with
+        // `column`, on a deformed pose, interior and boundary vertices, both
+        // modes: the fused loop of `Mu::d` gives the same bits.
+        let m = saddle();
+        let ops = Operators::new(&m);
+        let y: Vec<Point> = ops
+            .positions
+            .iter()
+            .map(|p| [p[0] + 0.1 * p[1].sin(), p[1] * 1.2, p[2] + 0.3 * p[0]])
+            .collect();
+        for mode in [Mode::Default, Mode::Paper] {
+            let mu = Mu::new(mode, m.topology(), &ops.positions, &ops.delta);
+            for i in 0..m.num_vertices() {
+                let coeffs = &mu.mu[mu.offsets[i] as usize..mu.offsets[i + 1] as usize];
+                assert_eq!(coeffs.len(), num_columns(mode, m.topology(), i));
+                let mut want = [0.0; 3];
+                for (k, &c) in coeffs.iter().enumerate() {
+                    let col = column(mode, m.topology(), &y, i, mu.inv_ring_len[i], k);
+                    for a in 0..3 {
+                        want[a] += c * col[a];
+                    }
+                }
+                assert_eq!(mu.d(m.topology(), &y, i), want, "{mode:?} vertex {i}");
+            }
+        }
     }
 
     #[test]
