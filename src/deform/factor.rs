@@ -125,7 +125,8 @@ pub struct SolveOptions {
     /// Direct, CG, or automatic.
     pub solver: SolverChoice,
     /// [`SolverChoice::Auto`] falls back to CG when the Cholesky factor
-    /// (16 bytes per nonzero: value and row index) would exceed this.
+    /// would exceed this ([`estimated_factor_bytes`]: its values in the
+    /// chosen [`FactorPrecision`] and its row indices).
     pub factor_budget_bytes: usize,
     /// CG relative residual tolerance per solve.
     pub cg_tol: Real,
@@ -299,7 +300,8 @@ impl Factor {
             })?;
             let t2 = Instant::now();
             if options.solver == SolverChoice::Auto
-                && symbolic.len_val().saturating_mul(16) > options.factor_budget_bytes
+                && estimated_factor_bytes(&symbolic, options.precision)
+                    > options.factor_budget_bytes
             {
                 cg = cg_of(&sys);
                 return Ok(Factor {
@@ -431,6 +433,11 @@ impl Factor {
         )
     }
 
+    /// The symbolic Cholesky factorisation (none for CG or LU).
+    pub(crate) fn symbolic(&self) -> Option<&SymbolicCholesky<usize>> {
+        self.symbolic.as_ref()
+    }
+
     /// A process-unique id of this factor.
     pub fn id(&self) -> u64 {
         self.id
@@ -549,6 +556,28 @@ impl Factor {
             self.cg_iterations
                 .fetch_add(stats.iterations as u64, Ordering::Relaxed);
         }
+    }
+}
+
+/// Bytes a factor with this symbolic structure will hold: 8 (or 4, single
+/// precision, supernodal only) per value, plus the row indices (one per
+/// value for a simplicial factor, one per supernode row otherwise).
+pub(crate) fn estimated_factor_bytes(
+    symbolic: &SymbolicCholesky<usize>,
+    precision: FactorPrecision,
+) -> usize {
+    let values = symbolic.len_val();
+    match symbolic.raw() {
+        SymbolicCholeskyRaw::Supernodal(sn) => {
+            let value_bytes = match precision {
+                FactorPrecision::Double => 8,
+                FactorPrecision::Single => 4,
+            };
+            values
+                .saturating_mul(value_bytes)
+                .saturating_add(sn.row_idx().len().saturating_mul(8))
+        }
+        SymbolicCholeskyRaw::Simplicial(_) => values.saturating_mul(16),
     }
 }
 

@@ -181,6 +181,14 @@ fn a_single_precision_factor_halves_the_values_and_keeps_the_deformation() {
     // values 8 -> 4 bytes; the row indices stay
     assert!(f32_.factor_bytes() < f64_.factor_bytes());
     assert!(f64_.factor_bytes() - f32_.factor_bytes() == 4 * f64_.factor_nnz());
+    // the budget check's estimate is what the built factor holds
+    for (f, p) in [
+        (&f64_, FactorPrecision::Double),
+        (&f32_, FactorPrecision::Single),
+    ] {
+        let est = crate::deform::factor::estimated_factor_bytes(f.symbolic().unwrap(), p);
+        assert_eq!(est, f.factor_bytes());
+    }
     let n = f64_.num_unknowns();
     let b: Vec<f64> = (0..3 * n)
         .map(|i| ((i * 7919 % 1013) as f64 / 1013.0) - 0.5)
