@@ -434,6 +434,7 @@ impl Factor {
     }
 
     /// The symbolic Cholesky factorisation (none for CG or LU).
+    #[cfg(test)]
     pub(crate) fn symbolic(&self) -> Option<&SymbolicCholesky<usize>> {
         self.symbolic.as_ref()
     }
