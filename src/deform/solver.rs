@@ -27,6 +27,14 @@ const SLACK: Real = 1.05;
 /// `diverged`: near convergence the objective fluctuates at that level.
 const FLOOR: Real = 1e-6;
 
+/// Longest run of Anderson candidates skipped after rejections: each
+/// rejection doubles the run (1, 2, 4, 8), an accepted candidate ends it.
+/// A rejected candidate costs a whole evaluation of the pose; measured on
+/// the standard edit (100 iterations), eth_hand_14k evaluated 52
+/// candidates and accepted 5, feline_50k 58 and 16; with the back-off 18
+/// and 29, the same 5 and 16 accepted, 9 % and 2 % less time.
+const MAX_AA_BACKOFF: u32 = 8;
+
 /// What one [`Deformer::step`] did.
 #[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
 pub struct StepReport {
@@ -99,6 +107,9 @@ struct Chain {
     best_f: Real,
     /// The objective at the start of the chain.
     f_start: Real,
+    /// Anderson back-off: candidates still to skip, and the current skip length.
+    aa_skip: u32,
+    aa_backoff: u32,
 }
 
 impl Deformer {
@@ -246,6 +257,7 @@ impl Deformer {
                 (0, f, f)
             }
         };
+        let (mut aa_skip, mut aa_backoff) = chain.map_or((0, 0), |c| (c.aa_skip, c.aa_backoff));
         // rises of the objective below this are not divergence
         let floor = FLOOR * f_start + 1e-20;
         let nu = factor.sys.unknowns.len();
@@ -285,7 +297,13 @@ impl Deformer {
                     s.x_flat[nu + k] = p[1];
                     s.x_flat[2 * nu + k] = p[2];
                 }
-                if s.anderson.step(&s.x_flat, &s.rhs, &mut s.cand) {
+                let proposed = s.anderson.step(&s.x_flat, &s.rhs, &mut s.cand);
+                // after rejected candidates, skip a few (1, 2, 4, .. 8 in a
+                // row) but keep recording the history: on real meshes most
+                // candidates right after a rejection are rejected too
+                let skip = aa_skip > 0;
+                aa_skip = aa_skip.saturating_sub(1);
+                if proposed && !skip {
                     let mut mv: Real = 0.0;
                     for (k, &u) in factor.sys.unknowns.iter().enumerate() {
                         let c = [s.cand[k], s.cand[nu + k], s.cand[2 * nu + k]];
@@ -299,8 +317,11 @@ impl Deformer {
                     let f_aa = self.evaluate(factor);
                     if f_aa.is_finite() && f_aa <= f {
                         accepted = Some((f_aa, mv));
+                        aa_backoff = 0;
                     } else {
                         self.scratch.anderson.reset();
+                        aa_backoff = (2 * aa_backoff).clamp(1, MAX_AA_BACKOFF);
+                        aa_skip = aa_backoff;
                     }
                 }
             }
@@ -372,6 +393,8 @@ impl Deformer {
                 growing,
                 best_f,
                 f_start,
+                aa_skip,
+                aa_backoff,
             });
         }
         self.sync_pose();
