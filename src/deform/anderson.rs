@@ -13,9 +13,12 @@ use crate::mesh::Real;
 #[derive(Debug, Default)]
 pub struct Anderson {
     window: usize,
-    /// Differences of residuals `f = G(x) - x` and of images `g = G(x)`.
+    /// Differences of residuals `f = G(x) - x` and of images `g = G(x)`;
+    /// the first `used` are live. Buffers are kept across resets, so a
+    /// reset and refill allocate nothing.
     df: Vec<Vec<Real>>,
     dg: Vec<Vec<Real>>,
+    used: usize,
     prev_f: Vec<Real>,
     prev_g: Vec<Real>,
     has_prev: bool,
@@ -29,6 +32,7 @@ impl Anderson {
             window,
             df: Vec::with_capacity(window),
             dg: Vec::with_capacity(window),
+            used: 0,
             prev_f: vec![0.0; len],
             prev_g: vec![0.0; len],
             has_prev: false,
@@ -38,8 +42,7 @@ impl Anderson {
 
     /// Forgets every stored pair.
     pub fn reset(&mut self) {
-        self.df.clear();
-        self.dg.clear();
+        self.used = 0;
         self.has_prev = false;
         self.next = 0;
     }
@@ -53,25 +56,26 @@ impl Anderson {
             out[i] = x[i] + f[i]; // g = G(x)
         }
         if self.has_prev && self.window > 0 {
-            let (dfv, dgv) = if self.df.len() < self.window {
-                self.df.push(vec![0.0; n]);
-                self.dg.push(vec![0.0; n]);
-                let k = self.df.len() - 1;
-                (k, k)
+            let k = if self.used < self.window {
+                if self.df.len() == self.used {
+                    self.df.push(vec![0.0; n]);
+                    self.dg.push(vec![0.0; n]);
+                }
+                self.used += 1;
+                self.used - 1
             } else {
-                let k = self.next % self.window;
-                (k, k)
+                self.next % self.window
             };
-            self.next = (dfv + 1) % self.window.max(1);
+            self.next = (k + 1) % self.window.max(1);
             for i in 0..n {
-                self.df[dfv][i] = f[i] - self.prev_f[i];
-                self.dg[dgv][i] = out[i] - self.prev_g[i];
+                self.df[k][i] = f[i] - self.prev_f[i];
+                self.dg[k][i] = out[i] - self.prev_g[i];
             }
         }
         self.prev_f.copy_from_slice(f);
         self.prev_g.copy_from_slice(out);
         self.has_prev = true;
-        let m = self.df.len();
+        let m = self.used;
         if m == 0 {
             return false;
         }
@@ -136,6 +140,21 @@ mod tests {
             }
             2000
         };
+        // a reset history behaves as a new one (its buffers are reused)
+        let mut used = Anderson::new(3, 3);
+        let mut fresh = Anderson::new(3, 3);
+        let (mut o1, mut o2) = (vec![0.0; 3], vec![0.0; 3]);
+        for k in 0..5 {
+            let x = [k as f64, 1.0, -1.0];
+            used.step(&x, &g(&x), &mut o1);
+        }
+        used.reset();
+        for k in 0..4 {
+            let x = [0.3 * k as f64, 2.0 - k as f64, 0.5];
+            let f: Vec<f64> = g(&x).iter().zip(&x).map(|(a, b)| a - b).collect();
+            assert_eq!(used.step(&x, &f, &mut o1), fresh.step(&x, &f, &mut o2));
+            assert_eq!(o1, o2);
+        }
         let plain = solve_iters(0);
         let fast = solve_iters(4);
         assert!(plain > 200, "plain iteration should be slow: {plain}");
