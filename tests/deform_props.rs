@@ -416,6 +416,33 @@ fn changing_only_targets_never_refactors() {
     assert_eq!(d.step(&f, &c, 1), Err(DeformError::FactorMismatch));
 }
 
+#[test]
+fn a_cache_builds_its_factors_with_its_options() {
+    use dend::deform::{FactorPrecision, SolveOptions};
+    let m = tube(1.0, 5.0, 40, 40);
+    let rest = Arc::new(Rest::new(m.clone()).unwrap());
+    let c = tube_spec(&m, handle(None, None)).resolve(&m).unwrap();
+    let params = Params::default();
+    let single = FactorCache::with_options(
+        1 << 30,
+        SolveOptions {
+            precision: FactorPrecision::Single,
+            ..SolveOptions::default()
+        },
+    );
+    let (fd, fs) = (
+        FactorCache::new(1 << 30)
+            .get_or_build(&rest, &params, &c)
+            .unwrap(),
+        single.get_or_build(&rest, &params, &c).unwrap(),
+    );
+    assert_eq!(fd.factor_nnz(), fs.factor_nnz());
+    // f32 values: 4 bytes less per nonzero
+    assert_eq!(fd.factor_bytes() - fs.factor_bytes(), 4 * fd.factor_nnz());
+    let mut d = Deformer::new(rest, params);
+    assert!(d.step(&fs, &c, 50).unwrap().iterations >= 1);
+}
+
 /// Sessions opened together on one mesh and constraint set share one build:
 /// concurrent requests wait for the first factorisation.
 #[test]

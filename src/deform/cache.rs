@@ -8,7 +8,7 @@ use std::sync::Arc;
 use parking_lot::Mutex;
 
 use super::constraints::Constraints;
-use super::factor::{Factor, FactorKey};
+use super::factor::{Factor, FactorKey, SolveOptions};
 use super::params::Params;
 use super::rest::Rest;
 use super::DeformError;
@@ -18,6 +18,9 @@ use super::DeformError;
 /// and hits so that "changing only targets never refactors" is testable.
 pub struct FactorCache {
     budget: usize,
+    /// How every factor of this cache is built (precision, ordering, CG
+    /// fallback budget); not part of the key, one set per cache.
+    options: SolveOptions,
     inner: Mutex<CacheInner>,
     builds: AtomicU64,
     hits: AtomicU64,
@@ -37,8 +40,14 @@ impl FactorCache {
     /// An empty cache holding at most `budget_bytes` of factors (the most
     /// recent one is always kept, even if it alone exceeds the budget).
     pub fn new(budget_bytes: usize) -> Self {
+        Self::with_options(budget_bytes, SolveOptions::default())
+    }
+
+    /// [`FactorCache::new`] whose factors are built with `options`.
+    pub fn with_options(budget_bytes: usize, options: SolveOptions) -> Self {
         FactorCache {
             budget: budget_bytes,
+            options,
             inner: Mutex::new(CacheInner {
                 map: HashMap::new(),
                 building: HashMap::new(),
@@ -82,7 +91,7 @@ impl FactorCache {
             self.hits.fetch_add(1, Ordering::Relaxed);
             return Ok(f);
         }
-        let built = Factor::build(rest, params, constraints);
+        let built = Factor::build_with(rest, params, constraints, &self.options);
         let mut inner = self.inner.lock();
         // Waiters hold their own copy of the gate; later requests find the
         // factor (inserted below under this same lock) or build anew.

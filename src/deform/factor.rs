@@ -152,13 +152,36 @@ pub struct SolveOptions {
 /// option for memory-bound servers, not the default (docs/performance.md).
 /// Only supernodal eq. (24) factors are rounded; simplicial (small) factors
 /// and the eq. (23) preconditioner stay in `f64`.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "snake_case")]
 pub enum FactorPrecision {
     /// `f64` values.
     #[default]
     Double,
     /// `f32` values, `f64` arithmetic in the solves.
     Single,
+}
+
+impl std::str::FromStr for FactorPrecision {
+    type Err = String;
+
+    /// `double` or `single`.
+    fn from_str(s: &str) -> Result<Self, String> {
+        match s {
+            "double" => Ok(FactorPrecision::Double),
+            "single" => Ok(FactorPrecision::Single),
+            _ => Err(format!("unknown factor precision {s:?} (double or single)")),
+        }
+    }
+}
+
+impl std::fmt::Display for FactorPrecision {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(match self {
+            FactorPrecision::Double => "double",
+            FactorPrecision::Single => "single",
+        })
+    }
 }
 
 impl Default for SolveOptions {

@@ -8,6 +8,8 @@ use std::time::Duration;
 
 use serde::{Deserialize, Serialize};
 
+use crate::deform::FactorPrecision;
+
 /// Every limit and knob of `dend serve`. Flags win over environment
 /// variables, which win over the defaults below.
 #[derive(Debug, Clone, PartialEq, clap::Args, Serialize, Deserialize)]
@@ -32,6 +34,11 @@ pub struct Config {
     /// factors only; an evicted factor is rebuilt on demand).
     #[arg(long, env = "DEND_FACTOR_CACHE_BYTES", default_value_t = 2 << 30)]
     pub factor_cache_bytes: usize,
+    /// Precision the cached factors are stored in: `double`, or `single`
+    /// (half the factor memory and solve traffic; steps are inexact to
+    /// ~1e-4, which slows convergence on some meshes: docs/performance.md).
+    #[arg(long, env = "DEND_FACTOR_PRECISION", default_value_t = FactorPrecision::Double)]
+    pub factor_precision: FactorPrecision,
     /// A session with no request and no connected client for this many
     /// seconds is closed and deleted.
     #[arg(long, env = "DEND_IDLE_TIMEOUT_SECS", default_value_t = 3600)]
@@ -69,6 +76,7 @@ impl Default for Config {
             max_meshes: 1024,
             max_sessions: 256,
             factor_cache_bytes: 2 << 30,
+            factor_precision: FactorPrecision::Double,
             idle_timeout_secs: 3600,
             request_timeout_secs: 120,
             ws_max_message_bytes: 64 << 10,
@@ -130,5 +138,15 @@ mod tests {
         let cli = Cli::try_parse_from(["x", "--addr", "0.0.0.0:9", "--max-vertices", "7"]).unwrap();
         assert_eq!(cli.config.addr.port(), 9);
         assert_eq!(cli.config.max_vertices, 7);
+    }
+
+    #[test]
+    fn factor_precision_from_flag_and_file() {
+        let cli = Cli::try_parse_from(["x", "--factor-precision", "single"]).unwrap();
+        assert_eq!(cli.config.factor_precision, FactorPrecision::Single);
+        assert!(Cli::try_parse_from(["x", "--factor-precision", "half"]).is_err());
+        let c: Config = serde_json::from_str(r#"{"factor_precision": "single"}"#).unwrap();
+        assert_eq!(c.factor_precision, FactorPrecision::Single);
+        assert!(serde_json::from_str::<Config>(r#"{"factor_precision": "f16"}"#).is_err());
     }
 }

@@ -33,7 +33,7 @@ pub use config::Config;
 pub use error::ApiError;
 pub use metrics::Metrics;
 
-use crate::deform::{FactorCache, Rest};
+use crate::deform::{FactorCache, Rest, SolveOptions};
 use crate::session::SessionHandle;
 use crate::store::{MemoryStore, Store};
 
@@ -63,7 +63,13 @@ impl AppState {
     /// State with a given store.
     pub fn with_store(config: Config, store: Arc<dyn Store>) -> anyhow::Result<Self> {
         Ok(AppState {
-            cache: Arc::new(FactorCache::new(config.factor_cache_bytes)),
+            cache: Arc::new(FactorCache::with_options(
+                config.factor_cache_bytes,
+                SolveOptions {
+                    precision: config.factor_precision,
+                    ..SolveOptions::default()
+                },
+            )),
             config: Arc::new(config),
             store,
             metrics: Arc::new(Metrics::new()?),
