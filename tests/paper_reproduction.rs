@@ -262,14 +262,20 @@ fn generated_bar_twisted_300_in_5_steps() {
     let [(_, _, _, d), (_, _, paper_dev, _), (_, _, tp_dev, _)] = &rows[..] else {
         unreachable!()
     };
+    assert_within_safeguard(d);
+    assert!(
+        *paper_dev > 300.0 && *tp_dev > 300.0,
+        "paper {paper_dev:.1}° / thin plate {tp_dev:.1}°"
+    );
+}
+
+/// The safeguard's guarantee for a run whose outcome is not reproducible:
+/// its last step ended within the slack (1.05) of its starting objective.
+fn assert_within_safeguard(d: &Run) {
     assert!(
         d.objective_ratio <= 1.05 + 1e-9,
         "default's last step ended above its start: ratio {}",
         d.objective_ratio
-    );
-    assert!(
-        *paper_dev > 300.0 && *tp_dev > 300.0,
-        "paper {paper_dev:.1}° / thin plate {tp_dev:.1}°"
     );
 }
 
@@ -297,11 +303,7 @@ fn generated_cylinder_bent_180_in_3_steps() {
     let [(_, _, d), (_, paper_cv, _), (_, tp_cv, _)] = &rows[..] else {
         unreachable!()
     };
-    assert!(
-        d.objective_ratio <= 1.05 + 1e-9,
-        "default's last step ended above its start: ratio {}",
-        d.objective_ratio
-    );
+    assert_within_safeguard(d);
     assert!(
         *tp_cv <= 0.2 && *paper_cv <= 0.25,
         "paper {paper_cv:.3} / thin plate {tp_cv:.3}"

@@ -187,26 +187,16 @@ impl SolvePlan {
         let rows = Rows::new(x);
         let (owner, top_index) = (&self.owner[..], &self.top_index[..]);
         let [b1, b2] = &self.bins;
-        rayon::join(
-            || {
-                let scatter = Scatter::Split {
-                    me: 1,
-                    owner,
-                    top_index,
-                    delta: d1,
-                };
-                forward(f, b1.iter().copied(), rows, tmp0, scatter)
-            },
-            || {
-                let scatter = Scatter::Split {
-                    me: 2,
-                    owner,
-                    top_index,
-                    delta: d2,
-                };
-                forward(f, b2.iter().copied(), rows, tmp1, scatter)
-            },
-        );
+        let sweep = |me: u8, nodes: &[usize], tmp: &mut [Lanes], delta: &mut [Lanes]| {
+            let scatter = Scatter::Split {
+                me,
+                owner,
+                top_index,
+                delta,
+            };
+            forward(f, nodes.iter().copied(), rows, tmp, scatter)
+        };
+        rayon::join(|| sweep(1, b1, tmp0, d1), || sweep(2, b2, tmp1, d2));
         for (i, &r) in self.top_rows.iter().enumerate() {
             let d = [0, 1, 2, 3].map(|k| d1[i][k] + d2[i][k]);
             // SAFETY: both threads have joined.
