@@ -82,10 +82,11 @@ fn bench(c: &mut Criterion) {
         let factor = Factor::build(&rest, &params, &constraints).expect("factor");
         eprintln!(
             "{name}: {n} vertices, {} unknowns, factor nnz {} ({:.1} per unknown), \
-             session bytes {} ({:.0} B/vertex)",
+             factor bytes {}, session bytes {} ({:.0} B/vertex)",
             factor.num_unknowns(),
             factor.factor_nnz(),
             factor.factor_nnz() as f64 / factor.num_unknowns() as f64,
+            factor.factor_bytes(),
             factor.memory_bytes(),
             factor.memory_bytes() as f64 / n as f64,
         );
