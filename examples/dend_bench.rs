@@ -229,8 +229,11 @@ fn bench(
         let cg_build = ms(t.elapsed());
         let before = cg.cg_iterations();
         let cg_iters = iters.min(3);
-        let (it, _, _, _) = time_iterations(rest, &params, &cg, constraints, cg_iters)?;
-        let per_solve = (cg.cg_iterations() - before) as f64 / (cg_iters + 2) as f64 / 3.0;
+        let (it, _, conv_its, _) = time_iterations(rest, &params, &cg, constraints, cg_iters)?;
+        // one 3-column solve per iteration: 2 warm-up, the timed ones, and
+        // the full solve that `time_iterations` ends with
+        let solves = 2 + cg_iters + conv_its;
+        let per_solve = (cg.cg_iterations() - before) as f64 / solves as f64 / 3.0;
         out["cg_build_ms"] = cg_build.into();
         out["cg_iteration_ms"] = it.into();
         out["cg_iterations_per_column"] = per_solve.into();
