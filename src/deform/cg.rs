@@ -224,6 +224,13 @@ pub(super) mod tests {
         }
     }
 
+    /// A fixed pseudo-random right-hand side of `len` values in [-0.5, 0.5).
+    pub(in crate::deform) fn pseudo_random(len: usize) -> Vec<f64> {
+        (0..len)
+            .map(|i| ((i * 7919 % 1013) as f64 / 1013.0) - 0.5)
+            .collect()
+    }
+
     /// Solves `M X = B` with `f` for a fixed pseudo-random `B` (`n × 3`).
     pub(in crate::deform) fn solve(f: &Factor, b: &[f64]) -> Vec<f64> {
         let n = f.num_unknowns();
@@ -266,9 +273,7 @@ pub(super) mod tests {
             Factor::build_with(&rest, &params, &c, &options(SolverChoice::Direct, 1e-4)).unwrap();
         assert!(!direct.uses_cg() && direct.factor_nnz() > 0);
         let n = direct.num_unknowns();
-        let b: Vec<f64> = (0..3 * n)
-            .map(|i| ((i * 7919 % 1013) as f64 / 1013.0) - 0.5)
-            .collect();
+        let b = pseudo_random(3 * n);
         let x_chol = solve(&direct, &b);
         assert!(residual(&direct, &x_chol, &b) < 1e-9);
         for tol in [1e-4, 1e-10] {

@@ -102,7 +102,7 @@ pub(crate) fn nested_dissection(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::deform::cg::tests::{edit, grid, residual, solve};
+    use crate::deform::cg::tests::{edit, grid, pseudo_random, residual, solve};
     use crate::deform::{Factor, Params, Rest, SolveOptions, SolverChoice};
     use faer::sparse::linalg::cholesky::{factorize_symbolic_cholesky, SymmetricOrdering};
     use faer::sparse::SymbolicSparseColMat;
@@ -209,9 +209,7 @@ mod tests {
         );
         assert!(amd.is_supernodal() && nd.is_supernodal());
         let n = amd.num_unknowns();
-        let b: Vec<f64> = (0..3 * n)
-            .map(|i| ((i * 7919 % 1013) as f64 / 1013.0) - 0.5)
-            .collect();
+        let b = pseudo_random(3 * n);
         let (xa, xn) = (solve(&amd, &b), solve(&nd, &b));
         assert!(residual(&amd, &xa, &b) < 1e-9);
         assert!(residual(&nd, &xn, &b) < 1e-9);

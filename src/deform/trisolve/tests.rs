@@ -154,7 +154,7 @@ fn baseline_and_fused_kernels_agree() {
 
 #[test]
 fn a_single_precision_factor_halves_the_values_and_keeps_the_deformation() {
-    use crate::deform::cg::tests::{edit, grid, residual, solve};
+    use crate::deform::cg::tests::{edit, grid, pseudo_random, residual, solve};
     use crate::deform::{
         Deformer, Factor, FactorPrecision, Params, Rest, SolveOptions, SolverChoice,
     };
@@ -190,9 +190,7 @@ fn a_single_precision_factor_halves_the_values_and_keeps_the_deformation() {
         assert_eq!(est, f.factor_bytes());
     }
     let n = f64_.num_unknowns();
-    let b: Vec<f64> = (0..3 * n)
-        .map(|i| ((i * 7919 % 1013) as f64 / 1013.0) - 0.5)
-        .collect();
+    let b = pseudo_random(3 * n);
     let (x64, x32) = (solve(&f64_, &b), solve(&f32_, &b));
     assert!(residual(&f64_, &x64, &b) < 1e-9);
     // the error the rounding adds: small, but not zero
