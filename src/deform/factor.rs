@@ -408,22 +408,24 @@ impl Factor {
             }
             (Some(symbolic), values, t2)
         };
+        // A supernodal factor is solved by `trisolve` (on two threads if
+        // there are; eq. (24)'s in `f32` if asked) unless it preconditions
+        // eq. (23)'s GMRES, which uses faer's solve in `f64`.
         let mut values = values;
         let mut values32 = Vec::new();
-        let supernodal = matches!(
+        let mut plan = None;
+        if let (Some(SymbolicCholeskyRaw::Supernodal(sn)), false) = (
             symbolic.as_ref().map(|s| s.raw()),
-            Some(SymbolicCholeskyRaw::Supernodal(_))
-        );
-        if options.precision == FactorPrecision::Single && supernodal && square.is_none() {
-            values32 = values.iter().map(|&v| v as f32).collect();
-            values = Vec::new();
-        }
-        let plan = match symbolic.as_ref().map(|s| s.raw()) {
-            Some(SymbolicCholeskyRaw::Supernodal(sn)) if rayon::current_num_threads() > 1 => {
-                trisolve::SolvePlan::new(sn)
+            preconditions_gmres(&square),
+        ) {
+            if options.precision == FactorPrecision::Single && square.is_none() {
+                values32 = values.iter().map(|&v| v as f32).collect();
+                values = Vec::new();
             }
-            _ => None,
-        };
+            if rayon::current_num_threads() > 1 {
+                plan = trisolve::SolvePlan::new(sn);
+            }
+        }
         let t3 = Instant::now();
         Ok(Factor {
             id: NEXT_FACTOR_ID.fetch_add(1, Ordering::Relaxed),
@@ -526,13 +528,12 @@ impl Factor {
     /// Scratch needed by [`Factor::solve_in_place`] for `k` right-hand sides.
     pub(crate) fn solve_scratch(&self, k: usize) -> StackReq {
         match (&self.symbolic, &self.cg) {
-            (Some(s), _) => match s.raw() {
-                SymbolicCholeskyRaw::Supernodal(sn) => StackReq::all_of(&[
-                    trisolve::scratch(sn, self.plan.as_ref()),
-                    // the eq. (23) preconditioner still uses faer's solve
-                    s.solve_in_place_scratch::<Real>(k, Par::Seq),
-                ]),
-                SymbolicCholeskyRaw::Simplicial(_) => s.solve_in_place_scratch::<Real>(k, Par::Seq),
+            (Some(s), _) => match (s.raw(), preconditions_gmres(&self.square)) {
+                (SymbolicCholeskyRaw::Supernodal(sn), false) => {
+                    trisolve::scratch(sn, self.plan.as_ref())
+                }
+                // simplicial, or eq. (23)'s preconditioner: faer's solve
+                _ => s.solve_in_place_scratch::<Real>(k, Par::Seq),
             },
             (None, Some(_)) => Cg::scratch(self.sys.unknowns.len()),
             (None, None) => StackReq::EMPTY, // LU allocates its own
@@ -581,6 +582,12 @@ impl Factor {
                 .fetch_add(stats.iterations as u64, Ordering::Relaxed);
         }
     }
+}
+
+/// Whether the factor is eq. (23)'s `N`, the preconditioner of GMRES on the
+/// exact `K_UU`, rather than a matrix solved directly.
+fn preconditions_gmres(square: &Option<Square>) -> bool {
+    square.as_ref().is_some_and(|q| q.k_uu.is_some())
 }
 
 /// Bytes a factor with this symbolic structure will hold: 8 (or 4, single
