@@ -110,10 +110,9 @@ fn run() -> Result<(), String> {
         name => vec![Formulation::from_name(name).ok_or(format!("bad formulation {name:?}"))?],
     };
     let precisions = match arg::<String>(&args, "--precision").as_deref() {
-        None | Some("double") => vec![FactorPrecision::Double],
-        Some("single") => vec![FactorPrecision::Single],
+        None => vec![FactorPrecision::default()],
         Some("both") => vec![FactorPrecision::Double, FactorPrecision::Single],
-        Some(p) => return Err(format!("bad precision {p:?}")),
+        Some(p) => vec![p.parse()?],
     };
     let mut lines = Vec::new();
     for formulation in formulations {
@@ -198,7 +197,7 @@ fn bench(
     let mut out = serde_json::json!({
         "mesh": spec,
         "formulation": params.formulation,
-        "precision": format!("{precision:?}").to_lowercase(),
+        "precision": precision,
         "vertices": n,
         "unknowns": factor.num_unknowns(),
         "threads": rayon::current_num_threads(),
