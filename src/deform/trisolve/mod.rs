@@ -19,6 +19,7 @@
 //! The kernels are compiled twice: for the baseline target and with
 //! AVX2+FMA, chosen at run time.
 
+mod kernels;
 mod parallel;
 
 pub(crate) use parallel::SolvePlan;
@@ -230,34 +231,6 @@ pub(crate) enum Scatter<'a> {
     },
 }
 
-/// `acc - l·v` lane-wise (fused when `FMA`).
-#[inline(always)]
-fn sub_mul<const FMA: bool>(acc: Lanes, l: Real, v: Lanes) -> Lanes {
-    let mut r = acc;
-    for k in 0..4 {
-        r[k] = if FMA {
-            (-l).mul_add(v[k], acc[k])
-        } else {
-            acc[k] - l * v[k]
-        };
-    }
-    r
-}
-
-/// `acc + l·v` lane-wise (fused when `FMA`).
-#[inline(always)]
-fn add_mul<const FMA: bool>(acc: Lanes, l: Real, v: Lanes) -> Lanes {
-    let mut r = acc;
-    for k in 0..4 {
-        r[k] = if FMA {
-            l.mul_add(v[k], acc[k])
-        } else {
-            acc[k] + l * v[k]
-        };
-    }
-    r
-}
-
 fn has_fma() -> bool {
     #[cfg(target_arch = "x86_64")]
     {
@@ -277,13 +250,11 @@ pub(crate) fn forward<V: FactorValue>(
     tmp: &mut [Lanes],
     scatter: Scatter<'_>,
 ) {
-    #[cfg(target_arch = "x86_64")]
     if has_fma() {
-        // SAFETY: the CPU supports the features the function is compiled for.
-        unsafe { forward_fma(f, nodes, x, tmp, scatter) };
-        return;
+        forward_impl::<V, true>(f, nodes, x, tmp, scatter);
+    } else {
+        forward_impl::<V, false>(f, nodes, x, tmp, scatter);
     }
-    forward_impl::<V, false>(f, nodes, x, tmp, scatter);
 }
 
 /// Back substitution `Lᵀ x = y` over `nodes` (in reverse elimination order).
@@ -293,40 +264,114 @@ pub(crate) fn backward<V: FactorValue>(
     x: Rows,
     tmp: &mut [Lanes],
 ) {
-    #[cfg(target_arch = "x86_64")]
     if has_fma() {
-        // SAFETY: as in `forward`.
-        unsafe { backward_fma(f, nodes, x, tmp) };
+        backward_impl::<V, true>(f, nodes, x, tmp);
+    } else {
+        backward_impl::<V, false>(f, nodes, x, tmp);
+    }
+}
+
+/// `dst ∓= Σ_c L[r0.., j0 + c] x[c]` for the `k ≤ 4` columns `j0..j0 + k`
+/// of a supernode's column-major `block` of height `h`, rows
+/// `r0..r0 + dst.len()` (`+=` if `ADD`). `SIMD`: the AVX2+FMA kernel, only
+/// when [`has_fma`] said so.
+#[inline(always)]
+fn update_block<V: FactorValue, const SIMD: bool, const ADD: bool>(
+    block: &[V],
+    h: usize,
+    (j0, k): (usize, usize),
+    r0: usize,
+    x: &[Lanes],
+    dst: &mut [Lanes],
+) {
+    #[inline(always)]
+    fn run<V: FactorValue, const K: usize, const SIMD: bool, const ADD: bool>(
+        block: &[V],
+        h: usize,
+        j0: usize,
+        r0: usize,
+        x: &[Lanes],
+        dst: &mut [Lanes],
+    ) {
+        let n = dst.len();
+        let cols: [&[V]; K] =
+            std::array::from_fn(|c| &block[(j0 + c) * h + r0..(j0 + c) * h + r0 + n]);
+        let x: [Lanes; K] = std::array::from_fn(|c| x[c]);
+        #[cfg(target_arch = "x86_64")]
+        if SIMD {
+            // SAFETY: SIMD is set only on CPUs with AVX2 and FMA; every
+            // column slice holds `dst.len()` values.
+            unsafe { kernels::update_avx::<V, K, ADD>(cols, x, dst) };
+            return;
+        }
+        kernels::update_portable::<V, K, ADD>(cols, x, dst)
+    }
+    if dst.is_empty() {
         return;
     }
-    backward_impl::<V, false>(f, nodes, x, tmp);
+    match k {
+        1 => run::<V, 1, SIMD, ADD>(block, h, j0, r0, x, dst),
+        2 => run::<V, 2, SIMD, ADD>(block, h, j0, r0, x, dst),
+        3 => run::<V, 3, SIMD, ADD>(block, h, j0, r0, x, dst),
+        _ => run::<V, 4, SIMD, ADD>(block, h, j0, r0, x, dst),
+    }
 }
 
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2,fma")]
-unsafe fn forward_fma<V: FactorValue>(
-    f: Supernodal<'_, V>,
-    nodes: impl Iterator<Item = usize>,
-    x: Rows,
-    tmp: &mut [Lanes],
-    scatter: Scatter<'_>,
-) {
-    forward_impl::<V, true>(f, nodes, x, tmp, scatter);
-}
-
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2,fma")]
-unsafe fn backward_fma<V: FactorValue>(
-    f: Supernodal<'_, V>,
-    nodes: impl Iterator<Item = usize>,
-    x: Rows,
-    tmp: &mut [Lanes],
-) {
-    backward_impl::<V, true>(f, nodes, x, tmp);
-}
-
+/// `Σ_i L[r0 + i, j0 + c] src[i]` for the `k ≤ 4` columns `j0..j0 + k`
+/// (lanes of columns `≥ k` are zero); arguments as in [`update_block`].
 #[inline(always)]
-fn forward_impl<V: FactorValue, const FMA: bool>(
+fn dots_block<V: FactorValue, const SIMD: bool>(
+    block: &[V],
+    h: usize,
+    (j0, k): (usize, usize),
+    r0: usize,
+    src: &[Lanes],
+) -> [Lanes; 4] {
+    #[inline(always)]
+    fn run<V: FactorValue, const K: usize, const SIMD: bool>(
+        block: &[V],
+        h: usize,
+        j0: usize,
+        r0: usize,
+        src: &[Lanes],
+    ) -> [Lanes; 4] {
+        let n = src.len();
+        let cols: [&[V]; K] =
+            std::array::from_fn(|c| &block[(j0 + c) * h + r0..(j0 + c) * h + r0 + n]);
+        #[cfg(target_arch = "x86_64")]
+        let d = if SIMD {
+            // SAFETY: as in `update_block`.
+            unsafe { kernels::dots_avx::<V, K>(cols, src) }
+        } else {
+            kernels::dots_portable::<V, K>(cols, src)
+        };
+        #[cfg(not(target_arch = "x86_64"))]
+        let d = kernels::dots_portable::<V, K>(cols, src);
+        std::array::from_fn(|c| if c < K { d[c] } else { [0.0; 4] })
+    }
+    if src.is_empty() {
+        return [[0.0; 4]; 4];
+    }
+    match k {
+        1 => run::<V, 1, SIMD>(block, h, j0, r0, src),
+        2 => run::<V, 2, SIMD>(block, h, j0, r0, src),
+        3 => run::<V, 3, SIMD>(block, h, j0, r0, src),
+        _ => run::<V, 4, SIMD>(block, h, j0, r0, src),
+    }
+}
+
+/// Column blocks of a supernode of width `w`: `(j0, k)`, `k ≤ 4` columns
+/// from `j0`.
+fn column_blocks(w: usize) -> impl DoubleEndedIterator<Item = (usize, usize)> {
+    (0..w.div_ceil(4)).map(move |b| (4 * b, (w - 4 * b).min(4)))
+}
+
+/// The forward sweep over `nodes`: per block of four columns, the block's
+/// own triangle, then one pass over the rows below it (the rest of the
+/// diagonal block, then the off-diagonal rows into `tmp`, scattered at the
+/// end of the supernode).
+#[inline(always)]
+fn forward_impl<V: FactorValue, const SIMD: bool>(
     f: Supernodal<'_, V>,
     nodes: impl Iterator<Item = usize>,
     x: Rows,
@@ -340,17 +385,23 @@ fn forward_impl<V: FactorValue, const FMA: bool>(
         t.fill([0.0; 4]);
         // SAFETY: supernode s's rows belong to the calling thread (`Rows`).
         let xs = unsafe { x.slice(c0, w) };
-        for j in 0..w {
-            let col = &block[j * h..(j + 1) * h];
-            let d = col[j].get();
-            let xj = xs[j].map(|v| v / d);
-            xs[j] = xj;
-            for (xi, &l) in xs[j + 1..].iter_mut().zip(&col[j + 1..w]) {
-                *xi = sub_mul::<FMA>(*xi, l.get(), xj);
+        for (j0, k) in column_blocks(w) {
+            for j in j0..j0 + k {
+                let col = &block[j * h..j * h + j0 + k];
+                let d = col[j].get();
+                let xj = xs[j].map(|v| v / d);
+                xs[j] = xj;
+                for i in j + 1..j0 + k {
+                    let l = col[i].get();
+                    for (xi, v) in xs[i].iter_mut().zip(xj) {
+                        *xi -= l * v;
+                    }
+                }
             }
-            for (ti, &l) in t.iter_mut().zip(&col[w..]) {
-                *ti = add_mul::<FMA>(*ti, l.get(), xj);
-            }
+            let (head, below) = xs.split_at_mut(j0 + k);
+            let solved = &head[j0..];
+            update_block::<V, SIMD, false>(block, h, (j0, k), j0 + k, solved, below);
+            update_block::<V, SIMD, true>(block, h, (j0, k), w, solved, t);
         }
         match &mut scatter {
             // SAFETY: a single thread owns every row.
@@ -381,8 +432,11 @@ fn forward_impl<V: FactorValue, const FMA: bool>(
     }
 }
 
+/// The backward sweep over `nodes`: the off-diagonal rows gathered into
+/// `tmp`, then per block of four columns, last block first, one pass over
+/// the solved rows below it and the block's own triangle.
 #[inline(always)]
-fn backward_impl<V: FactorValue, const FMA: bool>(
+fn backward_impl<V: FactorValue, const SIMD: bool>(
     f: Supernodal<'_, V>,
     nodes: impl Iterator<Item = usize>,
     x: Rows,
@@ -398,25 +452,27 @@ fn backward_impl<V: FactorValue, const FMA: bool>(
         }
         // SAFETY: supernode s's rows belong to the calling thread.
         let xs = unsafe { x.slice(c0, w) };
-        for j in (0..w).rev() {
-            let col = &block[j * h..(j + 1) * h];
-            // two accumulators over the off-diagonal rows hide the FMA latency
-            let (mut a0, mut a1) = (xs[j], [0.0; 4]);
-            let off = &col[w..];
-            let mut pairs = t.chunks_exact(2).zip(off.chunks_exact(2));
-            for (tp, lp) in &mut pairs {
-                a0 = sub_mul::<FMA>(a0, lp[0].get(), tp[0]);
-                a1 = sub_mul::<FMA>(a1, lp[1].get(), tp[1]);
+        for (j0, k) in column_blocks(w).rev() {
+            let (head, below) = xs.split_at_mut(j0 + k);
+            let off = dots_block::<V, SIMD>(block, h, (j0, k), w, t);
+            let diag = dots_block::<V, SIMD>(block, h, (j0, k), j0 + k, below);
+            for c in 0..k {
+                for q in 0..4 {
+                    head[j0 + c][q] -= off[c][q] + diag[c][q];
+                }
             }
-            if t.len() % 2 == 1 {
-                let k = t.len() - 1;
-                a0 = sub_mul::<FMA>(a0, off[k].get(), t[k]);
+            for j in (j0..j0 + k).rev() {
+                let col = &block[j * h..j * h + j0 + k];
+                let mut a = head[j];
+                for i in j + 1..j0 + k {
+                    let l = col[i].get();
+                    for (ak, v) in a.iter_mut().zip(head[i]) {
+                        *ak -= l * v;
+                    }
+                }
+                let d = col[j].get();
+                head[j] = a.map(|v| v / d);
             }
-            for (xi, &l) in xs[j + 1..].iter().zip(&col[j + 1..w]) {
-                a0 = sub_mul::<FMA>(a0, l.get(), *xi);
-            }
-            let d = col[j].get();
-            xs[j] = [0, 1, 2, 3].map(|k| (a0[k] + a1[k]) / d);
         }
     }
 }
