@@ -4,11 +4,11 @@
 //! STEP 1 ([`Mu::new`]) runs once per rest mesh; STEP 2 ([`Mu::delta_hat`])
 //! and [`local_rotations`] run every iteration and allocate nothing.
 
-use nalgebra::{Matrix3, SymmetricEigen, Vector3};
+use nalgebra::{Matrix3, SymmetricEigen, UnitQuaternion, Vector3};
 use rayon::prelude::*;
 
 use super::params::Mode;
-use super::rotation::fit_rotation;
+use super::rotation::fit_rotation_quat;
 use crate::mesh::{cross, norm, sub, Point, Real, Topology};
 
 /// Vertex count above which per-vertex loops run on the rayon pool.
@@ -218,20 +218,20 @@ fn column(mode: Mode, topo: &Topology, p: &[Point], i: usize, inv_len: Real, k: 
 /// `T_i = argmin_{R ∈ SO(3)} Σ_j w_ij |(Y_j - Y_i) - R (X_j - X_i)|²`, with
 /// `w_ij = max(cot α_ij + cot β_ij, 0)` (negative cotangents clamped) plus a
 /// small uniform weight so that every ring edge counts.
-/// Written into `out` as rotation matrices; `out`'s previous contents are the
-/// warm start of [`fit_rotation`] (Newton on SO(3); start from `I` when no
-/// better guess exists). Unreferenced vertices get `I`.
+/// Written into `out` as unit quaternions; `out`'s previous contents are the
+/// warm start of [`fit_rotation_quat`] (Newton on SO(3); start from `I` when
+/// no better guess exists). Unreferenced vertices get `I`.
 pub fn local_rotations(
     topo: &Topology,
     weights: &RingWeights,
     x: &[Point],
     y: &[Point],
-    out: &mut [Matrix3<Real>],
+    out: &mut [UnitQuaternion<Real>],
 ) {
-    let f = |(i, o): (usize, &mut Matrix3<Real>)| {
+    let f = |(i, o): (usize, &mut UnitQuaternion<Real>)| {
         let ring = topo.ring(i);
         if ring.is_empty() {
-            *o = Matrix3::identity();
+            *o = UnitQuaternion::identity();
             return;
         }
         let w = weights.of(i);
@@ -242,7 +242,7 @@ pub fn local_rotations(
             let e2 = Vector3::from(sub(y[j as usize], y[i]));
             a += w[k] * e2 * e.transpose();
         }
-        *o = fit_rotation(&a, o);
+        *o = fit_rotation_quat(&a, o);
     };
     if out.len() >= PARALLEL_MIN {
         out.par_iter_mut().enumerate().for_each(f);
@@ -405,10 +405,10 @@ mod tests {
             }
         }
         let w = RingWeights::new(m.topology(), &ops.lbar);
-        let mut t = vec![Matrix3::identity(); y.len()];
+        let mut t = vec![UnitQuaternion::identity(); y.len()];
         local_rotations(m.topology(), &w, &ops.positions, &y, &mut t);
         for ti in &t {
-            assert!((ti - rot.matrix()).norm() < 1e-10);
+            assert!((ti.to_rotation_matrix().matrix() - rot.matrix()).norm() < 1e-10);
         }
     }
 }

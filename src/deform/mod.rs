@@ -41,7 +41,7 @@ pub use factor::{Factor, FactorKey, FactorPrecision, FactorTimings, SolveOptions
 pub use ordering::{FillOrdering, NESTED_DISSECTION_MIN_UNKNOWNS};
 pub use params::{DetailTerm, Energy, Formulation, Mode, Params};
 pub use rest::Rest;
-pub use rotation::{best_rotation, fit_rotation, rotation_from_covariance};
+pub use rotation::{best_rotation, fit_rotation, fit_rotation_quat, rotation_from_covariance};
 pub use solver::{Deformer, StepReport};
 pub use system::energy_matrix;
 

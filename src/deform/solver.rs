@@ -4,7 +4,7 @@ use std::sync::Arc;
 
 use faer::dyn_stack::{MemBuffer, MemStack};
 use faer::MatMut;
-use nalgebra::{Matrix3, Vector3};
+use nalgebra::{UnitQuaternion, Vector3};
 
 use super::anderson::Anderson;
 use super::constraints::Constraints;
@@ -69,7 +69,7 @@ pub struct Deformer {
 
 #[derive(Default)]
 struct Scratch {
-    rot: Vec<Matrix3<Real>>,
+    rot: Vec<UnitQuaternion<Real>>,
     tdelta: Vec<Point>,
     lv: Vec<Point>,
     dhat: Vec<Point>,
@@ -414,7 +414,7 @@ impl Deformer {
         let dims = (factor.sys.num_rows(), factor.sys.unknowns.len());
         let s = &mut self.scratch;
         if s.rot.len() != n {
-            s.rot = vec![Matrix3::identity(); n];
+            s.rot = vec![UnitQuaternion::identity(); n];
             s.tdelta = vec![[0.0; 3]; n];
             s.lv = vec![[0.0; 3]; n];
             s.dhat = vec![[0.0; 3]; n];
