@@ -46,6 +46,9 @@ const MAX_IMBALANCE: f64 = 1.25;
 /// The top (one thread) may hold at most this share of the work.
 const MAX_TOP_SHARE: f64 = 0.25;
 
+/// Splits of the frontier tried before the best is kept.
+const MAX_SPLITS: usize = 64;
+
 impl SolvePlan {
     /// A plan for `sym`, or `None` when the factor is small or its tree
     /// does not split into two balanced halves below a small top.
@@ -96,10 +99,15 @@ impl SolvePlan {
         }
         let total: f64 = own.iter().sum();
         let mut frontier: Vec<usize> = (0..ns).filter(|&s| parent[s] == ROOT).collect();
+        // Split the heaviest subtree of the frontier (its root joins the
+        // top) step by step, and keep the split whose estimated two-thread
+        // time, the top's work plus the larger thread's, is least.
         let mut top = Vec::new();
-        let mut in_top = vec![false; ns];
         let mut top_work = 0.0;
-        let assignment = loop {
+        // (estimated time, frontier assignment, top length)
+        type Split = (f64, Vec<(usize, u8)>, usize);
+        let mut best: Option<Split> = None;
+        for _ in 0..MAX_SPLITS {
             frontier.sort_unstable_by(|&a, &b| work[b].total_cmp(&work[a]));
             let mut load = [0.0f64; 2];
             let mut assign = Vec::with_capacity(frontier.len());
@@ -109,22 +117,24 @@ impl SolvePlan {
                 assign.push((s, b as u8 + 1));
             }
             let (lo, hi) = (load[0].min(load[1]), load[0].max(load[1]));
-            if lo > 0.0 && hi <= MAX_IMBALANCE * lo {
-                break assign;
+            let cost = top_work + hi;
+            if lo > 0.0 && hi <= MAX_IMBALANCE * lo && best.as_ref().is_none_or(|b| cost < b.0) {
+                best = Some((cost, assign, top.len()));
             }
-            // split the heaviest subtree: its root joins the top
             let h = frontier.remove(0);
-            if children[h].is_empty() {
-                return None;
+            if children[h].is_empty() || top_work + own[h] > MAX_TOP_SHARE * total {
+                break;
             }
             top_work += own[h];
-            if top_work > MAX_TOP_SHARE * total {
-                return None;
-            }
             top.push(h);
-            in_top[h] = true;
             frontier.extend(children[h].iter().copied());
-        };
+        }
+        let (_, assignment, ntop) = best?;
+        top.truncate(ntop);
+        let mut in_top = vec![false; ns];
+        for &s in &top {
+            in_top[s] = true;
+        }
         let mut node_owner = vec![0u8; ns];
         for &(s, b) in &assignment {
             node_owner[s] = b;
