@@ -5,6 +5,7 @@ use std::sync::Arc;
 use faer::dyn_stack::{MemBuffer, MemStack};
 use faer::MatMut;
 use nalgebra::{UnitQuaternion, Vector3};
+use rayon::prelude::*;
 
 use super::anderson::Anderson;
 use super::constraints::Constraints;
@@ -34,6 +35,11 @@ const FLOOR: Real = 1e-6;
 /// candidates and accepted 5, feline_50k 58 and 16; with the back-off 18
 /// and 29, the same 5 and 16 accepted, 9 % and 2 % less time.
 const MAX_AA_BACKOFF: u32 = 8;
+
+/// Row count from which the residual `b - J Y` and `J_Uᵀ r` run on the
+/// rayon pool, in chunks of [`ROW_CHUNK`] rows.
+const PARALLEL_MIN_ROWS: usize = 8192;
+const ROW_CHUNK: usize = 2048;
 
 /// What one [`Deformer::step`] did.
 #[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
@@ -473,33 +479,61 @@ impl Deformer {
                 &mut s.r,
             );
         }
-        // r = b - J Y
+        // r = b - J Y, rows in parallel chunks (each writes its own rows of
+        // the three columns of r)
         let sys = &factor.sys;
         let nr = sys.rows.len();
         let nrows = 2 * nr;
-        let mut obj = 0.0;
-        for (row, jrow) in sys.j.outer_iterator().enumerate() {
-            let (r, target) = if row < nr {
-                let i = sys.rows[row] as usize;
-                (row, scale3(internal[i], sys.row_weight[row]))
+        let y = &self.y;
+        let dhat = &s.dhat;
+        let row_residual = |row: usize| -> Point {
+            let target = if row < nr {
+                scale3(internal[sys.rows[row] as usize], sys.row_weight[row])
             } else {
                 let r = row - nr;
-                let i = sys.rows[r] as usize;
-                (r, scale3(s.dhat[i], sys.row_weight[r] * sys.sqrt_lambda2))
+                scale3(
+                    dhat[sys.rows[r] as usize],
+                    sys.row_weight[r] * sys.sqrt_lambda2,
+                )
             };
-            let _ = r;
             let mut acc = target;
-            for (c, &v) in jrow.iter() {
-                let y = self.y[c];
-                acc[0] -= v * y[0];
-                acc[1] -= v * y[1];
-                acc[2] -= v * y[2];
+            let (lo, hi) = (sys.j.indptr().index(row), sys.j.indptr().index(row + 1));
+            for (&c, &v) in sys.j.indices()[lo..hi].iter().zip(&sys.j.data()[lo..hi]) {
+                let yc = y[c];
+                acc[0] -= v * yc[0];
+                acc[1] -= v * yc[1];
+                acc[2] -= v * yc[2];
             }
-            for (k, a) in acc.iter().enumerate() {
-                s.r[k * nrows + row] = *a;
-                obj += a * a;
+            acc
+        };
+        let (r0, rest) = s.r[..3 * nrows].split_at_mut(nrows);
+        let (r1, r2) = rest.split_at_mut(nrows);
+        let chunk = |start: usize, (c0, (c1, c2)): (&mut [Real], (&mut [Real], &mut [Real]))| {
+            let mut obj = 0.0;
+            for (k, ((a, b), c)) in c0
+                .iter_mut()
+                .zip(c1.iter_mut())
+                .zip(c2.iter_mut())
+                .enumerate()
+            {
+                let acc = row_residual(start + k);
+                (*a, *b, *c) = (acc[0], acc[1], acc[2]);
+                obj += acc[0] * acc[0] + acc[1] * acc[1] + acc[2] * acc[2];
             }
-        }
+            obj
+        };
+        let mut obj: Real = if nrows >= PARALLEL_MIN_ROWS {
+            r0.par_chunks_mut(ROW_CHUNK)
+                .zip(
+                    r1.par_chunks_mut(ROW_CHUNK)
+                        .zip(r2.par_chunks_mut(ROW_CHUNK)),
+                )
+                .enumerate()
+                .map(|(i, cols)| chunk(i * ROW_CHUNK, cols))
+                .sum()
+        } else {
+            chunk(0, (r0, (r1, r2)))
+        };
         if sys.lambda1 > 0.0 {
             for &(v, p) in &s.targets {
                 let y = self.y[v as usize];
@@ -520,16 +554,38 @@ impl Deformer {
             s.rhs.copy_from_slice(&s.r[..3 * nu]); // the residual is already on the unknown rows
             return;
         }
-        for (k, row) in sys.jt_u.outer_iterator().enumerate() {
-            let mut acc = [0.0; 3];
-            for (c, &v) in row.iter() {
-                acc[0] += v * s.r[c];
-                acc[1] += v * s.r[nrows + c];
-                acc[2] += v * s.r[2 * nrows + c];
+        let r = &s.r;
+        let jt = &sys.jt_u;
+        let chunk = |start: usize, (c0, (c1, c2)): (&mut [Real], (&mut [Real], &mut [Real]))| {
+            for (k, ((a, b), c)) in c0
+                .iter_mut()
+                .zip(c1.iter_mut())
+                .zip(c2.iter_mut())
+                .enumerate()
+            {
+                let row = start + k;
+                let (lo, hi) = (jt.indptr().index(row), jt.indptr().index(row + 1));
+                let mut acc = [0.0; 3];
+                for (&col, &v) in jt.indices()[lo..hi].iter().zip(&jt.data()[lo..hi]) {
+                    acc[0] += v * r[col];
+                    acc[1] += v * r[nrows + col];
+                    acc[2] += v * r[2 * nrows + col];
+                }
+                (*a, *b, *c) = (acc[0], acc[1], acc[2]);
             }
-            s.rhs[k] = acc[0];
-            s.rhs[nu + k] = acc[1];
-            s.rhs[2 * nu + k] = acc[2];
+        };
+        let (h0, rest) = s.rhs.split_at_mut(nu);
+        let (h1, h2) = rest.split_at_mut(nu);
+        if nu >= PARALLEL_MIN_ROWS {
+            h0.par_chunks_mut(ROW_CHUNK)
+                .zip(
+                    h1.par_chunks_mut(ROW_CHUNK)
+                        .zip(h2.par_chunks_mut(ROW_CHUNK)),
+                )
+                .enumerate()
+                .for_each(|(i, cols)| chunk(i * ROW_CHUNK, cols));
+        } else {
+            chunk(0, (h0, (h1, h2)));
         }
         if sys.lambda1 > 0.0 {
             for &(v, p) in &s.targets {
@@ -549,4 +605,80 @@ impl Deformer {
 #[inline]
 fn scale3(p: Point, s: Real) -> Point {
     [p[0] * s, p[1] * s, p[2] * s]
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::deform::cg::tests::{edit, grid, pseudo_random};
+    use crate::deform::{Factor, SolveOptions, SolverChoice};
+
+    /// The chunked (parallel, above `PARALLEL_MIN_ROWS`) residual and
+    /// `J_Uᵀ r` against a plain row-by-row product with `J` and `J_Uᵀ`: with
+    /// the linear detail term `b` does not depend on the pose, so
+    /// `r(Y₁) - r(Y₂) = -J (Y₁ - Y₂)`.
+    #[test]
+    fn chunked_residual_and_rhs_match_plain_products() {
+        let k = 95;
+        let mesh = grid(k);
+        let rest = Arc::new(Rest::new(mesh.clone()).unwrap());
+        let c = edit(&mesh, k);
+        let params = Params {
+            detail: DetailTerm::Linear,
+            ..Params::default()
+        };
+        let opts = SolveOptions {
+            solver: SolverChoice::Direct,
+            ..SolveOptions::default()
+        };
+        let factor = Factor::build_with(&rest, &params, &c, &opts).unwrap();
+        let sys = &factor.sys;
+        let (nrows, nu) = (sys.num_rows(), sys.unknowns.len());
+        assert!(nrows >= PARALLEL_MIN_ROWS && nu >= PARALLEL_MIN_ROWS);
+        let n = mesh.num_vertices();
+        let noise = pseudo_random(3 * n);
+        let mut d = Deformer::new(rest.clone(), params);
+        d.prepare(&factor);
+        let mut run = |scale: f64| {
+            for (v, y) in d.y.iter_mut().enumerate() {
+                let p = rest.ops.positions[v];
+                *y = [0, 1, 2].map(|i| p[i] + scale * noise[3 * v + i]);
+            }
+            let f = d.evaluate(&factor);
+            d.right_hand_side(&factor);
+            (
+                f,
+                d.scratch.r[..3 * nrows].to_vec(),
+                d.scratch.rhs.clone(),
+                d.y.clone(),
+            )
+        };
+        let (f1, r1, h1, y1) = run(0.1);
+        let (f2, r2, h2, y2) = run(-0.05);
+        let obj = |r: &[f64]| r.iter().map(|v| v * v).sum::<f64>();
+        assert!((f1 - obj(&r1)).abs() <= 1e-12 * f1);
+        assert!((f2 - obj(&r2)).abs() <= 1e-12 * f2);
+        let mut dr = vec![0.0; 3 * nrows];
+        for (row, jrow) in sys.j.outer_iterator().enumerate() {
+            for (col, &v) in jrow.iter() {
+                for i in 0..3 {
+                    dr[i * nrows + row] -= v * (y1[col][i] - y2[col][i]);
+                }
+            }
+        }
+        let scale = dr.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+        for (q, &e) in dr.iter().enumerate() {
+            assert!(
+                (r1[q] - r2[q] - e).abs() <= 1e-9 * scale,
+                "residual row {q}"
+            );
+        }
+        for (u, jrow) in sys.jt_u.outer_iterator().enumerate() {
+            for i in 0..3 {
+                let e: f64 = jrow.iter().map(|(row, &v)| v * dr[i * nrows + row]).sum();
+                let got = h1[i * nu + u] - h2[i * nu + u];
+                assert!((got - e).abs() <= 1e-9 * (1.0 + e.abs()), "rhs {u}, {i}");
+            }
+        }
+    }
 }
