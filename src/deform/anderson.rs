@@ -23,11 +23,18 @@ pub struct Anderson {
     prev_g: Vec<Real>,
     has_prev: bool,
     next: usize,
+    /// `ΔFᵀΔF` of the live pairs, `window × window`, row-major.
+    gram: Vec<Real>,
 }
+
+/// The longest history [`Anderson`] keeps (`Params::validate` bounds the
+/// window by it).
+pub const MAX_WINDOW: usize = 50;
 
 impl Anderson {
     /// A history of `window` pairs for vectors of length `len`.
     pub fn new(window: usize, len: usize) -> Self {
+        let window = window.min(MAX_WINDOW);
         Anderson {
             window,
             df: Vec::with_capacity(window),
@@ -37,6 +44,7 @@ impl Anderson {
             prev_g: vec![0.0; len],
             has_prev: false,
             next: 0,
+            gram: vec![0.0; window * window],
         }
     }
 
@@ -50,11 +58,15 @@ impl Anderson {
     /// Records the iterate `x` and its fixed-point residual `f = G(x) - x`,
     /// then writes the extrapolated next iterate into `out`; returns whether
     /// any history was used (otherwise `out = x + f`, the plain step).
+    ///
+    /// The Gram matrix `ΔFᵀΔF` is kept between steps: a step computes only
+    /// the new pair's row of it and `ΔFᵀ f`, in one pass over the history.
     pub fn step(&mut self, x: &[Real], f: &[Real], out: &mut [Real]) -> bool {
         let n = x.len();
         for i in 0..n {
             out[i] = x[i] + f[i]; // g = G(x)
         }
+        let mut newest = None;
         if self.has_prev && self.window > 0 {
             let k = if self.used < self.window {
                 if self.df.len() == self.used {
@@ -71,6 +83,7 @@ impl Anderson {
                 self.df[k][i] = f[i] - self.prev_f[i];
                 self.dg[k][i] = out[i] - self.prev_g[i];
             }
+            newest = Some(k);
         }
         self.prev_f.copy_from_slice(f);
         self.prev_g.copy_from_slice(out);
@@ -79,32 +92,47 @@ impl Anderson {
         if m == 0 {
             return false;
         }
-        // θ = argmin |f - ΔF θ|, through the regularised normal equations.
-        let mut a = DMatrix::<Real>::zeros(m, m);
-        let mut b = DVector::<Real>::zeros(m);
-        for p in 0..m {
-            for q in p..m {
-                let v: Real = self.df[p].iter().zip(&self.df[q]).map(|(x, y)| x * y).sum();
-                a[(p, q)] = v;
-                a[(q, p)] = v;
-            }
-            b[p] = self.df[p].iter().zip(f).map(|(x, y)| x * y).sum();
+        // the new pair's row of the Gram matrix and b = ΔFᵀ f, one pass
+        let w = self.window;
+        if self.gram.len() != w * w {
+            self.gram = vec![0.0; w * w];
         }
+        let mut row = [0.0; MAX_WINDOW];
+        let mut b = [0.0; MAX_WINDOW];
+        let k = newest.unwrap_or(usize::MAX);
+        for (i, &fi) in f.iter().enumerate() {
+            let dk = if k < m { self.df[k][i] } else { 0.0 };
+            for q in 0..m {
+                let d = self.df[q][i];
+                row[q] += dk * d;
+                b[q] += d * fi;
+            }
+        }
+        if k < m {
+            for (q, &v) in row[..m].iter().enumerate() {
+                self.gram[k * w + q] = v;
+                self.gram[q * w + k] = v;
+            }
+        }
+        // θ = argmin |f - ΔF θ|, through the regularised normal equations.
+        let mut a = DMatrix::<Real>::from_fn(m, m, |p, q| self.gram[p * w + q]);
         let trace: Real = (0..m).map(|p| a[(p, p)]).sum();
         for p in 0..m {
             a[(p, p)] += 1e-10 * trace.max(1e-300);
         }
+        let b = DVector::<Real>::from_column_slice(&b[..m]);
         let Some(theta) = a.cholesky().map(|c| c.solve(&b)) else {
             return false;
         };
         if theta.iter().any(|t| !t.is_finite()) {
             return false;
         }
-        for p in 0..m {
-            let t = theta[p];
-            for (o, d) in out.iter_mut().zip(&self.dg[p]) {
-                *o -= t * d;
+        for (i, o) in out.iter_mut().enumerate() {
+            let mut acc = 0.0;
+            for p in 0..m {
+                acc += theta[p] * self.dg[p][i];
             }
+            *o -= acc;
         }
         true
     }
@@ -159,5 +187,37 @@ mod tests {
         let fast = solve_iters(4);
         assert!(plain > 200, "plain iteration should be slow: {plain}");
         assert!(fast < 20, "Anderson should converge in a few steps: {fast}");
+    }
+
+    /// The Gram matrix kept between steps equals `ΔFᵀΔF` recomputed from
+    /// the live pairs, through wrap-arounds of the window and a reset.
+    #[test]
+    fn kept_gram_matrix_matches_a_recomputation() {
+        let n = 7;
+        let mut aa = Anderson::new(3, n);
+        let mut out = vec![0.0; n];
+        for step in 0..11 {
+            if step == 6 {
+                aa.reset();
+            }
+            let x: Vec<f64> = (0..n)
+                .map(|i| ((i * 31 + step * 17) % 13) as f64 * 0.1)
+                .collect();
+            let f: Vec<f64> = (0..n)
+                .map(|i| ((i * 7 + step * step) % 11) as f64 * 0.05 - 0.2)
+                .collect();
+            aa.step(&x, &f, &mut out);
+            let (m, w) = (aa.used, aa.window);
+            for p in 0..m {
+                for q in 0..m {
+                    let e: f64 = aa.df[p].iter().zip(&aa.df[q]).map(|(a, b)| a * b).sum();
+                    let got = aa.gram[p * w + q];
+                    assert!(
+                        (got - e).abs() <= 1e-12 * (1.0 + e.abs()),
+                        "step {step} ({p},{q})"
+                    );
+                }
+            }
+        }
     }
 }

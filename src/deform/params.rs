@@ -166,7 +166,7 @@ impl Params {
         if !(self.tol.is_finite() && self.tol > 0.0) {
             return Err(bad("tol", self.tol));
         }
-        if self.anderson > 50 {
+        if self.anderson > super::anderson::MAX_WINDOW {
             return Err(bad("anderson", self.anderson as f64));
         }
         if let Energy::Combined { ks, kb } = self.energy {
