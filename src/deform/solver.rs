@@ -38,7 +38,7 @@ const MAX_AA_BACKOFF: u32 = 8;
 
 /// Row count from which the residual `b - J Y` and `J_Uᵀ r` run on the
 /// rayon pool, in chunks of [`ROW_CHUNK`] rows.
-const PARALLEL_MIN_ROWS: usize = 8192;
+const PARALLEL_MIN_ROWS: usize = 4096;
 const ROW_CHUNK: usize = 2048;
 
 /// What one [`Deformer::step`] did.
