@@ -4,7 +4,7 @@ the same meshes and the same fixed/handle sets, in one run, and prints ratios.
 
 Usage (from the crate root):
 
-    python3 scripts/compare_arap.py [MESH ...] [--iters 30] [--json out.json]
+    python3 scripts/compare_arap.py [MESH ...] [--iters 30] [--rounds 3] [--json out.json]
 
 MESH is a file or ``tube:N`` (a generated tube of about N vertices); the
 default list is tube:10000, camel_9770.off, armadillo_43k.obj, feline_50k.off
@@ -23,6 +23,10 @@ For each mesh:
 2. ``$DEND_PYTHON`` runs libigl: ``arap_precomputation(V, F, 3, b, data)`` with
    ``data.max_iter = 1``, then ``arap_solve`` chained ``--iters`` times from
    the rest pose (each call = one local/global ARAP iteration), median.
+3. Steps 1 and 2 alternate ``--rounds`` times (the CG only in the first): the
+   table gives the medians over the rounds and the median of the per-round
+   ratios with its range, so that a burst of load on a shared machine hits
+   one round's pair, not one side of every comparison.
 """
 
 import argparse
@@ -61,6 +65,12 @@ print(json.dumps({"vertices": int(V.shape[0]), "precompute_ms": pre,
 """
 
 
+def median(xs):
+    xs = sorted(xs)
+    n = len(xs)
+    return xs[n // 2] if n % 2 else 0.5 * (xs[n // 2 - 1] + xs[n // 2])
+
+
 def python_for_igl():
     cands = [os.environ.get("DEND_PYTHON"), os.path.join(ROOT, ".venv/bin/python"),
              "/work/main/.venv/bin/python"]
@@ -83,6 +93,8 @@ def main():
         "tube:10000", "camel_9770.off", "armadillo_43k.obj", "feline_50k.off",
         "igea_134k.ply"])
     ap.add_argument("--iters", type=int, default=30)
+    ap.add_argument("--rounds", type=int, default=3,
+                    help="alternating dend/ARAP runs per mesh (medians reported)")
     ap.add_argument("--json", help="also write all figures to this file")
     ap.add_argument("--no-cg", action="store_true",
                     help="skip the paper's CG (minutes per mesh above ~10k vertices)")
@@ -99,18 +111,29 @@ def main():
                 print(f"skipping: {path} not found", file=sys.stderr)
                 continue
             sets, off = os.path.join(tmp, "sets.json"), os.path.join(tmp, "mesh.off")
-            cmd = [exe, path, "--iters", str(args.iters), "--write-sets", sets,
-                   "--write-mesh", off] + ([] if args.no_cg else ["--cg"])
-            out = subprocess.run(cmd,
-                                 check=True, capture_output=True, text=True).stdout
-            dend = json.loads(out)
-            igl_out = subprocess.run([py, "-c", IGL_SNIPPET, off, sets, str(args.iters)],
+            rounds = []
+            for k in range(max(1, args.rounds)):
+                cg = [] if (args.no_cg or k > 0) else ["--cg"]
+                cmd = [exe, path, "--iters", str(args.iters), "--write-sets", sets,
+                       "--write-mesh", off] + cg
+                out = subprocess.run(cmd,
                                      check=True, capture_output=True, text=True).stdout
-            igl = json.loads(igl_out)
-            rows.append({"mesh": os.path.basename(spec), "dend": dend, "arap": igl})
+                dend = json.loads(out)
+                igl_out = subprocess.run([py, "-c", IGL_SNIPPET, off, sets, str(args.iters)],
+                                         check=True, capture_output=True, text=True).stdout
+                rounds.append({"dend": dend, "arap": json.loads(igl_out)})
+            dend = dict(rounds[0]["dend"])
+            igl = dict(rounds[0]["arap"])
+            for key in ("iteration_ms", "precompute_ms"):
+                dend[key] = median([r["dend"][key] for r in rounds])
+                igl[key] = median([r["arap"][key] for r in rounds])
+            ratios = [r["arap"]["iteration_ms"] / r["dend"]["iteration_ms"] for r in rounds]
+            rows.append({"mesh": os.path.basename(spec), "dend": dend, "arap": igl,
+                         "ratio_median": median(ratios), "ratios": ratios,
+                         "rounds": rounds})
             print(f"done {spec}", file=sys.stderr)
-    hdr = ("| mesh | V | DEND iter ms | ARAP iter ms | ARAP/DEND | CG iter ms | CG/DEND "
-           "| CG its/col | DEND precompute ms | ARAP precompute ms |")
+    hdr = ("| mesh | V | DEND iter ms | ARAP iter ms | ARAP/DEND (median, range) | CG iter ms "
+           "| CG/DEND | CG its/col | DEND precompute ms | ARAP precompute ms |")
     print(hdr)
     print("|" + "---|" * 10)
     for r in rows:
@@ -118,7 +141,8 @@ def main():
         d.setdefault("cg_iteration_ms", float("nan"))
         d.setdefault("cg_iterations_per_column", float("nan"))
         print(f"| {r['mesh']} | {d['vertices']} | {d['iteration_ms']:.1f} | "
-              f"{a['iteration_ms']:.1f} | {a['iteration_ms'] / d['iteration_ms']:.2f} | "
+              f"{a['iteration_ms']:.1f} | {r['ratio_median']:.2f} "
+              f"({min(r['ratios']):.2f}–{max(r['ratios']):.2f}) | "
               f"{d['cg_iteration_ms']:.1f} | {d['cg_iteration_ms'] / d['iteration_ms']:.1f} | "
               f"{d['cg_iterations_per_column']:.0f} | {d['precompute_ms']:.0f} | "
               f"{a['precompute_ms']:.0f} |")
