@@ -19,6 +19,7 @@
 //! The kernels are compiled twice: for the baseline target and with
 //! AVX2+FMA, chosen at run time.
 
+mod dense;
 mod kernels;
 mod parallel;
 

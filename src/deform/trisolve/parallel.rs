@@ -33,7 +33,13 @@ pub(crate) struct SolvePlan {
     top_index: Vec<u32>,
     /// The top rows.
     top_rows: Vec<usize>,
+    /// Top supernodes at least this wide are swept on two threads
+    /// themselves ([`super::dense`]).
+    dense_min_width: usize,
 }
+
+/// Default of [`SolvePlan`]'s `dense_min_width`: four panels.
+const DENSE_MIN_WIDTH: usize = 4 * super::dense::PANEL;
 
 /// Factors with fewer values are solved on one thread: their sweeps take
 /// well under a millisecond, less than handing work to another thread
@@ -158,7 +164,26 @@ impl SolvePlan {
             owner,
             top_index,
             top_rows,
+            dense_min_width: DENSE_MIN_WIDTH,
         })
+    }
+
+    /// The same plan with the top's supernodes from `width` columns on
+    /// swept on two threads each (tests use small widths).
+    #[cfg(test)]
+    pub(crate) fn with_dense_min_width(mut self, width: usize) -> Self {
+        self.dense_min_width = width;
+        self
+    }
+
+    /// Widths of the top supernodes swept on two threads each.
+    #[cfg(test)]
+    pub(crate) fn dense_widths(&self, sym: &SymbolicSupernodalCholesky<usize>) -> Vec<usize> {
+        self.top
+            .iter()
+            .map(|&s| sym.supernode_end()[s] - sym.supernode_begin()[s])
+            .filter(|&w| w >= self.dense_min_width)
+            .collect()
     }
 
     /// Bytes held.
@@ -212,9 +237,29 @@ impl SolvePlan {
             // SAFETY: both threads have joined.
             unsafe { rows.sub(r, d) };
         }
-        let top = self.top.iter().copied();
-        forward(f, top.clone(), rows, tmp0, Scatter::Direct);
-        backward(f, top.rev(), rows, tmp0);
+        // the top on a worker thread of the pool, so that the wide nodes'
+        // joins are cheap
+        let sym = f.sym;
+        let wide =
+            |s: usize| sym.supernode_end()[s] - sym.supernode_begin()[s] >= self.dense_min_width;
+        let top = &self.top;
+        let tmp0: &mut [Lanes] = tmp0;
+        rayon::scope(|_| {
+            for &s in top {
+                if wide(s) {
+                    super::dense::forward_node(f, s, rows, tmp0);
+                } else {
+                    forward(f, std::iter::once(s), rows, tmp0, Scatter::Direct);
+                }
+            }
+            for &s in top.iter().rev() {
+                if wide(s) {
+                    super::dense::backward_node(f, s, rows, tmp0);
+                } else {
+                    backward(f, std::iter::once(s), rows, tmp0);
+                }
+            }
+        });
         rayon::join(
             || backward(f, b1.iter().rev().copied(), rows, tmp0),
             || backward(f, b2.iter().rev().copied(), rows, tmp1),

@@ -86,7 +86,17 @@ fn matches_faers_solve_and_m_for_one_to_seven_columns() {
     assert!(sym.perm().is_some());
     // a two-thread plan even at this size, to test it
     let plan = SolvePlan::with_min_values(sn, 0).expect("the grid's tree splits");
-    for (k, plan) in (1..=7).flat_map(|k| [(k, None), (k, Some(&plan))]) {
+    // and with the top's supernodes swept on two threads each, over
+    // several panels
+    let dense = SolvePlan::with_min_values(sn, 0)
+        .unwrap()
+        .with_dense_min_width(4);
+    let widths = dense.dense_widths(sn);
+    assert!(
+        widths.iter().any(|&w| w > 2 * dense::PANEL),
+        "top widths {widths:?}"
+    );
+    for (k, plan) in (1..=7).flat_map(|k| [(k, None), (k, Some(&plan)), (k, Some(&dense))]) {
         let b = rhs(n, k);
         let mut ours = b.clone();
         let mut mem = MemBuffer::new(scratch(sn, plan));
