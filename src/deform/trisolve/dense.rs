@@ -10,7 +10,10 @@
 //! threads by rows (one `rayon::join` per panel; the classic blocked
 //! triangular solve, e.g. Golub & Van Loan §3.1).
 
-use super::{dots_block, has_fma, update_block, FactorValue, Lanes, Rows, Supernodal};
+use super::{
+    dots_block, has_fma, triangle_backward, triangle_forward, update_block, FactorValue, Lanes,
+    Rows, Supernodal,
+};
 
 /// Columns per panel: one `rayon::join` per panel and sweep.
 pub(crate) const PANEL: usize = 32;
@@ -68,18 +71,7 @@ fn forward_node_impl<V: FactorValue, const SIMD: bool>(
         let pe = (pc + PANEL).min(w);
         // the panel: its triangle and its update of its own rows
         for (j0, k) in panel_blocks(pc, pe) {
-            for j in j0..j0 + k {
-                let col = &block[j * h..j * h + j0 + k];
-                let d = col[j].get();
-                let xj = xs[j].map(|v| v / d);
-                xs[j] = xj;
-                for i in j + 1..j0 + k {
-                    let l = col[i].get();
-                    for (xi, v) in xs[i].iter_mut().zip(xj) {
-                        *xi -= l * v;
-                    }
-                }
-            }
+            triangle_forward(block, h, (j0, k), xs);
             let (head, below) = xs.split_at_mut(j0 + k);
             update_block::<V, SIMD, false>(
                 block,
@@ -162,18 +154,7 @@ fn backward_node_impl<V: FactorValue, const SIMD: bool>(
                     blk[j0 + c][q] -= a1[b][c][q] + a2[b][c][q] + diag[c][q];
                 }
             }
-            for j in (j0..j0 + k).rev() {
-                let col = &block[j * h..j * h + j0 + k];
-                let mut a = blk[j];
-                for i in j + 1..j0 + k {
-                    let l = col[i].get();
-                    for (ak, v) in a.iter_mut().zip(blk[i]) {
-                        *ak -= l * v;
-                    }
-                }
-                let d = col[j].get();
-                blk[j] = a.map(|v| v / d);
-            }
+            triangle_backward(block, h, (j0, k), blk);
         }
     }
 }

@@ -361,6 +361,55 @@ fn dots_block<V: FactorValue, const SIMD: bool>(
     }
 }
 
+/// The triangle of the column block `(j0, k)` (`k ≤ 4`) of a supernode's
+/// column-major `block` of height `h`, forward: `x[j] /= L[j, j]` and the
+/// block's later rows updated, for `j` in `j0..j0 + k` (rows of `xs` are
+/// the supernode's).
+#[inline(always)]
+pub(crate) fn triangle_forward<V: FactorValue>(
+    block: &[V],
+    h: usize,
+    (j0, k): (usize, usize),
+    xs: &mut [Lanes],
+) {
+    for j in j0..j0 + k {
+        let col = &block[j * h..j * h + j0 + k];
+        let d = col[j].get();
+        let xj = xs[j].map(|v| v / d);
+        xs[j] = xj;
+        for i in j + 1..j0 + k {
+            let l = col[i].get();
+            for (xi, v) in xs[i].iter_mut().zip(xj) {
+                *xi -= l * v;
+            }
+        }
+    }
+}
+
+/// [`triangle_forward`]'s transpose: the block's rows solved last to first
+/// against the block's later rows (the rows below the block already
+/// subtracted).
+#[inline(always)]
+pub(crate) fn triangle_backward<V: FactorValue>(
+    block: &[V],
+    h: usize,
+    (j0, k): (usize, usize),
+    xs: &mut [Lanes],
+) {
+    for j in (j0..j0 + k).rev() {
+        let col = &block[j * h..j * h + j0 + k];
+        let mut a = xs[j];
+        for i in j + 1..j0 + k {
+            let l = col[i].get();
+            for (ak, v) in a.iter_mut().zip(xs[i]) {
+                *ak -= l * v;
+            }
+        }
+        let d = col[j].get();
+        xs[j] = a.map(|v| v / d);
+    }
+}
+
 /// Column blocks of a supernode of width `w`: `(j0, k)`, `k ≤ 4` columns
 /// from `j0`.
 fn column_blocks(w: usize) -> impl DoubleEndedIterator<Item = (usize, usize)> {
@@ -387,18 +436,7 @@ fn forward_impl<V: FactorValue, const SIMD: bool>(
         // SAFETY: supernode s's rows belong to the calling thread (`Rows`).
         let xs = unsafe { x.slice(c0, w) };
         for (j0, k) in column_blocks(w) {
-            for j in j0..j0 + k {
-                let col = &block[j * h..j * h + j0 + k];
-                let d = col[j].get();
-                let xj = xs[j].map(|v| v / d);
-                xs[j] = xj;
-                for i in j + 1..j0 + k {
-                    let l = col[i].get();
-                    for (xi, v) in xs[i].iter_mut().zip(xj) {
-                        *xi -= l * v;
-                    }
-                }
-            }
+            triangle_forward(block, h, (j0, k), xs);
             let (head, below) = xs.split_at_mut(j0 + k);
             let solved = &head[j0..];
             update_block::<V, SIMD, false>(block, h, (j0, k), j0 + k, solved, below);
@@ -462,18 +500,7 @@ fn backward_impl<V: FactorValue, const SIMD: bool>(
                     head[j0 + c][q] -= off[c][q] + diag[c][q];
                 }
             }
-            for j in (j0..j0 + k).rev() {
-                let col = &block[j * h..j * h + j0 + k];
-                let mut a = head[j];
-                for i in j + 1..j0 + k {
-                    let l = col[i].get();
-                    for (ak, v) in a.iter_mut().zip(head[i]) {
-                        *ak -= l * v;
-                    }
-                }
-                let d = col[j].get();
-                head[j] = a.map(|v| v / d);
-            }
+            triangle_backward(block, h, (j0, k), head);
         }
     }
 }
