@@ -88,31 +88,25 @@ impl Anderson {
         self.prev_f.copy_from_slice(f);
         self.prev_g.copy_from_slice(out);
         self.has_prev = true;
-        let m = self.used;
-        if m == 0 {
+        // no pair was added only with an empty history (new or reset)
+        let Some(k) = newest else {
             return false;
-        }
+        };
+        let (m, w) = (self.used, self.window);
         // the new pair's row of the Gram matrix and b = ΔFᵀ f, one pass
-        let w = self.window;
-        if self.gram.len() != w * w {
-            self.gram = vec![0.0; w * w];
-        }
         let mut row = [0.0; MAX_WINDOW];
         let mut b = [0.0; MAX_WINDOW];
-        let k = newest.unwrap_or(usize::MAX);
         for (i, &fi) in f.iter().enumerate() {
-            let dk = if k < m { self.df[k][i] } else { 0.0 };
+            let dk = self.df[k][i];
             for q in 0..m {
                 let d = self.df[q][i];
                 row[q] += dk * d;
                 b[q] += d * fi;
             }
         }
-        if k < m {
-            for (q, &v) in row[..m].iter().enumerate() {
-                self.gram[k * w + q] = v;
-                self.gram[q * w + k] = v;
-            }
+        for (q, &v) in row[..m].iter().enumerate() {
+            self.gram[k * w + q] = v;
+            self.gram[q * w + k] = v;
         }
         // θ = argmin |f - ΔF θ|, through the regularised normal equations.
         let mut a = DMatrix::<Real>::from_fn(m, m, |p, q| self.gram[p * w + q]);
