@@ -506,34 +506,11 @@ impl Deformer {
             }
             acc
         };
-        let (r0, rest) = s.r[..3 * nrows].split_at_mut(nrows);
-        let (r1, r2) = rest.split_at_mut(nrows);
-        let chunk = |start: usize, (c0, (c1, c2)): (&mut [Real], (&mut [Real], &mut [Real]))| {
-            let mut obj = 0.0;
-            for (k, ((a, b), c)) in c0
-                .iter_mut()
-                .zip(c1.iter_mut())
-                .zip(c2.iter_mut())
-                .enumerate()
-            {
-                let acc = row_residual(start + k);
-                (*a, *b, *c) = (acc[0], acc[1], acc[2]);
-                obj += acc[0] * acc[0] + acc[1] * acc[1] + acc[2] * acc[2];
-            }
-            obj
-        };
-        let mut obj: Real = if nrows >= PARALLEL_MIN_ROWS {
-            r0.par_chunks_mut(ROW_CHUNK)
-                .zip(
-                    r1.par_chunks_mut(ROW_CHUNK)
-                        .zip(r2.par_chunks_mut(ROW_CHUNK)),
-                )
-                .enumerate()
-                .map(|(i, cols)| chunk(i * ROW_CHUNK, cols))
-                .sum()
-        } else {
-            chunk(0, (r0, (r1, r2)))
-        };
+        let mut obj = for_row_chunks(&mut s.r[..3 * nrows], |row, out| {
+            let acc = row_residual(row);
+            *out = acc;
+            acc[0] * acc[0] + acc[1] * acc[1] + acc[2] * acc[2]
+        });
         if sys.lambda1 > 0.0 {
             for &(v, p) in &s.targets {
                 let y = self.y[v as usize];
@@ -556,37 +533,17 @@ impl Deformer {
         }
         let r = &s.r;
         let jt = &sys.jt_u;
-        let chunk = |start: usize, (c0, (c1, c2)): (&mut [Real], (&mut [Real], &mut [Real]))| {
-            for (k, ((a, b), c)) in c0
-                .iter_mut()
-                .zip(c1.iter_mut())
-                .zip(c2.iter_mut())
-                .enumerate()
-            {
-                let row = start + k;
-                let (lo, hi) = (jt.indptr().index(row), jt.indptr().index(row + 1));
-                let mut acc = [0.0; 3];
-                for (&col, &v) in jt.indices()[lo..hi].iter().zip(&jt.data()[lo..hi]) {
-                    acc[0] += v * r[col];
-                    acc[1] += v * r[nrows + col];
-                    acc[2] += v * r[2 * nrows + col];
-                }
-                (*a, *b, *c) = (acc[0], acc[1], acc[2]);
+        for_row_chunks(&mut s.rhs, |row, out| {
+            let (lo, hi) = (jt.indptr().index(row), jt.indptr().index(row + 1));
+            let mut acc = [0.0; 3];
+            for (&col, &v) in jt.indices()[lo..hi].iter().zip(&jt.data()[lo..hi]) {
+                acc[0] += v * r[col];
+                acc[1] += v * r[nrows + col];
+                acc[2] += v * r[2 * nrows + col];
             }
-        };
-        let (h0, rest) = s.rhs.split_at_mut(nu);
-        let (h1, h2) = rest.split_at_mut(nu);
-        if nu >= PARALLEL_MIN_ROWS {
-            h0.par_chunks_mut(ROW_CHUNK)
-                .zip(
-                    h1.par_chunks_mut(ROW_CHUNK)
-                        .zip(h2.par_chunks_mut(ROW_CHUNK)),
-                )
-                .enumerate()
-                .for_each(|(i, cols)| chunk(i * ROW_CHUNK, cols));
-        } else {
-            chunk(0, (h0, (h1, h2)));
-        }
+            *out = acc;
+            0.0
+        });
         if sys.lambda1 > 0.0 {
             for &(v, p) in &s.targets {
                 let k = sys.col_of[v as usize];
@@ -599,6 +556,37 @@ impl Deformer {
                 }
             }
         }
+    }
+}
+
+/// Writes every row of the column-major `len × 3` buffer `buf` by
+/// `f(row, &mut value)` and returns the sum of what `f` returns; in chunks of
+/// [`ROW_CHUNK`] rows on the rayon pool from [`PARALLEL_MIN_ROWS`] rows.
+fn for_row_chunks(buf: &mut [Real], f: impl Fn(usize, &mut Point) -> Real + Sync) -> Real {
+    let len = buf.len() / 3;
+    let (c0, rest) = buf.split_at_mut(len);
+    let (c1, c2) = rest.split_at_mut(len);
+    let chunk = |start: usize, (c0, (c1, c2)): (&mut [Real], (&mut [Real], &mut [Real]))| {
+        let mut sum = 0.0;
+        let rows = c0.iter_mut().zip(c1.iter_mut()).zip(c2.iter_mut());
+        for (k, ((a, b), c)) in rows.enumerate() {
+            let mut out = [0.0; 3];
+            sum += f(start + k, &mut out);
+            (*a, *b, *c) = (out[0], out[1], out[2]);
+        }
+        sum
+    };
+    if len >= PARALLEL_MIN_ROWS {
+        c0.par_chunks_mut(ROW_CHUNK)
+            .zip(
+                c1.par_chunks_mut(ROW_CHUNK)
+                    .zip(c2.par_chunks_mut(ROW_CHUNK)),
+            )
+            .enumerate()
+            .map(|(i, cols)| chunk(i * ROW_CHUNK, cols))
+            .sum()
+    } else {
+        chunk(0, (c0, (c1, c2)))
     }
 }
 
