@@ -78,8 +78,8 @@ pub fn fit_rotation(a: &Matrix3<Real>, guess: &Matrix3<Real>) -> Matrix3<Real> {
 /// form [`super::local_rotations`] keeps between iterations, so that no
 /// rotation matrix is converted back to a quaternion). Each Newton step
 /// works on the 3×3 `B = A R(q)ᵀ` with scalar arithmetic: `g` and `H` are
-/// read off `B`, and `H ω = g` is solved by an `LDLᵀ` that is also the test
-/// of positive definiteness.
+/// read off `B`, and `H ω = g` is solved by Cramer's rule, with
+/// Sylvester's criterion as the test of positive definiteness.
 pub fn fit_rotation_quat(a: &Matrix3<Real>, guess: &UnitQuaternion<Real>) -> UnitQuaternion<Real> {
     // ω = H⁻¹ g does not depend on the scale of A, so A is not normalised;
     // only the rare non-Newton branches need its scale
