@@ -5,7 +5,7 @@
 //! cargo run --release --example dend_bench -- MESH [--sets FILE.json]
 //!     [--iters 30] [--cg] [--subdivide K] [--write-sets FILE.json]
 //!     [--write-mesh FILE.off] [--formulation least_squares|square|square_lu|both|all]
-//!     [--precision double|single|both]
+//!     [--precision double|single|both] [--rebuilds K]
 //! ```
 //!
 //! MESH is a file (OFF/OBJ/PLY) or `tube:N` (a generated tube of about N
@@ -21,6 +21,9 @@
 //! build), `iteration` (median of one-iteration steps, chained from the rest
 //! pose towards the target), `converge` (a full solve from rest), and with
 //! `--cg` the same iteration with Jacobi-PCG at tolerance 1e-4 and no factor.
+//! `--rebuilds K` builds the factor K more times in the same process and
+//! reports the medians as `warm_*` (the first build pays for page faults and
+//! thread start-up; a server building a new constraint set's factor is warm).
 //! `--formulation both` measures eq. (24) and eq. (23) in the same process and
 //! prints one JSON line each, then a line of square / least-squares ratios;
 //! `--precision both` likewise the factor stored in `f64` (the default) and
@@ -86,6 +89,7 @@ fn run() -> Result<(), String> {
     }
     let iters: usize = arg(&args, "--iters").unwrap_or(30);
     let with_cg = args.iter().any(|a| a == "--cg");
+    let rebuilds: usize = arg(&args, "--rebuilds").unwrap_or(0);
     let constraints = match arg::<String>(&args, "--sets") {
         Some(path) => read_sets(&mesh, &path)?,
         None => support::standard_edit(&mesh),
@@ -131,6 +135,7 @@ fn run() -> Result<(), String> {
                 &constraints,
                 iters,
                 with_cg,
+                rebuilds,
             )?;
             println!("{out}");
             lines.push(out);
@@ -177,6 +182,7 @@ fn bench(
     constraints: &Constraints,
     iters: usize,
     with_cg: bool,
+    rebuilds: usize,
 ) -> Result<serde_json::Value, String> {
     let params = *params;
     let direct = SolveOptions {
@@ -191,6 +197,21 @@ fn bench(
     let build_ms = ms(t.elapsed());
     let rss_growth = rss_bytes().saturating_sub(rss0);
     let ft = factor.timings();
+    let mut warm: [Vec<f64>; 4] = Default::default();
+    for _ in 0..rebuilds {
+        let t = Instant::now();
+        let again =
+            Factor::build_with(rest, &params, constraints, &direct).map_err(|e| e.to_string())?;
+        let total = ms(t.elapsed());
+        let at = again.timings();
+        for (w, v) in warm
+            .iter_mut()
+            .zip([ms(at.assembly), ms(at.symbolic), ms(at.numeric), total])
+        {
+            w.push(v);
+        }
+    }
+    let [warm_assembly, warm_symbolic, warm_numeric, warm_build] = warm.map(median);
     let (iteration, converge, conv_iters, converged) =
         time_iterations(rest, &params, &factor, constraints, iters)?;
     let n = mesh.num_vertices();
@@ -207,12 +228,17 @@ fn bench(
         "numeric_ms": ms(ft.numeric),
         "factor_build_ms": build_ms,
         "precompute_ms": rest_ms + build_ms,
+        "warm_assembly_ms": warm_assembly,
+        "warm_symbolic_ms": warm_symbolic,
+        "warm_numeric_ms": warm_numeric,
+        "warm_factor_build_ms": warm_build,
         "iteration_ms": iteration,
         "converge_ms": converge,
         "converge_iterations": conv_iters,
         "converged": converged,
         "factor_nnz": factor.factor_nnz(),
         "factor_bytes": factor.factor_bytes(),
+        "factor_gflop": factor.factor_flops() / 1e9,
         "session_bytes": factor.memory_bytes(),
         "rss_growth_bytes": rss_growth,
         "bytes_per_vertex": factor.memory_bytes() as f64 / n as f64,
