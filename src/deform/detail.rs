@@ -8,7 +8,7 @@ use nalgebra::{Matrix3, SymmetricEigen, UnitQuaternion, Vector3};
 use rayon::prelude::*;
 
 use super::params::Mode;
-use super::rotation::fit_rotation_quat;
+use super::rotation::{fit_rotation_quat, fit_rotation_quat4, LANES};
 use crate::mesh::{cross, norm, sub, Point, Real, Topology};
 
 /// Vertex count above which per-vertex loops run on the rayon pool.
@@ -228,26 +228,39 @@ pub fn local_rotations(
     y: &[Point],
     out: &mut [UnitQuaternion<Real>],
 ) {
-    let f = |(i, o): (usize, &mut UnitQuaternion<Real>)| {
-        let ring = topo.ring(i);
-        if ring.is_empty() {
-            *o = UnitQuaternion::identity();
-            return;
-        }
+    // A = Σ_j w_ij (Y_j - Y_i)(X_j - X_i)ᵀ; T_i = argmax tr(Tᵀ A), fitted
+    // four vertices at a time (bit-for-bit the one-vertex fit). A vertex
+    // without neighbours has A = 0 and keeps the identity.
+    let covariance = |i: usize| {
         let w = weights.of(i);
-        // A = Σ_j w_ij (Y_j - Y_i)(X_j - X_i)ᵀ; T_i = argmax tr(Tᵀ A)
         let mut a = Matrix3::<Real>::zeros();
-        for (k, &j) in ring.iter().enumerate() {
+        for (k, &j) in topo.ring(i).iter().enumerate() {
             let e = Vector3::from(sub(x[j as usize], x[i]));
             let e2 = Vector3::from(sub(y[j as usize], y[i]));
             a += w[k] * e2 * e.transpose();
         }
-        *o = fit_rotation_quat(&a, o);
+        a
+    };
+    let f = |(c, o): (usize, &mut [UnitQuaternion<Real>])| {
+        let i0 = c * LANES;
+        for (k, q) in o.iter_mut().enumerate() {
+            if topo.ring(i0 + k).is_empty() {
+                *q = UnitQuaternion::identity();
+            }
+        }
+        if let Ok(group) = <&mut [UnitQuaternion<Real>; LANES]>::try_from(&mut *o) {
+            let a = std::array::from_fn(|k| covariance(i0 + k));
+            fit_rotation_quat4(&a, group);
+        } else {
+            for (k, q) in o.iter_mut().enumerate() {
+                *q = fit_rotation_quat(&covariance(i0 + k), q);
+            }
+        }
     };
     if out.len() >= PARALLEL_MIN {
-        out.par_iter_mut().enumerate().for_each(f);
+        out.par_chunks_mut(LANES).enumerate().for_each(f);
     } else {
-        out.iter_mut().enumerate().for_each(f);
+        out.chunks_mut(LANES).enumerate().for_each(f);
     }
 }
 

@@ -29,6 +29,9 @@ use nalgebra::{Matrix3, Quaternion, Rotation3, UnitQuaternion};
 
 use crate::mesh::Real;
 
+mod lanes;
+pub use lanes::{fit_rotation_quat4, LANES};
+
 /// Newton iterations before falling back to the SVD.
 const MAX_NEWTON: usize = 12;
 
