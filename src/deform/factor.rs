@@ -536,13 +536,11 @@ impl Factor {
         self.cg_iterations.load(Ordering::Relaxed)
     }
 
-    /// Approximate heap bytes held: factor values and indices, `J`, `J_Uᵀ`, `M`.
+    /// Approximate heap bytes held: factor values and indices, `M`.
     pub fn memory_bytes(&self) -> usize {
         let csr = |m: &sprs::CsMat<Real>| m.nnz() * 16 + (m.rows() + 1) * 8;
         self.factor_bytes()
             + self.plan.as_ref().map_or(0, |p| p.memory_bytes())
-            + csr(&self.sys.j)
-            + csr(&self.sys.jt_u)
             + csr(&self.sys.m)
             + self.ax.len() * 24
             + self.sys.col_of.len() * 4

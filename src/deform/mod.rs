@@ -28,6 +28,7 @@ mod rest;
 mod rotation;
 mod solver;
 mod square;
+mod stacked;
 mod system;
 mod trisolve;
 

@@ -14,6 +14,7 @@ use super::factor::Factor;
 use super::params::{DetailTerm, Energy, Mode, Params};
 use super::rest::Rest;
 use super::square::apply_p;
+use super::stacked::{self, Shape};
 use super::DeformError;
 use crate::mesh::{Point, Real};
 
@@ -79,6 +80,13 @@ struct Scratch {
     tdelta: Vec<Point>,
     lv: Vec<Point>,
     dhat: Vec<Point>,
+    /// `#V` buffers of the products with `L` (stacked.rs): `e` for the
+    /// residual; `u`, `v`, `Lᵀ u` and the inner vector of `J_Uᵀ r`.
+    e: Vec<Point>,
+    gu: Vec<Point>,
+    gv: Vec<Point>,
+    glu: Vec<Point>,
+    gx: Vec<Point>,
     /// Residual `b - J Y`, column-major `2|R| × 3`.
     r: Vec<Real>,
     /// Right-hand side / solution, column-major `|U| × 3`.
@@ -424,6 +432,11 @@ impl Deformer {
             s.tdelta = vec![[0.0; 3]; n];
             s.lv = vec![[0.0; 3]; n];
             s.dhat = vec![[0.0; 3]; n];
+            s.e = vec![[0.0; 3]; n];
+            s.gu = vec![[0.0; 3]; n];
+            s.gv = vec![[0.0; 3]; n];
+            s.glu = vec![[0.0; 3]; n];
+            s.gx = vec![[0.0; 3]; n];
         }
         if s.sized_for != dims || s.mem.is_none() {
             s.r = vec![0.0; 3 * dims.0.max(dims.1)];
@@ -465,11 +478,14 @@ impl Deformer {
                 let v = r * Vector3::from(*d);
                 *t = [v.x, v.y, v.z];
             }
-            let sign = if factor.square.is_some() { -1.0 } else { 1.0 };
-            apply_p(factor.energy, sign, ops, &mut s.tdelta, &mut s.lv);
         }
-        let internal: &[Point] = if rotated { &s.tdelta } else { &factor.ax };
         if let Some(sq) = &factor.square {
+            let internal: &[Point] = if rotated {
+                apply_p(factor.energy, -1.0, ops, &mut s.tdelta, &mut s.lv);
+                &s.tdelta
+            } else {
+                &factor.ax
+            };
             return sq.residual(
                 &factor.sys,
                 internal,
@@ -479,32 +495,57 @@ impl Deformer {
                 &mut s.r,
             );
         }
-        // r = b - J Y, rows in parallel chunks (each writes its own rows of
-        // the three columns of r)
+        // r = b - J Y without J (stacked.rs): L Y on every row, then the
+        // rows of R in parallel chunks (each writes its own rows of the
+        // three columns of r)
         let sys = &factor.sys;
         let nr = sys.rows.len();
         let nrows = 2 * nr;
         let y = &self.y;
+        let shape = Shape::of(factor.energy);
+        stacked::mul_l(ops, y, &mut s.lv);
+        let ly = &s.lv;
+        // A = P L: t - A Y = P(base - L Y); A = L (L - 2G): t - L (L Y - 2 G Y)
+        let (target, e): (&[Point], &mut [Point]) = match shape {
+            Shape::Left { .. } => {
+                let base: &[Point] = if rotated { &s.tdelta } else { &ops.delta };
+                for ((e, b), l) in s.e.iter_mut().zip(base).zip(ly) {
+                    *e = [b[0] - l[0], b[1] - l[1], b[2] - l[2]];
+                }
+                (&[], &mut s.e)
+            }
+            Shape::Right => {
+                for (i, e) in s.e.iter_mut().enumerate() {
+                    let g2 = 2.0 * ops.g[i];
+                    let (l, yi) = (ly[i], y[i]);
+                    *e = [l[0] - g2 * yi[0], l[1] - g2 * yi[1], l[2] - g2 * yi[2]];
+                }
+                (if rotated { &s.tdelta } else { &factor.ax }, &mut s.e)
+            }
+        };
+        let e: &[Point] = e;
         let dhat = &s.dhat;
         let row_residual = |row: usize| -> Point {
-            let target = if row < nr {
-                scale3(internal[sys.rows[row] as usize], sys.row_weight[row])
+            if row < nr {
+                let i = sys.rows[row] as usize;
+                let v = match shape {
+                    Shape::Left { .. } => stacked::p_row(shape, ops, i, e),
+                    Shape::Right => {
+                        let le = stacked::l_row(ops, i, e);
+                        let t = target[i];
+                        [t[0] - le[0], t[1] - le[1], t[2] - le[2]]
+                    }
+                };
+                scale3(v, sys.row_weight[row])
             } else {
                 let r = row - nr;
+                let i = sys.rows[r] as usize;
+                let (d, l) = (dhat[i], ly[i]);
                 scale3(
-                    dhat[sys.rows[r] as usize],
+                    [d[0] - l[0], d[1] - l[1], d[2] - l[2]],
                     sys.row_weight[r] * sys.sqrt_lambda2,
                 )
-            };
-            let mut acc = target;
-            let (lo, hi) = (sys.j.indptr().index(row), sys.j.indptr().index(row + 1));
-            for (&c, &v) in sys.j.indices()[lo..hi].iter().zip(&sys.j.data()[lo..hi]) {
-                let yc = y[c];
-                acc[0] -= v * yc[0];
-                acc[1] -= v * yc[1];
-                acc[2] -= v * yc[2];
             }
-            acc
         };
         let mut obj = for_row_chunks(&mut s.r[..3 * nrows], |row, out| {
             let acc = row_residual(row);
@@ -531,17 +572,31 @@ impl Deformer {
             s.rhs.copy_from_slice(&s.r[..3 * nu]); // the residual is already on the unknown rows
             return;
         }
+        // J_Uᵀ r = (Aᵀ u + Lᵀ v)_U with u = W r_A, v = √λ2 W r_L (stacked.rs)
+        let ops = &self.rest.ops;
+        let nr = sys.rows.len();
+        let shape = Shape::of(factor.energy);
         let r = &s.r;
-        let jt = &sys.jt_u;
-        for_row_chunks(&mut s.rhs, |row, out| {
-            let (lo, hi) = (jt.indptr().index(row), jt.indptr().index(row + 1));
-            let mut acc = [0.0; 3];
-            for (&col, &v) in jt.indices()[lo..hi].iter().zip(&jt.data()[lo..hi]) {
-                acc[0] += v * r[col];
-                acc[1] += v * r[nrows + col];
-                acc[2] += v * r[2 * nrows + col];
+        s.gu.fill([0.0; 3]);
+        s.gv.fill([0.0; 3]);
+        for (k, &i) in sys.rows.iter().enumerate() {
+            let (w, i) = (sys.row_weight[k], i as usize);
+            let wl = w * sys.sqrt_lambda2;
+            let d = nr + k;
+            s.gu[i] = [w * r[k], w * r[nrows + k], w * r[2 * nrows + k]];
+            s.gv[i] = [wl * r[d], wl * r[nrows + d], wl * r[2 * nrows + d]];
+        }
+        stacked::inner_gradient(shape, ops, &s.gu, &s.gv, &mut s.glu, &mut s.gx);
+        let (x, lu) = (&s.gx, &s.glu);
+        for_row_chunks(&mut s.rhs, |k, out| {
+            let i = sys.unknowns[k] as usize;
+            *out = stacked::lt_row(ops, i, x);
+            if shape == Shape::Right {
+                let g2 = 2.0 * ops.g[i];
+                for d in 0..3 {
+                    out[d] -= g2 * lu[i][d];
+                }
             }
-            *out = acc;
             0.0
         });
         if sys.lambda1 > 0.0 {
@@ -601,71 +656,112 @@ mod tests {
     use crate::deform::cg::tests::{edit, grid, pseudo_random};
     use crate::deform::{Factor, SolveOptions, SolverChoice};
 
-    /// The chunked (parallel, above `PARALLEL_MIN_ROWS`) residual and
-    /// `J_Uᵀ r` against a plain row-by-row product with `J` and `J_Uᵀ`: with
-    /// the linear detail term `b` does not depend on the pose, so
-    /// `r(Y₁) - r(Y₂) = -J (Y₁ - Y₂)`.
+    /// The matrix-free residual and `J_Uᵀ r` (stacked.rs, chunked on the
+    /// rayon pool above `PARALLEL_MIN_ROWS`) against products with `J`
+    /// assembled explicitly from `energy_matrix` (`A` by sparse products):
+    /// for every energy, with the linear detail term the whole residual
+    /// `r = [W (A X − A Y)_R; √λ2 W (δ − L Y)_R]`, and in the default mode
+    /// `rhs = J_Uᵀ r` and `f = |r|²`.
     #[test]
-    fn chunked_residual_and_rhs_match_plain_products() {
+    fn matrix_free_residual_and_rhs_match_assembled_j() {
         let k = 95;
         let mesh = grid(k);
         let rest = Arc::new(Rest::new(mesh.clone()).unwrap());
+        let ops = &rest.ops;
         let c = edit(&mesh, k);
-        let params = Params {
-            detail: DetailTerm::Linear,
-            ..Params::default()
-        };
-        let opts = SolveOptions {
-            solver: SolverChoice::Direct,
-            ..SolveOptions::default()
-        };
-        let factor = Factor::build_with(&rest, &params, &c, &opts).unwrap();
-        let sys = &factor.sys;
-        let (nrows, nu) = (sys.num_rows(), sys.unknowns.len());
-        assert!(nrows >= PARALLEL_MIN_ROWS && nu >= PARALLEL_MIN_ROWS);
         let n = mesh.num_vertices();
         let noise = pseudo_random(3 * n);
-        let mut d = Deformer::new(rest.clone(), params);
-        d.prepare(&factor);
-        let mut run = |scale: f64| {
-            for (v, y) in d.y.iter_mut().enumerate() {
-                let p = rest.ops.positions[v];
-                *y = [0, 1, 2].map(|i| p[i] + scale * noise[3 * v + i]);
-            }
-            let f = d.evaluate(&factor);
-            d.right_hand_side(&factor);
-            (
-                f,
-                d.scratch.r[..3 * nrows].to_vec(),
-                d.scratch.rhs.clone(),
-                d.y.clone(),
-            )
-        };
-        let (f1, r1, h1, y1) = run(0.1);
-        let (f2, r2, h2, y2) = run(-0.05);
-        let obj = |r: &[f64]| r.iter().map(|v| v * v).sum::<f64>();
-        assert!((f1 - obj(&r1)).abs() <= 1e-12 * f1);
-        assert!((f2 - obj(&r2)).abs() <= 1e-12 * f2);
-        let mut dr = vec![0.0; 3 * nrows];
-        for (row, jrow) in sys.j.outer_iterator().enumerate() {
-            for (col, &v) in jrow.iter() {
-                for i in 0..3 {
-                    dr[i * nrows + row] -= v * (y1[col][i] - y2[col][i]);
+        for energy in [
+            Energy::Membrane,
+            Energy::ThinPlate,
+            Energy::Combined { ks: 0.7, kb: 1.3 },
+            Energy::TotalCurvature,
+            Energy::TotalCurvaturePaper,
+        ] {
+            for detail in [DetailTerm::Linear, DetailTerm::Nonlinear] {
+                let params = Params {
+                    energy,
+                    detail,
+                    lambda2: 0.3,
+                    ..Params::default()
+                };
+                let opts = SolveOptions {
+                    solver: SolverChoice::Direct,
+                    ..SolveOptions::default()
+                };
+                let factor = Factor::build_with(&rest, &params, &c, &opts).unwrap();
+                let sys = &factor.sys;
+                let (nr, nu) = (sys.rows.len(), sys.unknowns.len());
+                let nrows = 2 * nr;
+                assert!(nr >= PARALLEL_MIN_ROWS && nu >= PARALLEL_MIN_ROWS);
+                let a = crate::deform::energy_matrix(ops, energy);
+                // J row by row: (column, value) lists
+                let j_rows: Vec<Vec<(usize, f64)>> = (0..nrows)
+                    .map(|row| {
+                        let (m, k, s) = if row < nr {
+                            (&a, row, 1.0)
+                        } else {
+                            (&ops.l, row - nr, sys.sqrt_lambda2)
+                        };
+                        let w = sys.row_weight[k] * s;
+                        m.outer_view(sys.rows[k] as usize)
+                            .map(|r| r.iter().map(|(c, &v)| (c, w * v)).collect())
+                            .unwrap_or_default()
+                    })
+                    .collect();
+                let mut d = Deformer::new(rest.clone(), params);
+                d.prepare(&factor);
+                for (v, y) in d.y.iter_mut().enumerate() {
+                    let p = ops.positions[v];
+                    *y = [0, 1, 2].map(|i| p[i] + 0.1 * noise[3 * v + i]);
                 }
-            }
-        }
-        let scale = dr.iter().fold(0.0f64, |m, v| m.max(v.abs()));
-        for (q, &e) in dr.iter().enumerate() {
-            assert!(
-                (r1[q] - r2[q] - e).abs() <= 1e-9 * scale,
-                "residual row {q}"
-            );
-        }
-        for (u, jrow) in sys.jt_u.outer_iterator().enumerate() {
-            for i in 0..3 {
-                let e: f64 = jrow.iter().map(|(row, &v)| v * dr[i * nrows + row]).sum();
-                let got = h1[i * nu + u] - h2[i * nu + u];
-                assert!((got - e).abs() <= 1e-9 * (1.0 + e.abs()), "rhs {u}, {i}");
+                let f = d.evaluate(&factor);
+                d.right_hand_side(&factor);
+                let (r, rhs, y) = (&d.scratch.r, &d.scratch.rhs, &d.y);
+                let obj: f64 = r[..3 * nrows].iter().map(|v| v * v).sum();
+                assert!((f - obj).abs() <= 1e-12 * f, "{energy:?} {detail:?}");
+                let jy = |row: usize, i: usize| -> f64 {
+                    j_rows[row].iter().map(|&(c, v)| v * y[c][i]).sum()
+                };
+                let jx = |row: usize, i: usize| -> f64 {
+                    j_rows[row]
+                        .iter()
+                        .map(|&(c, v)| v * ops.positions[c][i])
+                        .sum()
+                };
+                if detail == DetailTerm::Linear {
+                    // b = J X (A X and δ = L X): r = J (X - Y)
+                    let scale = r.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+                    for row in 0..nrows {
+                        for i in 0..3 {
+                            let e = jx(row, i) - jy(row, i);
+                            let got = r[i * nrows + row];
+                            assert!(
+                                (got - e).abs() <= 1e-9 * scale,
+                                "{energy:?}: residual row {row}.{i}: {got} vs {e}"
+                            );
+                        }
+                    }
+                }
+                // J_Uᵀ r, column by column of J
+                let mut expected = vec![0.0; 3 * nu];
+                for (row, jr) in j_rows.iter().enumerate() {
+                    for &(col, v) in jr {
+                        let u = sys.col_of[col];
+                        if u != u32::MAX {
+                            for i in 0..3 {
+                                expected[i * nu + u as usize] += v * r[i * nrows + row];
+                            }
+                        }
+                    }
+                }
+                let scale = expected.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+                for (q, (&got, &e)) in rhs.iter().zip(&expected).enumerate() {
+                    assert!(
+                        (got - e).abs() <= 1e-9 * scale,
+                        "{energy:?} {detail:?}: rhs {q}: {got} vs {e}"
+                    );
+                }
             }
         }
     }

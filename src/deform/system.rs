@@ -103,14 +103,10 @@ pub struct System {
     pub row_weight: Vec<Real>,
     /// `√λ2`.
     pub sqrt_lambda2: Real,
-    /// `J`, `2|R| × #V`, CSR: first the internal rows, then the detail rows.
-    pub j: CsMat<Real>,
     /// The unknown vertices `U`, sorted.
     pub unknowns: Vec<u32>,
     /// Vertex → position in `U`, or `u32::MAX`.
     pub col_of: Vec<u32>,
-    /// `J_Uᵀ`, `|U| × 2|R|`, CSR.
-    pub jt_u: CsMat<Real>,
     /// The normal matrix `M`, `|U| × |U|`, CSR, symmetric.
     pub m: CsMat<Real>,
     /// Constrained vertices (fixed ∪ handles), sorted.
@@ -135,11 +131,11 @@ impl System {
         let row_weight: Vec<Real> = rows.iter().map(|&i| ops.area[i as usize].sqrt()).collect();
         let sqrt_lambda2 = params.lambda2.sqrt();
         let nr = rows.len();
-        // J (all columns) and J_U (unknown columns), built directly in CSR
-        // order: every source row is sorted and has no repeated column, and
-        // `col_of` is increasing, so no sort or merge is needed.
+        // J_U (the unknown columns of J), built directly in CSR order: every
+        // source row is sorted and has no repeated column, and `col_of` is
+        // increasing, so no sort or merge is needed. J itself is applied
+        // without being stored ([`super::stacked`]).
         let nu = unknowns.len();
-        let mut j_parts = (vec![0usize], Vec::new(), Vec::new());
         let mut ju_parts = (vec![0usize], Vec::new(), Vec::new());
         for (mat, scale) in [(a, 1.0), (&ops.l, sqrt_lambda2)] {
             for (r, &i) in rows.iter().enumerate() {
@@ -147,8 +143,6 @@ impl System {
                 if s != 0.0 {
                     if let Some(row) = mat.outer_view(i as usize) {
                         for (c, &v) in row.iter() {
-                            j_parts.1.push(c);
-                            j_parts.2.push(s * v);
                             if col_of[c] != u32::MAX {
                                 ju_parts.1.push(col_of[c] as usize);
                                 ju_parts.2.push(s * v);
@@ -156,11 +150,9 @@ impl System {
                         }
                     }
                 }
-                j_parts.0.push(j_parts.1.len());
                 ju_parts.0.push(ju_parts.1.len());
             }
         }
-        let j: CsMat<Real> = CsMat::new((2 * nr, n), j_parts.0, j_parts.1, j_parts.2);
         let j_u: CsMat<Real> = CsMat::new((2 * nr, nu), ju_parts.0, ju_parts.1, ju_parts.2);
         let jt_u: CsMat<Real> = j_u.transpose_view().to_csr();
         let mut m = matmul(&jt_u, &j_u);
@@ -171,10 +163,8 @@ impl System {
             rows,
             row_weight,
             sqrt_lambda2,
-            j,
             unknowns,
             col_of,
-            jt_u,
             m,
             constrained: constrained.to_vec(),
             lambda1: params.lambda1,

@@ -37,6 +37,9 @@ pub struct Operators {
     pub lbar: CsMat<Real>,
     /// Mixed Voronoi areas `A_i`, `#V` (0 for unreferenced vertices).
     pub area: Vec<Real>,
+    /// `D = diag(1/A_i)` (0 for unreferenced vertices): `L = D Lbar`, so
+    /// `Lᵀ x = Lbar (D x)`.
+    pub inv_area: Vec<Real>,
     /// `L = D Lbar`, `#V×#V` (rows of unreferenced vertices are empty).
     pub l: CsMat<Real>,
     /// Laplacian coordinates `δ = L X`, `#V×3` (paper §5: `δ_i = 2 H_i n_i`).
@@ -105,6 +108,7 @@ impl Operators {
             positions,
             lbar,
             area,
+            inv_area,
             l,
             delta,
             mean_curvature,
