@@ -86,103 +86,24 @@ fn fit4(a: &[Matrix3<Real>; LANES], q_out: &mut [UnitQuaternion<Real>; LANES]) {
         if !state.contains(&Lane::Newton) {
             break;
         }
-        // R(q) rows, as in `quat_to_rows`
-        let [w, x, y, z] = q;
-        let xx = map4(|l| x[l] * x[l]);
-        let yy = map4(|l| y[l] * y[l]);
-        let zz = map4(|l| z[l] * z[l]);
-        let xy = map4(|l| x[l] * y[l]);
-        let xz = map4(|l| x[l] * z[l]);
-        let yz = map4(|l| y[l] * z[l]);
-        let wx = map4(|l| w[l] * x[l]);
-        let wy = map4(|l| w[l] * y[l]);
-        let wz = map4(|l| w[l] * z[l]);
-        let r = [
-            [
-                map4(|l| 1.0 - 2.0 * (yy[l] + zz[l])),
-                map4(|l| 2.0 * (xy[l] - wz[l])),
-                map4(|l| 2.0 * (xz[l] + wy[l])),
-            ],
-            [
-                map4(|l| 2.0 * (xy[l] + wz[l])),
-                map4(|l| 1.0 - 2.0 * (xx[l] + zz[l])),
-                map4(|l| 2.0 * (yz[l] - wx[l])),
-            ],
-            [
-                map4(|l| 2.0 * (xz[l] - wy[l])),
-                map4(|l| 2.0 * (yz[l] + wx[l])),
-                map4(|l| 1.0 - 2.0 * (xx[l] + yy[l])),
-            ],
-        ];
-        // B = A Rᵀ
-        let b: [[V4; 3]; 3] = std::array::from_fn(|i| {
-            std::array::from_fn(|j| {
-                map4(|l| {
-                    am[i][0][l] * r[j][0][l] + am[i][1][l] * r[j][1][l] + am[i][2][l] * r[j][2][l]
-                })
-            })
-        });
-        let g = [
-            map4(|l| b[2][1][l] - b[1][2][l]),
-            map4(|l| b[0][2][l] - b[2][0][l]),
-            map4(|l| b[1][0][l] - b[0][1][l]),
-        ];
-        let tr = map4(|l| b[0][0][l] + b[1][1][l] + b[2][2][l]);
-        let h00 = map4(|l| tr[l] - b[0][0][l]);
-        let h11 = map4(|l| tr[l] - b[1][1][l]);
-        let h22 = map4(|l| tr[l] - b[2][2][l]);
-        let h01 = map4(|l| -0.5 * (b[0][1][l] + b[1][0][l]));
-        let h02 = map4(|l| -0.5 * (b[0][2][l] + b[2][0][l]));
-        let h12 = map4(|l| -0.5 * (b[1][2][l] + b[2][1][l]));
-        // `solve_spd3`
-        let c00 = map4(|l| h11[l] * h22[l] - h12[l] * h12[l]);
-        let c01 = map4(|l| h02[l] * h12[l] - h01[l] * h22[l]);
-        let c02 = map4(|l| h01[l] * h12[l] - h02[l] * h11[l]);
-        let c11 = map4(|l| h00[l] * h22[l] - h02[l] * h02[l]);
-        let c12 = map4(|l| h01[l] * h02[l] - h00[l] * h12[l]);
-        let c22 = map4(|l| h00[l] * h11[l] - h01[l] * h01[l]);
-        let det = map4(|l| h00[l] * c00[l] + h01[l] * c01[l] + h02[l] * c02[l]);
-        let inv = map4(|l| 1.0 / det[l]);
-        let om = [
-            map4(|l| (c00[l] * g[0][l] + c01[l] * g[1][l] + c02[l] * g[2][l]) * inv[l]),
-            map4(|l| (c01[l] * g[0][l] + c11[l] * g[1][l] + c12[l] * g[2][l]) * inv[l]),
-            map4(|l| (c02[l] * g[0][l] + c12[l] * g[1][l] + c22[l] * g[2][l]) * inv[l]),
-        ];
-        let angle2 = map4(|l| om[0][l] * om[0][l] + om[1][l] * om[1][l] + om[2][l] * om[2][l]);
-        // `retract`
-        let half = [
-            map4(|l| 0.5 * om[0][l]),
-            map4(|l| 0.5 * om[1][l]),
-            map4(|l| 0.5 * om[2][l]),
-        ];
-        let [ha, hb, hc] = half;
-        let p = [
-            map4(|l| w[l] - ha[l] * x[l] - hb[l] * y[l] - hc[l] * z[l]),
-            map4(|l| x[l] + ha[l] * w[l] + hb[l] * z[l] - hc[l] * y[l]),
-            map4(|l| y[l] + hb[l] * w[l] + hc[l] * x[l] - ha[l] * z[l]),
-            map4(|l| z[l] + hc[l] * w[l] + ha[l] * y[l] - hb[l] * x[l]),
-        ];
-        let norm = map4(|l| {
-            1.0 / (p[0][l] * p[0][l] + p[1][l] * p[1][l] + p[2][l] * p[2][l] + p[3][l] * p[3][l])
-                .sqrt()
-        });
+        let Step {
+            q: qn,
+            angle2,
+            definite,
+            finite,
+        } = newton_step(&am, &q);
         const MAX_STEP: Real = std::f64::consts::FRAC_PI_2;
         for l in 0..LANES {
             if state[l] != Lane::Newton {
                 continue;
             }
-            let newton = h00[l] > 0.0
-                && c22[l] > 0.0
-                && det[l] > 0.0
-                && om[0][l].is_finite()
-                && om[1][l].is_finite()
-                && om[2][l].is_finite();
+            let newton = definite[l] && finite[l];
             if !newton || angle2[l] > MAX_STEP * MAX_STEP {
                 state[l] = Lane::Scalar;
                 continue;
             }
             for k in 0..4 {
-                q[k][l] = p[k][l] * norm[l];
+                q[k][l] = qn[k][l];
             }
             if angle2[l] < CONVERGED_STEP * CONVERGED_STEP {
                 state[l] = Lane::Done;
@@ -196,6 +117,110 @@ fn fit4(a: &[Matrix3<Real>; LANES], q_out: &mut [UnitQuaternion<Real>; LANES]) {
             }
             Lane::Newton | Lane::Scalar => fit_rotation_quat(&a[l], &guess[l]),
         };
+    }
+}
+
+/// One Newton step of the four lanes, straight-line arithmetic (no branch,
+/// so that it vectorises): the stepped quaternions, the squared step, and
+/// whether `H` was positive definite and the step finite.
+struct Step {
+    q: [V4; 4],
+    angle2: V4,
+    definite: [bool; LANES],
+    finite: [bool; LANES],
+}
+
+#[inline(always)]
+fn newton_step(am: &[[V4; 3]; 3], q: &[V4; 4]) -> Step {
+    // R(q) rows, as in `quat_to_rows`
+    let [w, x, y, z] = *q;
+    let xx = map4(|l| x[l] * x[l]);
+    let yy = map4(|l| y[l] * y[l]);
+    let zz = map4(|l| z[l] * z[l]);
+    let xy = map4(|l| x[l] * y[l]);
+    let xz = map4(|l| x[l] * z[l]);
+    let yz = map4(|l| y[l] * z[l]);
+    let wx = map4(|l| w[l] * x[l]);
+    let wy = map4(|l| w[l] * y[l]);
+    let wz = map4(|l| w[l] * z[l]);
+    let r = [
+        [
+            map4(|l| 1.0 - 2.0 * (yy[l] + zz[l])),
+            map4(|l| 2.0 * (xy[l] - wz[l])),
+            map4(|l| 2.0 * (xz[l] + wy[l])),
+        ],
+        [
+            map4(|l| 2.0 * (xy[l] + wz[l])),
+            map4(|l| 1.0 - 2.0 * (xx[l] + zz[l])),
+            map4(|l| 2.0 * (yz[l] - wx[l])),
+        ],
+        [
+            map4(|l| 2.0 * (xz[l] - wy[l])),
+            map4(|l| 2.0 * (yz[l] + wx[l])),
+            map4(|l| 1.0 - 2.0 * (xx[l] + yy[l])),
+        ],
+    ];
+    // B = A Rᵀ
+    let b: [[V4; 3]; 3] = std::array::from_fn(|i| {
+        std::array::from_fn(|j| {
+            map4(|l| am[i][0][l] * r[j][0][l] + am[i][1][l] * r[j][1][l] + am[i][2][l] * r[j][2][l])
+        })
+    });
+    let g = [
+        map4(|l| b[2][1][l] - b[1][2][l]),
+        map4(|l| b[0][2][l] - b[2][0][l]),
+        map4(|l| b[1][0][l] - b[0][1][l]),
+    ];
+    let tr = map4(|l| b[0][0][l] + b[1][1][l] + b[2][2][l]);
+    let h00 = map4(|l| tr[l] - b[0][0][l]);
+    let h11 = map4(|l| tr[l] - b[1][1][l]);
+    let h22 = map4(|l| tr[l] - b[2][2][l]);
+    let h01 = map4(|l| -0.5 * (b[0][1][l] + b[1][0][l]));
+    let h02 = map4(|l| -0.5 * (b[0][2][l] + b[2][0][l]));
+    let h12 = map4(|l| -0.5 * (b[1][2][l] + b[2][1][l]));
+    // `solve_spd3`
+    let c00 = map4(|l| h11[l] * h22[l] - h12[l] * h12[l]);
+    let c01 = map4(|l| h02[l] * h12[l] - h01[l] * h22[l]);
+    let c02 = map4(|l| h01[l] * h12[l] - h02[l] * h11[l]);
+    let c11 = map4(|l| h00[l] * h22[l] - h02[l] * h02[l]);
+    let c12 = map4(|l| h01[l] * h02[l] - h00[l] * h12[l]);
+    let c22 = map4(|l| h00[l] * h11[l] - h01[l] * h01[l]);
+    let det = map4(|l| h00[l] * c00[l] + h01[l] * c01[l] + h02[l] * c02[l]);
+    let inv = map4(|l| 1.0 / det[l]);
+    let om = [
+        map4(|l| (c00[l] * g[0][l] + c01[l] * g[1][l] + c02[l] * g[2][l]) * inv[l]),
+        map4(|l| (c01[l] * g[0][l] + c11[l] * g[1][l] + c12[l] * g[2][l]) * inv[l]),
+        map4(|l| (c02[l] * g[0][l] + c12[l] * g[1][l] + c22[l] * g[2][l]) * inv[l]),
+    ];
+    let angle2 = map4(|l| om[0][l] * om[0][l] + om[1][l] * om[1][l] + om[2][l] * om[2][l]);
+    // `retract`
+    let half = [
+        map4(|l| 0.5 * om[0][l]),
+        map4(|l| 0.5 * om[1][l]),
+        map4(|l| 0.5 * om[2][l]),
+    ];
+    let [ha, hb, hc] = half;
+    let p = [
+        map4(|l| w[l] - ha[l] * x[l] - hb[l] * y[l] - hc[l] * z[l]),
+        map4(|l| x[l] + ha[l] * w[l] + hb[l] * z[l] - hc[l] * y[l]),
+        map4(|l| y[l] + hb[l] * w[l] + hc[l] * x[l] - ha[l] * z[l]),
+        map4(|l| z[l] + hc[l] * w[l] + ha[l] * y[l] - hb[l] * x[l]),
+    ];
+    let norm = map4(|l| {
+        1.0 / (p[0][l] * p[0][l] + p[1][l] * p[1][l] + p[2][l] * p[2][l] + p[3][l] * p[3][l]).sqrt()
+    });
+    Step {
+        q: [
+            map4(|l| p[0][l] * norm[l]),
+            map4(|l| p[1][l] * norm[l]),
+            map4(|l| p[2][l] * norm[l]),
+            map4(|l| p[3][l] * norm[l]),
+        ],
+        angle2,
+        definite: std::array::from_fn(|l| h00[l] > 0.0 && c22[l] > 0.0 && det[l] > 0.0),
+        finite: std::array::from_fn(|l| {
+            om[0][l].is_finite() && om[1][l].is_finite() && om[2][l].is_finite()
+        }),
     }
 }
 
