@@ -355,7 +355,15 @@ impl Factor {
                     what: "Cholesky factor",
                 })?;
             values.resize(symbolic.len_val(), 0.0);
-            let par = Par::rayon(0);
+            // faer parallelises inside a supernode's dense operations only,
+            // which loses to one thread on small factors (tube:10000 49 vs
+            // 54 ms, eth_hand_14k 59 vs 66 ms) and gains on large ones
+            // (igea_134k 1.61 vs 1.76 s; feline_50k, 7 Gflop, equal)
+            let par = if symbolic_flops(&symbolic) < PARALLEL_NUMERIC_MIN_FLOPS {
+                Par::Seq
+            } else {
+                Par::rayon(0)
+            };
             let req = symbolic.factorize_numeric_llt_scratch::<Real>(par, Default::default());
             let mut mem = MemBuffer::try_new(req).map_err(|_| DeformError::OutOfMemory {
                 what: "factorisation scratch",
@@ -505,24 +513,7 @@ impl Factor {
     /// nonzeros of column `j` on and below the diagonal (George & Liu 1981,
     /// §2.2). 0 for a simplicial factor or CG.
     pub fn factor_flops(&self) -> f64 {
-        let Some(SymbolicCholeskyRaw::Supernodal(sn)) = self.symbolic.as_ref().map(|s| s.raw())
-        else {
-            return 0.0;
-        };
-        let (begin, end, cpr) = (
-            sn.supernode_begin(),
-            sn.supernode_end(),
-            sn.col_ptr_for_row_idx(),
-        );
-        (0..sn.n_supernodes())
-            .map(|s| {
-                let w = end[s] - begin[s];
-                let below = cpr[s + 1] - cpr[s];
-                (0..w)
-                    .map(|k| ((w - k + below) as f64).powi(2))
-                    .sum::<f64>()
-            })
-            .sum()
+        self.symbolic.as_ref().map_or(0.0, symbolic_flops)
     }
 
     /// Whether solves run preconditioned CG instead of a Cholesky factor.
@@ -634,6 +625,31 @@ pub(crate) fn estimated_factor_bytes(
         SymbolicCholeskyRaw::Simplicial(_) => values.saturating_mul(16),
     }
 }
+
+/// Floating-point operations of the numeric factorisation of a supernodal
+/// factor ([`Factor::factor_flops`]); 0 for a simplicial one.
+fn symbolic_flops(symbolic: &SymbolicCholesky<usize>) -> f64 {
+    let SymbolicCholeskyRaw::Supernodal(sn) = symbolic.raw() else {
+        return 0.0;
+    };
+    let (begin, end, cpr) = (
+        sn.supernode_begin(),
+        sn.supernode_end(),
+        sn.col_ptr_for_row_idx(),
+    );
+    (0..sn.n_supernodes())
+        .map(|s| {
+            let w = end[s] - begin[s];
+            let below = cpr[s + 1] - cpr[s];
+            (0..w)
+                .map(|k| ((w - k + below) as f64).powi(2))
+                .sum::<f64>()
+        })
+        .sum()
+}
+
+/// Factors needing fewer flops than this are factorised on one thread.
+const PARALLEL_NUMERIC_MIN_FLOPS: f64 = 4e9;
 
 /// A symmetric sprs CSR matrix as a faer CSC matrix (same arrays: a symmetric
 /// CSR matrix is its own CSC transpose).
