@@ -354,6 +354,7 @@ impl Factor {
                 .map_err(|_| DeformError::OutOfMemory {
                     what: "Cholesky factor",
                 })?;
+            advise_huge_pages(&mut values);
             values.resize(symbolic.len_val(), 0.0);
             // faer parallelises inside a supernode's dense operations only,
             // which loses to one thread on small factors (tube:10000 49 vs
@@ -646,6 +647,33 @@ fn symbolic_flops(symbolic: &SymbolicCholesky<usize>) -> f64 {
                 .sum::<f64>()
         })
         .sum()
+}
+
+/// Asks the kernel to back `v`'s spare capacity (not touched yet) with
+/// transparent huge pages (`madvise(MADV_HUGEPAGE)`; Linux's default THP
+/// mode is "madvise"). The factor's values are streamed twice per solve:
+/// 2 MiB pages cut the page faults of the first touch 512-fold and the TLB
+/// misses of every sweep. Advice only: failure changes nothing.
+fn advise_huge_pages(v: &mut Vec<Real>) {
+    #[cfg(target_os = "linux")]
+    {
+        const HUGE: usize = 2 << 20;
+        let bytes = v.capacity() * std::mem::size_of::<Real>();
+        if bytes < 2 * HUGE {
+            return;
+        }
+        let start = v.as_mut_ptr() as usize;
+        let page = 4096;
+        let begin = start.next_multiple_of(page);
+        let end = (start + bytes) & !(page - 1);
+        if end > begin {
+            // SAFETY: [begin, end) lies inside the allocation of `v`; advice
+            // does not change its contents or validity.
+            unsafe {
+                libc::madvise(begin as *mut libc::c_void, end - begin, libc::MADV_HUGEPAGE);
+            }
+        }
+    }
 }
 
 /// Factors needing fewer flops than this are factorised on one thread.
