@@ -304,7 +304,10 @@ impl Factor {
                 FillOrdering::NestedDissection => {
                     ordering::nested_dissection(m.symbolic().col_ptr(), m.symbolic().row_idx())
                 }
-                _ => None, // AMD (also when METIS fails)
+                // faer's AMD (also when METIS fails), called on the sorted
+                // pattern directly: faer's symbolic analysis would first
+                // sort a copy (camel 19.9 -> 17.5 ms, feline 176 -> 144 ms)
+                _ => ordering::amd(m.symbolic()),
             };
             let ordering = match &nd {
                 Some((fwd, inv)) => {

@@ -43,6 +43,41 @@ impl FillOrdering {
     }
 }
 
+/// faer's approximate minimum degree ordering (Amestoy, Davis & Duff
+/// 1996) of a symmetric pattern with sorted row indices in every column
+/// (both triangles, as every `sprs` matrix has them): what
+/// `SymmetricOrdering::Amd` computes, without the sorted copy faer first
+/// makes of a pattern it cannot assume sorted. `(fwd, inv)` as for
+/// [`nested_dissection`], or `None` on failure (out of memory, unsorted
+/// input), where the caller falls back to faer's own.
+pub(crate) fn amd(
+    pattern: faer::sparse::SymbolicSparseColMatRef<'_, usize>,
+) -> Option<(Vec<usize>, Vec<usize>)> {
+    use faer::dyn_stack::{MemBuffer, MemStack};
+    use faer::sparse::linalg::amd;
+    let n = pattern.ncols();
+    let sorted = (0..n).all(|j| {
+        pattern
+            .row_idx_of_col_raw(j)
+            .windows(2)
+            .all(|w| w[0] < w[1])
+    });
+    if !sorted {
+        return None;
+    }
+    let mut mem = MemBuffer::try_new(amd::order_scratch::<usize>(n, pattern.compute_nnz())).ok()?;
+    let (mut fwd, mut inv) = (vec![0usize; n], vec![0usize; n]);
+    amd::order(
+        &mut fwd,
+        &mut inv,
+        pattern,
+        amd::Control::default(),
+        MemStack::new(&mut mem),
+    )
+    .ok()?;
+    Some((fwd, inv))
+}
+
 /// A nested-dissection ordering of the symmetric sparsity pattern given in
 /// compressed columns (`col_ptr`, `row_idx`; both triangles, diagonal
 /// allowed). Returns `(fwd, inv)` with `fwd[new] = old` and
@@ -159,6 +194,47 @@ mod tests {
             nd < amd,
             "nested dissection {nd} vs AMD {amd} factor entries"
         );
+    }
+
+    /// `amd` is faer's AMD ordering itself (the permutation its symbolic
+    /// analysis keeps with `SymmetricOrdering::Amd`), a permutation, and
+    /// declines unsorted input (which AMD's sorted entry point must not see).
+    #[test]
+    fn amd_on_the_sorted_pattern_is_faers_own_ordering() {
+        let k = 60;
+        // a shuffled grid numbering, so that the ordering is not trivial
+        let (cp0, ri0) = grid_pattern(k);
+        let n = k * k;
+        let shuffle: Vec<usize> = (0..n).map(|i| (i * 7919) % n).collect();
+        let mut cols: Vec<Vec<usize>> = vec![Vec::new(); n];
+        for c in 0..n {
+            for &r in &ri0[cp0[c]..cp0[c + 1]] {
+                cols[shuffle[c]].push(shuffle[r]);
+            }
+        }
+        let (mut col_ptr, mut row_idx) = (vec![0], Vec::new());
+        for mut c in cols {
+            c.sort_unstable();
+            row_idx.extend(c);
+            col_ptr.push(row_idx.len());
+        }
+        let sym = SymbolicSparseColMat::new_checked(n, n, col_ptr.clone(), None, row_idx.clone());
+        let (fwd, inv) = amd(sym.as_ref()).unwrap();
+        let faer_own = factorize_symbolic_cholesky(
+            sym.as_ref(),
+            Side::Lower,
+            SymmetricOrdering::Amd,
+            Default::default(),
+        )
+        .unwrap();
+        let (f2, _) = faer_own.perm().unwrap().arrays();
+        assert_eq!(fwd, f2);
+        assert!(fwd.iter().enumerate().all(|(i, &p)| inv[p] == i));
+        // one column's rows swapped: unsorted
+        let c = (0..n).find(|&c| col_ptr[c + 1] - col_ptr[c] >= 2).unwrap();
+        row_idx.swap(col_ptr[c], col_ptr[c] + 1);
+        let unsorted = SymbolicSparseColMat::new_unsorted_checked(n, n, col_ptr, None, row_idx);
+        assert!(amd(unsorted.as_ref()).is_none());
     }
 
     #[test]
