@@ -20,6 +20,7 @@ use faer::{Conj, MatMut, Par, Side};
 
 use super::cg::Cg;
 use super::constraints::Constraints;
+use super::numeric;
 use super::ordering::{self, FillOrdering};
 use super::params::{Energy, Formulation, Mode, Params};
 use super::rest::Rest;
@@ -359,19 +360,25 @@ impl Factor {
                 })?;
             advise_huge_pages(&mut values);
             values.resize(symbolic.len_val(), 0.0);
-            // faer parallelises inside a supernode's dense operations only,
-            // which loses to one thread on small factors (tube:10000 49 vs
-            // 54 ms, eth_hand_14k 59 vs 66 ms) and gains on large ones
-            // (igea_134k 1.61 vs 1.76 s; feline_50k, 7 Gflop, equal)
-            let par = if symbolic_flops(&symbolic) < PARALLEL_NUMERIC_MIN_FLOPS {
-                Par::Seq
-            } else {
-                Par::rayon(0)
+            // Supernodal factors: dend's tree-parallel numeric factorisation
+            // (`numeric`, faer's per-supernode steps over the elimination
+            // tree on the pool). Simplicial (small) ones: faer's.
+            let plan = match symbolic.raw() {
+                SymbolicCholeskyRaw::Supernodal(sn) => Some(numeric::NumericPlan::new(sn)),
+                SymbolicCholeskyRaw::Simplicial(_) => None,
             };
-            let req = symbolic.factorize_numeric_llt_scratch::<Real>(par, Default::default());
-            let mut mem = MemBuffer::try_new(req).map_err(|_| DeformError::OutOfMemory {
-                what: "factorisation scratch",
-            })?;
+            let mut mem = match plan {
+                Some(_) => None,
+                None => {
+                    let req = symbolic
+                        .factorize_numeric_llt_scratch::<Real>(Par::Seq, Default::default());
+                    Some(
+                        MemBuffer::try_new(req).map_err(|_| DeformError::OutOfMemory {
+                            what: "factorisation scratch",
+                        })?,
+                    )
+                }
+            };
             // A numerically semi-definite M (8th-order stencils on irregular
             // meshes can lose definiteness in rounding) is retried once with a
             // tiny diagonal shift: each iteration solves for the update from
@@ -383,20 +390,37 @@ impl Factor {
                 .fold(0.0, Real::max);
             let mut shifted = false;
             loop {
-                let r = symbolic.factorize_numeric_llt::<Real>(
-                    &mut values,
-                    m.as_ref(),
-                    Side::Lower,
-                    LltRegularization::default(),
-                    par,
-                    MemStack::new(&mut mem),
-                    Default::default(),
-                );
+                let r = match (&plan, symbolic.raw(), mem.as_mut()) {
+                    (Some(plan), SymbolicCholeskyRaw::Supernodal(sn), _) => {
+                        let a = numeric::Permuted {
+                            col_ptr: m.symbolic().col_ptr(),
+                            row_idx: m.symbolic().row_idx(),
+                            values: m.val(),
+                            perm: symbolic.perm().map(|p| p.arrays()),
+                        };
+                        numeric::factorize(sn, plan, a, &mut values, true).map_err(|e| e.0)
+                    }
+                    (_, _, Some(mem)) => symbolic
+                        .factorize_numeric_llt::<Real>(
+                            &mut values,
+                            m.as_ref(),
+                            Side::Lower,
+                            LltRegularization::default(),
+                            Par::Seq,
+                            MemStack::new(mem),
+                            Default::default(),
+                        )
+                        .map(|_| ())
+                        .map_err(|e| match e {
+                            faer::linalg::cholesky::llt::factor::LltError::NonPositivePivot {
+                                index,
+                            } => index,
+                        }),
+                    _ => unreachable!("a simplicial factor has its scratch"),
+                };
                 match r {
-                    Ok(_) => break,
-                    Err(faer::linalg::cholesky::llt::factor::LltError::NonPositivePivot {
-                        index,
-                    }) => {
+                    Ok(()) => break,
+                    Err(index) => {
                         if shifted {
                             return Err(DeformError::NotPositiveDefinite { pivot: index });
                         }
@@ -678,9 +702,6 @@ fn advise_huge_pages(v: &mut Vec<Real>) {
         }
     }
 }
-
-/// Factors needing fewer flops than this are factorised on one thread.
-const PARALLEL_NUMERIC_MIN_FLOPS: f64 = 4e9;
 
 /// A symmetric sprs CSR matrix as a faer CSC matrix (same arrays: a symmetric
 /// CSR matrix is its own CSC transpose).

@@ -22,6 +22,7 @@ mod cg;
 mod constraints;
 mod detail;
 mod factor;
+mod numeric;
 mod ordering;
 mod params;
 mod rest;
