@@ -23,7 +23,9 @@
 //! `--cg` the same iteration with Jacobi-PCG at tolerance 1e-4 and no factor.
 //! `--rebuilds K` builds the factor K more times in the same process and
 //! reports the medians as `warm_*` (the first build pays for page faults and
-//! thread start-up; a server building a new constraint set's factor is warm).
+//! thread start-up; a server building a new constraint set's factor is warm),
+//! and `warm_precompute_ms`, the median of K new `Rest`s with their first
+//! factor in the same process (a server receiving a new upload).
 //! `--formulation both` measures eq. (24) and eq. (23) in the same process and
 //! prints one JSON line each, then a line of square / least-squares ratios;
 //! `--precision both` likewise the factor stored in `f64` (the default) and
@@ -212,6 +214,19 @@ fn bench(
         }
     }
     let [warm_assembly, warm_symbolic, warm_numeric, warm_build] = warm.map(median);
+    // a new upload in a warm process (a server's case): the rest
+    // precomputation and the first factor of a new `Rest`, whose energy
+    // matrix is not cached yet
+    let mut warm_precompute = Vec::new();
+    for _ in 0..rebuilds {
+        let t = Instant::now();
+        let fresh = Rest::new(mesh.clone()).map_err(|e| e.to_string())?;
+        let again =
+            Factor::build_with(&fresh, &params, constraints, &direct).map_err(|e| e.to_string())?;
+        warm_precompute.push(ms(t.elapsed()));
+        drop(again);
+    }
+    let warm_precompute = median(warm_precompute);
     let (iteration, converge, conv_iters, converged) =
         time_iterations(rest, &params, &factor, constraints, iters)?;
     let n = mesh.num_vertices();
@@ -232,6 +247,7 @@ fn bench(
         "warm_symbolic_ms": warm_symbolic,
         "warm_numeric_ms": warm_numeric,
         "warm_factor_build_ms": warm_build,
+        "warm_precompute_ms": warm_precompute,
         "iteration_ms": iteration,
         "converge_ms": converge,
         "converge_iterations": conv_iters,

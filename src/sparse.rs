@@ -83,6 +83,125 @@ pub fn matmul(a: &CsMat<Real>, b: &CsMat<Real>) -> CsMat<Real> {
     CsMat::new((rows, cols), indptr, indices, data)
 }
 
+/// The pattern of `A B` for CSR matrices: row pointers and, per row, the
+/// sorted column indices; with `diagonal`, every `(i, i)` is in it too (a
+/// square product that gets a diagonal term added). The symbolic half of
+/// Gustavson's product: [`product_values`] then fills it without the
+/// marker's branch, and the pattern alone is enough to order and analyse
+/// the factor of `A B` meanwhile.
+pub fn product_pattern(
+    a: &CsMat<Real>,
+    b: &CsMat<Real>,
+    diagonal: bool,
+) -> (Vec<usize>, Vec<usize>) {
+    assert_eq!(a.cols(), b.rows(), "sparse product shape mismatch");
+    assert!(
+        !diagonal || a.rows() == b.cols(),
+        "a diagonal needs a square product"
+    );
+    let (a, b) = (as_csr(a), as_csr(b));
+    let (ap, bp) = (a.proper_indptr(), b.proper_indptr());
+    let (rows, cols) = (a.rows(), b.cols());
+    let (ai, bi) = (a.indices(), b.indices());
+    let flops: usize = ai.iter().map(|&k| bp[k + 1] - bp[k]).sum();
+    let block = |r0: usize, r1: usize| {
+        let mut mark = vec![usize::MAX; cols];
+        let mut lens = Vec::with_capacity(r1 - r0);
+        let mut idx = Vec::new();
+        for i in r0..r1 {
+            let start = idx.len();
+            if diagonal {
+                mark[i] = i;
+                idx.push(i);
+            }
+            for &k in &ai[ap[i]..ap[i + 1]] {
+                for &j in &bi[bp[k]..bp[k + 1]] {
+                    if mark[j] != i {
+                        mark[j] = i;
+                        idx.push(j);
+                    }
+                }
+            }
+            idx[start..].sort_unstable();
+            lens.push(idx.len() - start);
+        }
+        (lens, idx)
+    };
+    let blocks: Vec<_> = if flops >= PARALLEL_MIN_FLOPS && rows > ROW_BLOCK {
+        (0..rows.div_ceil(ROW_BLOCK))
+            .into_par_iter()
+            .map(|c| block(c * ROW_BLOCK, ((c + 1) * ROW_BLOCK).min(rows)))
+            .collect()
+    } else {
+        vec![block(0, rows)]
+    };
+    let nnz: usize = blocks.iter().map(|b| b.1.len()).sum();
+    let mut indptr = Vec::with_capacity(rows + 1);
+    let mut indices = Vec::with_capacity(nnz);
+    indptr.push(0);
+    for (lens, idx) in blocks {
+        for l in lens {
+            indptr.push(indptr.last().copied().unwrap_or(0) + l);
+        }
+        indices.extend_from_slice(&idx);
+    }
+    (indptr, indices)
+}
+
+/// The values of `A B` on a pattern holding the product's
+/// ([`product_pattern`]): entry `p` of row `i` is `(A B)[i, indices[p]]`,
+/// 0 where the pattern is wider than the product. One dense accumulator per
+/// block of rows, cleared through the pattern after each row.
+pub fn product_values(
+    a: &CsMat<Real>,
+    b: &CsMat<Real>,
+    indptr: &[usize],
+    indices: &[usize],
+) -> Vec<Real> {
+    assert_eq!(a.cols(), b.rows(), "sparse product shape mismatch");
+    assert_eq!(indptr.len(), a.rows() + 1, "pattern rows");
+    let (a, b) = (as_csr(a), as_csr(b));
+    let (ap, bp) = (a.proper_indptr(), b.proper_indptr());
+    let (rows, cols) = (a.rows(), b.cols());
+    let (ai, av, bi, bv) = (a.indices(), a.data(), b.indices(), b.data());
+    let flops: usize = ai.iter().map(|&k| bp[k + 1] - bp[k]).sum();
+    let mut data = vec![0.0; indptr[rows]];
+    // rows r0..r1 into `out` (their slice of `data`)
+    let block = |r0: usize, r1: usize, out: &mut [Real]| {
+        let mut acc = vec![0.0; cols];
+        let base = indptr[r0];
+        for i in r0..r1 {
+            for p in ap[i]..ap[i + 1] {
+                let (k, aik) = (ai[p], av[p]);
+                for q in bp[k]..bp[k + 1] {
+                    acc[bi[q]] += aik * bv[q];
+                }
+            }
+            for p in indptr[i]..indptr[i + 1] {
+                let j = indices[p];
+                out[p - base] = acc[j];
+                acc[j] = 0.0;
+            }
+        }
+    };
+    if flops >= PARALLEL_MIN_FLOPS && rows > ROW_BLOCK {
+        let mut chunks = Vec::with_capacity(rows.div_ceil(ROW_BLOCK));
+        let mut rest: &mut [Real] = &mut data;
+        for c in 0..rows.div_ceil(ROW_BLOCK) {
+            let (r0, r1) = (c * ROW_BLOCK, ((c + 1) * ROW_BLOCK).min(rows));
+            let (head, tail) = rest.split_at_mut(indptr[r1] - indptr[r0]);
+            chunks.push((r0, r1, head));
+            rest = tail;
+        }
+        chunks
+            .into_par_iter()
+            .for_each(|(r0, r1, out)| block(r0, r1, out));
+    } else {
+        block(0, rows, &mut data);
+    }
+    data
+}
+
 /// `m` itself when it is CSR with its storage starting at 0 (every matrix
 /// the operators build), else a converted copy: the product reads the raw
 /// index and value arrays.
@@ -162,6 +281,46 @@ mod tests {
                     (v - t).abs() <= 1e-12 * (1.0 + t.abs()),
                     "({i},{j}): {v} vs {t}"
                 );
+            }
+        }
+    }
+
+    /// The two-pass product (pattern, then values on it) equals the one-pass
+    /// product, in the parallel blocks too, and a forced diagonal is there.
+    #[test]
+    fn pattern_then_values_equal_the_product() {
+        let (r, k) = (3 * ROW_BLOCK + 5, 700);
+        let mut state = 99u64;
+        let mut next = || {
+            state = state
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            (state >> 33) as usize
+        };
+        let e: Vec<_> = (0..30 * r)
+            .map(|_| (next() % r, next() % k, (next() % 1000) as f64 / 500.0 - 1.0))
+            .collect();
+        let j = random(r, k, &e);
+        let jt = j.transpose_view().to_csr();
+        let m = matmul(&jt, &j);
+        for diagonal in [false, true] {
+            let (ip, ix) = product_pattern(&jt, &j, diagonal);
+            let v = product_values(&jt, &j, &ip, &ix);
+            for i in 0..k {
+                let row = &ix[ip[i]..ip[i + 1]];
+                assert!(row.windows(2).all(|w| w[0] < w[1]), "row {i} unsorted");
+                assert_eq!(row.contains(&i), diagonal || m.get(i, i).is_some());
+                let mut n = 0;
+                for (p, &c) in row.iter().enumerate() {
+                    let want = m.get(i, c).copied().unwrap_or(0.0);
+                    n += usize::from(m.get(i, c).is_some());
+                    let got = v[ip[i] + p];
+                    assert!(
+                        (got - want).abs() <= 1e-12 * (1.0 + want.abs()),
+                        "({i},{c})"
+                    );
+                }
+                assert_eq!(n, m.outer_view(i).map_or(0, |r| r.nnz()), "row {i} pattern");
             }
         }
     }

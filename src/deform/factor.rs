@@ -10,22 +10,19 @@
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::time::{Duration, Instant};
 
-use faer::dyn_stack::{MemBuffer, MemStack, StackReq};
-use faer::linalg::cholesky::llt::factor::LltRegularization;
-use faer::sparse::linalg::cholesky::{
-    factorize_symbolic_cholesky, LltRef, SymbolicCholesky, SymbolicCholeskyRaw, SymmetricOrdering,
-};
+use faer::dyn_stack::{MemStack, StackReq};
+use faer::sparse::linalg::cholesky::{LltRef, SymbolicCholesky, SymbolicCholeskyRaw};
 use faer::sparse::{SparseColMat, SymbolicSparseColMat};
-use faer::{Conj, MatMut, Par, Side};
+use faer::{Conj, MatMut, Par};
 
 use super::cg::Cg;
+use super::cholesky::{self, analyse, csr_arrays};
 use super::constraints::Constraints;
-use super::numeric;
-use super::ordering::{self, FillOrdering};
+use super::ordering::FillOrdering;
 use super::params::{Energy, Formulation, Mode, Params};
 use super::rest::Rest;
 use super::square::{self, Square};
-use super::system::{energy_matrix, System};
+use super::system::{Prepared, System};
 use super::trisolve;
 use super::DeformError;
 use crate::mesh::{Point, Real};
@@ -262,12 +259,28 @@ impl Factor {
             });
         }
         let t0 = Instant::now();
+        // eq. (24) to factorise: M's pattern first, then its values and the
+        // symbolic analysis (which needs the pattern only) at the same time
+        let mut analysed = None;
         let (sys, square, ax) = match params.formulation {
             Formulation::LeastSquares => {
-                let a = energy_matrix(ops, params.energy);
-                let ax = crate::operators::laplacian_coordinates(&a, &ops.positions);
-                let sys = System::assemble(ops, &a, params, &key.constrained, rest.active())?;
-                (sys, None, ax)
+                let energy = rest.energy(params.energy);
+                let prep = Prepared::new(ops, &energy.a, params, &key.constrained, rest.active());
+                let values = if options.solver != SolverChoice::Cg && prep.num_unknowns() > 0 {
+                    let (values, symbolic) = rayon::join(
+                        || prep.values(),
+                        || {
+                            let t = Instant::now();
+                            let (col_ptr, row_idx) = prep.pattern();
+                            (analyse(col_ptr, row_idx, options.ordering), t.elapsed())
+                        },
+                    );
+                    analysed = Some(symbolic);
+                    values
+                } else {
+                    prep.values()
+                };
+                (prep.into_system(values), None, energy.ax.clone())
             }
             Formulation::Square | Formulation::SquareLu => {
                 let (sys, sq, ax) = square::assemble(ops, params, &key.constrained, rest.active())?;
@@ -279,6 +292,7 @@ impl Factor {
         let cg_of = |sys: &System| Some(Cg::new(&sys.m, options.cg_tol, options.cg_max_iters));
         let mut cg = None;
         let mut lu = None;
+        let mut symbolic_time = Duration::ZERO;
         let (symbolic, values, t2) = if n == 0 {
             (None, Vec::new(), Instant::now())
         } else if let (Formulation::SquareLu, Some(k_uu)) = (
@@ -291,6 +305,7 @@ impl Factor {
             let sym = SymbolicSparseColMat::new_unsorted_checked(n, n, col_ptr, None, i.to_vec());
             let mat = SparseColMat::new(sym, v.to_vec());
             let t2 = Instant::now();
+            symbolic_time = t2 - t1;
             lu = Some(
                 mat.sp_lu()
                     .map_err(|_| DeformError::NotPositiveDefinite { pivot: 0 })?,
@@ -300,31 +315,19 @@ impl Factor {
             cg = cg_of(&sys);
             (None, Vec::new(), Instant::now())
         } else {
-            let m = to_faer(&sys.m)?;
-            let nd = match options.ordering.resolve(n) {
-                FillOrdering::NestedDissection => {
-                    ordering::nested_dissection(m.symbolic().col_ptr(), m.symbolic().row_idx())
+            let symbolic = match analysed {
+                Some((symbolic, time)) => {
+                    symbolic_time = time;
+                    symbolic?
                 }
-                // faer's AMD (also when METIS fails), called on the sorted
-                // pattern directly: faer's symbolic analysis would first
-                // sort a copy (camel 19.9 -> 17.5 ms, feline 176 -> 144 ms)
-                _ => ordering::amd(m.symbolic()),
-            };
-            let ordering = match &nd {
-                Some((fwd, inv)) => {
-                    SymmetricOrdering::Custom(faer::perm::PermRef::new_checked(fwd, inv, n))
+                None => {
+                    let t = Instant::now();
+                    let (col_ptr, row_idx) = csr_arrays(&sys.m);
+                    let symbolic = analyse(&col_ptr, row_idx, options.ordering)?;
+                    symbolic_time = t.elapsed();
+                    symbolic
                 }
-                None => SymmetricOrdering::Amd,
             };
-            let symbolic = factorize_symbolic_cholesky(
-                m.symbolic(),
-                Side::Lower,
-                ordering,
-                Default::default(),
-            )
-            .map_err(|_| DeformError::OutOfMemory {
-                what: "symbolic factorisation",
-            })?;
             let t2 = Instant::now();
             if options.solver == SolverChoice::Auto
                 && estimated_factor_bytes(&symbolic, options.precision)
@@ -347,101 +350,12 @@ impl Factor {
                     cg_iterations: AtomicU64::new(0),
                     timings: FactorTimings {
                         assembly: t1 - t0,
-                        symbolic: t2 - t1,
+                        symbolic: symbolic_time,
                         numeric: Duration::ZERO,
                     },
                 });
             }
-            let mut values = Vec::new();
-            values
-                .try_reserve_exact(symbolic.len_val())
-                .map_err(|_| DeformError::OutOfMemory {
-                    what: "Cholesky factor",
-                })?;
-            advise_huge_pages(&mut values);
-            values.resize(symbolic.len_val(), 0.0);
-            // Supernodal factors: dend's tree-parallel numeric factorisation
-            // (`numeric`, faer's per-supernode steps over the elimination
-            // tree on the pool). Simplicial (small) ones: faer's.
-            let plan = match symbolic.raw() {
-                SymbolicCholeskyRaw::Supernodal(sn) => Some(numeric::NumericPlan::new(sn)),
-                SymbolicCholeskyRaw::Simplicial(_) => None,
-            };
-            let mut mem = match plan {
-                Some(_) => None,
-                None => {
-                    let req = symbolic
-                        .factorize_numeric_llt_scratch::<Real>(Par::Seq, Default::default());
-                    Some(
-                        MemBuffer::try_new(req).map_err(|_| DeformError::OutOfMemory {
-                            what: "factorisation scratch",
-                        })?,
-                    )
-                }
-            };
-            // A numerically semi-definite M (8th-order stencils on irregular
-            // meshes can lose definiteness in rounding) is retried once with a
-            // tiny diagonal shift: each iteration solves for the update from
-            // the unsquared residual, so the shift only slows convergence
-            // slightly and does not change the solution.
-            let mut m = m;
-            let max_diag = (0..n)
-                .filter_map(|j| sys.m.get(j, j).copied())
-                .fold(0.0, Real::max);
-            let mut shifted = false;
-            loop {
-                let r = match (&plan, symbolic.raw(), mem.as_mut()) {
-                    (Some(plan), SymbolicCholeskyRaw::Supernodal(sn), _) => {
-                        let a = numeric::Permuted {
-                            col_ptr: m.symbolic().col_ptr(),
-                            row_idx: m.symbolic().row_idx(),
-                            values: m.val(),
-                            perm: symbolic.perm().map(|p| p.arrays()),
-                        };
-                        numeric::factorize(sn, plan, a, &mut values, true).map_err(|e| e.0)
-                    }
-                    (_, _, Some(mem)) => symbolic
-                        .factorize_numeric_llt::<Real>(
-                            &mut values,
-                            m.as_ref(),
-                            Side::Lower,
-                            LltRegularization::default(),
-                            Par::Seq,
-                            MemStack::new(mem),
-                            Default::default(),
-                        )
-                        .map(|_| ())
-                        .map_err(|e| match e {
-                            faer::linalg::cholesky::llt::factor::LltError::NonPositivePivot {
-                                index,
-                            } => index,
-                        }),
-                    _ => unreachable!("a simplicial factor has its scratch"),
-                };
-                match r {
-                    Ok(()) => break,
-                    Err(index) => {
-                        if shifted {
-                            return Err(DeformError::NotPositiveDefinite { pivot: index });
-                        }
-                        shifted = true;
-                        let shift = 1e-10 * max_diag;
-                        let (col_ptr, row_idx) = (
-                            m.symbolic().col_ptr().to_vec(),
-                            m.symbolic().row_idx().to_vec(),
-                        );
-                        let vals = m.val_mut();
-                        for j in 0..n {
-                            for p in col_ptr[j]..col_ptr[j + 1] {
-                                if row_idx[p] == j {
-                                    vals[p] += shift;
-                                }
-                            }
-                        }
-                        tracing::warn!(pivot = index, shift, "normal matrix not numerically positive definite; refactoring with a diagonal shift");
-                    }
-                }
-            }
+            let values = cholesky::factorise(&symbolic, &sys.m)?;
             (Some(symbolic), values, t2)
         };
         // A supernodal factor is solved by `trisolve` (on two threads if
@@ -479,7 +393,7 @@ impl Factor {
             cg_iterations: AtomicU64::new(0),
             timings: FactorTimings {
                 assembly: t1 - t0,
-                symbolic: t2 - t1,
+                symbolic: symbolic_time,
                 numeric: t3 - t2,
             },
         })
@@ -674,48 +588,4 @@ fn symbolic_flops(symbolic: &SymbolicCholesky<usize>) -> f64 {
                 .sum::<f64>()
         })
         .sum()
-}
-
-/// Asks the kernel to back `v`'s spare capacity (not touched yet) with
-/// transparent huge pages (`madvise(MADV_HUGEPAGE)`; Linux's default THP
-/// mode is "madvise"). The factor's values are streamed twice per solve:
-/// 2 MiB pages cut the page faults of the first touch 512-fold and the TLB
-/// misses of every sweep. Advice only: failure changes nothing.
-fn advise_huge_pages(v: &mut Vec<Real>) {
-    #[cfg(target_os = "linux")]
-    {
-        const HUGE: usize = 2 << 20;
-        let bytes = v.capacity() * std::mem::size_of::<Real>();
-        if bytes < 2 * HUGE {
-            return;
-        }
-        let start = v.as_mut_ptr() as usize;
-        let page = 4096;
-        let begin = start.next_multiple_of(page);
-        let end = (start + bytes) & !(page - 1);
-        if end > begin {
-            // SAFETY: [begin, end) lies inside the allocation of `v`; advice
-            // does not change its contents or validity.
-            unsafe {
-                libc::madvise(begin as *mut libc::c_void, end - begin, libc::MADV_HUGEPAGE);
-            }
-        }
-    }
-}
-
-/// A symmetric sprs CSR matrix as a faer CSC matrix (same arrays: a symmetric
-/// CSR matrix is its own CSC transpose).
-fn to_faer(m: &sprs::CsMat<Real>) -> Result<SparseColMat<usize, Real>, DeformError> {
-    let n = m.rows();
-    let (indptr, indices, data) = (m.indptr(), m.indices(), m.data());
-    let col_ptr: Vec<usize> = indptr
-        .as_slice()
-        .map(|s| s.to_vec())
-        .unwrap_or_else(|| (0..=n).map(|i| indptr.index(i)).collect());
-    let base = col_ptr[0];
-    let col_ptr: Vec<usize> = col_ptr.iter().map(|&p| p - base).collect();
-    let row_idx = indices[base..base + col_ptr[n]].to_vec();
-    let values = data[base..base + col_ptr[n]].to_vec();
-    let sym = SymbolicSparseColMat::new_unsorted_checked(n, n, col_ptr, None, row_idx);
-    Ok(SparseColMat::new(sym, values))
 }

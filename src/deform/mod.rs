@@ -19,6 +19,7 @@
 mod anderson;
 mod cache;
 mod cg;
+mod cholesky;
 mod constraints;
 mod detail;
 mod factor;

@@ -2,11 +2,14 @@
 //! Procrustes weights, computed once per mesh and shared by its sessions.
 
 use std::sync::atomic::{AtomicU64, Ordering};
+use std::sync::{Arc, Mutex};
+
+use sprs::CsMat;
 
 use super::detail::{Mu, RingWeights};
-use super::params::Mode;
+use super::params::{Energy, Mode};
 use super::DeformError;
-use crate::mesh::Mesh;
+use crate::mesh::{Mesh, Point, Real};
 use crate::operators::Operators;
 
 static NEXT_REST_ID: AtomicU64 = AtomicU64::new(1);
@@ -24,6 +27,22 @@ pub struct Rest {
     mu_paper: std::sync::OnceLock<Mu>,
     pub(super) weights: RingWeights,
     active: Vec<bool>,
+    /// The energy matrices built so far (most recent last), at most
+    /// [`ENERGY_CACHE`]: every constraint set of a session reuses its
+    /// energy's.
+    energies: Mutex<Vec<(Energy, Arc<EnergyOperator>)>>,
+}
+
+/// Energy matrices a [`Rest`] keeps (sessions rarely switch energies).
+const ENERGY_CACHE: usize = 4;
+
+/// An energy's matrix `A` (dend.md §3) and its rest-state image `A X`:
+/// they depend on the rest mesh and the energy only, not on the
+/// constraint set.
+#[derive(Debug)]
+pub(crate) struct EnergyOperator {
+    pub a: CsMat<Real>,
+    pub ax: Vec<Point>,
 }
 
 impl Rest {
@@ -49,6 +68,7 @@ impl Rest {
             mu_paper: std::sync::OnceLock::new(),
             weights,
             active,
+            energies: Mutex::new(Vec::new()),
         })
     }
 
@@ -70,6 +90,31 @@ impl Rest {
     /// Whether each vertex is referenced by a triangle.
     pub fn active(&self) -> &[bool] {
         &self.active
+    }
+
+    /// `energy`'s matrix and `A X`, built on first use and kept.
+    pub(crate) fn energy(&self, energy: Energy) -> Arc<EnergyOperator> {
+        let find = |v: &[(Energy, Arc<EnergyOperator>)]| {
+            v.iter()
+                .find(|(e, _)| *e == energy)
+                .map(|(_, op)| op.clone())
+        };
+        if let Some(op) = self.energies.lock().ok().and_then(|v| find(&v)) {
+            return op;
+        }
+        let a = super::system::energy_matrix(&self.ops, energy);
+        let ax = crate::operators::laplacian_coordinates(&a, &self.ops.positions);
+        let op = Arc::new(EnergyOperator { a, ax });
+        if let Ok(mut v) = self.energies.lock() {
+            if let Some(found) = find(&v) {
+                return found;
+            }
+            if v.len() == ENERGY_CACHE {
+                v.remove(0);
+            }
+            v.push((energy, op.clone()));
+        }
+        op
     }
 
     pub(super) fn mu(&self, mode: Mode) -> &Mu {

@@ -17,10 +17,9 @@
 use sprs::{CsMat, TriMat};
 
 use super::params::{Energy, Params};
-use super::DeformError;
 use crate::mesh::Real;
 use crate::operators::Operators;
-use crate::sparse::{matmul, scale_entries};
+use crate::sparse::{matmul, product_pattern, product_values, scale_entries};
 
 /// The energy matrix `A` of dend.md §3 (paper table, §5), `#V×#V`, CSR.
 pub fn energy_matrix(ops: &Operators, energy: Energy) -> CsMat<Real> {
@@ -115,16 +114,35 @@ pub struct System {
     pub lambda1: Real,
 }
 
-impl System {
-    /// Assembles `J`, `J_Uᵀ` and `M` for `constrained` (sorted) on `ops`.
-    /// Unreferenced vertices are neither rows nor unknowns.
-    pub fn assemble(
+/// A constraint set's rows, unknowns, `J_U` and the pattern of `M`: what
+/// the numeric product ([`Prepared::values`]) and, at the same time, the
+/// factor's symbolic analysis (which needs the pattern only) start from.
+pub(crate) struct Prepared {
+    rows: Vec<u32>,
+    row_weight: Vec<Real>,
+    sqrt_lambda2: Real,
+    unknowns: Vec<u32>,
+    col_of: Vec<u32>,
+    j_u: CsMat<Real>,
+    jt_u: CsMat<Real>,
+    /// `M`'s pattern: CSR row pointers, sorted column indices (with the
+    /// whole diagonal under soft constraints, which add `λ1` to it).
+    indptr: Vec<usize>,
+    indices: Vec<usize>,
+    constrained: Vec<u32>,
+    lambda1: Real,
+}
+
+impl Prepared {
+    /// The partition, `J_U` and `M`'s pattern for `constrained` (sorted)
+    /// on `ops`, with `a` the energy's matrix.
+    pub(crate) fn new(
         ops: &Operators,
         a: &CsMat<Real>,
         params: &Params,
         constrained: &[u32],
         active: &[bool],
-    ) -> Result<Self, DeformError> {
+    ) -> Prepared {
         let n = ops.num_vertices();
         let soft = params.lambda1 > 0.0;
         let (rows, unknowns, col_of) = partition(n, constrained, active, soft);
@@ -155,20 +173,83 @@ impl System {
         }
         let j_u: CsMat<Real> = CsMat::new((2 * nr, nu), ju_parts.0, ju_parts.1, ju_parts.2);
         let jt_u: CsMat<Real> = j_u.transpose_view().to_csr();
-        let mut m = matmul(&jt_u, &j_u);
-        if soft {
-            m = add_soft_diagonal(&m, constrained, &col_of, params.lambda1);
-        }
-        Ok(System {
+        let (indptr, indices) = product_pattern(&jt_u, &j_u, soft);
+        Prepared {
             rows,
             row_weight,
             sqrt_lambda2,
             unknowns,
             col_of,
-            m,
+            j_u,
+            jt_u,
+            indptr,
+            indices,
             constrained: constrained.to_vec(),
             lambda1: params.lambda1,
-        })
+        }
+    }
+
+    /// Number of unknowns (the order of `M`).
+    pub(crate) fn num_unknowns(&self) -> usize {
+        self.unknowns.len()
+    }
+
+    /// `M`'s pattern: CSR (= CSC, `M` being symmetric) row pointers and
+    /// sorted column indices.
+    pub(crate) fn pattern(&self) -> (&[usize], &[usize]) {
+        (&self.indptr, &self.indices)
+    }
+
+    /// `M`'s values on [`Prepared::pattern`]: `J_Uᵀ J_U`, plus `λ1` on
+    /// the constrained unknowns' diagonal under soft constraints.
+    pub(crate) fn values(&self) -> Vec<Real> {
+        let mut v = product_values(&self.jt_u, &self.j_u, &self.indptr, &self.indices);
+        if self.lambda1 > 0.0 {
+            for &c in &self.constrained {
+                let k = self.col_of[c as usize];
+                if k != u32::MAX {
+                    let k = k as usize;
+                    let row = &self.indices[self.indptr[k]..self.indptr[k + 1]];
+                    if let Ok(p) = row.binary_search(&k) {
+                        v[self.indptr[k] + p] += self.lambda1;
+                    }
+                }
+            }
+        }
+        v
+    }
+
+    /// The system, with `M`'s `values` from [`Prepared::values`].
+    pub(crate) fn into_system(self, values: Vec<Real>) -> System {
+        let nu = self.unknowns.len();
+        let m = CsMat::new((nu, nu), self.indptr, self.indices, values);
+        System {
+            rows: self.rows,
+            row_weight: self.row_weight,
+            sqrt_lambda2: self.sqrt_lambda2,
+            unknowns: self.unknowns,
+            col_of: self.col_of,
+            m,
+            constrained: self.constrained,
+            lambda1: self.lambda1,
+        }
+    }
+}
+
+impl System {
+    /// Assembles `J_U` and `M` for `constrained` (sorted) on `ops`.
+    /// Unreferenced vertices are neither rows nor unknowns.
+    #[cfg(test)]
+    pub(crate) fn assemble(
+        ops: &Operators,
+        a: &CsMat<Real>,
+        params: &Params,
+        constrained: &[u32],
+        active: &[bool],
+    ) -> Result<Self, super::DeformError> {
+        let prep = Prepared::new(ops, a, params, constrained, active);
+        let values = prep.values();
+        Ok(prep.into_system(values))
     }
 
     /// Number of stacked rows `2|R|`.
@@ -247,6 +328,23 @@ mod tests {
                 }
             }
             assert_eq!(sys.num_rows(), 2 * (m.num_vertices() - 4));
+            // M = J_Uᵀ J_U (+ λ1 on the constrained unknowns) against sprs's
+            // product of the same J_U
+            let prep = Prepared::new(&ops, &a, &params, &[0, 5, 6, 11], &active);
+            let jtj = &prep.jt_u * &prep.j_u;
+            let mut soft_diag = 0;
+            for (i, row) in sys.m.outer_iterator().enumerate() {
+                for (j, &v) in row.iter() {
+                    let mut want = jtj.get(i, j).copied().unwrap_or(0.0);
+                    if i == j && [0u32, 5, 6, 11].contains(&sys.unknowns[i]) {
+                        want += lambda1;
+                        soft_diag += 1;
+                    }
+                    assert!((v - want).abs() < 1e-12 * (1.0 + want.abs()), "({i},{j})");
+                }
+            }
+            assert_eq!(soft_diag, if lambda1 > 0.0 { 4 } else { 0 });
+            assert!(jtj.nnz() <= sys.m.nnz());
             assert_eq!(sys.unknowns.len(), if lambda1 > 0.0 { 24 } else { 20 });
         }
     }
