@@ -76,14 +76,10 @@ pub(crate) fn factorise(
     let (col_ptr, row_idx) = csr_arrays(m);
     let base = m.indptr().index(0);
     let m_values = &m.data()[base..base + m.nnz()];
-    let mut values = Vec::new();
-    values
-        .try_reserve_exact(symbolic.len_val())
-        .map_err(|_| DeformError::OutOfMemory {
-            what: "Cholesky factor",
-        })?;
+    // zeroed by the allocator, not written: a fresh mapping's pages are
+    // first touched by the factorisation itself, on the pool's threads
+    let mut values = zeroed(symbolic.len_val())?;
     advise_huge_pages(&mut values);
-    values.resize(symbolic.len_val(), 0.0);
     let plan = match symbolic.raw() {
         SymbolicCholeskyRaw::Supernodal(sn) => Some(numeric::NumericPlan::new(sn)),
         SymbolicCholeskyRaw::Simplicial(_) => None,
@@ -155,6 +151,26 @@ pub(crate) fn factorise(
             }
         }
     }
+}
+
+/// `len` zeros from the allocator's zeroed allocation (`calloc`: a fresh
+/// mapping is not written, its pages are zero when first touched).
+fn zeroed(len: usize) -> Result<Vec<Real>, DeformError> {
+    let oom = DeformError::OutOfMemory {
+        what: "Cholesky factor",
+    };
+    if len == 0 {
+        return Ok(Vec::new());
+    }
+    let layout = std::alloc::Layout::array::<Real>(len).map_err(|_| oom.clone())?;
+    // SAFETY: the layout's size is not zero (len > 0).
+    let ptr = unsafe { std::alloc::alloc_zeroed(layout) } as *mut Real;
+    if ptr.is_null() {
+        return Err(oom);
+    }
+    // SAFETY: `ptr` comes from the global allocator with the layout of
+    // `len` reals, all initialised (all-zero bits are 0.0).
+    Ok(unsafe { Vec::from_raw_parts(ptr, len, len) })
 }
 
 /// Asks the kernel to back `v`'s spare capacity (not touched yet) with
