@@ -257,7 +257,7 @@ struct Ctx<'a> {
     values: Values,
     cutoff: f64,
     parallel: bool,
-    portable: bool,
+    kernels: Kernels,
     /// Smallest failing pivot column + 1 (0: none).
     failed: AtomicUsize,
     pool: Mutex<Vec<Scratch>>,
@@ -272,28 +272,52 @@ pub(crate) fn factorize(
     values: &mut [Real],
     parallel: bool,
 ) -> Result<(), NonPositivePivot> {
-    factorize_impl(sym, plan, a, values, parallel, !has_avx2_fma())
+    factorize_impl(sym, plan, a, values, parallel, Kernels::detect())
 }
 
-fn has_avx2_fma() -> bool {
-    #[cfg(target_arch = "x86_64")]
-    {
-        std::arch::is_x86_feature_detected!("avx2") && std::arch::is_x86_feature_detected!("fma")
+/// The dense update kernels: `private-gemm-x86`'s AVX-512 or AVX2+FMA
+/// micro-kernels with the scatter into the ancestor fused in, or faer's
+/// matmul and a separate scatter where neither is present.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) enum Kernels {
+    Avx512,
+    Avx256,
+    Portable,
+}
+
+impl Kernels {
+    /// The widest the CPU runs.
+    pub(crate) fn detect() -> Self {
+        Self::available()[0]
     }
-    #[cfg(not(target_arch = "x86_64"))]
-    {
-        false
+
+    /// Every kind this CPU can run, widest first (for tests).
+    pub(crate) fn available() -> Vec<Self> {
+        let mut v = Vec::new();
+        #[cfg(target_arch = "x86_64")]
+        {
+            let fma = std::arch::is_x86_feature_detected!("avx2")
+                && std::arch::is_x86_feature_detected!("fma");
+            if fma && std::arch::is_x86_feature_detected!("avx512f") {
+                v.push(Self::Avx512);
+            }
+            if fma {
+                v.push(Self::Avx256);
+            }
+        }
+        v.push(Self::Portable);
+        v
     }
 }
 
-/// [`factorize`], with the portable update path forced when `portable`.
+/// [`factorize`] with the given update kernels.
 pub(crate) fn factorize_impl(
     sym: &SymbolicSupernodalCholesky<usize>,
     plan: &NumericPlan,
     a: Permuted<'_>,
     values: &mut [Real],
     parallel: bool,
-    portable: bool,
+    kernels: Kernels,
 ) -> Result<(), NonPositivePivot> {
     assert_eq!(values.len(), sym.len_val());
     assert_eq!(a.col_ptr.len(), sym.nrows() + 1);
@@ -307,7 +331,7 @@ pub(crate) fn factorize_impl(
         },
         cutoff: plan.total_work / TASKS,
         parallel: parallel && rayon::current_num_threads() > 1,
-        portable,
+        kernels,
         failed: AtomicUsize::new(0),
         pool: Mutex::new(Vec::new()),
     };
@@ -446,52 +470,21 @@ impl Ctx<'_> {
                 1
             };
             let off = d_ncols + start;
-            if self.portable {
-                update_portable(
-                    ls,
-                    s_nrows,
-                    &scr.idx,
-                    mid,
-                    MatRef::from_column_major_slice_with_stride(&ld[off..], rows, d_ncols, d_nrows),
-                    &mut scr.product,
-                );
-            } else {
+            let a = MatRef::from_column_major_slice_with_stride(&ld[off..], rows, d_ncols, d_nrows);
+            match self.kernels {
                 #[cfg(target_arch = "x86_64")]
-                // SAFETY: AVX2 and FMA are present (`has_avx2_fma`); the
-                // operands are in bounds: `rows` rows from `off` of each of
-                // Ld's `d_ncols` columns, and `idx` maps them to rows
-                // (and its first `mid` to columns) of Ls.
-                unsafe {
-                    let alpha: Real = -1.0;
-                    let lhs = ld.as_ptr().add(off) as *const ();
-                    private_gemm_x86::gemm(
-                        private_gemm_x86::DType::F64,
-                        private_gemm_x86::IType::U64,
-                        private_gemm_x86::InstrSet::Avx256,
-                        rows,
-                        mid,
-                        d_ncols,
-                        ls.as_mut_ptr() as *mut (),
-                        1,
-                        s_nrows as isize,
-                        scr.idx.as_ptr() as *const (),
-                        scr.idx.as_ptr() as *const (),
-                        private_gemm_x86::DstKind::Lower,
-                        private_gemm_x86::Accum::Add,
-                        lhs,
-                        1,
-                        d_nrows as isize,
-                        false,
-                        std::ptr::null(),
-                        0,
-                        lhs,
-                        d_nrows as isize,
-                        1,
-                        false,
-                        &alpha as *const Real as *const (),
-                        threads,
-                    );
+                Kernels::Avx512 | Kernels::Avx256 => {
+                    let instr = if self.kernels == Kernels::Avx512 {
+                        private_gemm_x86::InstrSet::Avx512
+                    } else {
+                        private_gemm_x86::InstrSet::Avx256
+                    };
+                    // SAFETY: `Kernels::available` checked the instruction
+                    // set; `a` is in bounds of Ld and `idx` maps its rows
+                    // (and its first `mid` rows as columns) into Ls.
+                    unsafe { update_x86(ls, s_nrows, &scr.idx, mid, a, instr, threads) }
                 }
+                _ => update_portable(ls, s_nrows, &scr.idx, mid, a, &mut scr.product),
             }
         }
         let ls_mat = MatMut::from_column_major_slice_mut(ls, s_nrows, s_ncols);
@@ -519,6 +512,62 @@ impl Ctx<'_> {
         for &row in s_pattern {
             g2l[row] = usize::MAX;
         }
+    }
+}
+
+/// `Ls[idx[i], idx[j]] -= (A Aᵀ)[i, j]` for `j < mid`, `i ≥ j`, with `A`
+/// the `rows × depth` block of a descendant (column stride `col_stride`):
+/// one call of `private-gemm-x86`, whose epilogue scatters the product's
+/// lower triangle through `idx` into `Ls`, on `threads` threads.
+///
+/// # Safety
+/// The CPU runs `instr`; `a` is a view into a live slice; every `idx[i]`
+/// is below `s_nrows` and every `idx[j]`, `j < mid`, is a column of `Ls`.
+#[cfg(target_arch = "x86_64")]
+#[allow(clippy::too_many_arguments)]
+unsafe fn update_x86(
+    ls: &mut [Real],
+    s_nrows: usize,
+    idx: &[usize],
+    mid: usize,
+    a: MatRef<'_, Real>,
+    instr: private_gemm_x86::InstrSet,
+    threads: usize,
+) {
+    debug_assert!(idx.len() == a.nrows() && mid <= a.nrows());
+    debug_assert!(a.row_stride() == 1);
+    let alpha: Real = -1.0;
+    let lhs = a.as_ptr() as *const ();
+    let col_stride = a.col_stride();
+    // SAFETY: the caller's contract.
+    unsafe {
+        private_gemm_x86::gemm(
+            private_gemm_x86::DType::F64,
+            private_gemm_x86::IType::U64,
+            instr,
+            a.nrows(),
+            mid,
+            a.ncols(),
+            ls.as_mut_ptr() as *mut (),
+            1,
+            s_nrows as isize,
+            idx.as_ptr() as *const (),
+            idx.as_ptr() as *const (),
+            private_gemm_x86::DstKind::Lower,
+            private_gemm_x86::Accum::Add,
+            lhs,
+            1,
+            col_stride,
+            false,
+            std::ptr::null(),
+            0,
+            lhs,
+            col_stride,
+            1,
+            false,
+            &alpha as *const Real as *const (),
+            threads,
+        );
     }
 }
 

@@ -75,7 +75,7 @@ fn ours(
     sym: &SymbolicCholesky<usize>,
     m: &SparseColMat<usize, f64>,
     parallel: bool,
-    portable: bool,
+    kernels: Kernels,
 ) -> Result<Vec<f64>, NonPositivePivot> {
     let SymbolicCholeskyRaw::Supernodal(sn) = sym.raw() else {
         panic!("not supernodal")
@@ -89,7 +89,7 @@ fn ours(
         values: m.val(),
         perm,
     };
-    factorize_impl(sn, &plan, a, &mut values, parallel, portable).map(|_| values)
+    factorize_impl(sn, &plan, a, &mut values, parallel, kernels).map(|_| values)
 }
 
 fn two_threads<R: Send>(f: impl FnOnce() -> R + Send) -> R {
@@ -109,7 +109,7 @@ fn max_rel_diff(a: &[f64], b: &[f64]) -> f64 {
 }
 
 #[test]
-fn values_equal_faers_sequential_parallel_and_portable() {
+fn values_equal_faers_sequential_parallel_and_every_kernel() {
     // radius 4 on 60 × 60: top supernodes several hundred columns wide,
     // so the wide path (pool inside a supernode) runs too
     for (k, radius) in [(12, 2), (35, 3), (60, 4)] {
@@ -122,12 +122,12 @@ fn values_equal_faers_sequential_parallel_and_portable() {
         }
         let reference = faer_values(&sym, &m).unwrap();
         for parallel in [false, true] {
-            for portable in [false, true] {
-                let v = two_threads(|| ours(&sym, &m, parallel, portable)).unwrap();
+            for kernels in Kernels::available() {
+                let v = two_threads(|| ours(&sym, &m, parallel, kernels)).unwrap();
                 let d = max_rel_diff(&v, &reference);
                 assert!(
                     d < 1e-12,
-                    "k {k} radius {radius} parallel {parallel} portable {portable}: {d:e}"
+                    "k {k} radius {radius} parallel {parallel} {kernels:?}: {d:e}"
                 );
             }
         }
@@ -181,7 +181,7 @@ fn an_indefinite_matrix_fails_as_faer_does() {
     let sym = symbolic(&m);
     let faer_pivot = faer_values(&sym, &m).unwrap_err();
     for parallel in [false, true] {
-        let e = two_threads(|| ours(&sym, &m, parallel, false)).unwrap_err();
+        let e = two_threads(|| ours(&sym, &m, parallel, Kernels::detect())).unwrap_err();
         // the one bad pivot is where faer met it
         assert_eq!(e.0, faer_pivot, "parallel {parallel}");
     }
