@@ -224,6 +224,47 @@ pub fn scale_entries(m: &CsMat<Real>, f: impl Fn(usize, usize) -> Real) -> CsMat
     out
 }
 
+/// `c M + diag(d)` for a square CSR matrix `M` (sorted rows): every entry
+/// scaled by `c` and `d(i)` added to the diagonal, which is inserted
+/// where `M` has none.
+pub fn scale_and_shift_diagonal(
+    m: &CsMat<Real>,
+    c: Real,
+    d: impl Fn(usize) -> Real,
+) -> CsMat<Real> {
+    assert_eq!(m.rows(), m.cols(), "a diagonal shift needs a square matrix");
+    let m = as_csr(m);
+    let n = m.rows();
+    let mut indptr = Vec::with_capacity(n + 1);
+    let mut indices = Vec::with_capacity(m.nnz() + n);
+    let mut data = Vec::with_capacity(m.nnz() + n);
+    indptr.push(0);
+    for (i, row) in m.outer_iterator().enumerate() {
+        let mut placed = false;
+        for (j, &v) in row.iter() {
+            if !placed && j >= i {
+                if j == i {
+                    indices.push(i);
+                    data.push(c * v + d(i));
+                    placed = true;
+                    continue;
+                }
+                indices.push(i);
+                data.push(d(i));
+                placed = true;
+            }
+            indices.push(j);
+            data.push(c * v);
+        }
+        if !placed {
+            indices.push(i);
+            data.push(d(i));
+        }
+        indptr.push(indices.len());
+    }
+    CsMat::new((n, n), indptr, indices, data)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -236,6 +277,45 @@ mod tests {
             t.add_triplet(r % rows, c % cols, v);
         }
         t.to_csr()
+    }
+
+    /// The diagonal scaled and shifted where present, inserted in order
+    /// where absent (rows 1 and 3 have none; row 3 is empty).
+    #[test]
+    fn scale_and_shift_diagonal_inserts_missing_diagonals() {
+        let m = random(
+            4,
+            4,
+            &[
+                (0, 0, 1.0),
+                (0, 2, 2.0),
+                (1, 0, 3.0),
+                (1, 3, 4.0),
+                (2, 2, 5.0),
+                (2, 1, 6.0),
+            ],
+        );
+        let s = scale_and_shift_diagonal(&m, 2.0, |i| 10.0 * (i + 1) as f64);
+        let dense = |a: &CsMat<f64>| -> Vec<Vec<f64>> {
+            (0..4)
+                .map(|i| {
+                    (0..4)
+                        .map(|j| a.get(i, j).copied().unwrap_or(0.0))
+                        .collect()
+                })
+                .collect()
+        };
+        let (dm, ds) = (dense(&m), dense(&s));
+        for i in 0..4 {
+            for j in 0..4 {
+                let want = 2.0 * dm[i][j] + if i == j { 10.0 * (i + 1) as f64 } else { 0.0 };
+                assert_eq!(ds[i][j], want, "({i},{j})");
+            }
+        }
+        assert_eq!(s.nnz(), m.nnz() + 2);
+        for row in s.outer_iterator() {
+            assert!(row.indices().windows(2).all(|w| w[0] < w[1]), "sorted rows");
+        }
     }
 
     /// A product large enough for the parallel blocks (several row blocks,

@@ -19,29 +19,23 @@ use sprs::{CsMat, TriMat};
 use super::params::{Energy, Params};
 use crate::mesh::Real;
 use crate::operators::Operators;
-use crate::sparse::{matmul, product_pattern, product_values, scale_entries};
+use crate::sparse::{matmul, product_pattern, product_values, scale_and_shift_diagonal};
 
 /// The energy matrix `A` of dend.md §3 (paper table, §5), `#V×#V`, CSR.
+///
+/// Each `A` with `L²` in it is one sparse product `P L` (or `L P`), never
+/// a sum of products: `k_s L + k_b L² = (k_s I + k_b L) L`,
+/// `L² − 2GL = (L − 2G) L` (eq. (12) as dend.md reads it) and the paper's
+/// literal `L² − 2LG = L (L − 2G)`; the products' patterns equal the sums'.
 pub fn energy_matrix(ops: &Operators, energy: Energy) -> CsMat<Real> {
     let l = &ops.l;
     match energy {
         Energy::Membrane => l.clone(),
         Energy::ThinPlate => matmul(l, l),
-        Energy::Combined { ks, kb } => {
-            let ll = matmul(l, l);
-            &l.map(|v| ks * v) + &ll.map(|v| kb * v)
-        }
-        Energy::TotalCurvature => {
-            // L² - 2 G L: scale the rows of L by G_i
-            let ll = matmul(l, l);
-            let gl = scale_entries(l, |i, _| -2.0 * ops.g[i]);
-            &ll + &gl
-        }
+        Energy::Combined { ks, kb } => matmul(&scale_and_shift_diagonal(l, kb, |_| ks), l),
+        Energy::TotalCurvature => matmul(&scale_and_shift_diagonal(l, 1.0, |i| -2.0 * ops.g[i]), l),
         Energy::TotalCurvaturePaper => {
-            // L² - 2 L G: scale the columns of L by G_j
-            let ll = matmul(l, l);
-            let lg = scale_entries(l, |_, j| -2.0 * ops.g[j]);
-            &ll + &lg
+            matmul(l, &scale_and_shift_diagonal(l, 1.0, |i| -2.0 * ops.g[i]))
         }
     }
 }
@@ -307,6 +301,53 @@ mod tests {
             r.iter().any(|v| v.abs() > 1e-6),
             "L² - 2LG should not annihilate 1"
         );
+    }
+
+    /// Each energy's one-product form against the sum of products it
+    /// stands for, built with sprs's own product, sum and diagonal.
+    #[test]
+    fn energy_matrices_equal_their_sums_of_products() {
+        let m = strip();
+        let ops = Operators::new(&m);
+        let l = &ops.l;
+        let n = m.num_vertices();
+        let ll = l * l;
+        let mut g = sprs::TriMat::new((n, n));
+        for i in 0..n {
+            g.add_triplet(i, i, ops.g[i]);
+        }
+        let g: CsMat<f64> = g.to_csr();
+        assert!(ops.g.iter().any(|&v| v > 1e-3), "a strip with curvature");
+        let (ks, kb) = (0.7, 1.9);
+        let cases = [
+            (Energy::ThinPlate, ll.clone()),
+            (
+                Energy::Combined { ks, kb },
+                &l.map(|v| ks * v) + &ll.map(|v| kb * v),
+            ),
+            (Energy::TotalCurvature, &ll - &(&g * l).map(|v| 2.0 * v)),
+            (
+                Energy::TotalCurvaturePaper,
+                &ll - &(l * &g).map(|v| 2.0 * v),
+            ),
+        ];
+        for (e, want) in cases {
+            let got = energy_matrix(&ops, e);
+            let scale = want.data().iter().fold(0.0f64, |s, v| s.max(v.abs()));
+            for i in 0..n {
+                for j in 0..n {
+                    let a = got.get(i, j).copied().unwrap_or(0.0);
+                    let b = want.get(i, j).copied().unwrap_or(0.0);
+                    assert!(
+                        (a - b).abs() <= 1e-12 * scale,
+                        "{e:?} ({i},{j}): {a} vs {b}"
+                    );
+                }
+            }
+            // sprs's sum drops entries that cancel (right angles have a
+            // zero cotangent); the product keeps the structural pattern
+            assert!(got.nnz() >= want.nnz(), "{e:?}: pattern lost entries");
+        }
     }
 
     #[test]
