@@ -23,6 +23,24 @@ const ROW_BLOCK: usize = 1024;
 /// Products with fewer multiply-adds than this run on one thread.
 const PARALLEL_MIN_FLOPS: usize = 200_000;
 
+/// `block(r0, r1)` over rows `0..rows`: in blocks of [`ROW_BLOCK`] rows on
+/// the rayon pool when the product has `flops` ≥ [`PARALLEL_MIN_FLOPS`],
+/// else as one block; results in row order.
+fn map_row_blocks<R: Send>(
+    rows: usize,
+    flops: usize,
+    block: impl Fn(usize, usize) -> R + Sync,
+) -> Vec<R> {
+    if flops >= PARALLEL_MIN_FLOPS && rows > ROW_BLOCK {
+        (0..rows.div_ceil(ROW_BLOCK))
+            .into_par_iter()
+            .map(|c| block(c * ROW_BLOCK, ((c + 1) * ROW_BLOCK).min(rows)))
+            .collect()
+    } else {
+        vec![block(0, rows)]
+    }
+}
+
 /// `A B` for CSR matrices (`A.cols() == B.rows()`), as a CSR matrix with
 /// sorted indices and no explicit zeros removed (the pattern is structural).
 /// Panics only on mismatched shapes (a programming error) or when the
@@ -61,14 +79,7 @@ pub fn matmul(a: &CsMat<Real>, b: &CsMat<Real>) -> CsMat<Real> {
         }
         (lens, idx, val)
     };
-    let blocks: Vec<_> = if flops >= PARALLEL_MIN_FLOPS && rows > ROW_BLOCK {
-        (0..rows.div_ceil(ROW_BLOCK))
-            .into_par_iter()
-            .map(|c| block(c * ROW_BLOCK, ((c + 1) * ROW_BLOCK).min(rows)))
-            .collect()
-    } else {
-        vec![block(0, rows)]
-    };
+    let blocks = map_row_blocks(rows, flops, block);
     let nnz: usize = blocks.iter().map(|b| b.1.len()).sum();
     let mut indptr = Vec::with_capacity(rows + 1);
     let (mut indices, mut data) = (Vec::with_capacity(nnz), Vec::with_capacity(nnz));
@@ -127,14 +138,7 @@ pub fn product_pattern(
         }
         (lens, idx)
     };
-    let blocks: Vec<_> = if flops >= PARALLEL_MIN_FLOPS && rows > ROW_BLOCK {
-        (0..rows.div_ceil(ROW_BLOCK))
-            .into_par_iter()
-            .map(|c| block(c * ROW_BLOCK, ((c + 1) * ROW_BLOCK).min(rows)))
-            .collect()
-    } else {
-        vec![block(0, rows)]
-    };
+    let blocks = map_row_blocks(rows, flops, block);
     let nnz: usize = blocks.iter().map(|b| b.1.len()).sum();
     let mut indptr = Vec::with_capacity(rows + 1);
     let mut indices = Vec::with_capacity(nnz);
