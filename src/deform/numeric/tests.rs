@@ -186,3 +186,55 @@ fn an_indefinite_matrix_fails_as_faer_does() {
         assert_eq!(e.0, faer_pivot, "parallel {parallel}");
     }
 }
+
+/// A strictly diagonally dominant SPD matrix on a random graph of `n`
+/// vertices: `edges` as (row, column, weight) taken modulo `n`, and
+/// every vertex of a band `i ± reach` coupled too (supernodes of several
+/// widths, and a forest when `reach` is 0 and the edges are few).
+fn random_spd(n: usize, reach: usize, edges: &[(usize, usize, f64)]) -> SparseColMat<usize, f64> {
+    let mut t = Vec::new();
+    let mut diag = vec![1.0; n];
+    let mut push = |r: usize, c: usize, w: f64, diag: &mut Vec<f64>| {
+        t.push(Triplet::new(r, c, w));
+        t.push(Triplet::new(c, r, w));
+        diag[r] += w.abs();
+        diag[c] += w.abs();
+    };
+    for i in 0..n {
+        for j in i + 1..(i + 1 + reach).min(n) {
+            push(i, j, 0.25 - ((i * 7 + j * 3) % 11) as f64 / 22.0, &mut diag);
+        }
+    }
+    for &(a, b, w) in edges {
+        let (r, c) = (a % n, b % n);
+        if r != c {
+            push(r, c, w, &mut diag);
+        }
+    }
+    t.extend(diag.iter().enumerate().map(|(i, &d)| Triplet::new(i, i, d)));
+    SparseColMat::try_new_from_triplets(n, n, &t).unwrap()
+}
+
+proptest::proptest! {
+    #![proptest_config(proptest::prelude::ProptestConfig::with_cases(24))]
+
+    /// Irregular elimination trees (random graphs, forests, bands): the
+    /// values equal faer's for every kernel, sequential and parallel.
+    #[test]
+    fn random_patterns_factor_as_faer_does(
+        n in 2usize..400,
+        reach in 0usize..12,
+        edges in proptest::collection::vec((0usize..400, 0usize..400, -1.0f64..1.0), 0..1500),
+    ) {
+        let m = random_spd(n, reach, &edges);
+        let sym = symbolic(&m);
+        let reference = faer_values(&sym, &m).unwrap();
+        for parallel in [false, true] {
+            for kernels in Kernels::available() {
+                let v = two_threads(|| ours(&sym, &m, parallel, kernels)).unwrap();
+                let d = max_rel_diff(&v, &reference);
+                proptest::prop_assert!(d < 1e-12, "parallel {} {:?}: {:e}", parallel, kernels, d);
+            }
+        }
+    }
+}
