@@ -248,6 +248,9 @@ impl SessionClient {
     /// Polls until the state is `ready` (or `failed` → error).
     pub async fn wait_ready(&self, timeout: Duration) -> Result<(), ClientError> {
         let end = tokio::time::Instant::now() + timeout;
+        // polls from 1 ms, doubling to 20 ms: a 10k factor is ready in
+        // tens of milliseconds, a large one in seconds
+        let mut pause = Duration::from_millis(1);
         loop {
             let v = self.info().await?;
             match v["state"].as_str() {
@@ -256,7 +259,10 @@ impl SessionClient {
                 _ if tokio::time::Instant::now() > end => {
                     return Err(ClientError::Protocol("not ready in time".into()))
                 }
-                _ => tokio::time::sleep(Duration::from_millis(20)).await,
+                _ => {
+                    tokio::time::sleep(pause).await;
+                    pause = (pause * 2).min(Duration::from_millis(20));
+                }
             }
         }
     }

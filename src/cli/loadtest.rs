@@ -75,6 +75,11 @@ fn grid(n: usize) -> (Vec<[f64; 3]>, Vec<[u32; 3]>) {
 struct SessionStats {
     latencies: Vec<Duration>,
     frames: u64,
+    /// Session creation → ready to drag (rest operators when the mesh's
+    /// are not built yet, the constraint set's factor).
+    ready: Duration,
+    /// Constraints sent → ready (the factor build, as a client sees it).
+    constraints_ready: Duration,
 }
 
 async fn run_async(args: LoadtestArgs) -> anyhow::Result<()> {
@@ -102,6 +107,7 @@ async fn run_async(args: LoadtestArgs) -> anyhow::Result<()> {
         }
     };
     let client = Client::new(&base);
+    let uploaded = Instant::now();
     let mesh = match &args.mesh {
         Some(path) => {
             let bytes =
@@ -118,6 +124,7 @@ async fn run_async(args: LoadtestArgs) -> anyhow::Result<()> {
             client.upload_json(&p, &t).await?
         }
     };
+    let upload = uploaded.elapsed();
     let [lo, hi] = mesh.bbox;
     let ext: Vec<f64> = (0..3).map(|k| hi[k] - lo[k]).collect();
     let k = (0..3)
@@ -146,21 +153,31 @@ async fn run_async(args: LoadtestArgs) -> anyhow::Result<()> {
         }));
     }
     let mut all = vec![];
+    let (mut ready, mut constraints_ready) = (vec![], vec![]);
     let mut frames = 0;
     let mut drag_time = Duration::ZERO;
     for t in tasks {
         let (stats, elapsed) = t.await??;
         all.extend(stats.latencies);
+        ready.push(stats.ready);
+        constraints_ready.push(stats.constraints_ready);
         frames += stats.frames;
         drag_time = drag_time.max(elapsed);
     }
-    all.sort();
-    let pct = |p: f64| {
-        all.get(((all.len() as f64 - 1.0) * p).round() as usize)
-            .copied()
-            .unwrap_or_default()
-    };
     let ms = |d: Duration| d.as_secs_f64() * 1e3;
+    ready.sort();
+    constraints_ready.sort();
+    println!(
+        "upload {:.1} ms; session created -> ready to drag: median {:.1} ms, max {:.1} ms \
+         (constraints sent -> ready: median {:.1} ms, max {:.1} ms)",
+        ms(upload),
+        ms(percentile(&ready, 0.5)),
+        ms(percentile(&ready, 1.0)),
+        ms(percentile(&constraints_ready, 0.5)),
+        ms(percentile(&constraints_ready, 1.0)),
+    );
+    all.sort();
+    let pct = |p: f64| percentile(&all, p);
     println!(
         "drag->frame latency: p50 {:.2} ms, p99 {:.2} ms, max {:.2} ms over {} drags",
         ms(pct(0.5)),
@@ -191,6 +208,15 @@ async fn run_async(args: LoadtestArgs) -> anyhow::Result<()> {
         peak_rss_kib() as f64 / 1024.0
     );
     Ok(())
+}
+
+/// The `p`-quantile (0..=1, nearest rank) of sorted durations; zero when
+/// there are none.
+fn percentile(sorted: &[Duration], p: f64) -> Duration {
+    sorted
+        .get(((sorted.len() as f64 - 1.0) * p).round() as usize)
+        .copied()
+        .unwrap_or_default()
 }
 
 /// `VmHWM` of this process in KiB (0 when unknown).
@@ -286,13 +312,17 @@ async fn one_session(
     drags: u64,
     step: [f64; 3],
 ) -> anyhow::Result<(SessionStats, Duration)> {
+    let created = Instant::now();
     let s = client.create_session(&mesh_id, json!({})).await?;
+    let constrained = Instant::now();
     s.set_constraints(&spec).await?;
     s.wait_ready(Duration::from_secs(600)).await?;
     let mut ws = s.connect().await?;
     let mut stats = SessionStats {
         latencies: Vec::with_capacity(drags as usize),
         frames: 0,
+        ready: created.elapsed(),
+        constraints_ready: constrained.elapsed(),
     };
     let start = Instant::now();
     for seq in 1..=drags {
