@@ -199,3 +199,102 @@ fn advise_huge_pages(v: &mut Vec<Real>) {
         }
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use faer::sparse::linalg::cholesky::SymbolicCholeskyRaw;
+
+    /// `L − ε·d I` with `L` the graph Laplacian of a `k × k` grid with a
+    /// radius-3 stencil and `d` its largest diagonal entry: constants are
+    /// an eigenvector of eigenvalue `−ε d`, the other eigenvalues are
+    /// positive, so for a small ε it is indefinite by rounding's margin.
+    fn shifted_laplacian(k: usize, eps: f64) -> sprs::CsMat<f64> {
+        let n = k * k;
+        let mut t = sprs::TriMat::new((n, n));
+        let mut diag = vec![0.0; n];
+        for c in 0..n {
+            let (x, y) = ((c % k) as i64, (c / k) as i64);
+            for dy in -3i64..=3 {
+                for dx in -3i64..=3 {
+                    let (u, v) = (x + dx, y + dy);
+                    let r = (v * k as i64 + u) as usize;
+                    if (dx, dy) != (0, 0)
+                        && dx * dx + dy * dy <= 9
+                        && (0..k as i64).contains(&u)
+                        && (0..k as i64).contains(&v)
+                    {
+                        let w = 1.0 + ((r + c) % 5) as f64 / 4.0;
+                        t.add_triplet(c, r, -w);
+                        diag[c] += w;
+                    }
+                }
+            }
+        }
+        let d = diag.iter().fold(0.0f64, |a, &b| a.max(b));
+        for (i, v) in diag.iter().enumerate() {
+            t.add_triplet(i, i, v - eps * d);
+        }
+        t.to_csr()
+    }
+
+    /// The first numeric factorisation meets a non-positive pivot; the
+    /// retry with `1e-10 · max diag` on the diagonal, in the same values
+    /// buffer, equals faer's factor of the shifted matrix.
+    #[test]
+    fn an_indefinite_matrix_is_refactored_with_a_diagonal_shift() {
+        let m = shifted_laplacian(40, 1e-12);
+        let (col_ptr, row_idx) = csr_arrays(&m);
+        let sym = analyse(&col_ptr, row_idx, FillOrdering::Amd).unwrap();
+        assert!(matches!(sym.raw(), SymbolicCholeskyRaw::Supernodal(_)));
+        // unshifted, the factorisation fails
+        let plain = faer_factor(&sym, &m, 0.0);
+        assert!(plain.is_err(), "the test matrix should not be definite");
+        let values = factorise(&sym, &m).unwrap();
+        let max_diag = (0..m.rows())
+            .filter_map(|j| m.get(j, j).copied())
+            .fold(0.0, f64::max);
+        let want = faer_factor(&sym, &m, 1e-10 * max_diag).unwrap();
+        let scale = want.iter().fold(0.0f64, |a, v| a.max(v.abs()));
+        let d = values
+            .iter()
+            .zip(&want)
+            .fold(0.0f64, |a, (x, y)| a.max((x - y).abs()));
+        assert!(d <= 1e-9 * scale, "{d:e} of {scale:e}");
+    }
+
+    /// faer's own factor of `m + shift I`.
+    fn faer_factor(
+        sym: &SymbolicCholesky<usize>,
+        m: &sprs::CsMat<f64>,
+        shift: f64,
+    ) -> Result<Vec<f64>, LltError> {
+        let n = m.rows();
+        let (col_ptr, row_idx) = csr_arrays(m);
+        let mut vals = m.data().to_vec();
+        for j in 0..n {
+            for p in col_ptr[j]..col_ptr[j + 1] {
+                if row_idx[p] == j {
+                    vals[p] += shift;
+                }
+            }
+        }
+        let a = SparseColMatRef::new(
+            SymbolicSparseColMatRef::new_checked(n, n, &col_ptr, None, row_idx),
+            &vals,
+        );
+        let mut values = vec![0.0; sym.len_val()];
+        let mut mem =
+            MemBuffer::new(sym.factorize_numeric_llt_scratch::<f64>(Par::Seq, Default::default()));
+        sym.factorize_numeric_llt::<f64>(
+            &mut values,
+            a,
+            Side::Lower,
+            LltRegularization::default(),
+            Par::Seq,
+            MemStack::new(&mut mem),
+            Default::default(),
+        )?;
+        Ok(values)
+    }
+}
