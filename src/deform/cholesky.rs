@@ -213,7 +213,7 @@ mod tests {
         let n = k * k;
         let mut t = sprs::TriMat::new((n, n));
         let mut diag = vec![0.0; n];
-        for c in 0..n {
+        for (c, dc) in diag.iter_mut().enumerate() {
             let (x, y) = ((c % k) as i64, (c / k) as i64);
             for dy in -3i64..=3 {
                 for dx in -3i64..=3 {
@@ -226,7 +226,7 @@ mod tests {
                     {
                         let w = 1.0 + ((r + c) % 5) as f64 / 4.0;
                         t.add_triplet(c, r, -w);
-                        diag[c] += w;
+                        *dc += w;
                     }
                 }
             }
