@@ -91,7 +91,20 @@ impl FactorCache {
             self.hits.fetch_add(1, Ordering::Relaxed);
             return Ok(f);
         }
+        let t0 = std::time::Instant::now();
         let built = Factor::build_with(rest, params, constraints, &self.options);
+        if let Ok(f) = &built {
+            let t = f.timings();
+            let ms = |d: std::time::Duration| (d.as_secs_f64() * 1e4).round() / 10.0;
+            tracing::info!(
+                unknowns = f.num_unknowns(),
+                total_ms = ms(t0.elapsed()),
+                assembly_ms = ms(t.assembly),
+                symbolic_ms = ms(t.symbolic),
+                numeric_ms = ms(t.numeric),
+                "factor built"
+            );
+        }
         let mut inner = self.inner.lock();
         // Waiters hold their own copy of the gate; later requests find the
         // factor (inserted below under this same lock) or build anew.
