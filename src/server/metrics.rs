@@ -29,6 +29,8 @@ pub struct Metrics {
     pub iterations: Histogram,
     /// Wall time of one solve (journal + factor lookup + iterations), seconds.
     pub solve_seconds: Histogram,
+    /// Constraint set submitted → its factor available (built or cached), seconds.
+    pub factor_ready_seconds: Histogram,
     /// Meshes stored.
     pub meshes: IntGauge,
     /// Factor cache: bytes held.
@@ -75,6 +77,16 @@ impl Metrics {
                 IntCounter::new("solves_converged_total", "Solves that converged")?,
             ),
             iterations: reg(&r, Histogram::with_opts(iters)?),
+            factor_ready_seconds: reg(
+                &r,
+                Histogram::with_opts(
+                    HistogramOpts::new(
+                        "factor_ready_seconds",
+                        "Constraint set submitted -> factor available (built or cached), seconds",
+                    )
+                    .buckets(prometheus::exponential_buckets(0.001, 2.0, 16)?),
+                )?,
+            ),
             solve_seconds: reg(&r, Histogram::with_opts(latency)?),
             meshes: reg(&r, IntGauge::new("meshes", "Meshes stored")?),
             factor_cache_bytes: reg(
@@ -112,6 +124,10 @@ impl Observer for Metrics {
         }
         self.iterations.observe(iterations as f64);
         self.solve_seconds.observe(seconds);
+    }
+
+    fn factor_ready(&self, seconds: f64) {
+        self.factor_ready_seconds.observe(seconds);
     }
 }
 

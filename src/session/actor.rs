@@ -51,6 +51,8 @@ enum Internal {
     Built {
         generation: u64,
         result: Result<(), SessionError>,
+        /// Wall time of the factor's lookup or build.
+        seconds: f64,
     },
 }
 
@@ -314,11 +316,16 @@ impl Actor {
             self.opts.cache.clone(),
         );
         drop(tokio::task::spawn_blocking(move || {
+            let t0 = Instant::now();
             let result = cache
                 .get_or_build(&rest, &params, &constraints)
                 .map(|_| ())
                 .map_err(SessionError::from);
-            let _ = tx.send(Internal::Built { generation, result });
+            let _ = tx.send(Internal::Built {
+                generation,
+                result,
+                seconds: t0.elapsed().as_secs_f64(),
+            });
         }));
         Ok(SessionState::Building)
     }
@@ -392,7 +399,14 @@ impl Actor {
 
     fn on_internal(&mut self, msg: Internal) {
         match msg {
-            Internal::Built { generation, result } => {
+            Internal::Built {
+                generation,
+                result,
+                seconds,
+            } => {
+                if result.is_ok() {
+                    self.opts.observer.factor_ready(seconds);
+                }
                 if generation != self.generation {
                     return;
                 }

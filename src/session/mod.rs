@@ -197,6 +197,11 @@ pub enum Event {
 pub trait Observer: Send + Sync + 'static {
     /// One solve finished: `iterations` DEND iterations in `seconds`.
     fn solved(&self, iterations: usize, seconds: f64, converged: bool);
+    /// A constraint set's factor became available `seconds` after the
+    /// set was submitted (built, or found in the factor cache).
+    fn factor_ready(&self, seconds: f64) {
+        let _ = seconds;
+    }
 }
 
 /// An [`Observer`] that ignores everything.
