@@ -122,6 +122,28 @@ impl Client {
         Ok(())
     }
 
+    /// The value of the sample `name` in `GET /metrics` (the full name,
+    /// e.g. `dend_factor_cache_bytes` or `dend_solve_seconds_count`), or
+    /// `None` when the server does not export it.
+    pub async fn metric(&self, name: &str) -> Result<Option<f64>, ClientError> {
+        let text = check(
+            self.http
+                .get(format!("{}/metrics", self.base))
+                .send()
+                .await?,
+        )
+        .await?
+        .text()
+        .await?;
+        Ok(text
+            .lines()
+            .filter(|l| !l.starts_with('#'))
+            .find_map(|l| match l.split_once(' ') {
+                Some((k, v)) if k == name => v.trim().parse().ok(),
+                _ => None,
+            }))
+    }
+
     /// Uploads a mesh as JSON.
     pub async fn upload_json(
         &self,

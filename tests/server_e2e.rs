@@ -226,21 +226,6 @@ async fn wrong_or_missing_token_is_refused() -> Result<(), ClientError> {
     Ok(())
 }
 
-/// The value of the sample `name` (e.g. `dend_factor_cache_builds`) in the
-/// server's Prometheus text, if present.
-async fn sample(base: &str, name: &str) -> Option<f64> {
-    let text = reqwest::get(format!("{base}/metrics"))
-        .await
-        .ok()?
-        .text()
-        .await
-        .ok()?;
-    text.lines().filter(|l| !l.starts_with('#')).find_map(|l| {
-        let (k, v) = l.split_once(' ')?;
-        (k == name).then(|| v.trim().parse().ok())?
-    })
-}
-
 /// Two sessions on one mesh with the same constraint set: one factor is
 /// built, both wait for it, and `/metrics` counts two waits in
 /// `dend_factor_ready_seconds` and one build.
@@ -250,7 +235,7 @@ async fn factor_ready_times_are_exported() -> Result<(), ClientError> {
     let c = Client::new(&base);
     let (p, t) = grid(N);
     let mesh = c.upload_json(&p, &t).await?;
-    let before = sample(&base, "dend_factor_ready_seconds_count").await;
+    let before = c.metric("dend_factor_ready_seconds_count").await?;
     assert_eq!(before, Some(0.0), "no factor yet");
     for _ in 0..2 {
         let s = c.create_session(&mesh.id, params()).await?;
@@ -258,11 +243,11 @@ async fn factor_ready_times_are_exported() -> Result<(), ClientError> {
         s.wait_ready(Duration::from_secs(60)).await?;
     }
     assert_eq!(
-        sample(&base, "dend_factor_ready_seconds_count").await,
+        c.metric("dend_factor_ready_seconds_count").await?,
         Some(2.0)
     );
-    let total = sample(&base, "dend_factor_ready_seconds_sum").await;
+    let total = c.metric("dend_factor_ready_seconds_sum").await?;
     assert!(total.is_some_and(|s| s > 0.0 && s < 60.0), "{total:?}");
-    assert_eq!(sample(&base, "dend_factor_cache_builds").await, Some(1.0));
+    assert_eq!(c.metric("dend_factor_cache_builds").await?, Some(1.0));
     Ok(())
 }

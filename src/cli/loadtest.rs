@@ -232,18 +232,11 @@ fn peak_rss_kib() -> u64 {
         .unwrap_or(0)
 }
 
-/// A gauge of the server's `/metrics`.
-async fn metric(base: &str, name: &str) -> anyhow::Result<f64> {
-    let text = reqwest::get(format!("{base}/metrics"))
+/// A gauge of the server's `/metrics` (`dend_` + `name`), NaN when absent.
+async fn metric(client: &Client, name: &str) -> anyhow::Result<f64> {
+    Ok(client
+        .metric(&format!("dend_{name}"))
         .await?
-        .text()
-        .await?;
-    let line = text
-        .lines()
-        .find(|l| l.starts_with(name) && l[name.len()..].starts_with(' '));
-    Ok(line
-        .and_then(|l| l.split_whitespace().nth(1))
-        .and_then(|v| v.parse().ok())
         .unwrap_or(f64::NAN))
 }
 
@@ -280,14 +273,13 @@ async fn idle_sessions(
             .await?;
         sessions.push(s);
     }
-    let base = client.base();
     println!(
         "idle: {n} sessions opened in {:.1} s; factor cache {:.1} MiB in {} factors (budget {:.1} MiB), {} built",
         t0.elapsed().as_secs_f64(),
-        metric(base, "factor_cache_bytes").await? / 1048576.0,
-        metric(base, "factor_cache_entries").await?,
+        metric(client, "factor_cache_bytes").await? / 1048576.0,
+        metric(client, "factor_cache_entries").await?,
         budget as f64 / 1048576.0,
-        metric(base, "factor_cache_builds").await?,
+        metric(client, "factor_cache_builds").await?,
     );
     let mut moved = 0;
     for s in &sessions {
@@ -299,8 +291,8 @@ async fn idle_sessions(
     }
     println!(
         "idle: {moved}/{n} sessions kept their pose and solved a drag after eviction; factor cache now {:.1} MiB, {} built",
-        metric(base, "factor_cache_bytes").await? / 1048576.0,
-        metric(base, "factor_cache_builds").await?,
+        metric(client, "factor_cache_bytes").await? / 1048576.0,
+        metric(client, "factor_cache_builds").await?,
     );
     Ok(())
 }
