@@ -244,26 +244,17 @@ pub fn scale_and_shift_diagonal(
     let mut data = Vec::with_capacity(m.nnz() + n);
     indptr.push(0);
     for (i, row) in m.outer_iterator().enumerate() {
-        let mut placed = false;
-        for (j, &v) in row.iter() {
-            if !placed && j >= i {
-                if j == i {
-                    indices.push(i);
-                    data.push(c * v + d(i));
-                    placed = true;
-                    continue;
-                }
-                indices.push(i);
-                data.push(d(i));
-                placed = true;
-            }
-            indices.push(j);
-            data.push(c * v);
-        }
-        if !placed {
-            indices.push(i);
-            data.push(d(i));
-        }
+        let (idx, val) = (row.indices(), row.data());
+        // the entries left of the diagonal, the diagonal, the rest
+        let k = idx.partition_point(|&j| j < i);
+        let on_diagonal = idx.get(k) == Some(&i);
+        indices.extend_from_slice(&idx[..k]);
+        data.extend(val[..k].iter().map(|&v| c * v));
+        indices.push(i);
+        data.push(if on_diagonal { c * val[k] + d(i) } else { d(i) });
+        let rest = k + usize::from(on_diagonal);
+        indices.extend_from_slice(&idx[rest..]);
+        data.extend(val[rest..].iter().map(|&v| c * v));
         indptr.push(indices.len());
     }
     CsMat::new((n, n), indptr, indices, data)

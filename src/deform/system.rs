@@ -26,7 +26,8 @@ use crate::sparse::{matmul, product_pattern, product_values, scale_and_shift_dia
 /// Each `A` with `L²` in it is one sparse product `P L` (or `L P`), never
 /// a sum of products: `k_s L + k_b L² = (k_s I + k_b L) L`,
 /// `L² − 2GL = (L − 2G) L` (eq. (12) as dend.md reads it) and the paper's
-/// literal `L² − 2LG = L (L − 2G)`; the products' patterns equal the sums'.
+/// literal `L² − 2LG = L (L − 2G)`. A product keeps every structural
+/// entry of the sum, also where its terms cancel.
 pub fn energy_matrix(ops: &Operators, energy: Energy) -> CsMat<Real> {
     let l = &ops.l;
     match energy {
