@@ -9,7 +9,7 @@ export DEND_MESHES="${DEND_MESHES:-$(cd .. && pwd)/shared/meshes}"
 export DEND_PYTHON="${DEND_PYTHON:-$(pwd)/.venv/bin/python}"
 bash scripts/setup-test-env.sh
 cargo fmt --all -- --check
-cargo clippy --all-targets -- -D warnings
+cargo clippy --workspace --all-targets -- -D warnings
 # benches are compiled by clippy above; running them is `cargo bench`
-cargo test --lib --bins --tests --examples
+cargo test --workspace --lib --bins --tests --examples
 bash scripts/test-web.sh

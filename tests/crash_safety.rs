@@ -20,11 +20,11 @@ use std::process::{Child, Command, Stdio};
 use std::sync::Arc;
 use std::time::Duration;
 
-use dend::client::{Client, WsClient, WsEvent};
 use dend::deform::{ConstraintsSpec, RigidTransform};
 use dend::mesh::Mesh;
-use dend::session::Recovered;
-use dend::store::{JournalEntry, SqliteStore, Store};
+use dend_client::{Client, WsClient, WsEvent};
+use dend_server::session::Recovered;
+use dend_server::store::{JournalEntry, SqliteStore, Store};
 use nalgebra::{Quaternion, UnitQuaternion};
 use parking_lot::Mutex;
 use rand::rngs::StdRng;

@@ -52,40 +52,48 @@ fn replay(target: &str, f: fn(&[u8]) -> bool) {
 
 #[test]
 fn constraints_json_corpus() {
-    replay("constraints_json", dend::fuzzing::constraints_json);
+    replay("constraints_json", dend_server::fuzzing::constraints_json);
 }
 
 #[test]
 fn ws_message_corpus() {
-    replay("ws_message", dend::fuzzing::ws_message);
+    replay("ws_message", dend_server::fuzzing::ws_message);
 }
 
 #[test]
 fn parse_obj_corpus() {
-    replay("parse_obj", |d| dend::fuzzing::mesh_file(d, Format::Obj));
+    replay("parse_obj", |d| {
+        dend_server::fuzzing::mesh_file(d, Format::Obj)
+    });
 }
 
 #[test]
 fn parse_off_corpus() {
-    replay("parse_off", |d| dend::fuzzing::mesh_file(d, Format::Off));
+    replay("parse_off", |d| {
+        dend_server::fuzzing::mesh_file(d, Format::Off)
+    });
 }
 
 #[test]
 fn parse_ply_corpus() {
-    replay("parse_ply", |d| dend::fuzzing::mesh_file(d, Format::Ply));
+    replay("parse_ply", |d| {
+        dend_server::fuzzing::mesh_file(d, Format::Ply)
+    });
 }
 
 #[test]
 fn parse_stl_corpus() {
-    replay("parse_stl", |d| dend::fuzzing::mesh_file(d, Format::Stl));
+    replay("parse_stl", |d| {
+        dend_server::fuzzing::mesh_file(d, Format::Stl)
+    });
 }
 
 #[test]
 fn parse_sel_corpus() {
-    replay("parse_sel", dend::fuzzing::sel_file);
+    replay("parse_sel", dend_server::fuzzing::sel_file);
 }
 
 #[test]
 fn parse_def_corpus() {
-    replay("parse_def", dend::fuzzing::def_file);
+    replay("parse_def", dend_server::fuzzing::def_file);
 }

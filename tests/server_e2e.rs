@@ -7,10 +7,10 @@ mod server_common;
 use std::sync::Arc;
 use std::time::Duration;
 
-use dend::client::{Client, ClientError, WsEvent};
 use dend::deform::{ConstraintsSpec, Deformer, Factor, Params, Rest};
 use dend::mesh::Mesh;
-use dend::server::Config;
+use dend_client::{Client, ClientError, WsEvent};
+use dend_server::Config;
 use nalgebra::{Unit, UnitQuaternion, Vector3};
 use serde_json::json;
 use server_common::{grid, grid_constraints, start};

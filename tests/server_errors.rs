@@ -5,8 +5,8 @@ mod server_common;
 
 use std::time::Duration;
 
-use dend::client::{Client, ClientError};
-use dend::server::Config;
+use dend_client::{Client, ClientError};
+use dend_server::Config;
 use serde_json::{json, Value};
 use server_common::{grid, grid_constraints, start};
 

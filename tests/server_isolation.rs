@@ -9,8 +9,8 @@ mod server_common;
 use std::collections::HashSet;
 use std::time::Duration;
 
-use dend::client::{Client, ClientError, WsEvent};
-use dend::server::Config;
+use dend_client::{Client, ClientError, WsEvent};
+use dend_server::Config;
 use futures_util::{SinkExt, StreamExt};
 use serde_json::{json, Value};
 use server_common::{grid, grid_constraints, start};

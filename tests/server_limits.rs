@@ -6,7 +6,7 @@ mod server_common;
 
 use std::time::Duration;
 
-use dend::server::Config;
+use dend_server::Config;
 use server_common::start;
 use tokio::io::{AsyncReadExt, AsyncWriteExt};
 

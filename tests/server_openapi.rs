@@ -5,7 +5,7 @@ use std::collections::BTreeSet;
 
 use axum::body::Body;
 use axum::http::{Method, Request};
-use dend::server::{app, AppState, Config, ROUTES};
+use dend_server::{app, AppState, Config, ROUTES};
 use tower::ServiceExt;
 
 /// (method, path) pairs under `paths:` of api/openapi.yaml.

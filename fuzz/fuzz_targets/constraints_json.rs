@@ -5,5 +5,5 @@
 use libfuzzer_sys::fuzz_target;
 
 fuzz_target!(|data: &[u8]| {
-    dend::fuzzing::constraints_json(data);
+    dend_server::fuzzing::constraints_json(data);
 });

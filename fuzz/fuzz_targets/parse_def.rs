@@ -4,5 +4,5 @@
 use libfuzzer_sys::fuzz_target;
 
 fuzz_target!(|data: &[u8]| {
-    dend::fuzzing::def_file(data);
+    dend_server::fuzzing::def_file(data);
 });

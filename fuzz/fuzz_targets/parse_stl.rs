@@ -5,5 +5,5 @@ use dend::mesh::io::Format;
 use libfuzzer_sys::fuzz_target;
 
 fuzz_target!(|data: &[u8]| {
-    dend::fuzzing::mesh_file(data, Format::Stl);
+    dend_server::fuzzing::mesh_file(data, Format::Stl);
 });

@@ -9,8 +9,8 @@ use std::path::PathBuf;
 use std::time::{Duration, Instant};
 
 use anyhow::Context;
-use dend::client::{Client, WsEvent};
-use dend::server::{self, AppState, Config};
+use dend_client::{Client, WsEvent};
+use dend_server::{self as server, AppState, Config};
 use serde_json::json;
 
 /// Arguments of `dend loadtest`.
@@ -100,9 +100,9 @@ async fn run_async(args: LoadtestArgs) -> anyhow::Result<()> {
             let addr = listener.local_addr()?;
             let store = server::recover::open_store(&config)?;
             let app = server::app(AppState::with_store(config, store)?);
-            drop(tokio::spawn(
-                async move { axum::serve(listener, app).await },
-            ));
+            drop(tokio::spawn(async move {
+                server::serve_on(listener, app).await
+            }));
             format!("http://{addr}")
         }
     };

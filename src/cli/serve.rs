@@ -1,6 +1,6 @@
 //! `dend serve`: run the deformation server.
 
-use dend::server::{self, Config};
+use dend_server::{self as server, Config};
 
 /// Arguments of `dend serve`: the server [`Config`] (every flag also reads
 /// a `DEND_*` environment variable).

@@ -2,7 +2,7 @@
 //! a generated grid mesh.
 #![allow(dead_code)]
 
-use dend::server::{app, AppState, Config};
+use dend_server::{app, AppState, Config};
 
 /// Starts a server on 127.0.0.1:0; returns its base URL and state.
 pub async fn start(config: Config) -> (String, AppState) {

@@ -1,0 +1,597 @@
+//! The factor cache (dend.md §4): one sparse Cholesky factor of the normal
+//! matrix `M` per (rest mesh, energy, λs, mode, constrained vertex set),
+//! reused for every drag and every iteration.
+//!
+//! Symbolic analysis (fill-reducing ordering: AMD, or METIS nested
+//! dissection on large systems; supernodal structure) and
+//! numeric factorisation use faer's sparse Cholesky, the fastest well-kept
+//! Rust implementation measured for this matrix (see README).
+
+use std::sync::atomic::{AtomicU64, Ordering};
+use std::time::{Duration, Instant};
+
+use faer::dyn_stack::{MemStack, StackReq};
+use faer::sparse::linalg::cholesky::{LltRef, SymbolicCholesky, SymbolicCholeskyRaw};
+use faer::sparse::{SparseColMat, SymbolicSparseColMat};
+use faer::{Conj, MatMut, Par};
+
+use crate::deform::cg::Cg;
+use crate::deform::cholesky::{self, analyse, csr_arrays};
+use crate::deform::constraints::Constraints;
+use crate::deform::ordering::FillOrdering;
+use crate::deform::params::{Energy, Formulation, Mode, Params};
+use crate::deform::rest::Rest;
+use crate::deform::square::{self, Square};
+use crate::deform::system::{Prepared, System};
+use crate::deform::trisolve;
+use crate::deform::DeformError;
+use crate::mesh::{Point, Real};
+
+mod cache;
+#[cfg(test)]
+pub(super) mod tests;
+
+pub use cache::FactorCache;
+
+/// What a factor depends on, and nothing else: two equal keys give the same
+/// matrix `M`. Handle *targets* are not part of it.
+#[derive(Debug, Clone, PartialEq, Eq, Hash)]
+pub struct FactorKey {
+    pub(crate) rest_id: u64,
+    energy: (u8, u64, u64),
+    lambda1: u64,
+    lambda2: u64,
+    mode: Mode,
+    formulation: Formulation,
+    constrained: Vec<u32>,
+}
+
+impl FactorKey {
+    /// The key of `params` and the constrained set of `constraints` on `rest`.
+    pub fn new(rest: &Rest, params: &Params, constraints: &Constraints) -> Self {
+        let energy = match params.energy {
+            Energy::Membrane => (0, 0, 0),
+            Energy::ThinPlate => (1, 0, 0),
+            Energy::Combined { ks, kb } => (2, ks.to_bits(), kb.to_bits()),
+            Energy::TotalCurvature => (3, 0, 0),
+            Energy::TotalCurvaturePaper => (4, 0, 0),
+        };
+        FactorKey {
+            rest_id: rest.id(),
+            energy,
+            lambda1: params.lambda1.to_bits(),
+            lambda2: params.lambda2.to_bits(),
+            mode: params.mode,
+            formulation: params.formulation,
+            constrained: constraints.constrained(),
+        }
+    }
+}
+
+/// How long each stage of a factor build took.
+#[derive(Debug, Clone, Copy, Default)]
+pub struct FactorTimings {
+    /// Energy matrix, stacked rows and `M = JᵀJ`.
+    pub assembly: Duration,
+    /// Fill-reducing ordering and symbolic factorisation.
+    pub symbolic: Duration,
+    /// Numeric Cholesky factorisation.
+    pub numeric: Duration,
+}
+
+static NEXT_FACTOR_ID: AtomicU64 = AtomicU64::new(1);
+
+/// One factorised constraint set: the stacked rows, the rest-state target
+/// `A X`, and the Cholesky factor of `M`. Immutable and shareable.
+pub struct Factor {
+    /// Process-unique id (a deformer's cached evaluation refers to it).
+    id: u64,
+    key: FactorKey,
+    pub(crate) sys: System,
+    pub(crate) energy: Energy,
+    /// The eq. (23) operators when built for [`Formulation::Square`]
+    /// (then `sys` holds no stacked rows and `sys.m` is its SPD `N`).
+    pub(crate) square: Option<Square>,
+    /// `A X` on the normalised rest positions, `#V×3`.
+    pub(crate) ax: Vec<Point>,
+    symbolic: Option<SymbolicCholesky<usize>>,
+    /// Factor values in double precision (empty when kept in single).
+    values: Vec<Real>,
+    /// Factor values rounded to single precision
+    /// ([`FactorPrecision::Single`]; empty otherwise).
+    values32: Vec<f32>,
+    /// The two-thread split of the supernodal solves (large factors).
+    plan: Option<trisolve::SolvePlan>,
+    /// The sparse LU of `K_UU` ([`Formulation::SquareLu`]).
+    lu: Option<faer::sparse::linalg::solvers::Lu<usize, Real>>,
+    /// Set when `M` is solved by preconditioned CG instead of a factor.
+    cg: Option<Cg>,
+    cg_iterations: AtomicU64,
+    timings: FactorTimings,
+}
+
+/// How [`Factor::build_with`] solves `M`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum SolverChoice {
+    /// Sparse Cholesky, whatever its size.
+    Direct,
+    /// Jacobi-preconditioned conjugate gradient, no factorisation (the
+    /// paper's method; slow on large meshes).
+    Cg,
+    /// Cholesky when its estimated size fits the budget, CG otherwise.
+    #[default]
+    Auto,
+}
+
+/// Options of [`Factor::build_with`].
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SolveOptions {
+    /// Direct, CG, or automatic.
+    pub solver: SolverChoice,
+    /// [`SolverChoice::Auto`] falls back to CG when the Cholesky factor
+    /// would exceed this ([`estimated_factor_bytes`]: its values in the
+    /// chosen [`FactorPrecision`] and its row indices).
+    pub factor_budget_bytes: usize,
+    /// CG relative residual tolerance per solve.
+    pub cg_tol: Real,
+    /// CG iteration cap per column and solve.
+    pub cg_max_iters: usize,
+    /// Fill-reducing ordering of the Cholesky factor.
+    pub ordering: FillOrdering,
+    /// Precision the factor is stored in after the (double-precision)
+    /// numeric factorisation.
+    pub precision: FactorPrecision,
+}
+
+/// How a Cholesky factor is stored between solves.
+///
+/// The factorisation always runs in `f64`. Each DEND iteration solves for
+/// an *update* from a residual computed in `f64` (dend.md §4), so a factor
+/// rounded to `f32` changes the step of an iteration by the solve's
+/// relative error (measured 1e-5 to 2e-4 on the benchmark meshes), not the
+/// fixed point the iteration converges to. Single precision halves the
+/// factor's memory and the bytes each solve streams (an iteration 0–25 %
+/// faster), but on eth_hand_14k its inexact steps made the safeguard
+/// reject more candidates (100 iterations took 1.5x as long), so it is an
+/// option for memory-bound servers, not the default (docs/performance.md).
+/// Only supernodal eq. (24) factors are rounded; simplicial (small) factors
+/// and the eq. (23) preconditioner stay in `f64`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum FactorPrecision {
+    /// `f64` values.
+    #[default]
+    Double,
+    /// `f32` values, `f64` arithmetic in the solves.
+    Single,
+}
+
+impl std::str::FromStr for FactorPrecision {
+    type Err = String;
+
+    /// `double` or `single`.
+    fn from_str(s: &str) -> Result<Self, String> {
+        match s {
+            "double" => Ok(FactorPrecision::Double),
+            "single" => Ok(FactorPrecision::Single),
+            _ => Err(format!("unknown factor precision {s:?} (double or single)")),
+        }
+    }
+}
+
+impl std::fmt::Display for FactorPrecision {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(match self {
+            FactorPrecision::Double => "double",
+            FactorPrecision::Single => "single",
+        })
+    }
+}
+
+impl Default for SolveOptions {
+    /// Auto, a 2 GiB factor budget, CG tolerance `1e-4` (the paper's),
+    /// at most 5000 CG iterations per column, [`FillOrdering::Auto`],
+    /// [`FactorPrecision::Double`].
+    fn default() -> Self {
+        SolveOptions {
+            solver: SolverChoice::Auto,
+            factor_budget_bytes: 2 << 30,
+            cg_tol: 1e-4,
+            cg_max_iters: 5000,
+            ordering: FillOrdering::Auto,
+            precision: FactorPrecision::Double,
+        }
+    }
+}
+
+impl std::fmt::Debug for Factor {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Factor")
+            .field("unknowns", &self.sys.unknowns.len())
+            .field("factor_nnz", &self.factor_nnz())
+            .field("timings", &self.timings)
+            .finish()
+    }
+}
+
+impl Factor {
+    /// Assembles and factorises `M` for `constraints`' constrained set.
+    ///
+    /// Errors: a connected component without any constrained vertex
+    /// ([`DeformError::Unconstrained`]); `M` not positive definite
+    /// ([`DeformError::NotPositiveDefinite`], with the pivot); allocation
+    /// failure ([`DeformError::OutOfMemory`]).
+    pub fn build(
+        rest: &Rest,
+        params: &Params,
+        constraints: &Constraints,
+    ) -> Result<Factor, DeformError> {
+        Self::build_with(rest, params, constraints, &SolveOptions::default())
+    }
+
+    /// [`Factor::build`] with a solver choice and factor memory budget: with
+    /// CG (chosen, or [`SolverChoice::Auto`] over budget) `M` is assembled
+    /// but not factorised, and every solve runs preconditioned CG.
+    pub fn build_with(
+        rest: &Rest,
+        params: &Params,
+        constraints: &Constraints,
+        options: &SolveOptions,
+    ) -> Result<Factor, DeformError> {
+        params.validate()?;
+        let key = FactorKey::new(rest, params, constraints);
+        let ops = rest.operators();
+        let mesh = rest.mesh();
+        // Every component needs a constrained vertex, or M is singular.
+        let mut pinned = vec![false; mesh.topology().num_components()];
+        for &c in &key.constrained {
+            if c as usize >= mesh.num_vertices() {
+                return Err(DeformError::UnknownVertex {
+                    index: c as u64,
+                    vertices: mesh.num_vertices(),
+                });
+            }
+            if let Some(k) = mesh.topology().component(c as usize) {
+                pinned[k as usize] = true;
+            }
+        }
+        if let Some(k) = pinned.iter().position(|&p| !p) {
+            let vertex = (0..mesh.num_vertices())
+                .find(|&v| mesh.topology().component(v) == Some(k as u32))
+                .unwrap_or(0) as u32;
+            return Err(DeformError::Unconstrained {
+                component: k,
+                vertex,
+            });
+        }
+        let t0 = Instant::now();
+        // eq. (24) to factorise: M's pattern first, then its values and the
+        // symbolic analysis (which needs the pattern only) at the same time
+        let mut analysed = None;
+        let (sys, square, ax) = match params.formulation {
+            Formulation::LeastSquares => {
+                let energy = rest.energy(params.energy);
+                let prep = Prepared::new(ops, &energy.a, params, &key.constrained, rest.active());
+                let values = if options.solver != SolverChoice::Cg && prep.num_unknowns() > 0 {
+                    let (values, symbolic) = rayon::join(
+                        || prep.values(),
+                        || {
+                            let t = Instant::now();
+                            let (col_ptr, row_idx) = prep.pattern();
+                            (analyse(col_ptr, row_idx, options.ordering), t.elapsed())
+                        },
+                    );
+                    analysed = Some(symbolic);
+                    values
+                } else {
+                    prep.values()
+                };
+                (prep.into_system(values), None, energy.ax.clone())
+            }
+            Formulation::Square | Formulation::SquareLu => {
+                let (sys, sq, ax) = square::assemble(ops, params, &key.constrained, rest.active())?;
+                (sys, Some(sq), ax)
+            }
+        };
+        let t1 = Instant::now();
+        let n = sys.unknowns.len();
+        let cg_of = |sys: &System| Some(Cg::new(&sys.m, options.cg_tol, options.cg_max_iters));
+        let mut cg = None;
+        let mut lu = None;
+        let mut symbolic_time = Duration::ZERO;
+        let (symbolic, values, t2) = if n == 0 {
+            (None, Vec::new(), Instant::now())
+        } else if let (Formulation::SquareLu, Some(k_uu)) = (
+            params.formulation,
+            square.as_ref().and_then(|s| s.k_uu.as_ref()),
+        ) {
+            let csc = k_uu.to_csc();
+            let (p, i, v) = (csc.indptr(), csc.indices(), csc.data());
+            let col_ptr: Vec<usize> = (0..=n).map(|j| p.index(j)).collect();
+            let sym = SymbolicSparseColMat::new_unsorted_checked(n, n, col_ptr, None, i.to_vec());
+            let mat = SparseColMat::new(sym, v.to_vec());
+            let t2 = Instant::now();
+            symbolic_time = t2 - t1;
+            lu = Some(
+                mat.sp_lu()
+                    .map_err(|_| DeformError::NotPositiveDefinite { pivot: 0 })?,
+            );
+            (None, Vec::new(), t2)
+        } else if options.solver == SolverChoice::Cg {
+            cg = cg_of(&sys);
+            (None, Vec::new(), Instant::now())
+        } else {
+            let symbolic = match analysed {
+                Some((symbolic, time)) => {
+                    symbolic_time = time;
+                    symbolic?
+                }
+                None => {
+                    let t = Instant::now();
+                    let (col_ptr, row_idx) = csr_arrays(&sys.m);
+                    let symbolic = analyse(&col_ptr, row_idx, options.ordering)?;
+                    symbolic_time = t.elapsed();
+                    symbolic
+                }
+            };
+            let t2 = Instant::now();
+            if options.solver == SolverChoice::Auto
+                && estimated_factor_bytes(&symbolic, options.precision)
+                    > options.factor_budget_bytes
+            {
+                cg = cg_of(&sys);
+                return Ok(Factor {
+                    id: NEXT_FACTOR_ID.fetch_add(1, Ordering::Relaxed),
+                    key,
+                    sys,
+                    energy: params.energy,
+                    square,
+                    ax,
+                    symbolic: None,
+                    values: Vec::new(),
+                    values32: Vec::new(),
+                    plan: None,
+                    lu: None,
+                    cg,
+                    cg_iterations: AtomicU64::new(0),
+                    timings: FactorTimings {
+                        assembly: t1 - t0,
+                        symbolic: symbolic_time,
+                        numeric: Duration::ZERO,
+                    },
+                });
+            }
+            let values = cholesky::factorise(&symbolic, &sys.m)?;
+            (Some(symbolic), values, t2)
+        };
+        // A supernodal factor is solved by `trisolve` (on two threads if
+        // there are; eq. (24)'s in `f32` if asked) unless it preconditions
+        // eq. (23)'s GMRES, which uses faer's solve in `f64`.
+        let mut values = values;
+        let mut values32 = Vec::new();
+        let mut plan = None;
+        if let (Some(SymbolicCholeskyRaw::Supernodal(sn)), false) = (
+            symbolic.as_ref().map(|s| s.raw()),
+            preconditions_gmres(&square),
+        ) {
+            if options.precision == FactorPrecision::Single && square.is_none() {
+                values32 = values.iter().map(|&v| v as f32).collect();
+                values = Vec::new();
+            }
+            if rayon::current_num_threads() > 1 {
+                plan = trisolve::SolvePlan::new(sn);
+            }
+        }
+        let t3 = Instant::now();
+        Ok(Factor {
+            id: NEXT_FACTOR_ID.fetch_add(1, Ordering::Relaxed),
+            key,
+            sys,
+            energy: params.energy,
+            square,
+            ax,
+            symbolic,
+            values,
+            values32,
+            plan,
+            lu,
+            cg,
+            cg_iterations: AtomicU64::new(0),
+            timings: FactorTimings {
+                assembly: t1 - t0,
+                symbolic: symbolic_time,
+                numeric: t3 - t2,
+            },
+        })
+    }
+
+    /// Whether the factor is supernodal (then its solves use
+    /// [`trisolve`]; small systems get faer's simplicial factor).
+    pub fn is_supernodal(&self) -> bool {
+        matches!(
+            self.symbolic.as_ref().map(|s| s.raw()),
+            Some(SymbolicCholeskyRaw::Supernodal(_))
+        )
+    }
+
+    /// The symbolic Cholesky factorisation (none for CG or LU).
+    #[cfg(test)]
+    pub(crate) fn symbolic(&self) -> Option<&SymbolicCholesky<usize>> {
+        self.symbolic.as_ref()
+    }
+
+    /// A process-unique id of this factor.
+    pub fn id(&self) -> u64 {
+        self.id
+    }
+
+    /// The key this factor was built for.
+    pub fn key(&self) -> &FactorKey {
+        &self.key
+    }
+
+    /// Stage timings of the build.
+    pub fn timings(&self) -> FactorTimings {
+        self.timings
+    }
+
+    /// Number of unknowns (free vertices, or all vertices with soft constraints).
+    pub fn num_unknowns(&self) -> usize {
+        self.sys.unknowns.len()
+    }
+
+    /// Nonzeros of the Cholesky factor (0 when solved by CG).
+    pub fn factor_nnz(&self) -> usize {
+        self.values.len().max(self.values32.len())
+    }
+
+    /// Bytes of the Cholesky factor: values (8 or 4 per nonzero, see
+    /// [`FactorPrecision`]) and its row indices.
+    pub fn factor_bytes(&self) -> usize {
+        let indices = match self.symbolic.as_ref().map(|s| s.raw()) {
+            Some(SymbolicCholeskyRaw::Supernodal(sn)) => sn.row_idx().len() * 8,
+            Some(SymbolicCholeskyRaw::Simplicial(_)) => self.values.len() * 8,
+            None => 0,
+        };
+        self.values.len() * 8 + self.values32.len() * 4 + indices
+    }
+
+    /// Floating-point operations of the numeric factorisation, counting a
+    /// multiply-add as two: `Σ_j c_j²` over the factor's columns, `c_j` the
+    /// nonzeros of column `j` on and below the diagonal (George & Liu 1981,
+    /// §2.2). 0 for a simplicial factor or CG.
+    pub fn factor_flops(&self) -> f64 {
+        self.symbolic.as_ref().map_or(0.0, symbolic_flops)
+    }
+
+    /// Whether solves run preconditioned CG instead of a Cholesky factor.
+    pub fn uses_cg(&self) -> bool {
+        self.cg.is_some()
+    }
+
+    /// CG iterations run so far by all solves with this factor (0 for a
+    /// Cholesky factor).
+    pub fn cg_iterations(&self) -> u64 {
+        self.cg_iterations.load(Ordering::Relaxed)
+    }
+
+    /// Approximate heap bytes held: factor values and indices, `M`.
+    pub fn memory_bytes(&self) -> usize {
+        let csr = |m: &sprs::CsMat<Real>| m.nnz() * 16 + (m.rows() + 1) * 8;
+        self.factor_bytes()
+            + self.plan.as_ref().map_or(0, |p| p.memory_bytes())
+            + csr(&self.sys.m)
+            + self.ax.len() * 24
+            + self.sys.col_of.len() * 4
+            + self.cg.as_ref().map_or(0, |_| self.sys.unknowns.len() * 8)
+            + self.square.as_ref().map_or(0, Square::memory_bytes)
+    }
+
+    /// Scratch needed by [`Factor::solve_in_place`] for `k` right-hand sides.
+    pub(crate) fn solve_scratch(&self, k: usize) -> StackReq {
+        match (&self.symbolic, &self.cg) {
+            (Some(s), _) => match (s.raw(), preconditions_gmres(&self.square)) {
+                (SymbolicCholeskyRaw::Supernodal(sn), false) => {
+                    trisolve::scratch(sn, self.plan.as_ref())
+                }
+                // simplicial, or eq. (23)'s preconditioner: faer's solve
+                _ => s.solve_in_place_scratch::<Real>(k, Par::Seq),
+            },
+            (None, Some(_)) => Cg::scratch(self.sys.unknowns.len()),
+            (None, None) => StackReq::EMPTY, // LU allocates its own
+        }
+    }
+
+    /// Solves `M X = B` in place for a column-major `|U| × k` block `b`.
+    pub(crate) fn solve_in_place(&self, b: MatMut<'_, Real>, stack: &mut MemStack) {
+        if let (Some(s), Some(k_uu)) = (
+            &self.symbolic,
+            self.square.as_ref().and_then(|q| q.k_uu.as_ref()),
+        ) {
+            // eq. (23): GMRES on the exact K_UU, preconditioned by N's Cholesky
+            let llt = LltRef::new(s, &self.values);
+            let mut b = b;
+            for j in 0..b.ncols() {
+                let mut col: Vec<Real> = (0..b.nrows()).map(|i| b[(i, j)]).collect();
+                let precond = |v: &mut [Real]| {
+                    let m = MatMut::from_column_major_slice_mut(v, v.len(), 1);
+                    llt.solve_in_place_with_conj(Conj::No, m, Par::Seq, stack);
+                };
+                square::gmres(k_uu, &mut col, precond, 1e-6, 60);
+                for (i, v) in col.into_iter().enumerate() {
+                    b[(i, j)] = v;
+                }
+            }
+        } else if let Some(s) = &self.symbolic {
+            match s.raw() {
+                SymbolicCholeskyRaw::Supernodal(sn) if self.values.is_empty() => {
+                    let plan = self.plan.as_ref();
+                    trisolve::solve_in_place(sn, s.perm(), &self.values32, plan, b, stack)
+                }
+                SymbolicCholeskyRaw::Supernodal(sn) => {
+                    let plan = self.plan.as_ref();
+                    trisolve::solve_in_place(sn, s.perm(), &self.values, plan, b, stack)
+                }
+                SymbolicCholeskyRaw::Simplicial(_) => LltRef::new(s, &self.values)
+                    .solve_in_place_with_conj(Conj::No, b, Par::Seq, stack),
+            }
+        } else if let Some(lu) = &self.lu {
+            use faer::linalg::solvers::SolveCore;
+            lu.solve_in_place_with_conj(Conj::No, b);
+        } else if let Some(cg) = &self.cg {
+            let stats = cg.solve_in_place(&self.sys.m, b, stack);
+            self.cg_iterations
+                .fetch_add(stats.iterations as u64, Ordering::Relaxed);
+        }
+    }
+}
+
+/// Whether the factor is eq. (23)'s `N`, the preconditioner of GMRES on the
+/// exact `K_UU`, rather than a matrix solved directly.
+fn preconditions_gmres(square: &Option<Square>) -> bool {
+    square.as_ref().is_some_and(|q| q.k_uu.is_some())
+}
+
+/// Bytes a factor with this symbolic structure will hold: 8 (or 4, single
+/// precision, supernodal only) per value, plus the row indices (one per
+/// value for a simplicial factor, one per supernode row otherwise).
+pub(crate) fn estimated_factor_bytes(
+    symbolic: &SymbolicCholesky<usize>,
+    precision: FactorPrecision,
+) -> usize {
+    let values = symbolic.len_val();
+    match symbolic.raw() {
+        SymbolicCholeskyRaw::Supernodal(sn) => {
+            let value_bytes = match precision {
+                FactorPrecision::Double => 8,
+                FactorPrecision::Single => 4,
+            };
+            values
+                .saturating_mul(value_bytes)
+                .saturating_add(sn.row_idx().len().saturating_mul(8))
+        }
+        SymbolicCholeskyRaw::Simplicial(_) => values.saturating_mul(16),
+    }
+}
+
+/// Floating-point operations of the numeric factorisation of a supernodal
+/// factor ([`Factor::factor_flops`]); 0 for a simplicial one.
+fn symbolic_flops(symbolic: &SymbolicCholesky<usize>) -> f64 {
+    let SymbolicCholeskyRaw::Supernodal(sn) = symbolic.raw() else {
+        return 0.0;
+    };
+    let (begin, end, cpr) = (
+        sn.supernode_begin(),
+        sn.supernode_end(),
+        sn.col_ptr_for_row_idx(),
+    );
+    (0..sn.n_supernodes())
+        .map(|s| {
+            let w = end[s] - begin[s];
+            let below = cpr[s + 1] - cpr[s];
+            (0..w)
+                .map(|k| ((w - k + below) as f64).powi(2))
+                .sum::<f64>()
+        })
+        .sum()
+}

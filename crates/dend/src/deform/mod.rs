@@ -1,0 +1,164 @@
+//! Energies, constraints, the factor cache and the DEND iteration
+//! (dend.md §3–6). Pure and synchronous: no I/O, no async.
+//!
+//! ```text
+//!   Rest::new(mesh)                      operators + STEP 1 μ      once per mesh
+//!   FactorCache::get_or_build(rest, params, constraints)
+//!                                        assemble, analyse, factor once per constraint set
+//!   Deformer::step(factor, constraints, max_iters)
+//!                                        STEP 2 + one 3-RHS solve  per iteration
+//! ```
+//!
+//! The objective (dend.md §4), with `W = diag(√A_i)` and `R` the free rows:
+//! `|| W R (A X' - P T δ) ||² + λ1 || S X' - C ||² + λ2 || W R (L X' - δ̂) ||²`
+//! where, in the default [`Mode`], `P T δ` is the rest Laplacian rotated per
+//! vertex by the local rotations `T_i` and mapped through the energy's
+//! pre-operator (`A = P L`); in [`Mode::Paper`] and with the linear detail term
+//! it is the unrotated `A X` (the paper's `A (X' - X)`).
+
+mod anderson;
+mod constraints;
+mod detail;
+mod factor;
+mod params;
+mod rest;
+mod rotation;
+mod solver;
+mod square;
+mod stacked;
+mod system;
+
+pub use constraints::{
+    select, BoxSel, Constraints, ConstraintsSpec, HandleGroup, HandleSpec, RigidTransform,
+    RotationSpec, SphereSel, VertexSet,
+};
+pub use dend_linalg::ordering::{FillOrdering, NESTED_DISSECTION_MIN_UNKNOWNS};
+pub use detail::{local_rotations, Mu, RingWeights};
+pub use factor::FactorCache;
+pub use factor::{Factor, FactorKey, FactorPrecision, FactorTimings, SolveOptions, SolverChoice};
+pub use params::{DetailTerm, Energy, Formulation, Mode, Params};
+pub use rest::Rest;
+pub use rotation::{best_rotation, fit_rotation, fit_rotation_quat, rotation_from_covariance};
+pub use solver::{Deformer, StepReport};
+pub use system::energy_matrix;
+
+use thiserror::Error;
+
+// The linear algebra the factor uses, under the names the deform modules
+// have always used for it.
+pub(crate) use dend_linalg::{cg, cholesky, ordering, trisolve};
+
+use crate::mesh::MeshError;
+
+/// Why a deformation could not be set up or run. Every variant is a user
+/// error with a fix, except `OutOfMemory`.
+#[derive(Debug, Clone, PartialEq, Error)]
+pub enum DeformError {
+    /// A parameter is NaN, negative or out of range.
+    #[error("invalid parameter {name} = {value}")]
+    InvalidParam {
+        /// Parameter name.
+        name: &'static str,
+        /// The value given.
+        value: f64,
+    },
+    /// A vertex index does not exist.
+    #[error("unknown vertex {index}: the mesh has {vertices} vertices")]
+    UnknownVertex {
+        /// The index.
+        index: u64,
+        /// Vertex count.
+        vertices: usize,
+    },
+    /// A handle selects no vertex.
+    #[error("handle {name:?} selects no vertex")]
+    EmptyHandle {
+        /// Handle name.
+        name: String,
+    },
+    /// Two handles share a name.
+    #[error("two handles are named {name:?}")]
+    DuplicateHandle {
+        /// Handle name.
+        name: String,
+    },
+    /// A vertex is in two sets (fixed and a handle, or two handles).
+    #[error("vertex {vertex} of handle {handle:?} is already fixed or in another handle")]
+    OverlappingSets {
+        /// The vertex.
+        vertex: u32,
+        /// The handle that claimed it second.
+        handle: String,
+    },
+    /// Neither fixed vertices nor handles.
+    #[error("no constraints: give fixed vertices or at least one handle")]
+    NoConstraints,
+    /// A connected component has no constrained vertex: the system is
+    /// rank-deficient (the component could float freely).
+    #[error("connected component {component} (e.g. vertex {vertex}) has no fixed or handle vertex: the system is rank-deficient")]
+    Unconstrained {
+        /// Component label.
+        component: usize,
+        /// A vertex in it.
+        vertex: u32,
+    },
+    /// The normal matrix is not positive definite (numerically singular).
+    #[error("the system matrix is not positive definite (pivot {pivot}): constraints leave it rank-deficient")]
+    NotPositiveDefinite {
+        /// The failing pivot (in the permuted order).
+        pivot: usize,
+    },
+    /// Allocation failed.
+    #[error("out of memory during {what}")]
+    OutOfMemory {
+        /// The stage.
+        what: &'static str,
+    },
+    /// NaN or infinity in an input.
+    #[error("non-finite value in {what}")]
+    NonFinite {
+        /// Which input.
+        what: &'static str,
+    },
+    /// A transform that is not a rotation.
+    #[error("invalid transform: {reason}")]
+    InvalidTransform {
+        /// Why.
+        reason: &'static str,
+    },
+    /// Explicit handle positions of the wrong count.
+    #[error("handle {handle:?} has {expected} vertices but {got} positions")]
+    PositionsMismatch {
+        /// Handle name.
+        handle: String,
+        /// Vertex count.
+        expected: usize,
+        /// Positions given.
+        got: usize,
+    },
+    /// A pose of the wrong length.
+    #[error("pose has {got} vertices, expected {expected}")]
+    PoseLength {
+        /// Expected count.
+        expected: usize,
+        /// Given count.
+        got: usize,
+    },
+    /// The factor was built for another constraint set, mesh or parameters.
+    #[error("factor does not match this constraint set or these parameters")]
+    FactorMismatch,
+    /// The mesh was rejected.
+    #[error(transparent)]
+    Mesh(#[from] MeshError),
+}
+
+impl From<dend_linalg::LinalgError> for DeformError {
+    fn from(e: dend_linalg::LinalgError) -> Self {
+        match e {
+            dend_linalg::LinalgError::NotPositiveDefinite { pivot } => {
+                Self::NotPositiveDefinite { pivot }
+            }
+            dend_linalg::LinalgError::OutOfMemory { what } => Self::OutOfMemory { what },
+        }
+    }
+}

@@ -1,0 +1,152 @@
+//! The server's one configuration struct: command-line flags, `DEND_*`
+//! environment variables and (through serde) a JSON file, with a documented
+//! default for every field.
+
+use std::net::SocketAddr;
+use std::path::{Path, PathBuf};
+use std::time::Duration;
+
+use serde::{Deserialize, Serialize};
+
+use dend::deform::FactorPrecision;
+
+/// Every limit and knob of `dend serve`. Flags win over environment
+/// variables, which win over the defaults below.
+#[derive(Debug, Clone, PartialEq, clap::Args, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct Config {
+    /// Address to listen on (`HOST:PORT`; port 0 picks a free port).
+    #[arg(long, env = "DEND_ADDR", default_value = "127.0.0.1:8080")]
+    pub addr: SocketAddr,
+    /// Largest accepted request body in bytes (mesh uploads); larger → 413.
+    #[arg(long, env = "DEND_MAX_UPLOAD_BYTES", default_value_t = 64 << 20)]
+    pub max_upload_bytes: usize,
+    /// Largest accepted mesh in vertices; larger → 413 `too_many_vertices`.
+    #[arg(long, env = "DEND_MAX_VERTICES", default_value_t = 1_000_000)]
+    pub max_vertices: usize,
+    /// Most meshes kept at once; more → 503 `too_many_meshes`.
+    #[arg(long, env = "DEND_MAX_MESHES", default_value_t = 1024)]
+    pub max_meshes: usize,
+    /// Most live sessions at once; more → 503 `too_many_sessions`.
+    #[arg(long, env = "DEND_MAX_SESSIONS", default_value_t = 256)]
+    pub max_sessions: usize,
+    /// Memory budget of the shared factor cache in bytes (LRU eviction of
+    /// factors only; an evicted factor is rebuilt on demand).
+    #[arg(long, env = "DEND_FACTOR_CACHE_BYTES", default_value_t = 2 << 30)]
+    pub factor_cache_bytes: usize,
+    /// Precision the cached factors are stored in: `double`, or `single`
+    /// (half the factor memory and solve traffic; steps are inexact to
+    /// ~1e-4, which slows convergence on some meshes: docs/performance.md).
+    #[arg(long, env = "DEND_FACTOR_PRECISION", default_value_t = FactorPrecision::Double)]
+    pub factor_precision: FactorPrecision,
+    /// A session with no request and no connected client for this many
+    /// seconds is closed and deleted.
+    #[arg(long, env = "DEND_IDLE_TIMEOUT_SECS", default_value_t = 3600)]
+    pub idle_timeout_secs: u64,
+    /// Time limit of one HTTP request in seconds (→ 408 `timeout`).
+    #[arg(long, env = "DEND_REQUEST_TIMEOUT_SECS", default_value_t = 120)]
+    pub request_timeout_secs: u64,
+    /// Largest accepted WebSocket message in bytes (larger closes with 1009).
+    #[arg(long, env = "DEND_WS_MAX_MESSAGE_BYTES", default_value_t = 64 << 10)]
+    pub ws_max_message_bytes: usize,
+    /// Most WebSocket messages a client may send per second (token bucket,
+    /// burst of the same size); excess messages get an `error` event
+    /// `rate_limited` and are not applied.
+    #[arg(long, env = "DEND_WS_MAX_MESSAGES_PER_SEC", default_value_t = 500)]
+    pub ws_max_messages_per_sec: u32,
+    /// DEND iterations per pushed WebSocket frame while a drag settles.
+    #[arg(long, env = "DEND_ITERS_PER_FRAME", default_value_t = 1)]
+    pub iters_per_frame: usize,
+    /// Directory of the session store (SQLite file `dend.sqlite3`, created
+    /// if missing): meshes, sessions, constraints, checkpoints and the drag
+    /// journal survive restarts and crashes.
+    #[arg(long, env = "DEND_DATA_DIR", default_value = "./dend-data")]
+    pub data_dir: PathBuf,
+    /// Keep everything in memory instead (nothing survives a restart).
+    #[arg(long, env = "DEND_IN_MEMORY")]
+    pub in_memory: bool,
+}
+
+impl Default for Config {
+    fn default() -> Self {
+        Config {
+            addr: SocketAddr::from(([127, 0, 0, 1], 8080)),
+            max_upload_bytes: 64 << 20,
+            max_vertices: 1_000_000,
+            max_meshes: 1024,
+            max_sessions: 256,
+            factor_cache_bytes: 2 << 30,
+            factor_precision: FactorPrecision::Double,
+            idle_timeout_secs: 3600,
+            request_timeout_secs: 120,
+            ws_max_message_bytes: 64 << 10,
+            ws_max_messages_per_sec: 500,
+            iters_per_frame: 1,
+            data_dir: PathBuf::from("./dend-data"),
+            in_memory: false,
+        }
+    }
+}
+
+impl Config {
+    /// Reads a JSON config file (unknown keys are an error; missing keys
+    /// take their defaults).
+    pub fn from_json_file(path: &Path) -> anyhow::Result<Config> {
+        let text = std::fs::read_to_string(path)?;
+        Ok(serde_json::from_str(&text)?)
+    }
+
+    /// The idle timeout as a [`Duration`].
+    pub fn idle_timeout(&self) -> Duration {
+        Duration::from_secs(self.idle_timeout_secs)
+    }
+
+    /// The request timeout as a [`Duration`].
+    pub fn request_timeout(&self) -> Duration {
+        Duration::from_secs(self.request_timeout_secs)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use clap::Parser;
+
+    #[derive(Parser)]
+    struct Cli {
+        #[command(flatten)]
+        config: Config,
+    }
+
+    #[test]
+    fn clap_defaults_equal_serde_defaults() {
+        let cli = Cli::try_parse_from(["x"]).unwrap();
+        assert_eq!(cli.config, Config::default());
+        let from_json: Config = serde_json::from_str("{}").unwrap();
+        assert_eq!(from_json, Config::default());
+    }
+
+    #[test]
+    fn unknown_file_keys_are_rejected() {
+        assert!(serde_json::from_str::<Config>(r#"{"max_upload": 3}"#).is_err());
+        let c: Config = serde_json::from_str(r#"{"max_sessions": 3}"#).unwrap();
+        assert_eq!(c.max_sessions, 3);
+    }
+
+    #[test]
+    fn flags_override_defaults() {
+        let cli = Cli::try_parse_from(["x", "--addr", "0.0.0.0:9", "--max-vertices", "7"]).unwrap();
+        assert_eq!(cli.config.addr.port(), 9);
+        assert_eq!(cli.config.max_vertices, 7);
+    }
+
+    #[test]
+    fn factor_precision_from_flag_and_file() {
+        let cli = Cli::try_parse_from(["x", "--factor-precision", "single"]).unwrap();
+        assert_eq!(cli.config.factor_precision, FactorPrecision::Single);
+        assert!(Cli::try_parse_from(["x", "--factor-precision", "half"]).is_err());
+        let c: Config = serde_json::from_str(r#"{"factor_precision": "single"}"#).unwrap();
+        assert_eq!(c.factor_precision, FactorPrecision::Single);
+        assert!(serde_json::from_str::<Config>(r#"{"factor_precision": "f16"}"#).is_err());
+    }
+}

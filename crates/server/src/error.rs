@@ -1,0 +1,289 @@
+//! The server's one error type, its one code → status table and its one
+//! `IntoResponse`: every failure is JSON `{code, message}`. Client mistakes
+//! carry their message; internal failures a generic one (details logged).
+
+use axum::extract::rejection::{BytesRejection, JsonRejection};
+use axum::http::StatusCode;
+use axum::response::{IntoResponse, Response};
+use serde::Serialize;
+
+use crate::session::SessionError;
+use crate::store::StoreError;
+use dend::deform::DeformError;
+
+/// Every error the HTTP API and the WebSocket protocol report.
+#[derive(Debug, thiserror::Error)]
+pub enum ApiError {
+    /// The body is not valid JSON or does not match the expected shape.
+    #[error("invalid JSON: {0}")]
+    InvalidJson(String),
+    /// A mesh body that does not parse, or a mesh that fails validation.
+    #[error("invalid mesh: {0}")]
+    InvalidMesh(String),
+    /// Mesh format not known or not given.
+    #[error("unsupported mesh format: {0}")]
+    UnsupportedFormat(String),
+    /// Solver parameters out of range.
+    #[error("invalid parameters: {0}")]
+    InvalidParams(String),
+    /// A constraints spec that does not describe a valid constraint set.
+    #[error("invalid constraints: {0}")]
+    InvalidConstraints(String),
+    /// A vertex index beyond the mesh.
+    #[error("{0}")]
+    VertexOutOfRange(String),
+    /// NaN or infinity in a delta or parameter.
+    #[error("{0}")]
+    NonFinite(String),
+    /// No mesh with this id.
+    #[error("no mesh `{0}`")]
+    MeshNotFound(String),
+    /// No session with this id.
+    #[error("no session `{0}`")]
+    SessionNotFound(String),
+    /// No handle with this index or name.
+    #[error("{0}")]
+    UnknownHandle(String),
+    /// No such route.
+    #[error("no route {0}")]
+    RouteNotFound(String),
+    /// No `Authorization: Bearer` token (or WebSocket `token`).
+    #[error("missing access token")]
+    MissingToken,
+    /// A token that does not open this session.
+    #[error("access denied")]
+    WrongToken,
+    /// Drag/undo before the factor is ready.
+    #[error("{0}")]
+    NotReady(String),
+    /// The handle is held by another client.
+    #[error("{0}")]
+    HandleGrabbed(String),
+    /// Undo/redo with no history entry to go to.
+    #[error("{0}")]
+    NothingToUndo(String),
+    /// The solver failed on this input (not positive definite, diverged...).
+    #[error("solve failed: {0}")]
+    SolveFailed(String),
+    /// Request body over `max_upload_bytes`.
+    #[error("request body over the limit of {0} bytes")]
+    PayloadTooLarge(usize),
+    /// Mesh over `max_vertices`.
+    #[error("mesh has {got} vertices, the limit is {limit}")]
+    TooManyVertices {
+        /// Vertices in the upload.
+        got: usize,
+        /// The configured limit.
+        limit: usize,
+    },
+    /// WebSocket messages over `ws_max_messages_per_sec`.
+    #[error("too many messages; the limit is {0} per second")]
+    RateLimited(u32),
+    /// `max_sessions` live sessions already.
+    #[error("too many sessions (limit {0}); try again later")]
+    TooManySessions(usize),
+    /// `max_meshes` meshes stored already.
+    #[error("too many meshes (limit {0})")]
+    TooManyMeshes(usize),
+    /// The request took longer than `request_timeout_secs`.
+    #[error("request timed out")]
+    Timeout,
+    /// The session was closed meanwhile.
+    #[error("session closed")]
+    SessionClosed,
+    /// Anything else: logged, reported generically.
+    #[error("internal error")]
+    Internal(String),
+}
+
+/// The JSON error body.
+#[derive(Debug, Serialize, serde::Deserialize, PartialEq)]
+pub struct ErrorBody {
+    /// Stable machine-readable code (see [`ApiError::code`]).
+    pub code: String,
+    /// Human-readable message.
+    pub message: String,
+}
+
+impl ApiError {
+    /// THE table: stable code and HTTP status of each error.
+    pub fn code_status(&self) -> (&'static str, StatusCode) {
+        use ApiError::*;
+        match self {
+            InvalidJson(_) => ("invalid_json", StatusCode::BAD_REQUEST),
+            InvalidMesh(_) => ("invalid_mesh", StatusCode::UNPROCESSABLE_ENTITY),
+            UnsupportedFormat(_) => ("unsupported_format", StatusCode::UNSUPPORTED_MEDIA_TYPE),
+            InvalidParams(_) => ("invalid_params", StatusCode::UNPROCESSABLE_ENTITY),
+            InvalidConstraints(_) => ("invalid_constraints", StatusCode::UNPROCESSABLE_ENTITY),
+            VertexOutOfRange(_) => ("vertex_out_of_range", StatusCode::UNPROCESSABLE_ENTITY),
+            NonFinite(_) => ("non_finite", StatusCode::UNPROCESSABLE_ENTITY),
+            MeshNotFound(_) => ("mesh_not_found", StatusCode::NOT_FOUND),
+            SessionNotFound(_) => ("session_not_found", StatusCode::NOT_FOUND),
+            UnknownHandle(_) => ("unknown_handle", StatusCode::UNPROCESSABLE_ENTITY),
+            RouteNotFound(_) => ("route_not_found", StatusCode::NOT_FOUND),
+            MissingToken => ("missing_token", StatusCode::UNAUTHORIZED),
+            WrongToken => ("forbidden", StatusCode::FORBIDDEN),
+            NotReady(_) => ("not_ready", StatusCode::CONFLICT),
+            HandleGrabbed(_) => ("handle_grabbed", StatusCode::CONFLICT),
+            NothingToUndo(_) => ("nothing_to_undo", StatusCode::CONFLICT),
+            SolveFailed(_) => ("solve_failed", StatusCode::UNPROCESSABLE_ENTITY),
+            PayloadTooLarge(_) => ("payload_too_large", StatusCode::PAYLOAD_TOO_LARGE),
+            TooManyVertices { .. } => ("too_many_vertices", StatusCode::PAYLOAD_TOO_LARGE),
+            RateLimited(_) => ("rate_limited", StatusCode::TOO_MANY_REQUESTS),
+            TooManySessions(_) => ("too_many_sessions", StatusCode::SERVICE_UNAVAILABLE),
+            TooManyMeshes(_) => ("too_many_meshes", StatusCode::SERVICE_UNAVAILABLE),
+            Timeout => ("timeout", StatusCode::REQUEST_TIMEOUT),
+            SessionClosed => ("session_closed", StatusCode::GONE),
+            Internal(_) => ("internal", StatusCode::INTERNAL_SERVER_ERROR),
+        }
+    }
+
+    /// The stable code.
+    pub fn code(&self) -> &'static str {
+        self.code_status().0
+    }
+
+    /// The JSON body (internal details replaced by a generic message).
+    pub fn body(&self) -> ErrorBody {
+        if let ApiError::Internal(detail) = self {
+            tracing::error!(%detail, "internal error");
+        }
+        ErrorBody {
+            code: self.code().to_owned(),
+            message: self.to_string(),
+        }
+    }
+}
+
+impl IntoResponse for ApiError {
+    fn into_response(self) -> Response {
+        let status = self.code_status().1;
+        (status, axum::Json(self.body())).into_response()
+    }
+}
+
+impl From<JsonRejection> for ApiError {
+    fn from(r: JsonRejection) -> Self {
+        match r {
+            JsonRejection::BytesRejection(b) => b.into(),
+            other => ApiError::InvalidJson(other.body_text()),
+        }
+    }
+}
+
+impl From<BytesRejection> for ApiError {
+    fn from(r: BytesRejection) -> Self {
+        if r.status() == StatusCode::PAYLOAD_TOO_LARGE {
+            // the exact limit is in the config; the message need not repeat it
+            ApiError::PayloadTooLarge(0)
+        } else {
+            ApiError::InvalidJson(r.body_text())
+        }
+    }
+}
+
+impl From<DeformError> for ApiError {
+    fn from(e: DeformError) -> Self {
+        let msg = e.to_string();
+        deform_ref(&e, msg)
+    }
+}
+
+impl From<StoreError> for ApiError {
+    fn from(e: StoreError) -> Self {
+        ApiError::Internal(e.to_string())
+    }
+}
+
+impl From<&SessionError> for ApiError {
+    fn from(e: &SessionError) -> Self {
+        let msg = e.to_string();
+        match e {
+            SessionError::NotReady { .. } => ApiError::NotReady(msg),
+            SessionError::UnknownHandle { .. } => ApiError::UnknownHandle(msg),
+            SessionError::NonFinite { .. } => ApiError::NonFinite(msg),
+            SessionError::HandleGrabbed { .. } => ApiError::HandleGrabbed(msg),
+            SessionError::NothingToUndo | SessionError::NothingToRedo => {
+                ApiError::NothingToUndo(msg)
+            }
+            SessionError::InvalidConstraints(m) => ApiError::InvalidConstraints(m.clone()),
+            SessionError::Deform(d) => deform_ref(d, msg),
+            SessionError::Store(s) => ApiError::Internal(s.to_string()),
+            SessionError::Shared(inner) => ApiError::from(&**inner),
+            SessionError::Closed => ApiError::SessionClosed,
+        }
+    }
+}
+
+fn deform_ref(d: &DeformError, msg: String) -> ApiError {
+    match d {
+        DeformError::UnknownVertex { .. } => ApiError::VertexOutOfRange(msg),
+        DeformError::InvalidParam { .. } => ApiError::InvalidParams(msg),
+        DeformError::NonFinite { .. } => ApiError::NonFinite(msg),
+        DeformError::Mesh(_) => ApiError::InvalidMesh(msg),
+        DeformError::EmptyHandle { .. }
+        | DeformError::DuplicateHandle { .. }
+        | DeformError::OverlappingSets { .. }
+        | DeformError::NoConstraints
+        | DeformError::Unconstrained { .. }
+        | DeformError::InvalidTransform { .. }
+        | DeformError::PositionsMismatch { .. } => ApiError::InvalidConstraints(msg),
+        DeformError::OutOfMemory { .. } => ApiError::Internal(msg),
+        DeformError::NotPositiveDefinite { .. }
+        | DeformError::PoseLength { .. }
+        | DeformError::FactorMismatch => ApiError::SolveFailed(msg),
+    }
+}
+
+impl From<SessionError> for ApiError {
+    fn from(e: SessionError) -> Self {
+        ApiError::from(&e)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn codes_are_unique_and_internal_details_hidden() {
+        let all = [
+            ApiError::InvalidJson(String::new()),
+            ApiError::InvalidMesh(String::new()),
+            ApiError::UnsupportedFormat(String::new()),
+            ApiError::InvalidParams(String::new()),
+            ApiError::InvalidConstraints(String::new()),
+            ApiError::VertexOutOfRange(String::new()),
+            ApiError::NonFinite(String::new()),
+            ApiError::MeshNotFound(String::new()),
+            ApiError::SessionNotFound(String::new()),
+            ApiError::UnknownHandle(String::new()),
+            ApiError::RouteNotFound(String::new()),
+            ApiError::MissingToken,
+            ApiError::WrongToken,
+            ApiError::NotReady(String::new()),
+            ApiError::HandleGrabbed(String::new()),
+            ApiError::NothingToUndo(String::new()),
+            ApiError::SolveFailed(String::new()),
+            ApiError::PayloadTooLarge(1),
+            ApiError::TooManyVertices { got: 2, limit: 1 },
+            ApiError::RateLimited(1),
+            ApiError::TooManySessions(1),
+            ApiError::TooManyMeshes(1),
+            ApiError::Timeout,
+            ApiError::SessionClosed,
+            ApiError::Internal("secret path /etc".into()),
+        ];
+        let mut codes: Vec<_> = all.iter().map(|e| e.code()).collect();
+        codes.sort_unstable();
+        codes.dedup();
+        assert_eq!(codes.len(), all.len());
+        let body = ApiError::Internal("secret path /etc".into()).body();
+        assert!(!body.message.contains("secret"));
+        assert_eq!(ApiError::WrongToken.code_status().1, StatusCode::FORBIDDEN);
+        assert_eq!(
+            ApiError::MissingToken.code_status().1,
+            StatusCode::UNAUTHORIZED
+        );
+    }
+}

@@ -1,0 +1,273 @@
+//! The deformation server: axum HTTP (`/v1`, JSON) + WebSocket on tokio.
+//!
+//! [`app`] builds the router from an [`AppState`]; [`serve`] binds, prints
+//! the URL, runs until SIGINT/SIGTERM and drains gracefully. Routes live in
+//! one table ([`ROUTES`] + `route_list`), which a test keeps equal to
+//! `api/openapi.yaml`.
+
+pub mod config;
+pub mod error;
+pub mod fuzzing;
+mod meshes;
+pub mod metrics;
+pub mod recover;
+pub mod session;
+mod sessions;
+pub mod store;
+pub mod web;
+pub mod ws;
+
+use std::collections::HashMap;
+use std::sync::{Arc, Weak};
+use std::time::Duration;
+
+use axum::error_handling::HandleErrorLayer;
+use axum::extract::{DefaultBodyLimit, Request, State};
+use axum::http::{header, Uri};
+use axum::middleware::Next;
+use axum::response::{IntoResponse, Response};
+use axum::routing::{delete, get, post, put, MethodRouter};
+use axum::{BoxError, Router};
+use parking_lot::{Mutex, RwLock};
+use tower::ServiceBuilder;
+use tower_http::trace::TraceLayer;
+
+pub use config::Config;
+pub use error::ApiError;
+pub use metrics::Metrics;
+
+use crate::session::SessionHandle;
+use crate::store::{MemoryStore, Store};
+use dend::deform::{FactorCache, Rest, SolveOptions};
+
+/// Shared server state: cheap to clone (`Arc` fields).
+#[derive(Clone)]
+pub struct AppState {
+    /// The configuration.
+    pub config: Arc<Config>,
+    /// Meshes and sessions storage.
+    pub store: Arc<dyn Store>,
+    /// The factor cache shared by all sessions.
+    pub cache: Arc<FactorCache>,
+    /// Prometheus metrics.
+    pub metrics: Arc<Metrics>,
+    /// Live sessions by id.
+    pub sessions: Arc<RwLock<HashMap<String, SessionHandle>>>,
+    /// Rest precomputations by mesh id, shared by that mesh's sessions.
+    rests: Arc<Mutex<HashMap<String, Weak<Rest>>>>,
+}
+
+impl AppState {
+    /// State with the embedded in-memory store.
+    pub fn new(config: Config) -> anyhow::Result<Self> {
+        Self::with_store(config, Arc::new(MemoryStore::new()))
+    }
+
+    /// State with a given store.
+    pub fn with_store(config: Config, store: Arc<dyn Store>) -> anyhow::Result<Self> {
+        Ok(AppState {
+            cache: Arc::new(FactorCache::with_options(
+                config.factor_cache_bytes,
+                SolveOptions {
+                    precision: config.factor_precision,
+                    ..SolveOptions::default()
+                },
+            )),
+            config: Arc::new(config),
+            store,
+            metrics: Arc::new(Metrics::new()?),
+            sessions: Arc::new(RwLock::new(HashMap::new())),
+            rests: Arc::new(Mutex::new(HashMap::new())),
+        })
+    }
+}
+
+/// Every route: (path, methods). `api/openapi.yaml` must list exactly these.
+pub const ROUTES: &[(&str, &[&str])] = &[
+    ("/healthz", &["get"]),
+    ("/metrics", &["get"]),
+    ("/v1/meshes", &["post"]),
+    ("/v1/meshes/generate", &["post"]),
+    ("/v1/meshes/{id}", &["get"]),
+    ("/v1/sessions", &["post"]),
+    ("/v1/sessions/{id}", &["get", "delete"]),
+    ("/v1/sessions/{id}/constraints", &["put"]),
+    ("/v1/sessions/{id}/drag", &["post"]),
+    ("/v1/sessions/{id}/pose", &["get"]),
+    ("/v1/sessions/{id}/export", &["get"]),
+    ("/v1/sessions/{id}/undo", &["post"]),
+    ("/v1/sessions/{id}/redo", &["post"]),
+    ("/v1/sessions/{id}/reset", &["post"]),
+    ("/v1/sessions/{id}/ws", &["get"]),
+];
+
+fn route_list() -> Vec<(&'static str, MethodRouter<AppState>)> {
+    vec![
+        ("/healthz", get(healthz)),
+        ("/metrics", get(metrics::render)),
+        ("/v1/meshes", post(meshes::upload)),
+        ("/v1/meshes/generate", post(meshes::generate)),
+        ("/v1/meshes/{id}", get(meshes::info)),
+        ("/v1/sessions", post(sessions::create)),
+        (
+            "/v1/sessions/{id}",
+            get(sessions::info).merge(delete(sessions::remove)),
+        ),
+        (
+            "/v1/sessions/{id}/constraints",
+            put(sessions::set_constraints),
+        ),
+        ("/v1/sessions/{id}/drag", post(sessions::drag)),
+        ("/v1/sessions/{id}/pose", get(sessions::pose)),
+        ("/v1/sessions/{id}/export", get(sessions::export)),
+        ("/v1/sessions/{id}/undo", post(sessions::undo)),
+        ("/v1/sessions/{id}/redo", post(sessions::redo)),
+        ("/v1/sessions/{id}/reset", post(sessions::reset)),
+        ("/v1/sessions/{id}/ws", get(ws::upgrade)),
+    ]
+}
+
+/// The router with every route and middleware (tracing, request timeout,
+/// body limit answered from `Content-Length` before reading the body).
+pub fn app(state: AppState) -> Router {
+    let mut router = Router::new();
+    for (path, mr) in route_list() {
+        router = router.route(path, mr);
+    }
+    let timeout = state.config.request_timeout();
+    router
+        // The web client's static files (`/`, outside the `/v1` API).
+        .merge(web::router())
+        .fallback(|uri: Uri| async move { ApiError::RouteNotFound(uri.path().to_owned()) })
+        .layer(
+            ServiceBuilder::new()
+                .layer(TraceLayer::new_for_http())
+                .layer(HandleErrorLayer::new(|e: BoxError| async move {
+                    if e.is::<tower::timeout::error::Elapsed>() {
+                        ApiError::Timeout
+                    } else {
+                        ApiError::Internal(e.to_string())
+                    }
+                }))
+                .timeout(timeout)
+                .layer(axum::middleware::from_fn_with_state(
+                    state.clone(),
+                    content_length_limit,
+                ))
+                .layer(DefaultBodyLimit::max(state.config.max_upload_bytes)),
+        )
+        .with_state(state)
+}
+
+/// Rejects a declared `Content-Length` over the limit before any body byte
+/// is read (bodies without one are cut off while streaming by
+/// `DefaultBodyLimit`).
+async fn content_length_limit(State(st): State<AppState>, req: Request, next: Next) -> Response {
+    let limit = st.config.max_upload_bytes;
+    let declared = req
+        .headers()
+        .get(header::CONTENT_LENGTH)
+        .and_then(|v| v.to_str().ok())
+        .and_then(|v| v.parse::<u64>().ok());
+    match declared {
+        Some(n) if n > limit as u64 => ApiError::PayloadTooLarge(limit).into_response(),
+        _ => next.run(req).await,
+    }
+}
+
+async fn healthz() -> impl IntoResponse {
+    axum::Json(serde_json::json!({"status": "ok"}))
+}
+
+/// Closes sessions idle for longer than the configured timeout, every
+/// `period`, until the process ends.
+pub fn spawn_idle_reaper(state: AppState, period: Duration) -> tokio::task::JoinHandle<()> {
+    tokio::spawn(async move {
+        let mut tick = tokio::time::interval(period);
+        loop {
+            let _ = tick.tick().await;
+            let idle: Vec<SessionHandle> = {
+                let timeout = state.config.idle_timeout();
+                state
+                    .sessions
+                    .read()
+                    .values()
+                    .filter(|s| s.is_idle(timeout))
+                    .cloned()
+                    .collect()
+            };
+            for s in idle {
+                tracing::info!(session = s.id(), "closing idle session");
+                sessions::close_session(&state, &s).await;
+            }
+        }
+    })
+}
+
+/// Serves `app` on an already bound `listener` until the listener fails
+/// (no signal handling: for embedding the server in another program or a
+/// test; [`serve`] is the binary's entry point).
+pub async fn serve_on(listener: tokio::net::TcpListener, app: Router) -> std::io::Result<()> {
+    axum::serve(listener, app).await
+}
+
+/// Binds `config.addr`, prints `listening on http://ADDR`, and serves until
+/// SIGINT or SIGTERM, then drains open requests.
+pub async fn serve(config: Config) -> anyhow::Result<()> {
+    let listener = tokio::net::TcpListener::bind(config.addr).await?;
+    let addr = listener.local_addr()?;
+    let store = recover::open_store(&config)?;
+    let state = AppState::with_store(config, store)?;
+    let _reaper = spawn_idle_reaper(state.clone(), Duration::from_secs(10));
+    println!("listening on http://{addr}");
+    axum::serve(listener, app(state))
+        .with_graceful_shutdown(shutdown_signal())
+        .await?;
+    Ok(())
+}
+
+/// Resolves on SIGINT (Ctrl-C) or SIGTERM.
+pub async fn shutdown_signal() {
+    let ctrl_c = async {
+        if tokio::signal::ctrl_c().await.is_err() {
+            std::future::pending::<()>().await;
+        }
+    };
+    #[cfg(unix)]
+    let term = async {
+        match tokio::signal::unix::signal(tokio::signal::unix::SignalKind::terminate()) {
+            Ok(mut s) => {
+                let _ = s.recv().await;
+            }
+            Err(_) => std::future::pending::<()>().await,
+        }
+    };
+    #[cfg(not(unix))]
+    let term = std::future::pending::<()>();
+    tokio::select! { _ = ctrl_c => {}, _ = term => {} }
+    tracing::info!("shutting down");
+}
+
+/// Rest precomputation of a mesh, shared while any session uses it.
+pub(crate) async fn rest_for(st: &AppState, mesh_id: &str) -> Result<Arc<Rest>, ApiError> {
+    if let Some(r) = st.rests.lock().get(mesh_id).and_then(Weak::upgrade) {
+        return Ok(r);
+    }
+    let mesh = st
+        .store
+        .get_mesh(mesh_id)?
+        .ok_or_else(|| ApiError::MeshNotFound(mesh_id.to_owned()))?;
+    let rest = tokio::task::spawn_blocking(move || Rest::new((*mesh).clone()))
+        .await
+        .map_err(|e| ApiError::Internal(e.to_string()))??;
+    let rest = Arc::new(rest);
+    let mut rests = st.rests.lock();
+    // Sessions created together may have built it concurrently: keep the
+    // first one, so that they share its id and hence their factors.
+    if let Some(r) = rests.get(mesh_id).and_then(Weak::upgrade) {
+        return Ok(r);
+    }
+    rests.retain(|_, w| w.strong_count() > 0);
+    let _ = rests.insert(mesh_id.to_owned(), Arc::downgrade(&rest));
+    Ok(rest)
+}

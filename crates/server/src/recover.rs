@@ -1,0 +1,121 @@
+//! Sessions outlive the process: choosing the store and re-opening stored
+//! sessions after a restart.
+//!
+//! At start-up [`open_store`] opens the configured store and lists its
+//! sessions (logging how many, and failing on a corrupt one). Sessions are
+//! re-opened lazily: the first request naming a stored session that is not
+//! live ([`revive`]) rebuilds its [`Rest`](dend::deform::Rest), spawns its
+//! actor and, when it had constraints, restores them with the recovered
+//! targets (last checkpoint + every journaled drag after it) and the
+//! checkpoint pose as the warm start. The session then goes `building` →
+//! `ready` exactly as after `PUT constraints` (clients get the `state` and
+//! `ready` events) and accepts drags when ready.
+
+use std::sync::Arc;
+
+use super::error::ApiError;
+use super::{rest_for, AppState, Config};
+use crate::session::{Recovered, SessionHandle, SessionOptions};
+use crate::store::{JournalEntry, MemoryStore, SqliteStore, Store};
+use dend::deform::Params;
+
+/// Opens the store `config` asks for (SQLite in `data_dir`, or memory with
+/// `in_memory`) and reports the stored sessions on stderr's log.
+pub fn open_store(config: &Config) -> anyhow::Result<Arc<dyn Store>> {
+    if config.in_memory {
+        tracing::warn!("in-memory store: nothing survives a restart");
+        return Ok(Arc::new(MemoryStore::new()));
+    }
+    let store = SqliteStore::open(&config.data_dir)?;
+    let sessions = store.list_sessions()?;
+    tracing::info!(path = %store.path().display(), sessions = sessions.len(), "opened the session store");
+    Ok(Arc::new(store))
+}
+
+/// Re-opens the stored session `id` if it is not live; `None` when the
+/// store has no such session.
+pub(crate) async fn revive(st: &AppState, id: &str) -> Result<Option<SessionHandle>, ApiError> {
+    let Some(record) = st.store.get_session(id)? else {
+        return Ok(None);
+    };
+    let params: Params = serde_json::from_value(record.params.clone())
+        .map_err(|e| ApiError::Internal(format!("stored params: {e}")))?;
+    let token_sha256: [u8; 32] = hex::decode(&record.token_sha256)
+        .ok()
+        .and_then(|h| h.try_into().ok())
+        .ok_or_else(|| {
+            ApiError::Internal(format!("stored token hash of session `{id}` is malformed"))
+        })?;
+    let rest = rest_for(st, &record.mesh_id).await?;
+    let opts = SessionOptions {
+        cache: st.cache.clone(),
+        store: st.store.clone(),
+        observer: st.metrics.clone(),
+        iters_per_frame: st.config.iters_per_frame,
+    };
+    let handle = SessionHandle::spawn(
+        id.to_owned(),
+        record.mesh_id.clone(),
+        token_sha256,
+        rest,
+        params,
+        opts,
+    );
+    handle.touch();
+    // Insert unless another request revived it meanwhile (then use that one).
+    let existing = {
+        let mut sessions = st.sessions.write();
+        match sessions.get(id) {
+            Some(other) => Ok(Some(other.clone())),
+            None if sessions.len() >= st.config.max_sessions => {
+                Err(ApiError::TooManySessions(st.config.max_sessions))
+            }
+            None => {
+                let _ = sessions.insert(id.to_owned(), handle.clone());
+                Ok(None)
+            }
+        }
+    };
+    match existing {
+        Ok(None) => {}
+        Ok(Some(other)) => {
+            handle.close().await;
+            return Ok(Some(other));
+        }
+        Err(e) => {
+            handle.close().await;
+            return Err(e);
+        }
+    }
+    st.metrics.sessions.set(st.sessions.read().len() as i64);
+    if let Some(spec) = record.constraints {
+        let checkpoint = st.store.get_checkpoint(id)?;
+        let journal = st.store.journal(id)?;
+        let journaled_seq = journal
+            .iter()
+            .map(|JournalEntry::Drag { seq, .. }| *seq)
+            .max()
+            .unwrap_or(0);
+        let recovered = Recovered {
+            ack_seq: checkpoint
+                .as_ref()
+                .map_or(0, |c| c.ack_seq)
+                .max(journaled_seq),
+            checkpoint,
+            journal,
+        };
+        tracing::info!(
+            session = id,
+            drags = recovered.journal.len(),
+            "re-opening a stored session"
+        );
+        if let Err(e) = handle.restore(spec, recovered).await {
+            // not left live half-restored: the next request tries again
+            tracing::error!(session = id, error = %e, "restoring a stored session failed");
+            let _ = st.sessions.write().remove(id);
+            handle.close().await;
+            return Err(ApiError::from(e));
+        }
+    }
+    Ok(Some(handle))
+}

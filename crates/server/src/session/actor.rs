@@ -1,0 +1,629 @@
+//! The session actor: owns the deformer, composes drags, runs one solve at a
+//! time on the blocking pool, publishes frames and keeps the history.
+
+use std::collections::VecDeque;
+use std::sync::Arc;
+use std::time::Instant;
+
+use tokio::sync::{mpsc, oneshot, watch};
+
+use super::frame::{FrameBody, FrameHeader};
+use super::handle::{Inner, SessionOptions};
+use super::{Delta, Event, Frame, PoseSnapshot, SessionError, SessionState};
+use crate::store::{Checkpoint, JournalEntry, StoredTransform};
+use dend::deform::{Constraints, Deformer, RigidTransform, StepReport};
+
+type Reply<T> = oneshot::Sender<Result<T, SessionError>>;
+
+/// Most history entries kept per session (older ones are dropped).
+const HISTORY_LIMIT: usize = 64;
+
+pub(super) enum Cmd {
+    Drag {
+        handle: usize,
+        delta: Delta,
+        seq: u64,
+        reply: Option<(usize, Reply<PoseSnapshot>)>,
+    },
+    SetConstraints {
+        spec: serde_json::Value,
+        constraints: Constraints,
+        restore: Option<Restore>,
+        reply: Reply<SessionState>,
+    },
+    Undo(Reply<PoseSnapshot>),
+    Redo(Reply<PoseSnapshot>),
+    Reset(Reply<PoseSnapshot>),
+    Pose(Reply<PoseSnapshot>),
+    Close,
+}
+
+// One message per solve, moved once: boxing the deformer would buy nothing.
+#[allow(clippy::large_enum_variant)]
+enum Internal {
+    Solved {
+        deformer: Deformer,
+        result: Result<StepReport, SessionError>,
+        body: FrameBody,
+        seconds: f64,
+        applied_seq: u64,
+    },
+    Built {
+        generation: u64,
+        result: Result<(), SessionError>,
+        /// Wall time of the factor's lookup or build.
+        seconds: f64,
+    },
+}
+
+/// Re-opening a stored session: constraints already carry the recovered
+/// targets; the store is left as is (its checkpoint + journal stay valid
+/// until the first commit writes a new checkpoint).
+pub(super) struct Restore {
+    /// Warm start (the last checkpoint's pose).
+    pub pose: Option<Vec<[f64; 3]>>,
+    /// Highest sequence number included in the targets.
+    pub ack_seq: u64,
+}
+
+struct Snapshot {
+    pose: Arc<Vec<[f64; 3]>>,
+    targets: Vec<RigidTransform>,
+}
+
+pub(super) struct Actor {
+    inner: Arc<Inner>,
+    opts: SessionOptions,
+    frames_tx: watch::Sender<Option<Frame>>,
+    internal_tx: mpsc::UnboundedSender<Internal>,
+    internal_rx: Option<mpsc::UnboundedReceiver<Internal>>,
+    deformer: Option<Deformer>,
+    constraints: Option<Arc<Constraints>>,
+    state: SessionState,
+    generation: u64,
+    /// Targets changed since the last solve started.
+    dirty: bool,
+    /// Nothing more to iterate (converged, budget spent or failed).
+    settled: bool,
+    iters_since_change: usize,
+    last_seq: u64,
+    applied_seq: u64,
+    revision: u64,
+    converged: bool,
+    journal: Vec<JournalEntry>,
+    waiters: Vec<(usize, Reply<PoseSnapshot>)>,
+    inflight: Vec<Reply<PoseSnapshot>>,
+    deferred: VecDeque<Cmd>,
+    history: Vec<Snapshot>,
+    cursor: usize,
+    uncommitted: bool,
+    pose: Arc<Vec<[f64; 3]>>,
+}
+
+impl Actor {
+    pub(super) fn new(
+        inner: Arc<Inner>,
+        frames_tx: watch::Sender<Option<Frame>>,
+        opts: SessionOptions,
+    ) -> Self {
+        let (internal_tx, internal_rx) = mpsc::unbounded_channel();
+        let deformer = Deformer::new(inner.rest.clone(), inner.params);
+        let pose = Arc::new(deformer.pose().to_vec());
+        Actor {
+            inner,
+            opts,
+            frames_tx,
+            internal_tx,
+            internal_rx: Some(internal_rx),
+            deformer: Some(deformer),
+            constraints: None,
+            state: SessionState::Empty,
+            generation: 0,
+            dirty: false,
+            settled: true,
+            iters_since_change: 0,
+            last_seq: 0,
+            applied_seq: 0,
+            revision: 0,
+            converged: true,
+            journal: vec![],
+            waiters: vec![],
+            inflight: vec![],
+            deferred: VecDeque::new(),
+            history: vec![],
+            cursor: 0,
+            uncommitted: false,
+            pose,
+        }
+    }
+
+    pub(super) async fn run(mut self, mut rx: mpsc::Receiver<Cmd>) {
+        let Some(mut internal_rx) = self.internal_rx.take() else {
+            return;
+        };
+        loop {
+            while self.deformer.is_some() {
+                let Some(cmd) = self.deferred.pop_front() else {
+                    break;
+                };
+                if !self.on_cmd(cmd) {
+                    return self.closed();
+                }
+            }
+            self.maybe_start_solve();
+            tokio::select! {
+                Some(msg) = internal_rx.recv() => self.on_internal(msg),
+                cmd = rx.recv() => match cmd {
+                    Some(cmd) => if !self.on_cmd(cmd) { return self.closed() },
+                    None => return self.closed(),
+                },
+            }
+        }
+    }
+
+    fn closed(&mut self) {
+        let _ = self.inner.events.send(Event::Closed);
+    }
+
+    fn snapshot(&self) -> PoseSnapshot {
+        PoseSnapshot {
+            revision: self.revision,
+            ack_seq: self.applied_seq,
+            iteration: self.iters_since_change as u32,
+            converged: self.converged,
+            positions: self.pose.clone(),
+        }
+    }
+
+    fn sync_shared(&self) {
+        let mut s = self.inner.shared.lock();
+        s.state = self.state;
+        s.revision = self.revision;
+        s.can_undo = self.uncommitted && !self.history.is_empty() || self.cursor > 0;
+        s.can_redo = !self.uncommitted && self.cursor + 1 < self.history.len();
+    }
+
+    /// Handles one command; false when the session must stop.
+    fn on_cmd(&mut self, cmd: Cmd) -> bool {
+        let needs_deformer = matches!(cmd, Cmd::Undo(_) | Cmd::Redo(_) | Cmd::Reset(_));
+        if needs_deformer && self.deformer.is_none() {
+            self.deferred.push_back(cmd);
+            return true;
+        }
+        match cmd {
+            Cmd::Drag {
+                handle,
+                delta,
+                seq,
+                reply,
+            } => self.on_drag(handle, delta, seq, reply),
+            Cmd::SetConstraints {
+                spec,
+                constraints,
+                restore,
+                reply,
+            } => {
+                let _ = reply.send(self.on_set_constraints(spec, constraints, restore));
+            }
+            Cmd::Undo(reply) => {
+                let r = self.undo_redo(true);
+                let _ = reply.send(r);
+            }
+            Cmd::Redo(reply) => {
+                let r = self.undo_redo(false);
+                let _ = reply.send(r);
+            }
+            Cmd::Reset(reply) => {
+                let r = self.reset();
+                let _ = reply.send(r);
+            }
+            Cmd::Pose(reply) => {
+                let _ = reply.send(Ok(self.snapshot()));
+            }
+            Cmd::Close => return false,
+        }
+        true
+    }
+
+    fn on_drag(
+        &mut self,
+        handle: usize,
+        delta: Delta,
+        seq: u64,
+        reply: Option<(usize, Reply<PoseSnapshot>)>,
+    ) {
+        let fail = |reply: Option<(usize, Reply<PoseSnapshot>)>, e: SessionError| {
+            if let Some((_, r)) = reply {
+                let _ = r.send(Err(e));
+            }
+        };
+        if self.state != SessionState::Ready {
+            return fail(reply, SessionError::NotReady { state: self.state });
+        }
+        let Some(c) = self.constraints.as_mut() else {
+            return fail(reply, SessionError::NotReady { state: self.state });
+        };
+        let c = Arc::make_mut(c);
+        let Some(h) = c.handles.get_mut(handle) else {
+            return fail(
+                reply,
+                SessionError::UnknownHandle {
+                    handle: super::HandleRef::Index(handle),
+                },
+            );
+        };
+        h.target = h.target.then(delta.rotation, delta.translation);
+        let q = delta.rotation.coords;
+        self.journal.push(JournalEntry::Drag {
+            handle,
+            rotation: [q.x, q.y, q.z, q.w],
+            translation: delta.translation,
+            seq,
+        });
+        if seq > 0 {
+            self.last_seq = seq;
+        }
+        self.dirty = true;
+        self.settled = false;
+        self.uncommitted = true;
+        if let Some(w) = reply {
+            self.waiters.push(w);
+        }
+    }
+
+    fn on_set_constraints(
+        &mut self,
+        spec: serde_json::Value,
+        constraints: Constraints,
+        restore: Option<Restore>,
+    ) -> Result<SessionState, SessionError> {
+        match restore {
+            None => self.opts.store.set_constraints(&self.inner.id, &spec)?,
+            Some(r) => {
+                if let (Some(pose), Some(d)) = (r.pose, self.deformer.as_mut()) {
+                    d.set_pose(pose)?;
+                    self.pose = Arc::new(d.pose().to_vec());
+                }
+                self.last_seq = r.ack_seq;
+                self.applied_seq = r.ack_seq;
+            }
+        }
+        self.generation += 1;
+        self.state = SessionState::Building;
+        self.inner.shared.lock().handles =
+            constraints.handles.iter().map(|h| h.name.clone()).collect();
+        self.inner.shared.lock().grabs.clear();
+        self.journal.clear();
+        self.history.clear();
+        self.cursor = 0;
+        self.uncommitted = false;
+        self.dirty = false;
+        self.settled = true;
+        for (_, w) in self.waiters.drain(..) {
+            let _ = w.send(Err(SessionError::NotReady {
+                state: SessionState::Building,
+            }));
+        }
+        let constraints = Arc::new(constraints);
+        self.constraints = Some(constraints.clone());
+        self.revision += 1;
+        self.sync_shared();
+        let _ = self.inner.events.send(Event::State);
+        let (generation, tx) = (self.generation, self.internal_tx.clone());
+        let (rest, params, cache) = (
+            self.inner.rest.clone(),
+            self.inner.params,
+            self.opts.cache.clone(),
+        );
+        drop(tokio::task::spawn_blocking(move || {
+            let t0 = Instant::now();
+            let result = cache
+                .get_or_build(&rest, &params, &constraints)
+                .map(|_| ())
+                .map_err(SessionError::from);
+            let _ = tx.send(Internal::Built {
+                generation,
+                result,
+                seconds: t0.elapsed().as_secs_f64(),
+            });
+        }));
+        Ok(SessionState::Building)
+    }
+
+    fn maybe_start_solve(&mut self) {
+        if self.deformer.is_none() || self.state != SessionState::Ready {
+            return;
+        }
+        let Some(constraints) = self.constraints.clone() else {
+            return;
+        };
+        if self.dirty {
+            self.iters_since_change = 0;
+        }
+        let max_iters = self.inner.params.max_iters;
+        let budget = if !self.waiters.is_empty() {
+            self.waiters
+                .iter()
+                .map(|w| w.0)
+                .max()
+                .unwrap_or(max_iters)
+                .max(1)
+        } else if !self.settled {
+            let remaining = max_iters.saturating_sub(self.iters_since_change);
+            if remaining == 0 {
+                self.settled = true;
+                self.commit();
+                return;
+            }
+            self.opts.iters_per_frame.clamp(1, remaining)
+        } else {
+            return;
+        };
+        self.inflight = self.waiters.drain(..).map(|w| w.1).collect();
+        self.dirty = false;
+        let Some(mut deformer) = self.deformer.take() else {
+            return;
+        };
+        let journal = std::mem::take(&mut self.journal);
+        let (id, store, cache) = (
+            self.inner.id.clone(),
+            self.opts.store.clone(),
+            self.opts.cache.clone(),
+        );
+        let (rest, params, tx) = (
+            self.inner.rest.clone(),
+            self.inner.params,
+            self.internal_tx.clone(),
+        );
+        let applied_seq = self.last_seq;
+        drop(tokio::task::spawn_blocking(move || {
+            let t0 = Instant::now();
+            let result = (|| {
+                if !journal.is_empty() {
+                    store.append(&id, &journal)?;
+                }
+                let factor = cache.get_or_build(&rest, &params, &constraints)?;
+                Ok(deformer.step(&factor, &constraints, budget)?)
+            })();
+            let seconds = t0.elapsed().as_secs_f64();
+            let body = FrameBody::from_pose(deformer.pose());
+            let _ = tx.send(Internal::Solved {
+                deformer,
+                result,
+                body,
+                seconds,
+                applied_seq,
+            });
+        }));
+    }
+
+    fn on_internal(&mut self, msg: Internal) {
+        match msg {
+            Internal::Built {
+                generation,
+                result,
+                seconds,
+            } => {
+                if result.is_ok() {
+                    self.opts.observer.factor_ready(seconds);
+                }
+                if generation != self.generation {
+                    return;
+                }
+                self.revision += 1;
+                match result {
+                    Ok(()) => {
+                        self.state = SessionState::Ready;
+                        // Solve towards the spec's initial targets; the settled
+                        // result becomes history entry 0.
+                        self.dirty = true;
+                        self.settled = false;
+                        self.uncommitted = true;
+                        self.sync_shared();
+                        let _ = self.inner.events.send(Event::Ready {
+                            revision: self.revision,
+                        });
+                    }
+                    Err(e) => {
+                        self.state = SessionState::Failed;
+                        self.sync_shared();
+                        let _ = self.inner.events.send(Event::Error(Arc::new(e)));
+                        let _ = self.inner.events.send(Event::State);
+                    }
+                }
+            }
+            Internal::Solved {
+                deformer,
+                result,
+                body,
+                seconds,
+                applied_seq,
+            } => {
+                self.pose = Arc::new(deformer.pose().to_vec());
+                self.deformer = Some(deformer);
+                self.applied_seq = applied_seq;
+                let error = match result {
+                    Ok(report) => {
+                        self.iters_since_change += report.iterations;
+                        self.converged = report.converged;
+                        self.opts
+                            .observer
+                            .solved(report.iterations, seconds, report.converged);
+                        let done = report.converged
+                            || self.iters_since_change >= self.inner.params.max_iters;
+                        self.settled = !self.dirty && (done || report.diverged);
+                        None
+                    }
+                    Err(e) => {
+                        self.settled = true;
+                        Some(Arc::new(e))
+                    }
+                };
+                self.revision += 1;
+                let header = FrameHeader {
+                    revision: self.revision,
+                    ack_seq: applied_seq,
+                    iteration: self.iters_since_change as u32,
+                    converged: self.converged,
+                    vertex_count: self.pose.len() as u32,
+                };
+                let bytes = body.finish(&header);
+                self.frames_tx.send_replace(Some(Frame { header, bytes }));
+                for w in std::mem::take(&mut self.inflight) {
+                    let _ = w.send(match &error {
+                        None => Ok(self.snapshot_for(&header)),
+                        Some(e) => Err(SessionError::Shared(e.clone())),
+                    });
+                }
+                if let Some(e) = error {
+                    let _ = self.inner.events.send(Event::Error(e));
+                }
+                if self.settled {
+                    self.commit();
+                }
+                self.sync_shared();
+            }
+        }
+    }
+
+    fn snapshot_for(&self, h: &FrameHeader) -> PoseSnapshot {
+        PoseSnapshot {
+            revision: h.revision,
+            ack_seq: h.ack_seq,
+            iteration: h.iteration,
+            converged: h.converged,
+            positions: self.pose.clone(),
+        }
+    }
+
+    fn targets(&self) -> Vec<RigidTransform> {
+        self.constraints
+            .as_ref()
+            .map(|c| c.handles.iter().map(|h| h.target).collect())
+            .unwrap_or_default()
+    }
+
+    /// Records the settled state as a history entry and checkpoints it.
+    fn commit(&mut self) {
+        if !self.uncommitted {
+            return;
+        }
+        self.uncommitted = false;
+        if !self.history.is_empty() {
+            self.history.truncate(self.cursor + 1);
+        }
+        self.history.push(Snapshot {
+            pose: self.pose.clone(),
+            targets: self.targets(),
+        });
+        if self.history.len() > HISTORY_LIMIT {
+            let _ = self.history.remove(0);
+        }
+        self.cursor = self.history.len() - 1;
+        self.checkpoint();
+        self.sync_shared();
+    }
+
+    fn checkpoint(&mut self) {
+        let cp = Checkpoint {
+            revision: self.revision,
+            ack_seq: self.applied_seq,
+            pose: self.pose.to_vec(),
+            targets: self.targets().iter().map(stored).collect(),
+        };
+        if let Err(e) = self.opts.store.checkpoint(&self.inner.id, &cp) {
+            tracing::error!(session = %self.inner.id, error = %e, "checkpoint failed");
+        }
+    }
+
+    /// Restores a pose and targets without solving; publishes a converged frame.
+    fn restore(
+        &mut self,
+        pose: Arc<Vec<[f64; 3]>>,
+        targets: &[RigidTransform],
+    ) -> Result<PoseSnapshot, SessionError> {
+        if let Some(d) = self.deformer.as_mut() {
+            d.set_pose(pose.to_vec())?;
+        }
+        if let Some(c) = self.constraints.as_mut() {
+            for (h, t) in Arc::make_mut(c).handles.iter_mut().zip(targets) {
+                h.target = *t;
+            }
+        }
+        self.pose = pose;
+        self.dirty = false;
+        self.settled = true;
+        self.converged = true;
+        self.iters_since_change = 0;
+        self.journal.clear();
+        for (_, w) in self.waiters.drain(..) {
+            let _ = w.send(Err(SessionError::NotReady { state: self.state }));
+        }
+        self.revision += 1;
+        let header = FrameHeader {
+            revision: self.revision,
+            ack_seq: self.applied_seq,
+            iteration: 0,
+            converged: true,
+            vertex_count: self.pose.len() as u32,
+        };
+        let bytes = FrameBody::from_pose(&self.pose).finish(&header);
+        self.frames_tx.send_replace(Some(Frame { header, bytes }));
+        Ok(self.snapshot_for(&header))
+    }
+
+    fn undo_redo(&mut self, undo: bool) -> Result<PoseSnapshot, SessionError> {
+        if self.state != SessionState::Ready {
+            return Err(SessionError::NotReady { state: self.state });
+        }
+        let target = if undo {
+            if self.uncommitted && !self.history.is_empty() {
+                Some(self.cursor)
+            } else {
+                self.cursor
+                    .checked_sub(1)
+                    .filter(|_| !self.history.is_empty())
+            }
+            .ok_or(SessionError::NothingToUndo)?
+        } else {
+            Some(self.cursor + 1)
+                .filter(|i| !self.uncommitted && *i < self.history.len())
+                .ok_or(SessionError::NothingToRedo)?
+        };
+        let (pose, targets) = (
+            self.history[target].pose.clone(),
+            self.history[target].targets.clone(),
+        );
+        self.cursor = target;
+        self.uncommitted = false;
+        let snap = self.restore(pose, &targets)?;
+        self.checkpoint();
+        self.sync_shared();
+        Ok(snap)
+    }
+
+    fn reset(&mut self) -> Result<PoseSnapshot, SessionError> {
+        if self.state != SessionState::Ready {
+            return Err(SessionError::NotReady { state: self.state });
+        }
+        let rest = Arc::new(self.inner.rest.mesh().positions().to_vec());
+        let targets: Vec<RigidTransform> = self
+            .targets()
+            .iter()
+            .map(|t| RigidTransform::identity(t.pivot))
+            .collect();
+        let snap = self.restore(rest, &targets)?;
+        self.uncommitted = true;
+        self.commit();
+        Ok(snap)
+    }
+}
+
+fn stored(t: &RigidTransform) -> StoredTransform {
+    let q = t.rotation.coords;
+    StoredTransform {
+        rotation: [q.x, q.y, q.z, q.w],
+        translation: t.translation,
+        pivot: t.pivot,
+    }
+}

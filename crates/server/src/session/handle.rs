@@ -1,0 +1,440 @@
+//! [`SessionHandle`]: the shared, cloneable front of a session actor.
+
+use std::collections::HashMap;
+use std::sync::atomic::{AtomicU64, AtomicUsize, Ordering};
+use std::sync::Arc;
+use std::time::Instant;
+
+use parking_lot::Mutex;
+use tokio::sync::{broadcast, mpsc, oneshot, watch};
+
+use super::actor::{Actor, Cmd, Restore};
+use super::{
+    ClientId, Delta, Event, Frame, HandleRef, Observer, PoseSnapshot, Recovered, SessionError,
+    SessionState,
+};
+use crate::store::Store;
+use dend::deform::{ConstraintsSpec, FactorCache, Params, Rest};
+
+/// What a session needs besides its rest mesh and parameters.
+#[derive(Clone)]
+pub struct SessionOptions {
+    /// The shared factor cache.
+    pub cache: Arc<FactorCache>,
+    /// Where drags are journaled and checkpoints kept.
+    pub store: Arc<dyn Store>,
+    /// Solver statistics sink.
+    pub observer: Arc<dyn Observer>,
+    /// DEND iterations per frame while settling.
+    pub iters_per_frame: usize,
+}
+
+/// State shared between the actor and the handles.
+pub(super) struct Shared {
+    pub state: SessionState,
+    pub revision: u64,
+    pub handles: Vec<String>,
+    pub grabs: HashMap<usize, ClientId>,
+    pub can_undo: bool,
+    pub can_redo: bool,
+}
+
+pub(super) struct Inner {
+    pub id: String,
+    pub mesh_id: String,
+    pub token_sha256: [u8; 32],
+    pub params: Params,
+    pub rest: Arc<Rest>,
+    pub cmd_tx: mpsc::Sender<Cmd>,
+    pub frames: watch::Receiver<Option<Frame>>,
+    pub events: broadcast::Sender<Event>,
+    pub shared: Mutex<Shared>,
+    started: Instant,
+    last_active_ms: AtomicU64,
+    clients: AtomicUsize,
+    next_client: AtomicU64,
+}
+
+/// A snapshot of a session's public state.
+#[derive(Debug, Clone, serde::Serialize)]
+pub struct SessionInfo {
+    /// Session id.
+    pub id: String,
+    /// Mesh id.
+    pub mesh_id: String,
+    /// Constraint/factor state.
+    pub state: SessionState,
+    /// Current revision.
+    pub revision: u64,
+    /// Handle names, by index.
+    pub handles: Vec<String>,
+    /// Connected WebSocket clients.
+    pub peers: usize,
+    /// Whether undo would do something.
+    pub can_undo: bool,
+    /// Whether redo would do something.
+    pub can_redo: bool,
+    /// Vertex count of the mesh.
+    pub vertices: usize,
+}
+
+/// A cloneable handle to a running session actor.
+#[derive(Clone)]
+pub struct SessionHandle {
+    inner: Arc<Inner>,
+}
+
+impl SessionHandle {
+    /// Starts the actor of a new session (no constraints yet).
+    pub fn spawn(
+        id: String,
+        mesh_id: String,
+        token_sha256: [u8; 32],
+        rest: Arc<Rest>,
+        params: Params,
+        opts: SessionOptions,
+    ) -> SessionHandle {
+        let (cmd_tx, cmd_rx) = mpsc::channel(1024);
+        let (frames_tx, frames) = watch::channel(None);
+        let (events, _) = broadcast::channel(256);
+        let inner = Arc::new(Inner {
+            id,
+            mesh_id,
+            token_sha256,
+            params,
+            rest,
+            cmd_tx,
+            frames,
+            events,
+            shared: Mutex::new(Shared {
+                state: SessionState::Empty,
+                revision: 0,
+                handles: vec![],
+                grabs: HashMap::new(),
+                can_undo: false,
+                can_redo: false,
+            }),
+            started: Instant::now(),
+            last_active_ms: AtomicU64::new(0),
+            clients: AtomicUsize::new(0),
+            next_client: AtomicU64::new(1),
+        });
+        let actor = Actor::new(inner.clone(), frames_tx, opts);
+        drop(tokio::spawn(actor.run(cmd_rx)));
+        SessionHandle { inner }
+    }
+
+    /// Session id.
+    pub fn id(&self) -> &str {
+        &self.inner.id
+    }
+
+    /// SHA-256 of the access token.
+    pub fn token_sha256(&self) -> &[u8; 32] {
+        &self.inner.token_sha256
+    }
+
+    /// The solver parameters.
+    pub fn params(&self) -> &Params {
+        &self.inner.params
+    }
+
+    /// The rest mesh precomputation.
+    pub fn rest(&self) -> &Arc<Rest> {
+        &self.inner.rest
+    }
+
+    /// Public state.
+    pub fn info(&self) -> SessionInfo {
+        let s = self.inner.shared.lock();
+        SessionInfo {
+            id: self.inner.id.clone(),
+            mesh_id: self.inner.mesh_id.clone(),
+            state: s.state,
+            revision: s.revision,
+            handles: s.handles.clone(),
+            peers: self.inner.clients.load(Ordering::Relaxed),
+            can_undo: s.can_undo,
+            can_redo: s.can_redo,
+            vertices: self.inner.rest.mesh().num_vertices(),
+        }
+    }
+
+    /// Marks activity now (for the idle timeout).
+    pub fn touch(&self) {
+        let ms = self.inner.started.elapsed().as_millis() as u64;
+        self.inner.last_active_ms.store(ms, Ordering::Relaxed);
+    }
+
+    /// Whether the session had no activity and no client for `timeout`.
+    pub fn is_idle(&self, timeout: std::time::Duration) -> bool {
+        let now = self.inner.started.elapsed().as_millis() as u64;
+        let last = self.inner.last_active_ms.load(Ordering::Relaxed);
+        self.inner.clients.load(Ordering::Relaxed) == 0
+            && now.saturating_sub(last) >= timeout.as_millis() as u64
+    }
+
+    /// Resolves a handle reference to its index.
+    pub fn handle_index(&self, h: &HandleRef) -> Result<usize, SessionError> {
+        let s = self.inner.shared.lock();
+        let idx = match h {
+            HandleRef::Index(i) => Some(*i).filter(|i| *i < s.handles.len()),
+            HandleRef::Name(n) => s.handles.iter().position(|x| x == n),
+        };
+        idx.ok_or_else(|| SessionError::UnknownHandle { handle: h.clone() })
+    }
+
+    fn check_drag(
+        &self,
+        client: Option<ClientId>,
+        h: &HandleRef,
+        d: &Delta,
+    ) -> Result<usize, SessionError> {
+        if !d.translation.iter().all(|x| x.is_finite()) {
+            return Err(SessionError::NonFinite {
+                what: "translate".into(),
+            });
+        }
+        if !d.rotation.coords.iter().all(|x| x.is_finite()) {
+            return Err(SessionError::NonFinite {
+                what: "rotate".into(),
+            });
+        }
+        let state = self.inner.shared.lock().state;
+        if state != SessionState::Ready {
+            return Err(SessionError::NotReady { state });
+        }
+        let idx = self.handle_index(h)?;
+        if let Some(&holder) = self.inner.shared.lock().grabs.get(&idx) {
+            if Some(holder) != client {
+                return Err(SessionError::HandleGrabbed { handle: h.clone() });
+            }
+        }
+        Ok(idx)
+    }
+
+    async fn send(&self, cmd: Cmd) -> Result<(), SessionError> {
+        self.touch();
+        self.inner
+            .cmd_tx
+            .send(cmd)
+            .await
+            .map_err(|_| SessionError::Closed)
+    }
+
+    async fn call<T>(
+        &self,
+        make: impl FnOnce(oneshot::Sender<Result<T, SessionError>>) -> Cmd,
+    ) -> Result<T, SessionError> {
+        let (tx, rx) = oneshot::channel();
+        self.send(make(tx)).await?;
+        rx.await.map_err(|_| SessionError::Closed)?
+    }
+
+    /// Queues a drag delta (WebSocket path): composed into the handle's
+    /// target; the frame acknowledging `seq` follows. Returns once queued.
+    pub async fn drag(
+        &self,
+        client: ClientId,
+        h: &HandleRef,
+        delta: Delta,
+        seq: u64,
+    ) -> Result<(), SessionError> {
+        let handle = self.check_drag(Some(client), h, &delta)?;
+        self.send(Cmd::Drag {
+            handle,
+            delta,
+            seq,
+            reply: None,
+        })
+        .await
+    }
+
+    /// Applies a drag delta and runs up to `max_iters` iterations (HTTP path),
+    /// returning the resulting pose.
+    pub async fn drag_solve(
+        &self,
+        h: &HandleRef,
+        delta: Delta,
+        max_iters: usize,
+    ) -> Result<PoseSnapshot, SessionError> {
+        let handle = self.check_drag(None, h, &delta)?;
+        self.call(|tx| Cmd::Drag {
+            handle,
+            delta,
+            seq: 0,
+            reply: Some((max_iters, tx)),
+        })
+        .await
+    }
+
+    /// Validates and resolves a constraints spec against the mesh, then
+    /// starts building its factor in the background (state `building`).
+    pub async fn set_constraints(
+        &self,
+        spec_json: serde_json::Value,
+    ) -> Result<SessionState, SessionError> {
+        let spec: ConstraintsSpec = serde_json::from_value(spec_json.clone())
+            .map_err(|e| SessionError::InvalidConstraints(e.to_string()))?;
+        let rest = self.inner.rest.clone();
+        let constraints = tokio::task::spawn_blocking(move || spec.resolve(rest.mesh()))
+            .await
+            .map_err(|_| SessionError::Closed)??;
+        self.call(|tx| Cmd::SetConstraints {
+            spec: spec_json,
+            constraints,
+            restore: None,
+            reply: tx,
+        })
+        .await
+    }
+
+    /// Re-opens the stored constraints `spec_json` of a session read back
+    /// from the store, with the [`Recovered`] targets and pose (see
+    /// `server::recover`); the factor builds as after
+    /// [`set_constraints`](Self::set_constraints). Stored data that does not
+    /// fit is [`StoreError::Corrupt`](crate::store::StoreError::Corrupt).
+    pub async fn restore(
+        &self,
+        spec_json: serde_json::Value,
+        rec: Recovered,
+    ) -> Result<SessionState, SessionError> {
+        let corrupt = |reason: String| crate::store::StoreError::Corrupt {
+            what: format!("constraints of session `{}`", self.inner.id),
+            reason,
+        };
+        let spec: ConstraintsSpec =
+            serde_json::from_value(spec_json.clone()).map_err(|e| corrupt(e.to_string()))?;
+        let rest = self.inner.rest.clone();
+        let ack_seq = rec.ack_seq;
+        let (constraints, pose) =
+            tokio::task::spawn_blocking(move || -> Result<_, SessionError> {
+                let mut c = spec.resolve(rest.mesh())?;
+                rec.apply(&mut c)?;
+                Ok((c, rec.pose(rest.mesh().num_vertices())))
+            })
+            .await
+            .map_err(|_| SessionError::Closed)??;
+        let restore = Some(Restore { pose, ack_seq });
+        self.call(|tx| Cmd::SetConstraints {
+            spec: spec_json,
+            constraints,
+            restore,
+            reply: tx,
+        })
+        .await
+    }
+
+    /// Steps back in the history.
+    pub async fn undo(&self) -> Result<PoseSnapshot, SessionError> {
+        self.call(Cmd::Undo).await
+    }
+
+    /// Steps forward in the history.
+    pub async fn redo(&self) -> Result<PoseSnapshot, SessionError> {
+        self.call(Cmd::Redo).await
+    }
+
+    /// Back to the rest pose with identity handle targets (undoable).
+    pub async fn reset(&self) -> Result<PoseSnapshot, SessionError> {
+        self.call(Cmd::Reset).await
+    }
+
+    /// The current pose.
+    pub async fn pose(&self) -> Result<PoseSnapshot, SessionError> {
+        self.call(Cmd::Pose).await
+    }
+
+    /// Stops the actor; clients get a `Closed` event.
+    pub async fn close(&self) {
+        let _ = self.inner.cmd_tx.send(Cmd::Close).await;
+    }
+
+    /// A receiver of pose frames (latest frame wins).
+    pub fn frames(&self) -> watch::Receiver<Option<Frame>> {
+        self.inner.frames.clone()
+    }
+
+    /// A receiver of events (bounded; a lagging receiver loses old events).
+    pub fn events(&self) -> broadcast::Receiver<Event> {
+        self.inner.events.subscribe()
+    }
+
+    /// Registers a client; everyone gets `PeerJoined`.
+    pub fn join(&self) -> ClientId {
+        let id = self.inner.next_client.fetch_add(1, Ordering::Relaxed);
+        let _ = self.inner.clients.fetch_add(1, Ordering::Relaxed);
+        let _ = self.inner.events.send(Event::PeerJoined { client: id });
+        self.touch();
+        id
+    }
+
+    /// Unregisters a client, releasing its handles; everyone gets `PeerLeft`.
+    pub fn leave(&self, client: ClientId) {
+        let released: Vec<usize> = {
+            let mut s = self.inner.shared.lock();
+            let mine: Vec<usize> = s
+                .grabs
+                .iter()
+                .filter(|(_, c)| **c == client)
+                .map(|(h, _)| *h)
+                .collect();
+            for h in &mine {
+                let _ = s.grabs.remove(h);
+            }
+            mine
+        };
+        for handle in released {
+            let _ = self
+                .inner
+                .events
+                .send(Event::HandleReleased { handle, client });
+        }
+        let _ = self.inner.clients.fetch_sub(1, Ordering::Relaxed);
+        let _ = self.inner.events.send(Event::PeerLeft { client });
+        self.touch();
+    }
+
+    /// Grabs a handle for `client` (one holder at a time).
+    pub fn grab(&self, client: ClientId, h: &HandleRef) -> Result<usize, SessionError> {
+        let handle = self.handle_index(h)?;
+        {
+            let mut s = self.inner.shared.lock();
+            match s.grabs.get(&handle) {
+                Some(&c) if c != client => {
+                    return Err(SessionError::HandleGrabbed { handle: h.clone() })
+                }
+                Some(_) => return Ok(handle),
+                None => {
+                    let _ = s.grabs.insert(handle, client);
+                }
+            }
+        }
+        let _ = self
+            .inner
+            .events
+            .send(Event::HandleGrabbed { handle, client });
+        Ok(handle)
+    }
+
+    /// Releases a handle held by `client` (a no-op if not held by it).
+    pub fn release(&self, client: ClientId, h: &HandleRef) -> Result<usize, SessionError> {
+        let handle = self.handle_index(h)?;
+        let released = {
+            let mut s = self.inner.shared.lock();
+            if s.grabs.get(&handle) == Some(&client) {
+                let _ = s.grabs.remove(&handle);
+                true
+            } else {
+                false
+            }
+        };
+        if released {
+            let _ = self
+                .inner
+                .events
+                .send(Event::HandleReleased { handle, client });
+        }
+        Ok(handle)
+    }
+}

@@ -1,0 +1,212 @@
+//! A live editing session: one mesh's [`Rest`] precomputation, solver
+//! [`Params`], a constraint set, a [`Deformer`] holding the current pose,
+//! an undo/redo history and a revision counter.
+//!
+//! Each session is an actor task (see `actor.rs`) owning that state; a
+//! cheap, cloneable [`SessionHandle`] talks to it. The actor runs at most one
+//! solve at a time, on tokio's blocking pool. Drag deltas that arrive while a
+//! solve runs are composed into the handle targets at once
+//! (`RigidTransform::then`; none is dropped) and the next solve uses the
+//! composition. After the last delta the actor keeps iterating
+//! (`iters_per_frame` iterations per frame) until converged or
+//! `params.max_iters` iterations after the last change, then waits idle.
+//! Frames go out on a `watch` channel (latest frame wins for a slow
+//! reader), events on a bounded `broadcast` channel.
+
+mod actor;
+mod handle;
+mod recovery;
+
+pub use dend_protocol as frame;
+pub use dend_protocol::{decode_frame, FrameError, FrameHeader};
+pub use handle::{SessionHandle, SessionInfo, SessionOptions};
+pub use recovery::{transform, Recovered};
+
+use std::sync::Arc;
+
+use bytes::Bytes;
+use nalgebra::UnitQuaternion;
+use serde::{Deserialize, Serialize};
+
+use crate::store::StoreError;
+use dend::deform::DeformError;
+
+#[allow(unused_imports)] // doc links
+use dend::deform::{Deformer, Params, Rest};
+
+/// The constraint/factor state of a session.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum SessionState {
+    /// No constraints set yet.
+    Empty,
+    /// Constraints set; the factor is being built.
+    Building,
+    /// The factor is ready: drags are accepted.
+    Ready,
+    /// Building the factor failed (see the `error` event); set other constraints.
+    Failed,
+}
+
+/// A handle named by its index in the constraints' `handles` or by name.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(untagged)]
+pub enum HandleRef {
+    /// Index into the constraints' handle list.
+    Index(usize),
+    /// The handle's `name`.
+    Name(String),
+}
+
+impl std::fmt::Display for HandleRef {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            HandleRef::Index(i) => write!(f, "#{i}"),
+            HandleRef::Name(n) => write!(f, "`{n}`"),
+        }
+    }
+}
+
+/// A drag delta: rotate about the handle's current pivot, then translate.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Delta {
+    /// Delta rotation.
+    pub rotation: UnitQuaternion<f64>,
+    /// Delta translation (mesh units).
+    pub translation: [f64; 3],
+}
+
+/// Errors of session operations. Each maps to one API error code.
+#[derive(Debug, thiserror::Error)]
+pub enum SessionError {
+    /// A drag or solve before the factor is ready. Fix: wait for `ready`.
+    #[error("the session is not ready (state {state:?}); wait for the `ready` event")]
+    NotReady {
+        /// The current state.
+        state: SessionState,
+    },
+    /// The handle does not exist in the current constraints.
+    #[error("unknown handle {handle}")]
+    UnknownHandle {
+        /// The handle as given.
+        handle: HandleRef,
+    },
+    /// A delta or parameter is NaN or infinite, or a rotation is degenerate.
+    #[error("non-finite or degenerate value in {what}")]
+    NonFinite {
+        /// Which field.
+        what: String,
+    },
+    /// Another client holds the handle. Fix: wait for `handle_released`.
+    #[error("handle {handle} is grabbed by another client")]
+    HandleGrabbed {
+        /// The handle.
+        handle: HandleRef,
+    },
+    /// Undo with no earlier history entry.
+    #[error("nothing to undo")]
+    NothingToUndo,
+    /// Redo with no later history entry.
+    #[error("nothing to redo")]
+    NothingToRedo,
+    /// The constraints JSON does not parse as a constraints spec.
+    #[error("invalid constraints: {0}")]
+    InvalidConstraints(String),
+    /// The solver rejected the input or failed (constraints, factor, solve).
+    #[error(transparent)]
+    Deform(#[from] DeformError),
+    /// The store failed.
+    #[error(transparent)]
+    Store(#[from] StoreError),
+    /// A failure shared by several waiters (a solve that failed for all of them).
+    #[error(transparent)]
+    Shared(Arc<SessionError>),
+    /// The session was closed (deleted or expired) during the call.
+    #[error("the session is closed")]
+    Closed,
+}
+
+/// A pose as returned to HTTP callers.
+#[derive(Debug, Clone)]
+pub struct PoseSnapshot {
+    /// Session revision of this pose.
+    pub revision: u64,
+    /// Last applied client sequence number.
+    pub ack_seq: u64,
+    /// Iterations since the targets last changed.
+    pub iteration: u32,
+    /// Whether the solve had converged.
+    pub converged: bool,
+    /// Vertex positions (mesh units), `#V×3`.
+    pub positions: Arc<Vec<[f64; 3]>>,
+}
+
+/// One binary pose frame (see [`frame`] for the layout).
+#[derive(Debug, Clone)]
+pub struct Frame {
+    /// Its header fields.
+    pub header: FrameHeader,
+    /// The encoded frame, shared by every receiver.
+    pub bytes: Bytes,
+}
+
+/// Client id within a session (assigned by [`SessionHandle::join`]).
+pub type ClientId = u64;
+
+/// Events pushed to every client of a session.
+#[derive(Debug, Clone)]
+pub enum Event {
+    /// The factor is ready; drags are accepted.
+    Ready {
+        /// Revision at that moment.
+        revision: u64,
+    },
+    /// The state changed (constraints set, build failed, undo...).
+    State,
+    /// A failure not tied to one request (factor build, solve).
+    Error(Arc<SessionError>),
+    /// A client grabbed a handle.
+    HandleGrabbed {
+        /// Handle index.
+        handle: usize,
+        /// Who.
+        client: ClientId,
+    },
+    /// A client released a handle.
+    HandleReleased {
+        /// Handle index.
+        handle: usize,
+        /// Who.
+        client: ClientId,
+    },
+    /// A client joined.
+    PeerJoined {
+        /// Who.
+        client: ClientId,
+    },
+    /// A client left.
+    PeerLeft {
+        /// Who.
+        client: ClientId,
+    },
+    /// The session was closed (deleted or expired).
+    Closed,
+}
+
+/// Receives solver statistics (the server's metrics implement it).
+pub trait Observer: Send + Sync + 'static {
+    /// One solve finished: `iterations` DEND iterations in `seconds`.
+    fn solved(&self, iterations: usize, seconds: f64, converged: bool);
+    /// A constraint set's factor became available `seconds` after the
+    /// set was submitted (built, or found in the factor cache).
+    fn factor_ready(&self, seconds: f64) {
+        let _ = seconds;
+    }
+}
+
+/// An [`Observer`] that ignores everything.
+pub struct NoObserver;
+
+impl Observer for NoObserver {
+    fn solved(&self, _: usize, _: f64, _: bool) {}
+}

@@ -1,0 +1,420 @@
+//! Session routes and token authentication.
+//!
+//! A session's access token is 256 random bits (hex), returned once at
+//! creation; only its SHA-256 is kept, compared in constant time.
+
+use std::time::{SystemTime, UNIX_EPOCH};
+
+use axum::extract::rejection::{BytesRejection, JsonRejection};
+use axum::extract::{FromRequestParts, Path, Query, State};
+use axum::http::request::Parts;
+use axum::http::{header, HeaderMap, StatusCode};
+use axum::response::{IntoResponse, Response};
+use axum::Json;
+use bytes::Bytes;
+use nalgebra::{Quaternion, Unit, UnitQuaternion, Vector3};
+use serde::{Deserialize, Serialize};
+use sha2::{Digest, Sha256};
+use subtle::ConstantTimeEq;
+
+use super::error::ApiError;
+use super::meshes::{new_id, parse_format};
+use super::{rest_for, AppState};
+use crate::session::{Delta, HandleRef, PoseSnapshot, SessionHandle, SessionOptions};
+use crate::store::SessionRecord;
+use dend::deform::Params;
+
+/// SHA-256 of a token.
+pub(crate) fn token_hash(token: &str) -> [u8; 32] {
+    Sha256::digest(token.as_bytes()).into()
+}
+
+/// Checks `token` against a session in constant time.
+pub(crate) fn check_token(s: &SessionHandle, token: Option<&str>) -> Result<(), ApiError> {
+    let token = token.ok_or(ApiError::MissingToken)?;
+    if bool::from(token_hash(token).ct_eq(s.token_sha256())) {
+        Ok(())
+    } else {
+        Err(ApiError::WrongToken)
+    }
+}
+
+/// Looks a live session up, re-opening a stored one after a restart
+/// (see `recover`).
+pub(crate) async fn find(st: &AppState, id: &str) -> Result<SessionHandle, ApiError> {
+    let live = st.sessions.read().get(id).cloned();
+    match live {
+        Some(s) => Ok(s),
+        None => super::recover::revive(st, id)
+            .await?
+            .ok_or_else(|| ApiError::SessionNotFound(id.to_owned())),
+    }
+}
+
+/// Extractor: the session named in the path, opened by the bearer token.
+pub struct Authed(pub SessionHandle);
+
+impl FromRequestParts<AppState> for Authed {
+    type Rejection = ApiError;
+
+    async fn from_request_parts(parts: &mut Parts, st: &AppState) -> Result<Self, ApiError> {
+        let Path(id) = Path::<String>::from_request_parts(parts, st)
+            .await
+            .map_err(|e| ApiError::InvalidJson(e.body_text()))?;
+        let token = bearer(&parts.headers);
+        let s = find(st, &id).await?;
+        check_token(&s, token)?;
+        s.touch();
+        Ok(Authed(s))
+    }
+}
+
+fn bearer(h: &HeaderMap) -> Option<&str> {
+    let v = h.get(header::AUTHORIZATION)?.to_str().ok()?;
+    v.strip_prefix("Bearer ").map(str::trim)
+}
+
+/// `POST /v1/sessions` body.
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct CreateSession {
+    /// The mesh to edit.
+    pub mesh_id: String,
+    /// Solver parameters (all optional).
+    #[serde(default)]
+    pub params: serde_json::Value,
+}
+
+/// `POST /v1/sessions` answer.
+#[derive(Debug, Serialize)]
+pub struct Created {
+    /// Session id.
+    pub id: String,
+    /// Access token (shown once).
+    pub token: String,
+    /// Mesh id.
+    pub mesh_id: String,
+    /// State (`empty`).
+    pub state: crate::session::SessionState,
+}
+
+/// `POST /v1/sessions`.
+pub async fn create(
+    State(st): State<AppState>,
+    body: Result<Json<CreateSession>, JsonRejection>,
+) -> Result<impl IntoResponse, ApiError> {
+    let Json(req) = body?;
+    let params_json = if req.params.is_null() {
+        serde_json::json!({})
+    } else {
+        req.params
+    };
+    let params: Params = serde_json::from_value(params_json.clone())
+        .map_err(|e| ApiError::InvalidParams(e.to_string()))?;
+    params.validate()?;
+    if st.sessions.read().len() >= st.config.max_sessions {
+        return Err(ApiError::TooManySessions(st.config.max_sessions));
+    }
+    let rest = rest_for(&st, &req.mesh_id).await?;
+    let id = new_id();
+    let token = hex::encode(rand::random::<[u8; 32]>());
+    let hash = token_hash(&token);
+    st.store.put_session(&SessionRecord {
+        id: id.clone(),
+        mesh_id: req.mesh_id.clone(),
+        token_sha256: hex::encode(hash),
+        params: params_json,
+        constraints: None,
+        created_unix: SystemTime::now()
+            .duration_since(UNIX_EPOCH)
+            .map(|d| d.as_secs())
+            .unwrap_or(0),
+    })?;
+    let opts = SessionOptions {
+        cache: st.cache.clone(),
+        store: st.store.clone(),
+        observer: st.metrics.clone(),
+        iters_per_frame: st.config.iters_per_frame,
+    };
+    let handle = SessionHandle::spawn(id.clone(), req.mesh_id.clone(), hash, rest, params, opts);
+    handle.touch();
+    let inserted = {
+        let mut sessions = st.sessions.write();
+        let room = sessions.len() < st.config.max_sessions;
+        if room {
+            let _ = sessions.insert(id.clone(), handle.clone());
+        }
+        room
+    };
+    if !inserted {
+        handle.close().await;
+        st.store.delete_session(&id)?;
+        return Err(ApiError::TooManySessions(st.config.max_sessions));
+    }
+    st.metrics.sessions_created.inc();
+    st.metrics.sessions.set(st.sessions.read().len() as i64);
+    let state = handle.info().state;
+    Ok((
+        StatusCode::CREATED,
+        Json(Created {
+            id,
+            token,
+            mesh_id: req.mesh_id,
+            state,
+        }),
+    ))
+}
+
+/// `GET /v1/sessions/{id}`.
+pub async fn info(Authed(s): Authed) -> impl IntoResponse {
+    Json(s.info())
+}
+
+/// Stops a session and forgets it (store included).
+pub(crate) async fn close_session(st: &AppState, s: &SessionHandle) {
+    let _ = st.sessions.write().remove(s.id());
+    s.close().await;
+    if let Err(e) = st.store.delete_session(s.id()) {
+        tracing::error!(session = s.id(), error = %e, "deleting session from the store failed");
+    }
+    st.metrics.sessions.set(st.sessions.read().len() as i64);
+}
+
+/// `DELETE /v1/sessions/{id}`.
+pub async fn remove(State(st): State<AppState>, Authed(s): Authed) -> StatusCode {
+    close_session(&st, &s).await;
+    StatusCode::NO_CONTENT
+}
+
+/// `PUT /v1/sessions/{id}/constraints`: 202 while the factor builds.
+pub async fn set_constraints(
+    Authed(s): Authed,
+    body: Result<Json<serde_json::Value>, JsonRejection>,
+) -> Result<impl IntoResponse, ApiError> {
+    let Json(spec) = body?;
+    let state = s.set_constraints(spec).await?;
+    Ok((
+        StatusCode::ACCEPTED,
+        Json(serde_json::json!({ "state": state })),
+    ))
+}
+
+/// A rotation as axis + degrees.
+#[derive(Debug, Clone, Copy, Deserialize, Serialize)]
+#[serde(deny_unknown_fields)]
+pub struct AxisAngle {
+    /// Rotation axis (any length > 0).
+    pub axis: [Option<f64>; 3],
+    /// Angle in degrees (right-hand rule).
+    pub degrees: Option<f64>,
+}
+
+/// The delta fields of a drag (HTTP body and WebSocket message). Numbers
+/// are `Option` because JavaScript's `JSON.stringify` turns NaN and
+/// infinities into `null`: those get `non_finite`, not `invalid_json`.
+#[derive(Debug, Clone, Default, Deserialize, Serialize)]
+pub struct DeltaJson {
+    /// Delta translation (mesh units).
+    #[serde(default)]
+    pub translate: Option<[Option<f64>; 3]>,
+    /// Delta rotation as axis + degrees.
+    #[serde(default)]
+    pub rotate: Option<AxisAngle>,
+    /// Delta rotation as a quaternion `[x, y, z, w]` (normalised).
+    #[serde(default)]
+    pub quaternion: Option<[Option<f64>; 4]>,
+}
+
+fn finite<const N: usize>(v: &[Option<f64>; N], what: &str) -> Result<[f64; N], ApiError> {
+    let mut out = [0.0; N];
+    for (i, x) in v.iter().enumerate() {
+        match x {
+            Some(x) if x.is_finite() => out[i] = *x,
+            _ => {
+                return Err(ApiError::NonFinite(format!(
+                    "`{what}[{i}]` is NaN, infinite or null"
+                )))
+            }
+        }
+    }
+    Ok(out)
+}
+
+impl DeltaJson {
+    /// Validates (finite, non-degenerate, not both rotations) and converts.
+    pub fn to_delta(&self) -> Result<Delta, ApiError> {
+        let t = match &self.translate {
+            Some(t) => finite(t, "translate")?,
+            None => [0.0; 3],
+        };
+        let rotation = match (&self.rotate, &self.quaternion) {
+            (Some(_), Some(_)) => {
+                return Err(ApiError::InvalidJson(
+                    "give `rotate` or `quaternion`, not both".into(),
+                ));
+            }
+            (Some(r), None) => {
+                let axis = finite(&r.axis, "rotate.axis")?;
+                let [degrees] = finite(&[r.degrees], "rotate.degrees")?;
+                let axis = Unit::try_new(Vector3::from(axis), 1e-12)
+                    .ok_or_else(|| ApiError::NonFinite("`rotate.axis` has zero length".into()))?;
+                UnitQuaternion::from_axis_angle(&axis, degrees.to_radians())
+            }
+            (None, Some(q)) => {
+                let q = finite(q, "quaternion")?;
+                let q = Quaternion::new(q[3], q[0], q[1], q[2]);
+                if q.norm() < 1e-12 {
+                    return Err(ApiError::NonFinite("`quaternion` has zero length".into()));
+                }
+                UnitQuaternion::from_quaternion(q)
+            }
+            (None, None) => UnitQuaternion::identity(),
+        };
+        Ok(Delta {
+            rotation,
+            translation: t,
+        })
+    }
+}
+
+/// Parses a JSON body; the non-standard literals `NaN`/`Infinity` (as
+/// Python's `json.dumps` writes them) get `non_finite`, other errors
+/// `invalid_json`.
+pub(crate) fn parse_json<T: serde::de::DeserializeOwned>(body: &[u8]) -> Result<T, ApiError> {
+    serde_json::from_slice(body).map_err(|e| {
+        let text = String::from_utf8_lossy(body);
+        if e.is_syntax() && (text.contains("NaN") || text.contains("Infinity")) {
+            ApiError::NonFinite(format!("NaN or Infinity in the JSON ({e})"))
+        } else {
+            ApiError::InvalidJson(e.to_string())
+        }
+    })
+}
+
+/// `POST /v1/sessions/{id}/drag` body.
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct DragRequest {
+    /// Handle index or name.
+    pub handle: HandleRef,
+    /// The delta.
+    #[serde(flatten)]
+    pub delta: DeltaJson,
+    /// Iteration budget (default: the session's `max_iters`).
+    #[serde(default)]
+    pub max_iters: Option<usize>,
+}
+
+/// A pose as JSON.
+#[derive(Debug, Serialize, Deserialize)]
+pub struct PoseJson {
+    /// Session revision.
+    pub revision: u64,
+    /// Last applied client sequence number.
+    pub ack_seq: u64,
+    /// Iterations since the targets last changed.
+    pub iteration: u32,
+    /// Whether the solve converged.
+    pub converged: bool,
+    /// `#V×3` positions, mesh units.
+    pub positions: Vec<[f64; 3]>,
+}
+
+fn pose_json(p: PoseSnapshot) -> Json<PoseJson> {
+    Json(PoseJson {
+        revision: p.revision,
+        ack_seq: p.ack_seq,
+        iteration: p.iteration,
+        converged: p.converged,
+        positions: p.positions.to_vec(),
+    })
+}
+
+/// `POST /v1/sessions/{id}/drag`: applies a delta and solves.
+pub async fn drag(
+    Authed(s): Authed,
+    body: Result<Bytes, BytesRejection>,
+) -> Result<Json<PoseJson>, ApiError> {
+    let req: DragRequest = parse_json(&body?)?;
+    let delta = req.delta.to_delta()?;
+    let max_iters = req.max_iters.unwrap_or(s.params().max_iters).max(1);
+    Ok(pose_json(
+        s.drag_solve(&req.handle, delta, max_iters).await?,
+    ))
+}
+
+/// `GET /v1/sessions/{id}/pose`: JSON, or raw f32 LE xyz with
+/// `Accept: application/octet-stream`.
+pub async fn pose(Authed(s): Authed, headers: HeaderMap) -> Result<Response, ApiError> {
+    let p = s.pose().await?;
+    let binary = headers
+        .get(header::ACCEPT)
+        .and_then(|v| v.to_str().ok())
+        .is_some_and(|v| v.contains("application/octet-stream"));
+    if !binary {
+        return Ok(pose_json(p).into_response());
+    }
+    let mut buf = Vec::with_capacity(p.positions.len() * 12);
+    for v in p.positions.iter() {
+        for c in v {
+            buf.extend_from_slice(&(*c as f32).to_le_bytes());
+        }
+    }
+    Ok((
+        [
+            (header::CONTENT_TYPE, "application/octet-stream".to_owned()),
+            (
+                header::HeaderName::from_static("x-dend-revision"),
+                p.revision.to_string(),
+            ),
+            (
+                header::HeaderName::from_static("x-dend-vertex-count"),
+                p.positions.len().to_string(),
+            ),
+        ],
+        buf,
+    )
+        .into_response())
+}
+
+/// `?format=` of an export.
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ExportQuery {
+    /// `obj` (default), `off`, `ply` or `stl`.
+    pub format: Option<String>,
+}
+
+/// `GET /v1/sessions/{id}/export?format=obj|off|ply|stl`: the current
+/// pose as a mesh file (PLY and STL binary little-endian).
+pub async fn export(Authed(s): Authed, Query(q): Query<ExportQuery>) -> Result<Response, ApiError> {
+    let p = s.pose().await?;
+    let format = parse_format(
+        &q.format
+            .unwrap_or_else(|| "obj".into())
+            .to_ascii_lowercase(),
+    )?;
+    let rest = s.rest().clone();
+    let bytes = tokio::task::spawn_blocking(move || {
+        dend::mesh::io::to_bytes(&p.positions, rest.mesh().triangles(), format)
+    })
+    .await
+    .map_err(|e| ApiError::Internal(e.to_string()))?;
+    let ct = format!("model/{}", format.extension());
+    Ok(([(header::CONTENT_TYPE, ct)], bytes).into_response())
+}
+
+/// `POST /v1/sessions/{id}/undo`.
+pub async fn undo(Authed(s): Authed) -> Result<Json<PoseJson>, ApiError> {
+    Ok(pose_json(s.undo().await?))
+}
+
+/// `POST /v1/sessions/{id}/redo`.
+pub async fn redo(Authed(s): Authed) -> Result<Json<PoseJson>, ApiError> {
+    Ok(pose_json(s.redo().await?))
+}
+
+/// `POST /v1/sessions/{id}/reset`.
+pub async fn reset(Authed(s): Authed) -> Result<Json<PoseJson>, ApiError> {
+    Ok(pose_json(s.reset().await?))
+}

@@ -1,0 +1,143 @@
+//! Persistence of meshes, sessions, constraints, poses and edit history.
+//!
+//! [`Store`] is the seam between the server and its storage. The server
+//! writes through it *before* it acknowledges anything to a client:
+//! - a mesh is stored before its id is returned;
+//! - a session record (with the SHA-256 hash of its token, never the token)
+//!   before the session id is returned;
+//! - the constraints spec before `202 Accepted`;
+//! - every drag delta is appended to the session's journal before the frame
+//!   that acknowledges its sequence number is published (see
+//!   [`Store::append`]), so a crash-safe implementation that makes `append`
+//!   durable (an fsynced WAL) loses no acknowledged drag;
+//! - at each history commit point, and at every undo/redo/reset, a
+//!   [`Checkpoint`] (pose + targets) replaces the journal up to it
+//!   ([`Store::checkpoint`]). The undo history itself is not persisted.
+//!
+//! Recovering a session = its record + its last checkpoint + replaying the
+//! journal entries after it. [`SqliteStore`] (WAL, fsynced appends) is the
+//! server's default; [`MemoryStore`] keeps nothing across restarts.
+//!
+//! All methods are synchronous and may block briefly (disk I/O); the server
+//! calls the per-drag ones ([`Store::append`]) from its blocking solver pool.
+
+mod memory;
+mod sqlite;
+
+pub use memory::MemoryStore;
+pub use sqlite::{SqliteStore, DB_FILE, SCHEMA_VERSION};
+
+use std::sync::Arc;
+
+use serde::{Deserialize, Serialize};
+
+use dend::mesh::Mesh;
+
+/// Errors of a [`Store`].
+#[derive(Debug, thiserror::Error)]
+pub enum StoreError {
+    /// The backend failed (I/O, database); the message says how. Fix: check
+    /// the storage (disk full, permissions) — the request can be retried.
+    #[error("storage backend failed: {0}")]
+    Backend(String),
+    /// A stored record could not be decoded (corruption or a format change).
+    #[error("stored record `{what}` is corrupt: {reason}")]
+    Corrupt {
+        /// Which record.
+        what: String,
+        /// Why it could not be decoded.
+        reason: String,
+    },
+}
+
+/// A session as stored: everything needed to re-open it.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct SessionRecord {
+    /// Session id (public).
+    pub id: String,
+    /// Id of the mesh the session edits.
+    pub mesh_id: String,
+    /// Lower-case hex SHA-256 of the access token (the token itself is never stored).
+    pub token_sha256: String,
+    /// Solver parameters, as the `dend::deform::Params` JSON.
+    pub params: serde_json::Value,
+    /// The constraints spec last set (the CLI's constraints JSON), if any.
+    pub constraints: Option<serde_json::Value>,
+    /// Creation time, seconds since the Unix epoch.
+    pub created_unix: u64,
+}
+
+/// A rigid transform in storable form: unit quaternion `[x, y, z, w]`,
+/// translation and pivot in mesh units.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct StoredTransform {
+    /// Unit quaternion, `[x, y, z, w]`.
+    pub rotation: [f64; 4],
+    /// Translation.
+    pub translation: [f64; 3],
+    /// Pivot.
+    pub pivot: [f64; 3],
+}
+
+/// One journaled event of a session, in arrival order.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(tag = "type", rename_all = "snake_case")]
+pub enum JournalEntry {
+    /// A drag delta on handle `handle` (index into the constraints' handles):
+    /// target ← target.then(rotation, translation).
+    Drag {
+        /// Handle index.
+        handle: usize,
+        /// Delta rotation, unit quaternion `[x, y, z, w]`.
+        rotation: [f64; 4],
+        /// Delta translation (mesh units).
+        translation: [f64; 3],
+        /// The client's sequence number (0 for HTTP drags).
+        seq: u64,
+    },
+}
+
+/// A full snapshot of a session's editing state at a history commit point.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Checkpoint {
+    /// Session revision at the snapshot.
+    pub revision: u64,
+    /// The last client sequence number included in `targets` (acknowledged
+    /// in frames; 0 when none).
+    #[serde(default)]
+    pub ack_seq: u64,
+    /// Current pose (mesh units), `#V×3`.
+    pub pose: Vec<[f64; 3]>,
+    /// Current handle targets, one per handle.
+    pub targets: Vec<StoredTransform>,
+}
+
+/// Storage of meshes and sessions (see the module docs for when the server
+/// calls what). Implementations are shared as `Arc<dyn Store>`.
+pub trait Store: Send + Sync + 'static {
+    /// Stores a mesh under `id` (ids are unique; an existing id is replaced).
+    fn put_mesh(&self, id: &str, mesh: Arc<Mesh>) -> Result<(), StoreError>;
+    /// The mesh stored under `id`.
+    fn get_mesh(&self, id: &str) -> Result<Option<Arc<Mesh>>, StoreError>;
+    /// Number of stored meshes.
+    fn mesh_count(&self) -> Result<usize, StoreError>;
+    /// Stores or replaces a session record.
+    fn put_session(&self, record: &SessionRecord) -> Result<(), StoreError>;
+    /// The session record stored under `id`.
+    fn get_session(&self, id: &str) -> Result<Option<SessionRecord>, StoreError>;
+    /// All stored session records (to re-open sessions after a restart).
+    fn list_sessions(&self) -> Result<Vec<SessionRecord>, StoreError>;
+    /// Deletes a session with its journal and checkpoint (a no-op if absent).
+    fn delete_session(&self, id: &str) -> Result<(), StoreError>;
+    /// Sets the constraints spec of a session and clears its journal and
+    /// checkpoint (a new constraint set starts a new history).
+    fn set_constraints(&self, id: &str, spec: &serde_json::Value) -> Result<(), StoreError>;
+    /// Appends journal entries; must be durable when it returns.
+    fn append(&self, id: &str, entries: &[JournalEntry]) -> Result<(), StoreError>;
+    /// The journal entries after the last checkpoint, oldest first.
+    fn journal(&self, id: &str) -> Result<Vec<JournalEntry>, StoreError>;
+    /// Replaces the checkpoint and truncates the journal (atomically).
+    fn checkpoint(&self, id: &str, checkpoint: &Checkpoint) -> Result<(), StoreError>;
+    /// The last checkpoint.
+    fn get_checkpoint(&self, id: &str) -> Result<Option<Checkpoint>, StoreError>;
+}

@@ -1,0 +1,581 @@
+//! [`SqliteStore`]: the crash-safe embedded [`Store`], one SQLite database
+//! file (`dend.sqlite3`) in the server's data directory.
+//!
+//! - WAL journal mode with `synchronous=FULL`: every transaction (one per
+//!   [`Store::append`], one per [`Store::checkpoint`]) is fsynced before it
+//!   returns, so an acknowledged drag survives `kill -9` and power loss.
+//! - Compact binary blobs, little-endian: mesh positions as `f64` triples
+//!   (bit-exact), triangles as `u32` triples, checkpoint poses as `f64`
+//!   triples, targets as 10 `f64` each (quaternion, translation, pivot),
+//!   journal entries as one fixed 73-byte record (see [`encode_entry`]).
+//! - The token is kept only as its SHA-256 (32 raw bytes).
+//! - The schema is versioned by `PRAGMA user_version` ([`SCHEMA_VERSION`]);
+//!   a database written by a newer version is refused.
+//! - Every decode failure is a [`StoreError::Corrupt`] naming the record.
+//!
+//! One connection behind a mutex: the server's store calls are short and
+//! the per-drag append is dominated by its fsync.
+
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+
+use parking_lot::Mutex;
+use rusqlite::{params, Connection, OptionalExtension, TransactionBehavior};
+
+use super::{Checkpoint, JournalEntry, SessionRecord, Store, StoreError, StoredTransform};
+use dend::mesh::Mesh;
+
+/// Version of the schema below (`PRAGMA user_version`).
+pub const SCHEMA_VERSION: i64 = 1;
+
+/// The database file name inside the data directory.
+pub const DB_FILE: &str = "dend.sqlite3";
+
+const SCHEMA: &str = "
+CREATE TABLE IF NOT EXISTS meshes (
+    id TEXT PRIMARY KEY,
+    positions BLOB NOT NULL,
+    triangles BLOB NOT NULL
+);
+CREATE TABLE IF NOT EXISTS sessions (
+    id TEXT PRIMARY KEY,
+    mesh_id TEXT NOT NULL,
+    token_sha256 BLOB NOT NULL,
+    params TEXT NOT NULL,
+    constraints TEXT,
+    created_unix INTEGER NOT NULL
+);
+CREATE TABLE IF NOT EXISTS journal (
+    n INTEGER PRIMARY KEY AUTOINCREMENT,
+    session TEXT NOT NULL REFERENCES sessions(id) ON DELETE CASCADE,
+    entry BLOB NOT NULL
+);
+CREATE INDEX IF NOT EXISTS journal_session ON journal(session, n);
+CREATE TABLE IF NOT EXISTS checkpoints (
+    session TEXT PRIMARY KEY REFERENCES sessions(id) ON DELETE CASCADE,
+    revision INTEGER NOT NULL,
+    ack_seq INTEGER NOT NULL,
+    pose BLOB NOT NULL,
+    targets BLOB NOT NULL
+);
+";
+
+/// A [`Store`] in one SQLite database file (see the module docs).
+pub struct SqliteStore {
+    conn: Mutex<Connection>,
+    path: PathBuf,
+}
+
+fn backend(e: impl std::fmt::Display) -> StoreError {
+    StoreError::Backend(e.to_string())
+}
+
+fn corrupt(what: impl Into<String>, reason: impl Into<String>) -> StoreError {
+    StoreError::Corrupt {
+        what: what.into(),
+        reason: reason.into(),
+    }
+}
+
+fn missing(id: &str) -> StoreError {
+    StoreError::Backend(format!("no session `{id}`"))
+}
+
+impl SqliteStore {
+    /// Opens (creating if needed) the database in directory `dir` (created
+    /// too), in WAL mode with `synchronous=FULL`, and migrates the schema.
+    pub fn open(dir: &Path) -> Result<SqliteStore, StoreError> {
+        std::fs::create_dir_all(dir)
+            .map_err(|e| backend(format!("cannot create `{}`: {e}", dir.display())))?;
+        let path = dir.join(DB_FILE);
+        let conn = Connection::open(&path)
+            .map_err(|e| backend(format!("cannot open `{}`: {e}", path.display())))?;
+        conn.busy_timeout(std::time::Duration::from_secs(10))
+            .map_err(backend)?;
+        let mode: String = conn
+            .query_row("PRAGMA journal_mode=WAL", [], |r| r.get(0))
+            .map_err(backend)?;
+        if !mode.eq_ignore_ascii_case("wal") {
+            return Err(backend(format!(
+                "`{}` cannot use WAL mode (got `{mode}`)",
+                path.display()
+            )));
+        }
+        conn.execute_batch("PRAGMA synchronous=FULL; PRAGMA foreign_keys=ON;")
+            .map_err(backend)?;
+        let version: i64 = conn
+            .query_row("PRAGMA user_version", [], |r| r.get(0))
+            .map_err(backend)?;
+        if version > SCHEMA_VERSION {
+            return Err(corrupt(
+                path.display().to_string(),
+                format!("schema version {version} is newer than this program's {SCHEMA_VERSION}"),
+            ));
+        }
+        conn.execute_batch(SCHEMA).map_err(backend)?;
+        conn.pragma_update(None, "user_version", SCHEMA_VERSION)
+            .map_err(backend)?;
+        Ok(SqliteStore {
+            conn: Mutex::new(conn),
+            path,
+        })
+    }
+
+    /// The database file.
+    pub fn path(&self) -> &Path {
+        &self.path
+    }
+
+    /// Runs SQLite's `PRAGMA integrity_check`; any finding is
+    /// [`StoreError::Corrupt`].
+    pub fn integrity_check(&self) -> Result<(), StoreError> {
+        let conn = self.conn.lock();
+        let mut stmt = conn.prepare("PRAGMA integrity_check").map_err(backend)?;
+        let rows: Vec<String> = stmt
+            .query_map([], |r| r.get(0))
+            .map_err(backend)?
+            .collect::<Result<_, _>>()
+            .map_err(backend)?;
+        if rows == ["ok"] {
+            Ok(())
+        } else {
+            Err(corrupt(self.path.display().to_string(), rows.join("; ")))
+        }
+    }
+}
+
+// ---- binary encodings -------------------------------------------------------
+
+fn put_f64s(out: &mut Vec<u8>, xs: &[f64]) {
+    for x in xs {
+        out.extend_from_slice(&x.to_le_bytes());
+    }
+}
+
+/// Splits `blob` into `stride`-byte records, or says why it cannot.
+fn records<'a>(
+    blob: &'a [u8],
+    stride: usize,
+    what: &str,
+) -> Result<std::slice::ChunksExact<'a, u8>, StoreError> {
+    if blob.len() % stride != 0 {
+        return Err(corrupt(
+            what,
+            format!("blob of {} bytes is not a multiple of {stride}", blob.len()),
+        ));
+    }
+    Ok(blob.chunks_exact(stride))
+}
+
+fn f64_at(b: &[u8], i: usize) -> f64 {
+    let mut a = [0u8; 8];
+    a.copy_from_slice(&b[8 * i..8 * i + 8]);
+    f64::from_le_bytes(a)
+}
+
+fn f64_array<const N: usize>(b: &[u8], start: usize) -> [f64; N] {
+    std::array::from_fn(|k| f64_at(b, start + k))
+}
+
+fn encode_points(p: &[[f64; 3]]) -> Vec<u8> {
+    let mut out = Vec::with_capacity(p.len() * 24);
+    for v in p {
+        put_f64s(&mut out, v);
+    }
+    out
+}
+
+fn decode_points(b: &[u8], what: &str) -> Result<Vec<[f64; 3]>, StoreError> {
+    Ok(records(b, 24, what)?
+        .map(|r| f64_array::<3>(r, 0))
+        .collect())
+}
+
+fn encode_triangles(t: &[[u32; 3]]) -> Vec<u8> {
+    let mut out = Vec::with_capacity(t.len() * 12);
+    for f in t {
+        for i in f {
+            out.extend_from_slice(&i.to_le_bytes());
+        }
+    }
+    out
+}
+
+fn decode_triangles(b: &[u8], what: &str) -> Result<Vec<[u32; 3]>, StoreError> {
+    Ok(records(b, 12, what)?
+        .map(|r| {
+            std::array::from_fn(|k| {
+                u32::from_le_bytes([r[4 * k], r[4 * k + 1], r[4 * k + 2], r[4 * k + 3]])
+            })
+        })
+        .collect())
+}
+
+fn encode_targets(t: &[StoredTransform]) -> Vec<u8> {
+    let mut out = Vec::with_capacity(t.len() * 80);
+    for x in t {
+        put_f64s(&mut out, &x.rotation);
+        put_f64s(&mut out, &x.translation);
+        put_f64s(&mut out, &x.pivot);
+    }
+    out
+}
+
+fn decode_targets(b: &[u8], what: &str) -> Result<Vec<StoredTransform>, StoreError> {
+    Ok(records(b, 80, what)?
+        .map(|r| StoredTransform {
+            rotation: f64_array(r, 0),
+            translation: f64_array(r, 4),
+            pivot: f64_array(r, 7),
+        })
+        .collect())
+}
+
+/// Tag byte of a [`JournalEntry::Drag`] record.
+const TAG_DRAG: u8 = 1;
+/// Size of an encoded journal entry: tag, handle `u64`, rotation 4×`f64`,
+/// translation 3×`f64`, seq `u64`.
+const ENTRY_BYTES: usize = 1 + 8 + 32 + 24 + 8;
+
+/// Encodes a journal entry as a fixed-size little-endian record.
+pub fn encode_entry(e: &JournalEntry) -> Vec<u8> {
+    let mut out = Vec::with_capacity(ENTRY_BYTES);
+    match e {
+        JournalEntry::Drag {
+            handle,
+            rotation,
+            translation,
+            seq,
+        } => {
+            out.push(TAG_DRAG);
+            out.extend_from_slice(&(*handle as u64).to_le_bytes());
+            put_f64s(&mut out, rotation);
+            put_f64s(&mut out, translation);
+            out.extend_from_slice(&seq.to_le_bytes());
+        }
+    }
+    out
+}
+
+/// Decodes a record written by [`encode_entry`]; `what` names it in errors.
+pub fn decode_entry(b: &[u8], what: &str) -> Result<JournalEntry, StoreError> {
+    if b.len() != ENTRY_BYTES {
+        return Err(corrupt(
+            what,
+            format!("{} bytes, expected {ENTRY_BYTES}", b.len()),
+        ));
+    }
+    if b[0] != TAG_DRAG {
+        return Err(corrupt(what, format!("unknown entry tag {}", b[0])));
+    }
+    let u64_at = |o: usize| {
+        let mut a = [0u8; 8];
+        a.copy_from_slice(&b[o..o + 8]);
+        u64::from_le_bytes(a)
+    };
+    let handle =
+        usize::try_from(u64_at(1)).map_err(|_| corrupt(what, "handle index out of range"))?;
+    let body = &b[9..9 + 56];
+    let rotation: [f64; 4] = f64_array(body, 0);
+    let translation: [f64; 3] = f64_array(body, 4);
+    if !rotation.iter().chain(&translation).all(|x| x.is_finite()) {
+        return Err(corrupt(what, "non-finite delta"));
+    }
+    Ok(JournalEntry::Drag {
+        handle,
+        rotation,
+        translation,
+        seq: u64_at(65),
+    })
+}
+
+fn decode_record(
+    id: String,
+    mesh_id: String,
+    hash: Vec<u8>,
+    params: String,
+    constraints: Option<String>,
+    created: i64,
+) -> Result<SessionRecord, StoreError> {
+    let what = || format!("session `{id}`");
+    if hash.len() != 32 {
+        return Err(corrupt(
+            what(),
+            format!("token hash of {} bytes, expected 32", hash.len()),
+        ));
+    }
+    let params =
+        serde_json::from_str(&params).map_err(|e| corrupt(what(), format!("params: {e}")))?;
+    let constraints = match constraints {
+        Some(c) => Some(
+            serde_json::from_str(&c).map_err(|e| corrupt(what(), format!("constraints: {e}")))?,
+        ),
+        None => None,
+    };
+    let created_unix =
+        u64::try_from(created).map_err(|_| corrupt(what(), "negative creation time"))?;
+    Ok(SessionRecord {
+        id,
+        mesh_id,
+        token_sha256: hex::encode(hash),
+        params,
+        constraints,
+        created_unix,
+    })
+}
+
+type RawRecord = (String, String, Vec<u8>, String, Option<String>, i64);
+
+fn raw_record(r: &rusqlite::Row<'_>) -> rusqlite::Result<RawRecord> {
+    Ok((
+        r.get(0)?,
+        r.get(1)?,
+        r.get(2)?,
+        r.get(3)?,
+        r.get(4)?,
+        r.get(5)?,
+    ))
+}
+
+const SELECT_SESSION: &str =
+    "SELECT id, mesh_id, token_sha256, params, constraints, created_unix FROM sessions";
+
+fn session_exists(conn: &Connection, id: &str) -> Result<bool, StoreError> {
+    conn.query_row("SELECT 1 FROM sessions WHERE id = ?1", [id], |_| Ok(()))
+        .optional()
+        .map(|o| o.is_some())
+        .map_err(backend)
+}
+
+impl Store for SqliteStore {
+    fn put_mesh(&self, id: &str, mesh: Arc<Mesh>) -> Result<(), StoreError> {
+        let (p, t) = (
+            encode_points(mesh.positions()),
+            encode_triangles(mesh.triangles()),
+        );
+        self.conn
+            .lock()
+            .execute(
+                "INSERT OR REPLACE INTO meshes (id, positions, triangles) VALUES (?1, ?2, ?3)",
+                params![id, p, t],
+            )
+            .map_err(backend)?;
+        Ok(())
+    }
+
+    fn get_mesh(&self, id: &str) -> Result<Option<Arc<Mesh>>, StoreError> {
+        let row: Option<(Vec<u8>, Vec<u8>)> = self
+            .conn
+            .lock()
+            .query_row(
+                "SELECT positions, triangles FROM meshes WHERE id = ?1",
+                [id],
+                |r| Ok((r.get(0)?, r.get(1)?)),
+            )
+            .optional()
+            .map_err(backend)?;
+        let Some((p, t)) = row else { return Ok(None) };
+        let what = format!("mesh `{id}`");
+        let mesh = Mesh::new(decode_points(&p, &what)?, decode_triangles(&t, &what)?)
+            .map_err(|e| corrupt(&what, e.to_string()))?;
+        Ok(Some(Arc::new(mesh)))
+    }
+
+    fn mesh_count(&self) -> Result<usize, StoreError> {
+        let n: i64 = self
+            .conn
+            .lock()
+            .query_row("SELECT COUNT(*) FROM meshes", [], |r| r.get(0))
+            .map_err(backend)?;
+        Ok(n as usize)
+    }
+
+    fn put_session(&self, r: &SessionRecord) -> Result<(), StoreError> {
+        let hash = hex::decode(&r.token_sha256)
+            .ok()
+            .filter(|h| h.len() == 32)
+            .ok_or_else(|| {
+                backend(format!(
+                    "session `{}`: token hash is not 64 hex digits",
+                    r.id
+                ))
+            })?;
+        let params = r.params.to_string();
+        let constraints = r.constraints.as_ref().map(|c| c.to_string());
+        let created = i64::try_from(r.created_unix).unwrap_or(i64::MAX);
+        // An upsert, not INSERT OR REPLACE: a replace would delete the row and
+        // cascade to its journal and checkpoint.
+        self.conn
+            .lock()
+            .execute(
+                "INSERT INTO sessions (id, mesh_id, token_sha256, params, constraints, created_unix)
+                 VALUES (?1, ?2, ?3, ?4, ?5, ?6)
+                 ON CONFLICT(id) DO UPDATE SET mesh_id = excluded.mesh_id, token_sha256 = excluded.token_sha256,
+                   params = excluded.params, constraints = excluded.constraints,
+                   created_unix = excluded.created_unix",
+                params![r.id, r.mesh_id, hash, params, constraints, created],
+            )
+            .map_err(backend)?;
+        Ok(())
+    }
+
+    fn get_session(&self, id: &str) -> Result<Option<SessionRecord>, StoreError> {
+        let raw = self
+            .conn
+            .lock()
+            .query_row(&format!("{SELECT_SESSION} WHERE id = ?1"), [id], raw_record)
+            .optional()
+            .map_err(backend)?;
+        raw.map(|(a, b, c, d, e, f)| decode_record(a, b, c, d, e, f))
+            .transpose()
+    }
+
+    fn list_sessions(&self) -> Result<Vec<SessionRecord>, StoreError> {
+        let raws: Vec<RawRecord> = {
+            let conn = self.conn.lock();
+            let mut stmt = conn
+                .prepare(&format!("{SELECT_SESSION} ORDER BY created_unix, id"))
+                .map_err(backend)?;
+            let rows = stmt.query_map([], raw_record).map_err(backend)?;
+            rows.collect::<Result<_, _>>().map_err(backend)?
+        };
+        raws.into_iter()
+            .map(|(a, b, c, d, e, f)| decode_record(a, b, c, d, e, f))
+            .collect()
+    }
+
+    fn delete_session(&self, id: &str) -> Result<(), StoreError> {
+        let _ = self
+            .conn
+            .lock()
+            .execute("DELETE FROM sessions WHERE id = ?1", [id])
+            .map_err(backend)?;
+        Ok(())
+    }
+
+    fn set_constraints(&self, id: &str, spec: &serde_json::Value) -> Result<(), StoreError> {
+        let mut conn = self.conn.lock();
+        let tx = conn
+            .transaction_with_behavior(TransactionBehavior::Immediate)
+            .map_err(backend)?;
+        let n = tx.execute(
+            "UPDATE sessions SET constraints = ?2 WHERE id = ?1",
+            params![id, spec.to_string()],
+        );
+        if n.map_err(backend)? == 0 {
+            return Err(missing(id));
+        }
+        let _ = tx
+            .execute("DELETE FROM journal WHERE session = ?1", [id])
+            .map_err(backend)?;
+        let _ = tx
+            .execute("DELETE FROM checkpoints WHERE session = ?1", [id])
+            .map_err(backend)?;
+        tx.commit().map_err(backend)
+    }
+
+    fn append(&self, id: &str, entries: &[JournalEntry]) -> Result<(), StoreError> {
+        let mut conn = self.conn.lock();
+        let tx = conn
+            .transaction_with_behavior(TransactionBehavior::Immediate)
+            .map_err(backend)?;
+        if !session_exists(&tx, id)? {
+            return Err(missing(id));
+        }
+        {
+            let mut stmt = tx
+                .prepare_cached("INSERT INTO journal (session, entry) VALUES (?1, ?2)")
+                .map_err(backend)?;
+            for e in entries {
+                let _ = stmt
+                    .execute(params![id, encode_entry(e)])
+                    .map_err(backend)?;
+            }
+        }
+        tx.commit().map_err(backend)
+    }
+
+    fn journal(&self, id: &str) -> Result<Vec<JournalEntry>, StoreError> {
+        let blobs: Vec<(i64, Vec<u8>)> = {
+            let conn = self.conn.lock();
+            let mut stmt = conn
+                .prepare_cached("SELECT n, entry FROM journal WHERE session = ?1 ORDER BY n")
+                .map_err(backend)?;
+            let rows = stmt
+                .query_map([id], |r| Ok((r.get(0)?, r.get(1)?)))
+                .map_err(backend)?;
+            rows.collect::<Result<_, _>>().map_err(backend)?
+        };
+        blobs
+            .iter()
+            .map(|(n, b)| decode_entry(b, &format!("journal entry {n} of session `{id}`")))
+            .collect()
+    }
+
+    fn checkpoint(&self, id: &str, cp: &Checkpoint) -> Result<(), StoreError> {
+        let (pose, targets) = (encode_points(&cp.pose), encode_targets(&cp.targets));
+        let revision = i64::try_from(cp.revision).unwrap_or(i64::MAX);
+        let ack_seq = cp.ack_seq as i64; // the u64's bits, cast back on read
+        let mut conn = self.conn.lock();
+        let tx = conn
+            .transaction_with_behavior(TransactionBehavior::Immediate)
+            .map_err(backend)?;
+        if !session_exists(&tx, id)? {
+            return Err(missing(id));
+        }
+        let _ = tx
+            .execute(
+                "INSERT OR REPLACE INTO checkpoints (session, revision, ack_seq, pose, targets)
+                 VALUES (?1, ?2, ?3, ?4, ?5)",
+                params![id, revision, ack_seq, pose, targets],
+            )
+            .map_err(backend)?;
+        let _ = tx
+            .execute("DELETE FROM journal WHERE session = ?1", [id])
+            .map_err(backend)?;
+        tx.commit().map_err(backend)
+    }
+
+    fn get_checkpoint(&self, id: &str) -> Result<Option<Checkpoint>, StoreError> {
+        let row: Option<(i64, i64, Vec<u8>, Vec<u8>)> = self
+            .conn
+            .lock()
+            .query_row(
+                "SELECT revision, ack_seq, pose, targets FROM checkpoints WHERE session = ?1",
+                [id],
+                |r| Ok((r.get(0)?, r.get(1)?, r.get(2)?, r.get(3)?)),
+            )
+            .optional()
+            .map_err(backend)?;
+        let Some((revision, ack_seq, pose, targets)) = row else {
+            return Ok(None);
+        };
+        let what = format!("checkpoint of session `{id}`");
+        let revision = u64::try_from(revision).map_err(|_| corrupt(&what, "negative revision"))?;
+        let pose = decode_points(&pose, &what)?;
+        if !pose.iter().flatten().all(|x| x.is_finite()) {
+            return Err(corrupt(&what, "non-finite pose coordinate"));
+        }
+        let targets = decode_targets(&targets, &what)?;
+        let finite = targets.iter().all(|t| {
+            t.rotation
+                .iter()
+                .chain(&t.translation)
+                .chain(&t.pivot)
+                .all(|x| x.is_finite())
+        });
+        if !finite {
+            return Err(corrupt(&what, "non-finite target"));
+        }
+        Ok(Some(Checkpoint {
+            revision,
+            ack_seq: ack_seq as u64,
+            pose,
+            targets,
+        }))
+    }
+}
+
+#[cfg(test)]
+#[path = "sqlite_tests.rs"]
+mod tests;
