@@ -33,12 +33,21 @@ pub struct Args {
     /// membrane, combined.
     #[arg(long)]
     energy: Option<String>,
-    /// Stretching weight k_s of the combined energy.
+    /// Stretching weight k_s of the combined energy (least_squares, square).
     #[arg(long, default_value_t = 1.0)]
     ks: f64,
-    /// Bending weight k_b of the combined energy.
+    /// Bending weight k_b of the combined energy (least_squares, square).
     #[arg(long, default_value_t = 1.0)]
     kb: f64,
+    /// Elastic formulation: stretch weight k_s (ARAP's spokes), dimensionless.
+    #[arg(long, default_value_t = 1.0)]
+    stretch: f64,
+    /// Elastic formulation: bending weight β (E_T weighted β × surface area), dimensionless.
+    #[arg(long, default_value_t = dend::deform::DEFAULT_BENDING)]
+    bending: f64,
+    /// Elastic formulation: area-preservation weight k_a, dimensionless.
+    #[arg(long, default_value_t = dend::deform::DEFAULT_AREA)]
+    area: f64,
     /// Linear detail term (δ̂ = δ, paper eq. 15) instead of the nonlinear one.
     #[arg(long)]
     linear: bool,
@@ -64,10 +73,18 @@ pub struct Args {
     /// Convergence tolerance (largest vertex move, in mean edge lengths).
     #[arg(long, default_value_t = 1e-3)]
     tol: f64,
-    /// System solved: least_squares (paper eq. 24, default) or square
-    /// (paper eq. 23, 4th order, sparser factor).
-    #[arg(long, default_value = "least_squares")]
+    /// System solved: elastic (dend.md §9: E_T as an energy in rotated
+    /// frames + stretch + area, monotone; default), least_squares (paper
+    /// eq. 24, the default before), square or square_lu (paper eq. 23).
+    #[arg(long, default_value = "elastic")]
     formulation: String,
+    /// Print the objective after every iteration.
+    #[arg(short, long)]
+    verbose: bool,
+    /// Write a JSON report: iterations, convergence, the objective after
+    /// every iteration, timings.
+    #[arg(long, value_name = "FILE")]
+    report: Option<PathBuf>,
 }
 
 /// Runs `dend deform`.
@@ -128,9 +145,12 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         tol: args.tol,
         max_iters: args.max_iters,
         anderson: args.anderson,
+        stretch: args.stretch,
+        bending: args.bending,
+        area: args.area,
         formulation: Formulation::from_name(&args.formulation).with_context(|| {
             format!(
-                "unknown formulation {:?} (least_squares, square)",
+                "unknown formulation {:?} (elastic, least_squares, square, square_lu)",
                 args.formulation
             )
         })?,
@@ -162,18 +182,57 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let full: Vec<RigidTransform> = constraints.handles.iter().map(|h| h.target).collect();
     let mut deformer = Deformer::new(rest, params);
     let mut iterations = 0;
+    let mut objectives = Vec::new();
+    let mut iteration_ms = Vec::new();
+    let mut steps = Vec::new();
+    let (mut converged, mut diverged) = (false, false);
+    let mut objective_first = None;
     let t1 = Instant::now();
     for s in 1..=args.steps {
         for (h, t) in constraints.handles.iter_mut().zip(&full) {
             h.target = t.fraction(s as f64 / args.steps as f64);
         }
-        let rep = deformer.step(&factor, &constraints, args.max_iters)?;
-        iterations += rep.iterations;
+        // one iteration per call: the iteration state (Anderson history,
+        // rotations, safeguard) carries over between calls on unchanged
+        // targets, so this is the same sequence as one call
+        let mut rep = None;
+        let mut step_iterations = 0;
+        while step_iterations < args.max_iters {
+            let t = Instant::now();
+            let r = deformer.step(&factor, &constraints, 1)?;
+            iteration_ms.push(ms(t.elapsed()));
+            if objective_first.is_none() {
+                objective_first = Some(r.initial_objective);
+            }
+            step_iterations += r.iterations;
+            objectives.push(r.objective);
+            if args.verbose {
+                eprintln!(
+                    "  iteration {step_iterations}: objective {:.9e}, update {:.2e}",
+                    r.objective, r.last_update
+                );
+            }
+            let done = r.converged || r.diverged || r.iterations == 0;
+            rep = Some(r);
+            if done {
+                break;
+            }
+        }
+        let rep = rep.context("no iteration ran (--max-iters 0)")?;
+        iterations += step_iterations;
+        converged = rep.converged;
+        diverged |= rep.diverged;
+        steps.push(serde_json::json!({
+            "iterations": step_iterations,
+            "converged": rep.converged,
+            "diverged": rep.diverged,
+        }));
         eprintln!(
-            "step {s}/{}: {} iterations, last update {:.2e} mean edge lengths, {}",
+            "step {s}/{}: {} iterations, last update {:.2e} mean edge lengths, objective {:.6e}, {}",
             args.steps,
-            rep.iterations,
+            step_iterations,
             rep.last_update,
+            rep.objective,
             if rep.converged {
                 "converged"
             } else if rep.diverged {
@@ -192,6 +251,31 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         ms(solve),
         ms(solve) / iterations.max(1) as f64
     );
+    if let Some(path) = &args.report {
+        let mut sorted = iteration_ms.clone();
+        sorted.sort_by(f64::total_cmp);
+        let median = sorted.get(sorted.len() / 2).copied().unwrap_or(0.0);
+        let report = serde_json::json!({
+            "formulation": args.formulation,
+            "vertices": mesh.num_vertices(),
+            "unknowns": factor.num_unknowns(),
+            "iterations": iterations,
+            "converged": converged,
+            "diverged": diverged,
+            "objective_first": objective_first,
+            "objective_last": objectives.last(),
+            "objectives": objectives,
+            "precompute_ms": ms(precompute) + ms(ft.assembly) + ms(ft.symbolic) + ms(ft.numeric),
+            "operators_ms": ms(precompute),
+            "factor_ms": ms(ft.assembly) + ms(ft.symbolic) + ms(ft.numeric),
+            "factor_nnz": factor.factor_nnz(),
+            "iteration_ms_median": median,
+            "solve_ms": ms(solve),
+            "steps": steps,
+        });
+        std::fs::write(path, serde_json::to_string_pretty(&report)?)
+            .with_context(|| format!("writing {}", path.display()))?;
+    }
     io::write_path_with(
         &args.output,
         deformer.pose(),

@@ -19,6 +19,7 @@
 mod anderson;
 mod constraints;
 mod detail;
+mod elastic;
 mod factor;
 mod params;
 mod rest;
@@ -34,9 +35,10 @@ pub use constraints::{
 };
 pub use dend_linalg::ordering::{FillOrdering, NESTED_DISSECTION_MIN_UNKNOWNS};
 pub use detail::{local_rotations, Mu, RingWeights};
+pub use elastic::{ElasticOps, ElasticSet};
 pub use factor::FactorCache;
 pub use factor::{Factor, FactorKey, FactorPrecision, FactorTimings, SolveOptions, SolverChoice};
-pub use params::{DetailTerm, Energy, Formulation, Mode, Params};
+pub use params::{DetailTerm, Energy, Formulation, Mode, Params, DEFAULT_AREA, DEFAULT_BENDING};
 pub use rest::Rest;
 pub use rotation::{best_rotation, fit_rotation, fit_rotation_quat, rotation_from_covariance};
 pub use solver::{Deformer, StepReport};

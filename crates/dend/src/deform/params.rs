@@ -75,10 +75,15 @@ pub enum Mode {
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default, Hash)]
 #[serde(rename_all = "snake_case")]
 pub enum Formulation {
+    /// dend.md §9: `E_T` minimised as an energy in per-vertex rotated
+    /// frames, plus ARAP's stretch term; exact local and global steps, so
+    /// the objective never grows (see `deform::elastic`). 4th-order normal
+    /// matrix (2-ring stencil). The default.
+    #[default]
+    Elastic,
     /// Paper eq. (24): the internal and detail terms stacked as weighted
     /// least-squares rows, normal matrix `JᵀJ` (8th order for `E_T`, 4-ring
-    /// stencil). The default.
-    #[default]
+    /// stencil). The default before the elastic formulation.
     LeastSquares,
     /// Paper eq. (23): the square, mass-weighted Euler–Lagrange system
     /// (4th order, 2-ring stencil), solved with a symmetric approximate
@@ -90,10 +95,11 @@ pub enum Formulation {
 }
 
 impl Formulation {
-    /// Parses the CLI spelling: `least_squares` (or `least-squares`, `eq24`),
-    /// `square` (or `eq23`).
+    /// Parses the CLI spelling: `elastic`, `least_squares` (or
+    /// `least-squares`, `eq24`), `square` (or `eq23`), `square_lu`.
     pub fn from_name(name: &str) -> Option<Self> {
         Some(match name {
+            "elastic" => Formulation::Elastic,
             "least_squares" | "least-squares" | "eq24" => Formulation::LeastSquares,
             "square" | "eq23" => Formulation::Square,
             "square_lu" | "square-lu" => Formulation::SquareLu,
@@ -124,9 +130,29 @@ pub struct Params {
     /// Anderson acceleration window of the nonlinear iteration (Peng et al.
     /// 2018); `0` disables it. Default 5 (2–3× fewer iterations measured).
     pub anderson: usize,
-    /// Eq. (24) least squares (default) or the eq. (23) square system.
+    /// The system the iteration solves: elastic (default), eq. (24) least
+    /// squares or the eq. (23) square system.
     pub formulation: Formulation,
+    /// Elastic formulation only: the stretch weight `k_s` (ARAP's spokes
+    /// term), dimensionless. Default 1.
+    pub stretch: f64,
+    /// Elastic formulation only: the bending weight `β`, dimensionless: the
+    /// energy's `E_T` is weighted `k_b = β S` with `S` the surface area on
+    /// the normalised mesh (mean edge length 1), so that scale and
+    /// resolution do not change the pose. Default [`DEFAULT_BENDING`].
+    pub bending: f64,
+    /// Elastic formulation only: the area-preservation weight `k_a`
+    /// (Projective Dynamics' area constraint per triangle), dimensionless.
+    /// Default [`DEFAULT_AREA`].
+    pub area: f64,
 }
+
+/// The elastic formulation's default area weight `k_a` (see [`Params::area`]).
+pub const DEFAULT_AREA: f64 = 15.0;
+
+/// The elastic formulation's default bending weight `β` (see
+/// [`Params::bending`]).
+pub const DEFAULT_BENDING: f64 = 3e-3;
 
 impl Default for Params {
     fn default() -> Self {
@@ -139,17 +165,22 @@ impl Default for Params {
             tol: 1e-3,
             max_iters: 100,
             anderson: 5,
-            formulation: Formulation::LeastSquares,
+            formulation: Formulation::Elastic,
+            stretch: 1.0,
+            bending: DEFAULT_BENDING,
+            area: DEFAULT_AREA,
         }
     }
 }
 
 impl Params {
-    /// The literal paper: [`Mode::Paper`] with the table's `L² - 2LG`.
+    /// The literal paper: [`Mode::Paper`] with the table's `L² - 2LG`,
+    /// solved as eq. (24)'s least squares.
     pub fn paper() -> Self {
         Params {
             energy: Energy::TotalCurvaturePaper,
             mode: Mode::Paper,
+            formulation: Formulation::LeastSquares,
             ..Params::default()
         }
     }
@@ -165,6 +196,16 @@ impl Params {
         }
         if !(self.tol.is_finite() && self.tol > 0.0) {
             return Err(bad("tol", self.tol));
+        }
+        if !(self.stretch.is_finite() && self.stretch >= 0.0) {
+            return Err(bad("stretch", self.stretch));
+        }
+        if !(self.bending.is_finite() && self.bending >= 0.0) || self.stretch + self.bending == 0.0
+        {
+            return Err(bad("bending", self.bending));
+        }
+        if !(self.area.is_finite() && self.area >= 0.0) {
+            return Err(bad("area", self.area));
         }
         if self.anderson > super::anderson::MAX_WINDOW {
             return Err(bad("anderson", self.anderson as f64));

@@ -7,7 +7,8 @@ use std::sync::{Arc, Mutex};
 use sprs::CsMat;
 
 use super::detail::{Mu, RingWeights};
-use super::params::{Energy, Mode};
+use super::elastic::ElasticOps;
+use super::params::{Energy, Mode, Params};
 use super::DeformError;
 use crate::mesh::{Mesh, Point, Real};
 use crate::operators::Operators;
@@ -31,7 +32,13 @@ pub struct Rest {
     /// [`ENERGY_CACHE`]: every constraint set of a session reuses its
     /// energy's.
     energies: Mutex<Vec<(Energy, Arc<EnergyOperator>)>>,
+    /// The elastic formulation's operators built so far, by weights (most
+    /// recent last), at most [`ENERGY_CACHE`].
+    elastics: Mutex<Vec<(ElasticKey, Arc<ElasticOps>)>>,
 }
+
+/// What an [`ElasticOps`] depends on besides the rest mesh.
+type ElasticKey = (bool, u64, u64, u64, u64);
 
 /// Energy matrices a [`Rest`] keeps (sessions rarely switch energies).
 const ENERGY_CACHE: usize = 4;
@@ -69,6 +76,7 @@ impl Rest {
             weights,
             active,
             energies: Mutex::new(Vec::new()),
+            elastics: Mutex::new(Vec::new()),
         })
     }
 
@@ -113,6 +121,35 @@ impl Rest {
                 v.remove(0);
             }
             v.push((energy, op.clone()));
+        }
+        op
+    }
+
+    /// The elastic formulation's operators for `params`' weights, built on
+    /// first use and kept.
+    pub(crate) fn elastic(&self, params: &Params) -> Arc<ElasticOps> {
+        let key: ElasticKey = (
+            params.energy == Energy::ThinPlate,
+            params.stretch.to_bits(),
+            params.bending.to_bits(),
+            params.lambda2.to_bits(),
+            params.area.to_bits(),
+        );
+        let find = |v: &[(ElasticKey, Arc<ElasticOps>)]| {
+            v.iter().find(|(k, _)| *k == key).map(|(_, op)| op.clone())
+        };
+        if let Some(op) = self.elastics.lock().ok().and_then(|v| find(&v)) {
+            return op;
+        }
+        let op = Arc::new(ElasticOps::new(&self.mesh, &self.ops, params));
+        if let Ok(mut v) = self.elastics.lock() {
+            if let Some(found) = find(&v) {
+                return found;
+            }
+            if v.len() == ENERGY_CACHE {
+                v.remove(0);
+            }
+            v.push((key, op.clone()));
         }
         op
     }

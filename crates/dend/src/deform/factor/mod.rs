@@ -8,20 +8,24 @@
 //! Rust implementation measured for this matrix (see README).
 
 use std::sync::atomic::{AtomicU64, Ordering};
+use std::sync::Arc;
 use std::time::{Duration, Instant};
 
 use faer::dyn_stack::{MemStack, StackReq};
 use faer::sparse::linalg::cholesky::{LltRef, SymbolicCholesky, SymbolicCholeskyRaw};
 use faer::sparse::{SparseColMat, SymbolicSparseColMat};
 use faer::{Conj, MatMut, Par};
+use sprs::CsMat;
 
 use crate::deform::cg::Cg;
 use crate::deform::cholesky::{self, analyse, csr_arrays};
 use crate::deform::constraints::Constraints;
+use crate::deform::elastic::{ElasticOps, ElasticSet};
 use crate::deform::ordering::FillOrdering;
 use crate::deform::params::{Energy, Formulation, Mode, Params};
 use crate::deform::rest::Rest;
 use crate::deform::square::{self, Square};
+use crate::deform::system::partition;
 use crate::deform::system::{Prepared, System};
 use crate::deform::trisolve;
 use crate::deform::DeformError;
@@ -43,6 +47,9 @@ pub struct FactorKey {
     lambda2: u64,
     mode: Mode,
     formulation: Formulation,
+    stretch: u64,
+    bending: u64,
+    area: u64,
     constrained: Vec<u32>,
 }
 
@@ -63,6 +70,9 @@ impl FactorKey {
             lambda2: params.lambda2.to_bits(),
             mode: params.mode,
             formulation: params.formulation,
+            stretch: params.stretch.to_bits(),
+            bending: params.bending.to_bits(),
+            area: params.area.to_bits(),
             constrained: constraints.constrained(),
         }
     }
@@ -92,8 +102,12 @@ pub struct Factor {
     /// The eq. (23) operators when built for [`Formulation::Square`]
     /// (then `sys` holds no stacked rows and `sys.m` is its SPD `N`).
     pub(crate) square: Option<Square>,
-    /// `A X` on the normalised rest positions, `#V×3`.
+    /// `A X` on the normalised rest positions, `#V×3` (empty for the
+    /// elastic formulation).
     pub(crate) ax: Vec<Point>,
+    /// The elastic formulation's operators and system
+    /// ([`Formulation::Elastic`]; then `sys.m` is `Q_UU`).
+    pub(crate) elastic: Option<(Arc<ElasticOps>, ElasticSet)>,
     symbolic: Option<SymbolicCholesky<usize>>,
     /// Factor values in double precision (empty when kept in single).
     values: Vec<Real>,
@@ -268,6 +282,7 @@ impl Factor {
         // eq. (24) to factorise: M's pattern first, then its values and the
         // symbolic analysis (which needs the pattern only) at the same time
         let mut analysed = None;
+        let mut elastic = None;
         let (sys, square, ax) = match params.formulation {
             Formulation::LeastSquares => {
                 let energy = rest.energy(params.energy);
@@ -291,6 +306,13 @@ impl Factor {
             Formulation::Square | Formulation::SquareLu => {
                 let (sys, sq, ax) = square::assemble(ops, params, &key.constrained, rest.active())?;
                 (sys, Some(sq), ax)
+            }
+            Formulation::Elastic => {
+                let el = rest.elastic(params);
+                let set = el.system(ops, &key.constrained);
+                let sys = elastic_system(&set, params, &key.constrained, rest.active());
+                elastic = Some((el, set));
+                (sys, None, Vec::new())
             }
         };
         let t1 = Instant::now();
@@ -347,6 +369,7 @@ impl Factor {
                     energy: params.energy,
                     square,
                     ax,
+                    elastic,
                     symbolic: None,
                     values: Vec::new(),
                     values32: Vec::new(),
@@ -390,6 +413,7 @@ impl Factor {
             energy: params.energy,
             square,
             ax,
+            elastic,
             symbolic,
             values,
             values32,
@@ -594,4 +618,63 @@ fn symbolic_flops(symbolic: &SymbolicCholesky<usize>) -> f64 {
                 .sum::<f64>()
         })
         .sum()
+}
+
+/// The elastic formulation's system of one constraint set: the unknowns
+/// (free vertices; every active vertex with soft constraints) and
+/// `M = Q_UU` (plus `λ1 q̄` on the constrained diagonal with soft
+/// constraints, `q̄` the mean diagonal of `Q`, so that `λ1` is
+/// dimensionless). `rows` are the unknowns; there are no stacked rows.
+fn elastic_system(
+    set: &ElasticSet,
+    params: &Params,
+    constrained: &[u32],
+    active: &[bool],
+) -> System {
+    let q = &set.q;
+    let n = q.rows();
+    let soft = params.lambda1 > 0.0;
+    let (rows, unknowns, col_of) = partition(n, constrained, active, soft);
+    let mean_diag = (0..n)
+        .map(|i| q.get(i, i).copied().unwrap_or(0.0))
+        .sum::<Real>()
+        / (active.iter().filter(|&&a| a).count().max(1) as Real);
+    let lambda1 = params.lambda1 * mean_diag;
+    let mut is_constrained = vec![false; n];
+    for &c in constrained {
+        is_constrained[c as usize] = true;
+    }
+    let mut indptr = Vec::with_capacity(unknowns.len() + 1);
+    indptr.push(0);
+    let (mut indices, mut data) = (Vec::new(), Vec::new());
+    for &u in &unknowns {
+        let u = u as usize;
+        if let Some(row) = q.outer_view(u) {
+            for (j, &v) in row.iter() {
+                let k = col_of[j];
+                if k != u32::MAX {
+                    let diag = if j == u && soft && is_constrained[u] {
+                        lambda1
+                    } else {
+                        0.0
+                    };
+                    indices.push(k as usize);
+                    data.push(v + diag);
+                }
+            }
+        }
+        indptr.push(indices.len());
+    }
+    let k = unknowns.len();
+    let m = CsMat::new((k, k), indptr, indices, data);
+    System {
+        row_weight: Vec::new(),
+        sqrt_lambda2: params.lambda2.sqrt(),
+        rows,
+        unknowns,
+        col_of,
+        m,
+        constrained: constrained.to_vec(),
+        lambda1,
+    }
 }

@@ -18,6 +18,8 @@ use super::stacked::{self, Shape};
 use super::DeformError;
 use crate::mesh::{Point, Real};
 
+mod elastic;
+
 /// The safeguard's slack: a step may raise the objective by this factor
 /// (the fixed point of the lagged iteration is not a minimiser of the
 /// objective, so it may rise a little near convergence); beyond it the step
@@ -72,6 +74,8 @@ pub struct Deformer {
     /// Pose in mesh units, kept in step with `y`.
     pose: Vec<Point>,
     scratch: Scratch,
+    /// The elastic formulation's state (rotations, projections, Anderson).
+    elastic: elastic::State,
 }
 
 #[derive(Default)]
@@ -137,6 +141,7 @@ impl Deformer {
             y,
             pose,
             scratch: Scratch::default(),
+            elastic: elastic::State::default(),
         }
     }
 
@@ -155,6 +160,7 @@ impl Deformer {
         params.validate()?;
         self.params = params;
         self.scratch.evaluated = None;
+        self.elastic.invalidate();
         self.scratch.mem = None; // re-size the scratch (Anderson window) on the next step
         Ok(())
     }
@@ -179,12 +185,14 @@ impl Deformer {
         self.y = pose.iter().map(|&p| self.rest.ops.normalise(p)).collect();
         self.pose = pose;
         self.scratch.evaluated = None;
+        self.elastic.invalidate();
         Ok(())
     }
 
     /// Back to the rest pose.
     pub fn reset(&mut self) {
         self.scratch.evaluated = None;
+        self.elastic.reset();
         self.y = self.rest.ops.positions.clone();
         self.pose = self.rest.mesh.positions().to_vec();
     }
@@ -205,39 +213,12 @@ impl Deformer {
         constraints: &Constraints,
         max_iters: usize,
     ) -> Result<StepReport, DeformError> {
-        let constrained = constraints.constrained();
-        if factor.sys.constrained != constrained
-            || factor.key() != &super::FactorKey::new(&self.rest, &self.params, constraints)
-        {
-            return Err(DeformError::FactorMismatch);
+        if let Some((el, set)) = &factor.elastic {
+            return self.step_elastic(factor, (el, set), constraints, max_iters);
         }
         self.prepare(factor);
-        // Targets, normalised.
-        let ops = &self.rest.ops;
+        let moved = self.load_targets(factor, constraints)?;
         let s = &mut self.scratch;
-        s.targets.clear();
-        for &v in &constraints.fixed {
-            s.targets.push((v, ops.positions[v as usize]));
-        }
-        for h in &constraints.handles {
-            for (v, p) in h.target_positions() {
-                if p.iter().any(|c| !c.is_finite()) {
-                    return Err(DeformError::NonFinite {
-                        what: "handle target",
-                    });
-                }
-                s.targets.push((v, ops.normalise(p)));
-            }
-        }
-        let hard = factor.sys.lambda1 == 0.0;
-        let mut moved = !hard; // soft constraints: the objective depends on the targets
-        if hard {
-            for &(v, p) in &s.targets {
-                let y = &mut self.y[v as usize];
-                moved |= *y != p;
-                *y = p;
-            }
-        }
         let chain = s
             .evaluated
             .take()
@@ -413,6 +394,50 @@ impl Deformer {
         }
         self.sync_pose();
         Ok(report)
+    }
+
+    /// Checks that `factor` was built for `constraints` (and this rest
+    /// mesh and these parameters), loads the normalised targets into
+    /// `scratch.targets` and, with hard constraints, moves the constrained
+    /// vertices onto them. Returns whether the objective changed (a target
+    /// moved; always with soft constraints).
+    fn load_targets(
+        &mut self,
+        factor: &Factor,
+        constraints: &Constraints,
+    ) -> Result<bool, DeformError> {
+        let constrained = constraints.constrained();
+        if factor.sys.constrained != constrained
+            || factor.key() != &super::FactorKey::new(&self.rest, &self.params, constraints)
+        {
+            return Err(DeformError::FactorMismatch);
+        }
+        let ops = &self.rest.ops;
+        let s = &mut self.scratch;
+        s.targets.clear();
+        for &v in &constraints.fixed {
+            s.targets.push((v, ops.positions[v as usize]));
+        }
+        for h in &constraints.handles {
+            for (v, p) in h.target_positions() {
+                if p.iter().any(|c| !c.is_finite()) {
+                    return Err(DeformError::NonFinite {
+                        what: "handle target",
+                    });
+                }
+                s.targets.push((v, ops.normalise(p)));
+            }
+        }
+        let hard = factor.sys.lambda1 == 0.0;
+        let mut moved = !hard; // soft constraints: the objective depends on the targets
+        if hard {
+            for &(v, p) in &s.targets {
+                let y = &mut self.y[v as usize];
+                moved |= *y != p;
+                *y = p;
+            }
+        }
+        Ok(moved)
     }
 
     fn sync_pose(&mut self) {
