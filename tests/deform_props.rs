@@ -4,6 +4,16 @@ mod support;
 
 use std::sync::Arc;
 
+/// Eq. (24) least squares (the default before the elastic formulation):
+/// the energies' properties below are this formulation's; the elastic
+/// default's are in tests/elastic.rs.
+fn ls() -> Params {
+    Params {
+        formulation: Formulation::LeastSquares,
+        ..Params::default()
+    }
+}
+
 use dend::deform::*;
 use dend::mesh::Mesh;
 use nalgebra::{UnitQuaternion, Vector3};
@@ -68,10 +78,7 @@ fn identity_edit_keeps_the_rest_pose_on_irregular_meshes() {
             }],
         };
         for energy in [Energy::TotalCurvature, Energy::ThinPlate, Energy::Membrane] {
-            let params = Params {
-                energy,
-                ..Params::default()
-            };
+            let params = Params { energy, ..ls() };
             let (pose, rep) = solve(&m, params, &spec, 20);
             let err = max_dist(&pose, m.positions()) / m.diagonal();
             assert!(
@@ -105,7 +112,7 @@ fn translating_every_constraint_translates_the_mesh() {
                 energy,
                 detail,
                 tol: 1e-12,
-                ..Params::default()
+                ..ls()
             };
             let (pose, _) = solve(&m, params, &spec, 500);
             let want: Vec<[f64; 3]> = m
@@ -125,7 +132,7 @@ fn translating_every_constraint_translates_the_mesh() {
         energy: Energy::TotalCurvaturePaper,
         detail: DetailTerm::Linear,
         mode: Mode::Paper,
-        ..Params::default()
+        ..ls()
     };
     let (pose, _) = solve(&m, params, &spec, 5);
     let want: Vec<[f64; 3]> = m
@@ -177,14 +184,14 @@ fn twisted_tube_default_keeps_sections_paper_and_linear_fail() {
         );
         (area, dev, rep)
     };
-    let (area, dev, rep) = run(Params::default());
+    let (area, dev, rep) = run(ls());
     assert!(
         rep.converged && area >= 0.85 && dev <= 8.0,
         "default: {area} {dev} {rep:?}"
     );
     let (area, dev, _) = run(Params {
         energy: Energy::Membrane,
-        ..Params::default()
+        ..ls()
     });
     assert!(area >= 0.85 && dev <= 8.0, "membrane: {area} {dev}");
     let (_, dev, _) = run(Params::paper());
@@ -195,7 +202,7 @@ fn twisted_tube_default_keeps_sections_paper_and_linear_fail() {
     let (area, _, _) = run(Params {
         energy: Energy::ThinPlate,
         detail: DetailTerm::Linear,
-        ..Params::default()
+        ..ls()
     });
     assert!(area < 0.6, "thin plate + linear should collapse: {area}");
 }
@@ -250,12 +257,9 @@ fn rigid_rotation_of_all_constraints() {
     };
     let linear = err(Params {
         detail: DetailTerm::Linear,
-        ..Params::default()
+        ..ls()
     });
-    let nonlinear = err(Params {
-        tol: 1e-8,
-        ..Params::default()
-    });
+    let nonlinear = err(Params { tol: 1e-8, ..ls() });
     eprintln!("rigid rotation error / diagonal: linear {linear:.3e}, nonlinear {nonlinear:.3e}");
     assert!(
         linear > 1e-3,
@@ -299,7 +303,7 @@ fn scaling_mesh_and_targets_scales_the_result() {
             }),
         ),
     );
-    let params = Params::default();
+    let params = ls();
     let (pose, _) = solve(&m, params, &spec, 40);
     for s in [1e-3, 1e4] {
         let ms = m
@@ -361,7 +365,7 @@ fn hard_constraints_are_met_exactly_and_soft_ones_approach_them() {
             .map(|&(v, p)| max_dist(&[pose[v as usize]], &[p]))
             .fold(0.0, f64::max)
     };
-    let (hard, _) = solve(&m, Params::default(), &spec, 50);
+    let (hard, _) = solve(&m, ls(), &spec, 50);
     assert!(
         miss(&hard) < 1e-12 * m.diagonal(),
         "hard miss {}",
@@ -369,15 +373,7 @@ fn hard_constraints_are_met_exactly_and_soft_ones_approach_them() {
     );
     let mut last = f64::INFINITY;
     for lambda1 in [0.1, 1.0, 10.0, 100.0, 1000.0] {
-        let (soft, _) = solve(
-            &m,
-            Params {
-                lambda1,
-                ..Params::default()
-            },
-            &spec,
-            50,
-        );
+        let (soft, _) = solve(&m, Params { lambda1, ..ls() }, &spec, 50);
         let e = miss(&soft);
         eprintln!("soft lambda1 = {lambda1}: constraint miss {e:.3e}");
         assert!(e < last, "miss must shrink as lambda1 grows: {e} !< {last}");
@@ -393,7 +389,7 @@ fn changing_only_targets_never_refactors() {
     let cache = FactorCache::new(1 << 30);
     let spec = tube_spec(&m, handle(None, None));
     let mut c = spec.resolve(&m).unwrap();
-    let params = Params::default();
+    let params = ls();
     let mut d = Deformer::new(rest.clone(), params);
     for k in 0..10 {
         c.handles[0].target = c.handles[0].target.then(
@@ -422,7 +418,7 @@ fn a_cache_builds_its_factors_with_its_options() {
     let m = tube(1.0, 5.0, 40, 40);
     let rest = Arc::new(Rest::new(m.clone()).unwrap());
     let c = tube_spec(&m, handle(None, None)).resolve(&m).unwrap();
-    let params = Params::default();
+    let params = ls();
     let single = FactorCache::with_options(
         1 << 30,
         SolveOptions {
@@ -451,7 +447,7 @@ fn concurrent_requests_for_one_set_build_one_factor() {
     let rest = Arc::new(Rest::new(m.clone()).unwrap());
     let cache = Arc::new(FactorCache::new(1 << 30));
     let c = tube_spec(&m, handle(None, None)).resolve(&m).unwrap();
-    let params = Params::default();
+    let params = ls();
     let ids: Vec<u64> = std::thread::scope(|scope| {
         let hs: Vec<_> = (0..6)
             .map(|_| scope.spawn(|| cache.get_or_build(&rest, &params, &c).unwrap().id()))
@@ -482,11 +478,11 @@ fn near_degenerate_triangles_give_finite_poses() {
         }],
     };
     for params in [
-        Params::default(),
+        ls(),
         Params::paper(),
         Params {
             energy: Energy::ThinPlate,
-            ..Params::default()
+            ..ls()
         },
     ] {
         let (pose, rep) = solve(&m, params, &spec, 30);
@@ -531,7 +527,7 @@ fn bad_constraint_sets_are_typed_errors() {
     ));
     let bad = Params {
         lambda2: f64::NAN,
-        ..Params::default()
+        ..ls()
     };
     assert!(matches!(
         bad.validate(),
@@ -550,7 +546,7 @@ fn bad_constraint_sets_are_typed_errors() {
     let rest = Rest::new(m2.clone()).unwrap();
     let c = Constraints::new(&m2, vec![0, 1], vec![]).unwrap();
     assert!(matches!(
-        Factor::build(&rest, &Params::default(), &c),
+        Factor::build(&rest, &ls(), &c),
         Err(DeformError::Unconstrained { component: 1, .. })
     ));
 }
@@ -578,18 +574,18 @@ fn identity_edit_on_random_delaunay_patches() {
             }],
         };
         for params in [
-            Params::default(),
+            ls(),
             Params {
                 energy: Energy::ThinPlate,
-                ..Params::default()
+                ..ls()
             },
             Params {
                 lambda1: 10.0,
-                ..Params::default()
+                ..ls()
             },
             Params {
                 detail: DetailTerm::Linear,
-                ..Params::default()
+                ..ls()
             },
         ] {
             let (pose, rep) = solve(&m, params, &spec, 50);
@@ -609,11 +605,11 @@ fn identity_edit_on_random_delaunay_patches() {
             ..spec.clone()
         };
         for params in [
-            Params::default(),
+            ls(),
             Params::paper(),
             Params {
                 energy: Energy::Membrane,
-                ..Params::default()
+                ..ls()
             },
         ] {
             let (pose, rep) = solve(&m, params, &spec2, 60);
@@ -650,15 +646,7 @@ fn real_edit_converges_on_an_irregular_grid() {
             }],
         };
         for energy in [Energy::TotalCurvature, Energy::ThinPlate, Energy::Membrane] {
-            let (pose, rep) = solve(
-                &m,
-                Params {
-                    energy,
-                    ..Params::default()
-                },
-                &spec,
-                100,
-            );
+            let (pose, rep) = solve(&m, Params { energy, ..ls() }, &spec, 100);
             assert!(
                 rep.converged && !rep.diverged,
                 "seed {seed} {energy:?}: {rep:?}"
@@ -686,10 +674,10 @@ fn chained_one_iteration_steps_equal_one_long_step() {
     );
     let c = spec.resolve(&m).unwrap();
     for params in [
-        Params::default(),
+        ls(),
         Params {
             anderson: 0,
-            ..Params::default()
+            ..ls()
         },
     ] {
         let rest = Arc::new(Rest::new(m.clone()).unwrap());

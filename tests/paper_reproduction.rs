@@ -26,7 +26,14 @@ use dend::mesh::io::{self, survey};
 use dend::mesh::{Mesh, Point};
 
 /// The three modes compared throughout.
-fn modes() -> [(&'static str, Params); 3] {
+/// The default (the elastic formulation), the literal paper, the paper's
+/// linear variant (thin plate + linear detail term, eq. (24)) and eq. (24)
+/// least squares with our reading (the default before the elastic one).
+fn modes() -> [(&'static str, Params); 4] {
+    let least_squares = Params {
+        formulation: Formulation::LeastSquares,
+        ..Params::default()
+    };
     [
         ("default", Params::default()),
         ("paper", Params::paper()),
@@ -35,9 +42,10 @@ fn modes() -> [(&'static str, Params); 3] {
             Params {
                 energy: Energy::ThinPlate,
                 detail: DetailTerm::Linear,
-                ..Params::default()
+                ..least_squares
             },
         ),
+        ("least-squares", least_squares),
     ]
 }
 
@@ -220,7 +228,7 @@ fn bend(
 /// converged without divergence; thin plate + linear collapses (min area
 /// below `collapse`); the literal paper twists worse than the default.
 fn check_twist_135(rows: &[BarRow], collapse: f64) {
-    let [(_, area, dev, d), (_, _, paper_dev, _), (_, tp_area, _, _)] = rows else {
+    let [(_, area, dev, d), (_, _, paper_dev, _), (_, tp_area, _, _), _] = rows else {
         unreachable!()
     };
     assert!(d.converged && !d.diverged, "default did not converge");
@@ -259,7 +267,7 @@ fn generated_bar_twisted_300_in_5_steps() {
     // pose (`run`), and the last step ending within the safeguard's slack of
     // its starting objective. The path-independent modes are stable: they
     // end at the handle's −60° equivalent (dev > 300°).
-    let [(_, _, _, d), (_, _, paper_dev, _), (_, _, tp_dev, _)] = &rows[..] else {
+    let [(_, _, _, d), (_, _, paper_dev, _), (_, _, tp_dev, _), _] = &rows[..] else {
         unreachable!()
     };
     assert_within_safeguard(d);
@@ -286,7 +294,7 @@ fn generated_cylinder_bent_120() {
     let rows = bend("cylinder 120°", &m, &c, 1, 100);
     // measured: default 0.103, paper 0.105, thin plate + linear 0.097, ARAP
     // 1.03 after 100 iterations
-    check_bend(&rows, 0.15);
+    check_bend(&rows, 0.15, 0.6);
 }
 
 #[test]
@@ -300,7 +308,7 @@ fn generated_cylinder_bent_180_in_3_steps() {
     // Asserted for it: constraints, a finite pose, and the last step ending
     // within the safeguard's slack of its start. Thin plate + linear (0.147)
     // and the paper mode (0.209) are stable and bend evenly.
-    let [(_, _, d), (_, paper_cv, _), (_, tp_cv, _)] = &rows[..] else {
+    let [(_, _, d), (_, paper_cv, _), (_, tp_cv, _), _] = &rows[..] else {
         unreachable!()
     };
     assert_within_safeguard(d);
@@ -312,15 +320,26 @@ fn generated_cylinder_bent_180_in_3_steps() {
 
 /// The default mode's bend CV is at most `max_cv`, it does not diverge, and
 /// it bends at least as evenly as thin plate + linear (within 0.02 of its CV).
-fn check_bend(rows: &[(&'static str, f64, Run)], max_cv: f64) {
-    let [(_, cv, d), _, (_, tp_cv, _)] = rows else {
+/// Eq. (24) least squares' bend CV is at most `max_cv`, it does not
+/// diverge, and it bends at least as evenly as thin plate + linear (within
+/// 0.02 of its CV). The elastic default converges and its CV is at most
+/// `elastic_max_cv`: it does NOT bend as evenly (its stretch and area
+/// terms let the tube ovalise where it bends most; see
+/// docs/paper-reproduction.md), which this bound records.
+fn check_bend(rows: &[(&'static str, f64, Run)], max_cv: f64, elastic_max_cv: f64) {
+    let [(_, el_cv, el), _, (_, tp_cv, _), (_, cv, d)] = rows else {
         unreachable!()
     };
-    assert!(*cv <= max_cv, "default bend CV {cv:.3} > {max_cv}");
-    assert!(!d.diverged, "default diverged");
+    assert!(*cv <= max_cv, "least-squares bend CV {cv:.3} > {max_cv}");
+    assert!(!d.diverged, "least squares diverged");
     assert!(
         *cv <= tp_cv + 0.02,
-        "default bend CV {cv:.3} worse than thin plate + linear {tp_cv:.3}"
+        "least-squares bend CV {cv:.3} worse than thin plate + linear {tp_cv:.3}"
+    );
+    assert!(el.converged && !el.diverged, "elastic did not converge");
+    assert!(
+        *el_cv <= elastic_max_cv,
+        "elastic bend CV {el_cv:.3} > {elastic_max_cv}"
     );
 }
 
@@ -343,7 +362,7 @@ fn survey_cylinder_bent_120() {
     let rows = bend("survey cylinder 120°", &m, &c, 1, 100);
     // measured: default 0.298, paper 0.296, thin plate + linear 0.297, ARAP
     // 1.25 after 100 iterations (the survey's target is not a uniform arc)
-    check_bend(&rows, 0.35);
+    check_bend(&rows, 0.35, 1.0);
 }
 
 /// Cactus and bumpy plane: every mode gives a finite pose with exact

@@ -259,7 +259,10 @@ fn factor_keys_differ_per_formulation() {
     let m = tube(1.0, 4.0, 4, 17);
     let rest = Arc::new(Rest::new(m.clone()).unwrap());
     let c = both_ends(&m, motion(UnitQuaternion::identity(), [0.0; 3]));
-    let ls = Params::default();
+    let ls = Params {
+        formulation: Formulation::LeastSquares,
+        ..Params::default()
+    };
     let sq = square(Energy::TotalCurvature);
     assert_ne!(
         FactorKey::new(&rest, &ls, &c),

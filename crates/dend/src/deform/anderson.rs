@@ -18,6 +18,10 @@ pub struct Anderson {
     /// reset and refill allocate nothing.
     df: Vec<Vec<Real>>,
     dg: Vec<Vec<Real>>,
+    /// `M ΔF` for the metric `M` of [`Anderson::step_in_metric`] (empty
+    /// without one).
+    mdf: Vec<Vec<Real>>,
+    prev_mf: Vec<Real>,
     used: usize,
     prev_f: Vec<Real>,
     prev_g: Vec<Real>,
@@ -39,6 +43,8 @@ impl Anderson {
             window,
             df: Vec::with_capacity(window),
             dg: Vec::with_capacity(window),
+            mdf: Vec::with_capacity(window),
+            prev_mf: Vec::new(),
             used: 0,
             prev_f: vec![0.0; len],
             prev_g: vec![0.0; len],
@@ -62,6 +68,20 @@ impl Anderson {
     /// The Gram matrix `ΔFᵀΔF` is kept between steps: a step computes only
     /// the new pair's row of it and `ΔFᵀ f`, in one pass over the history.
     pub fn step(&mut self, x: &[Real], f: &[Real], out: &mut [Real]) -> bool {
+        self.step_in_metric(x, f, None, out)
+    }
+
+    /// [`Anderson::step`] with the least squares `θ = argmin |f − ΔF θ|_M`
+    /// in the norm of a symmetric positive definite `M` (given as
+    /// `mf = M f`): with `M` the global step's matrix, the extrapolation
+    /// weighs the residual as the energy does (Peng et al. 2018, §4).
+    pub fn step_in_metric(
+        &mut self,
+        x: &[Real],
+        f: &[Real],
+        mf: Option<&[Real]>,
+        out: &mut [Real],
+    ) -> bool {
         let n = x.len();
         for i in 0..n {
             out[i] = x[i] + f[i]; // g = G(x)
@@ -73,6 +93,9 @@ impl Anderson {
                     self.df.push(vec![0.0; n]);
                     self.dg.push(vec![0.0; n]);
                 }
+                if mf.is_some() && self.mdf.len() <= self.used {
+                    self.mdf.resize(self.used + 1, vec![0.0; n]);
+                }
                 self.used += 1;
                 self.used - 1
             } else {
@@ -83,7 +106,16 @@ impl Anderson {
                 self.df[k][i] = f[i] - self.prev_f[i];
                 self.dg[k][i] = out[i] - self.prev_g[i];
             }
+            if let Some(mf) = mf {
+                for ((d, &a), &b) in self.mdf[k].iter_mut().zip(mf).zip(&self.prev_mf) {
+                    *d = a - b;
+                }
+            }
             newest = Some(k);
+        }
+        if let Some(mf) = mf {
+            self.prev_mf.clear();
+            self.prev_mf.extend_from_slice(mf);
         }
         self.prev_f.copy_from_slice(f);
         self.prev_g.copy_from_slice(out);
@@ -96,12 +128,27 @@ impl Anderson {
         // the new pair's row of the Gram matrix and b = ΔFᵀ f, one pass
         let mut row = [0.0; MAX_WINDOW];
         let mut b = [0.0; MAX_WINDOW];
-        for (i, &fi) in f.iter().enumerate() {
-            let dk = self.df[k][i];
-            for q in 0..m {
-                let d = self.df[q][i];
-                row[q] += dk * d;
-                b[q] += d * fi;
+        match mf {
+            // ΔFᵀ M ΔF and ΔFᵀ M f (M symmetric: (M Δf_k)ᵀ Δf_q)
+            Some(mf) => {
+                for (i, &mfi) in mf.iter().enumerate() {
+                    let dk = self.mdf[k][i];
+                    for q in 0..m {
+                        let d = self.df[q][i];
+                        row[q] += dk * d;
+                        b[q] += d * mfi;
+                    }
+                }
+            }
+            None => {
+                for (i, &fi) in f.iter().enumerate() {
+                    let dk = self.df[k][i];
+                    for q in 0..m {
+                        let d = self.df[q][i];
+                        row[q] += dk * d;
+                        b[q] += d * fi;
+                    }
+                }
             }
         }
         for (q, &v) in row[..m].iter().enumerate() {

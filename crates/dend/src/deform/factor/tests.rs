@@ -95,7 +95,10 @@ fn cg_and_cholesky_agree_to_the_cg_tolerance() {
     let mesh = grid(k);
     let rest = Rest::new(mesh.clone()).unwrap();
     let c = edit(&mesh, k);
-    let params = Params::default();
+    let params = Params {
+        formulation: crate::deform::Formulation::LeastSquares,
+        ..Params::default()
+    };
     let direct =
         Factor::build_with(&rest, &params, &c, &options(SolverChoice::Direct, 1e-4)).unwrap();
     assert!(!direct.uses_cg() && direct.factor_nnz() > 0);
@@ -129,7 +132,10 @@ fn over_a_tiny_budget_the_mesh_still_deforms_by_cg() {
     let mesh = grid(k);
     let rest = Arc::new(Rest::new(mesh.clone()).unwrap());
     let c = edit(&mesh, k);
-    let params = Params::default();
+    let params = Params {
+        formulation: crate::deform::Formulation::LeastSquares,
+        ..Params::default()
+    };
     let tiny = SolveOptions {
         factor_budget_bytes: 1,
         cg_tol: 1e-8,
@@ -173,7 +179,10 @@ fn a_single_precision_factor_halves_the_values_and_keeps_the_deformation() {
     let mesh = grid(k);
     let rest = Arc::new(Rest::new(mesh.clone()).unwrap());
     let c = edit(&mesh, k);
-    let params = Params::default();
+    let params = Params {
+        formulation: crate::deform::Formulation::LeastSquares,
+        ..Params::default()
+    };
     let build = |precision| {
         let opts = SolveOptions {
             solver: SolverChoice::Direct,
@@ -235,7 +244,10 @@ fn both_orderings_factor_and_solve_the_same_system() {
     let mesh = grid(k);
     let rest = Rest::new(mesh.clone()).unwrap();
     let c = edit(&mesh, k);
-    let params = Params::default();
+    let params = Params {
+        formulation: crate::deform::Formulation::LeastSquares,
+        ..Params::default()
+    };
     let build = |ordering| {
         let opts = SolveOptions {
             solver: SolverChoice::Direct,

@@ -24,7 +24,7 @@
 
 use faer::dyn_stack::{MemBuffer, MemStack};
 use faer::MatMut;
-use nalgebra::UnitQuaternion;
+use nalgebra::{UnitQuaternion, Vector3};
 
 use super::{Deformer, StepReport};
 use crate::deform::anderson::Anderson;
@@ -51,9 +51,12 @@ pub(super) struct State {
     res: Vec<Point>,
     /// Right-hand side / update, column-major `|U| × 3`.
     rhs: Vec<Real>,
-    /// Flat `3|U|` current iterate and Anderson candidate.
+    /// Flat `3|U|` current iterate, Anderson candidate and `Q_UU Δ`.
     x_flat: Vec<Real>,
     cand: Vec<Real>,
+    mf: Vec<Real>,
+    /// How the next sequence starts.
+    start: Start,
     anderson: Anderson,
     mem: Option<MemBuffer>,
     sized_for: (u64, usize),
@@ -62,16 +65,32 @@ pub(super) struct State {
     chain: Option<(u64, Real)>,
 }
 
+/// How a new iteration sequence gets its first rotations.
+#[derive(Default, Clone, Copy, PartialEq, Eq)]
+enum Start {
+    /// The pose is the rest pose: rotations propagated from the handles'
+    /// rotations ([`Deformer::propagate_rotations`]).
+    #[default]
+    Rest,
+    /// The pose or the weights were replaced: fit the rotations to it.
+    Refit,
+    /// The rotations are the current pose's: keep them.
+    Warm,
+}
+
 impl State {
-    /// Forgets the continued sequence (the pose or parameters changed).
+    /// Forgets the continued sequence (the pose or parameters changed):
+    /// the next step refits the rotations.
     pub(super) fn invalidate(&mut self) {
         self.chain = None;
+        self.start = Start::Refit;
     }
 
-    /// Back to the rest state's rotations (reset): identity, and the
-    /// projections rebuilt on the next step.
+    /// Back to the rest pose: identity rotations, propagated again on the
+    /// next step.
     pub(super) fn reset(&mut self) {
         self.chain = None;
+        self.start = Start::Rest;
         self.rot.fill(UnitQuaternion::identity());
         self.proj.clear();
     }
@@ -109,6 +128,7 @@ impl Deformer {
             st.rhs = vec![0.0; 3 * nu];
             st.x_flat = vec![0.0; 3 * nu];
             st.cand = vec![0.0; 3 * nu];
+            st.mf = vec![0.0; 3 * nu];
             st.anderson = Anderson::new(window, 3 * nu);
             st.mem = Some(MemBuffer::new(factor.solve_scratch(3)));
             st.sized_for = (factor.id(), window);
@@ -122,12 +142,36 @@ impl Deformer {
         let mut e = match chain {
             Some((_, e)) => e,
             None => {
-                // a new sequence starts from the rotations of the last pose
-                // (the identity at rest): the first global step then moves
-                // every vertex with its constraints (a translation of all
-                // of them is exact after one iteration)
+                // a new sequence starts from the rotations of the last pose;
+                // from the rest pose, from the handles' rotations spread
+                // over the free vertices (the first global step then moves
+                // every vertex with its constraints: a translation or a
+                // common rotation of all of them is exact after one
+                // iteration)
                 st.anderson.reset();
-                self.local_step(factor, (el, set), false, false)
+                let start = std::mem::replace(&mut st.start, Start::Warm);
+                // constrained vertices whose rotation is not fitted carry
+                // their handle's rotation (the fixed ones the identity)
+                for &v in &constraints.fixed {
+                    if !set.fit[v as usize] {
+                        st.rot[v as usize] = UnitQuaternion::identity();
+                    }
+                }
+                for h in &constraints.handles {
+                    for &v in &h.vertices {
+                        if !set.fit[v as usize] {
+                            st.rot[v as usize] = h.target.rotation;
+                        }
+                    }
+                }
+                match start {
+                    Start::Rest if fit => {
+                        self.propagate_rotations(factor, (el, set), constraints);
+                        self.local_step(factor, (el, set), false, false)
+                    }
+                    Start::Refit if fit => self.local_step(factor, (el, set), true, false),
+                    _ => self.local_step(factor, (el, set), false, false),
+                }
             }
         };
         let mut report = StepReport {
@@ -171,7 +215,14 @@ impl Deformer {
             }
             // 2.–4. accelerated candidate, kept only if the energy falls
             let mut accepted = false;
-            if accelerate && st.anderson.step(&st.x_flat, &st.rhs, &mut st.cand) {
+            if accelerate {
+                mul_m(&factor.sys.m, &st.rhs, &mut st.mf);
+            }
+            if accelerate
+                && st
+                    .anderson
+                    .step_in_metric(&st.x_flat, &st.rhs, Some(&st.mf), &mut st.cand)
+            {
                 self.set_unknowns(factor, Flat::Candidate);
                 let e_aa = self.local_step(factor, (el, set), fit, true);
                 if e_aa.is_finite() && e_aa < e {
@@ -259,6 +310,77 @@ impl Deformer {
         }
     }
 
+    /// The rotations of a sequence that starts at the rest pose: with `w_h`
+    /// the rotation vector (axis × angle) of handle `h`'s target and `φ_h`
+    /// its harmonic weight (`Q_UU φ_h = −Q_UC 1_h`: 1 on the handle, 0 on
+    /// the fixed vertices, solved with the factor), `R_i = exp(Σ_h φ_h(i) w_h)`;
+    /// the area targets follow (`P_t = R_{t0} F_t(X)`). Handles that do not
+    /// rotate add nothing, so a pure translation keeps the identity.
+    fn propagate_rotations(
+        &mut self,
+        factor: &Factor,
+        (el, set): (&ElasticOps, &ElasticSet),
+        constraints: &Constraints,
+    ) {
+        let n = self.y.len();
+        let st = &mut self.elastic;
+        for (i, q) in st.rot.iter_mut().enumerate() {
+            if set.fit[i] {
+                *q = UnitQuaternion::identity();
+            }
+        }
+        let rotating: Vec<(usize, Vector3<Real>)> = constraints
+            .handles
+            .iter()
+            .enumerate()
+            .map(|(k, h)| (k, h.target.rotation.scaled_axis()))
+            .filter(|(_, w)| w.norm() > 1e-12)
+            .collect();
+        if !rotating.is_empty() {
+            let mut group = vec![u32::MAX; n];
+            for &(k, _) in &rotating {
+                for &v in &constraints.handles[k].vertices {
+                    group[v as usize] = k as u32;
+                }
+            }
+            let sys = &factor.sys;
+            let nu = sys.unknowns.len();
+            let mut w = vec![Vector3::<Real>::zeros(); n];
+            for chunk in rotating.chunks(3) {
+                st.rhs.fill(0.0);
+                for (col, &(k, _)) in chunk.iter().enumerate() {
+                    for (r, &u) in sys.unknowns.iter().enumerate() {
+                        if let Some(row) = set.q.outer_view(u as usize) {
+                            let s: Real = row
+                                .iter()
+                                .filter(|&(j, _)| group[j] == k as u32)
+                                .map(|(_, &v)| v)
+                                .sum();
+                            st.rhs[col * nu + r] = -s;
+                        }
+                    }
+                }
+                let b = MatMut::from_column_major_slice_mut(&mut st.rhs, nu, 3);
+                let mem = st.mem.as_mut().expect("sized before");
+                factor.solve_in_place(b, MemStack::new(mem));
+                for (col, &(_, wh)) in chunk.iter().enumerate() {
+                    for (r, &u) in sys.unknowns.iter().enumerate() {
+                        let phi = st.rhs[col * nu + r];
+                        if phi.is_finite() {
+                            w[u as usize] += wh * phi.clamp(0.0, 1.0);
+                        }
+                    }
+                }
+            }
+            for (i, (q, w)) in st.rot.iter_mut().zip(&w).enumerate() {
+                if set.fit[i] {
+                    *q = UnitQuaternion::from_scaled_axis(*w);
+                }
+            }
+        }
+        el.rotated_rest_projections(&self.rest.ops.positions, &st.rot, &mut st.proj);
+    }
+
     /// Writes the unknowns of `Y` from the Anderson candidate or from the
     /// plain step `x + Δ`.
     fn set_unknowns(&mut self, factor: &Factor, from: Flat) {
@@ -274,6 +396,23 @@ impl Deformer {
                 ],
             };
         }
+    }
+}
+
+/// `out = M x` for the three columns of the column-major `x` (`M` CSR,
+/// symmetric, `|U| × |U|`).
+fn mul_m(m: &sprs::CsMat<Real>, x: &[Real], out: &mut [Real]) {
+    let n = m.rows();
+    for (r, row) in m.outer_iterator().enumerate() {
+        let mut acc = [0.0; 3];
+        for (j, &v) in row.iter() {
+            acc[0] += v * x[j];
+            acc[1] += v * x[n + j];
+            acc[2] += v * x[2 * n + j];
+        }
+        out[r] = acc[0];
+        out[n + r] = acc[1];
+        out[2 * n + r] = acc[2];
     }
 }
 

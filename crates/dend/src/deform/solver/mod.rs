@@ -705,6 +705,7 @@ mod tests {
         ] {
             for detail in [DetailTerm::Linear, DetailTerm::Nonlinear] {
                 let params = Params {
+                    formulation: crate::deform::Formulation::LeastSquares,
                     energy,
                     detail,
                     lambda2: 0.3,

@@ -1,0 +1,432 @@
+//! The elastic formulation (the default, dend.md §9): properties that can
+//! fail, on generated meshes (irregular open patches with obtuse triangles,
+//! tubes, a limb-like shape), so they run on every clone.
+
+mod support;
+
+use std::sync::Arc;
+
+use dend::deform::{
+    select, BoxSel, Constraints, Deformer, Factor, Formulation, Params, Rest, RigidTransform,
+    VertexSet,
+};
+use dend::mesh::{Mesh, Point};
+use nalgebra::{UnitQuaternion, Vector3};
+use proptest::prelude::*;
+use support::{max_dist, random_delaunay_patch, tube};
+
+/// Fixed: the vertices with `x < x0`; handle: `x > x1`, moved by `t`
+/// rotated by `r` about its centroid.
+fn x_edit(mesh: &Mesh, x0: f64, x1: f64, t: Point, r: UnitQuaternion<f64>) -> Constraints {
+    let fixed: Vec<u32> = (0..mesh.num_vertices() as u32)
+        .filter(|&v| mesh.positions()[v as usize][0] < x0)
+        .collect();
+    let handle: Vec<u32> = (0..mesh.num_vertices() as u32)
+        .filter(|&v| mesh.positions()[v as usize][0] > x1)
+        .collect();
+    let mut c = Constraints::new(mesh, fixed, vec![("h".into(), handle, None)]).unwrap();
+    let pivot = c.handles[0].rest_centroid;
+    c.handles[0].target = RigidTransform {
+        rotation: r,
+        translation: t,
+        pivot,
+    };
+    c
+}
+
+/// Runs one iteration at a time and returns every objective (the
+/// objective before the first iteration first) and the final report's
+/// convergence.
+fn objectives(
+    rest: &Arc<Rest>,
+    params: Params,
+    c: &Constraints,
+    iters: usize,
+) -> (Vec<f64>, bool, Vec<Point>) {
+    let f = Factor::build(rest, &params, c).unwrap();
+    let mut d = Deformer::new(rest.clone(), params);
+    let mut obj = Vec::new();
+    let mut converged = false;
+    for _ in 0..iters {
+        let r = d.step(&f, c, 1).unwrap();
+        assert!(!r.diverged, "{r:?}");
+        if obj.is_empty() {
+            obj.push(r.initial_objective);
+        }
+        obj.push(r.objective);
+        if r.converged {
+            converged = true;
+            break;
+        }
+    }
+    (obj, converged, d.pose().to_vec())
+}
+
+fn assert_monotone(obj: &[f64]) {
+    for (k, w) in obj.windows(2).enumerate() {
+        assert!(
+            w[1] <= w[0] * (1.0 + 1e-10) + 1e-12,
+            "objective grew at iteration {k}: {} -> {} ({obj:?})",
+            w[0],
+            w[1]
+        );
+    }
+}
+
+#[test]
+fn elastic_is_the_default_and_the_paper_mode_is_least_squares() {
+    assert_eq!(Params::default().formulation, Formulation::Elastic);
+    assert_eq!(Params::paper().formulation, Formulation::LeastSquares);
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig { cases: 12, ..ProptestConfig::default() })]
+
+    /// The objective never grows, on random irregular open meshes with
+    /// random handle translations and rotations (with and without the
+    /// acceleration).
+    #[test]
+    fn the_objective_never_grows(
+        seed in 0u64..10_000,
+        tx in -0.6f64..0.6, ty in -0.6f64..0.6, tz in -0.6f64..0.6,
+        angle in -1.5f64..1.5, anderson in prop::sample::select(vec![0usize, 5]),
+    ) {
+        let mesh = random_delaunay_patch(300, seed);
+        let rest = Arc::new(Rest::new(mesh.clone()).unwrap());
+        let r = UnitQuaternion::from_axis_angle(&Vector3::z_axis(), angle);
+        let c = x_edit(&mesh, -0.6, 0.6, [tx, ty, tz], r);
+        let params = Params { anderson, ..Params::default() };
+        let (obj, _, pose) = objectives(&rest, params, &c, 40);
+        assert_monotone(&obj);
+        prop_assert!(pose.iter().flatten().all(|v| v.is_finite()));
+    }
+}
+
+#[test]
+fn identity_edit_is_exact() {
+    let mesh = random_delaunay_patch(400, 7);
+    let rest = Arc::new(Rest::new(mesh.clone()).unwrap());
+    let c = x_edit(&mesh, -0.6, 0.6, [0.0; 3], UnitQuaternion::identity());
+    let (obj, converged, pose) = objectives(&rest, Params::default(), &c, 5);
+    assert!(converged);
+    assert!(max_dist(&pose, mesh.positions()) < 1e-9 * mesh.diagonal());
+    assert!(obj.last().unwrap().abs() < 1e-12, "{obj:?}");
+}
+
+/// Moving every constrained vertex by one vector moves the whole mesh by
+/// it, exactly (dend.md §7), on irregular open meshes with obtuse
+/// triangles; likewise one rotation of every constraint (the propagated
+/// rotations make the first iterate the rigid motion).
+#[test]
+fn translation_and_rigid_motion_of_all_constraints_are_exact() {
+    for seed in [1u64, 2, 3] {
+        let mesh = random_delaunay_patch(500, seed);
+        let rest = Arc::new(Rest::new(mesh.clone()).unwrap());
+        let diag = mesh.diagonal();
+        let t = [0.3, -0.2, 0.5];
+        let all: Vec<u32> = (0..mesh.num_vertices() as u32)
+            .filter(|&v| mesh.positions()[v as usize][0].abs() > 0.6)
+            .collect();
+        for r in [
+            UnitQuaternion::identity(),
+            UnitQuaternion::from_axis_angle(&Vector3::y_axis(), 0.7),
+        ] {
+            let mut c =
+                Constraints::new(&mesh, vec![], vec![("all".into(), all.clone(), None)]).unwrap();
+            let pivot = c.handles[0].rest_centroid;
+            c.handles[0].target = RigidTransform {
+                rotation: r,
+                translation: t,
+                pivot,
+            };
+            let (_, converged, pose) = objectives(&rest, Params::default(), &c, 100);
+            assert!(converged, "seed {seed}");
+            let expected: Vec<Point> = mesh
+                .positions()
+                .iter()
+                .map(|&p| c.handles[0].target.apply(p))
+                .collect();
+            let err = max_dist(&pose, &expected);
+            assert!(
+                err < 1e-8 * diag,
+                "seed {seed}, rotation {r}: error {err:e}"
+            );
+        }
+    }
+}
+
+/// The same edit on the mesh scaled by 37 gives the pose scaled by 37.
+#[test]
+fn scaling_the_input_scales_the_pose() {
+    let mesh = random_delaunay_patch(400, 11);
+    let s = 37.0;
+    let big = Mesh::new(
+        mesh.positions()
+            .iter()
+            .map(|p| [s * p[0], s * p[1], s * p[2]])
+            .collect(),
+        mesh.triangles().to_vec(),
+    )
+    .unwrap();
+    let r = UnitQuaternion::from_axis_angle(&Vector3::z_axis(), 0.8);
+    let pose = |m: &Mesh, k: f64| {
+        let rest = Arc::new(Rest::new(m.clone()).unwrap());
+        let c = x_edit(m, -0.6 * k, 0.6 * k, [0.0, 0.4 * k, 0.3 * k], r);
+        objectives(&rest, Params::default(), &c, 60).2
+    };
+    let (p1, p37) = (pose(&mesh, 1.0), pose(&big, s));
+    let scaled: Vec<Point> = p1.iter().map(|p| [s * p[0], s * p[1], s * p[2]]).collect();
+    let err = max_dist(&scaled, &p37);
+    assert!(err < 1e-6 * big.diagonal(), "error {err:e}");
+}
+
+/// Midpoint 1-to-4 subdivision of `mesh` (the new vertices after the old).
+fn subdivide(mesh: &Mesh) -> Mesh {
+    let mut p = mesh.positions().to_vec();
+    let mut mid = std::collections::HashMap::new();
+    let mut midpoint = |a: u32, b: u32, p: &mut Vec<Point>| {
+        *mid.entry((a.min(b), a.max(b))).or_insert_with(|| {
+            let (x, y) = (p[a as usize], p[b as usize]);
+            p.push([
+                0.5 * (x[0] + y[0]),
+                0.5 * (x[1] + y[1]),
+                0.5 * (x[2] + y[2]),
+            ]);
+            (p.len() - 1) as u32
+        })
+    };
+    let mut t = Vec::new();
+    for &[a, b, c] in mesh.triangles() {
+        let (ab, bc, ca) = (
+            midpoint(a, b, &mut p),
+            midpoint(b, c, &mut p),
+            midpoint(c, a, &mut p),
+        );
+        t.extend([[a, ab, ca], [ab, b, bc], [ca, bc, c], [ab, bc, ca]]);
+    }
+    Mesh::new(p, t).unwrap()
+}
+
+/// A mesh and its midpoint subdivision, with the same constraint regions
+/// (boxes), give the same pose at the original vertices to 1 % of the
+/// diagonal: the weights do not depend on the resolution.
+#[test]
+fn subdivision_does_not_change_the_pose() {
+    let coarse = tube(1.0, 4.0, 5, 17);
+    let fine = subdivide(&coarse);
+    let r = UnitQuaternion::from_axis_angle(&Vector3::z_axis(), 60f64.to_radians());
+    let pose = |m: &Mesh| {
+        let rest = Arc::new(Rest::new(m.clone()).unwrap());
+        let bx = |min, max| VertexSet::Box {
+            bbox: BoxSel { min, max },
+        };
+        let fixed = select(&bx([-1.0, -1.0, -0.01], [1.0, 1.0, 0.3]), m).unwrap();
+        let handle = select(&bx([-1.0, -1.0, 3.7], [1.0, 1.0, 4.01]), m).unwrap();
+        let mut c = Constraints::new(m, fixed, vec![("top".into(), handle, None)]).unwrap();
+        let pivot = c.handles[0].rest_centroid;
+        c.handles[0].target = RigidTransform {
+            rotation: r,
+            translation: [0.8, 0.0, 0.0],
+            pivot,
+        };
+        let params = Params {
+            tol: 1e-6,
+            ..Params::default()
+        };
+        let (_, converged, pose) = objectives(&rest, params, &c, 400);
+        assert!(converged);
+        pose
+    };
+    let (pc, pf) = (pose(&coarse), pose(&fine));
+    let err = max_dist(&pc, &pf[..pc.len()]);
+    assert!(
+        err < 0.01 * coarse.diagonal(),
+        "subdivision moved the pose by {err} (diagonal {})",
+        coarse.diagonal()
+    );
+}
+
+/// A cylinder with a thin tube on its side ("a limb"), body fixed, the
+/// tip pulled up and out and turned: the stretch that clamping both ends
+/// makes unavoidable is spread as ARAP's spokes spread it, not gathered
+/// into a spike.
+#[test]
+fn a_pulled_limb_grows_no_spike() {
+    // body: a 24-gon cylinder of radius 1, z in [0, 4]; limb: a 8-gon tube
+    // of radius 0.2 along +x from the body's side at z = 2, length 3
+    let mut p: Vec<Point> = Vec::new();
+    let mut t: Vec<[u32; 3]> = Vec::new();
+    let ring = |p: &mut Vec<Point>, n: usize, f: &dyn Fn(f64) -> Point| -> u32 {
+        let start = p.len() as u32;
+        for k in 0..n {
+            p.push(f(2.0 * std::f64::consts::PI * k as f64 / n as f64));
+        }
+        start
+    };
+    let strip = |t: &mut Vec<[u32; 3]>, a: u32, b: u32, n: u32| {
+        for k in 0..n {
+            let (a0, a1, b0, b1) = (a + k, a + (k + 1) % n, b + k, b + (k + 1) % n);
+            t.push([a0, a1, b1]);
+            t.push([a0, b1, b0]);
+        }
+    };
+    let mut prev = None;
+    for r in 0..=16 {
+        let z = 4.0 * r as f64 / 16.0;
+        let s = ring(&mut p, 24, &|a| [a.cos(), a.sin(), z]);
+        if let Some(q) = prev {
+            strip(&mut t, q, s, 24);
+        }
+        prev = Some(s);
+    }
+    // the limb: its own surface (a second component) whose root ring sits
+    // on the body's side and is fixed with the body, as a limb is held by
+    // the body it grows from
+    let mut prev = None;
+    for r in 0..=20 {
+        let x = 1.0 + 3.0 * r as f64 / 20.0;
+        let s = ring(&mut p, 8, &|a| [x, 0.2 * a.cos(), 2.0 + 0.2 * a.sin()]);
+        if let Some(q) = prev {
+            strip(&mut t, q, s, 8);
+        }
+        prev = Some(s);
+    }
+    let mesh = Mesh::new(p, t).unwrap();
+    let rest = Arc::new(Rest::new(mesh.clone()).unwrap());
+    let pos = mesh.positions();
+    let fixed: Vec<u32> = (0..pos.len() as u32)
+        .filter(|&v| {
+            let q = pos[v as usize];
+            q[0] < 1.05 // the body and the limb's root ring
+        })
+        .collect();
+    let tip: Vec<u32> = (0..pos.len() as u32)
+        .filter(|&v| pos[v as usize][0] > 3.9)
+        .collect();
+    let mut c = Constraints::new(&mesh, fixed, vec![("tip".into(), tip, None)]).unwrap();
+    // the tip swung 60° sideways about the limb's root: reachable by a
+    // bend without any stretch
+    c.handles[0].target = RigidTransform {
+        rotation: UnitQuaternion::from_axis_angle(&Vector3::y_axis(), 30f64.to_radians()),
+        translation: [0.5, 0.0, 1.2],
+        pivot: [4.0, 0.0, 2.0],
+    };
+    // edge stretch |l'/l − 1|: (mean, max)
+    let stretch = |params: Params| {
+        let (obj, converged, pose) = objectives(&rest, params, &c, 300);
+        assert!(converged, "{params:?}");
+        assert_monotone(&obj);
+        let (mut sum, mut worst, edges) = (0.0, 0.0f64, mesh.topology().edges());
+        for e in edges {
+            let (a, b) = (e[0] as usize, e[1] as usize);
+            let s = (max_dist(&[pose[a]], &[pose[b]]) / max_dist(&[pos[a]], &[pos[b]]) - 1.0).abs();
+            sum += s;
+            worst = worst.max(s);
+        }
+        (sum / edges.len() as f64, worst)
+    };
+    let (mean, worst) = stretch(Params::default());
+    // ARAP's spokes alone (no bending, no area term): the stretch
+    // resistance the default must keep
+    let (arap_mean, arap_worst) = stretch(Params {
+        bending: 0.0,
+        area: 0.0,
+        ..Params::default()
+    });
+    eprintln!("limb stretch mean/max: default {mean:.3}/{worst:.3}, spokes only {arap_mean:.3}/{arap_worst:.3}");
+    assert!(
+        worst <= arap_worst,
+        "a spike: largest stretch {worst} > {arap_worst}"
+    );
+    assert!(
+        mean <= 1.5 * arap_mean,
+        "mean stretch {mean} > 1.5 × {arap_mean}"
+    );
+}
+
+/// A settle loop of one-iteration calls is the same iteration sequence as
+/// one long call (the Anderson history, rotations and energy carry over),
+/// and a new target restarts it.
+#[test]
+fn chained_one_iteration_steps_equal_one_long_step() {
+    let mesh = random_delaunay_patch(400, 5);
+    let rest = Arc::new(Rest::new(mesh.clone()).unwrap());
+    let r = UnitQuaternion::from_axis_angle(&Vector3::y_axis(), 0.9);
+    let c = x_edit(&mesh, -0.6, 0.6, [0.2, 0.3, 0.4], r);
+    let params = Params::default();
+    let f = Factor::build(&rest, &params, &c).unwrap();
+    let mut long = Deformer::new(rest.clone(), params);
+    let rl = long.step(&f, &c, 25).unwrap();
+    let mut chained = Deformer::new(rest.clone(), params);
+    let mut n = 0;
+    let mut rc = None;
+    while n < rl.iterations {
+        let r = chained.step(&f, &c, 1).unwrap();
+        n += r.iterations;
+        rc = Some(r);
+    }
+    let rc = rc.unwrap();
+    assert_eq!(rc.converged, rl.converged);
+    assert!(
+        (rc.objective - rl.objective).abs() <= 1e-12 * rl.objective.abs().max(1e-300),
+        "{rc:?} vs {rl:?}"
+    );
+    assert!(max_dist(chained.pose(), long.pose()) < 1e-12 * mesh.diagonal());
+}
+
+/// The benches' standard edit on the shared character meshes (lowest
+/// 10 % in z fixed, highest 10 % moved 0.15 × diagonal along x and turned
+/// 30° about y): edge distortion within 1.5× (mean) and 2× (max) of libigl
+/// ARAP run to convergence on the same sets (ARAP's figures measured by
+/// scripts/posing_suite.py: camel 0.00307 / 0.0937, dino 0.00281 / 0.0374).
+/// The least-squares default before this one stretched the camel's neck
+/// 42× (dend.md §9). Needs `../shared/meshes`: skipped without it, a
+/// failure under `CI=true`.
+#[test]
+fn characters_keep_their_proportions_under_the_standard_edit() {
+    let Some(dir) = support::shared_meshes() else {
+        assert!(
+            std::env::var("CI").as_deref() != Ok("true"),
+            "CI=true but the shared meshes are missing"
+        );
+        return;
+    };
+    for (file, arap_mean, arap_max) in [
+        ("camel_9770.off", 0.00307, 0.0937),
+        ("dino_6013.obj", 0.00281, 0.0374),
+    ] {
+        let mesh = dend::mesh::io::read_path(&dir.join(file)).unwrap();
+        let pos = mesh.positions();
+        let mut order: Vec<u32> = (0..pos.len() as u32).collect();
+        order.sort_by(|&a, &b| pos[a as usize][2].total_cmp(&pos[b as usize][2]));
+        let k = pos.len() / 10;
+        let fixed = order[..k].to_vec();
+        let handle = order[pos.len() - k..].to_vec();
+        let mut c = Constraints::new(&mesh, fixed, vec![("h".into(), handle, None)]).unwrap();
+        let pivot = c.handles[0].rest_centroid;
+        c.handles[0].target = RigidTransform {
+            rotation: UnitQuaternion::from_axis_angle(&Vector3::y_axis(), 30f64.to_radians()),
+            translation: [0.15 * mesh.diagonal(), 0.0, 0.0],
+            pivot,
+        };
+        let rest = Arc::new(Rest::new(mesh.clone()).unwrap());
+        let (obj, converged, pose) = objectives(&rest, Params::default(), &c, 200);
+        assert!(converged, "{file}");
+        assert_monotone(&obj);
+        let edges = mesh.topology().edges();
+        let (mut sum, mut worst) = (0.0, 0.0f64);
+        for e in edges {
+            let (a, b) = (e[0] as usize, e[1] as usize);
+            let s = (max_dist(&[pose[a]], &[pose[b]]) / max_dist(&[pos[a]], &[pos[b]]) - 1.0).abs();
+            sum += s;
+            worst = worst.max(s);
+        }
+        let mean = sum / edges.len() as f64;
+        eprintln!(
+            "{file}: distortion {mean:.5} / {worst:.4}, {} iterations",
+            obj.len() - 1
+        );
+        assert!(mean <= 1.5 * arap_mean, "{file}: mean distortion {mean}");
+        assert!(worst <= 2.0 * arap_max, "{file}: max distortion {worst}");
+    }
+}
