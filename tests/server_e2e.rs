@@ -251,3 +251,50 @@ async fn factor_ready_times_are_exported() -> Result<(), ClientError> {
     assert_eq!(c.metric("dend_factor_cache_builds").await?, Some(1.0));
     Ok(())
 }
+
+/// One drag, then the settle loop's frames: the objective never grows from
+/// frame to frame (the default formulation's Anderson history carries
+/// across the loop's one-iteration steps), and the last frame says
+/// settled and converged.
+#[tokio::test]
+async fn settle_frames_report_a_falling_objective_and_end_settled() -> Result<(), ClientError> {
+    let (base, _state) = start(Config::default()).await;
+    let c = Client::new(&base);
+    let (p, t) = grid(N);
+    let mesh = c.upload_json(&p, &t).await?;
+    let s = c
+        .create_session(&mesh.id, json!({"max_iters": 300}))
+        .await?;
+    s.set_constraints(&grid_constraints(N)).await?;
+    s.wait_ready(Duration::from_secs(60)).await?;
+    let mut ws = s.connect().await?;
+    let (_, _) = ws.frame_acking(0, true).await?;
+    let q = UnitQuaternion::from_axis_angle(&Vector3::x_axis(), 0.5).coords;
+    ws.drag(0, [0.1, 0.3, 0.2], Some([q.x, q.y, q.z, q.w]), 1)
+        .await?;
+    let mut objectives = Vec::new();
+    let last = loop {
+        if let WsEvent::Frame(h, _) = ws.next().await? {
+            if h.ack_seq < 1 {
+                continue;
+            }
+            objectives.push(h.objective);
+            if h.settled {
+                break h;
+            }
+            assert!(!h.converged, "a converged frame must be settled: {h:?}");
+        }
+    };
+    assert!(last.converged, "{last:?}");
+    assert!(objectives.len() > 1, "{objectives:?}");
+    for w in objectives.windows(2) {
+        assert!(
+            w[0].is_finite() && w[1] <= w[0] * (1.0 + 1e-10),
+            "{objectives:?}"
+        );
+    }
+    let pose = s.pose().await?;
+    assert!(pose.settled && pose.converged);
+    assert_eq!(pose.objective, Some(last.objective));
+    Ok(())
+}

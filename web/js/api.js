@@ -28,16 +28,18 @@ export function parseFrame(buf) {
   const magic = String.fromCharCode(dv.getUint8(0), dv.getUint8(1), dv.getUint8(2), dv.getUint8(3));
   if (magic !== 'DEND') throw new Error(`bad frame magic ${JSON.stringify(magic)}`);
   const version = dv.getUint16(4, true);
-  if (version !== 1) throw new Error(`unsupported frame version ${version}`);
+  if (version !== 2) throw new Error(`unsupported frame version ${version}`);
   const flags = dv.getUint16(6, true);
   const n = dv.getUint32(28, true);
-  if (buf.byteLength < 32 + 12 * n) throw new Error('truncated frame');
+  if (buf.byteLength < 40 + 12 * n) throw new Error('truncated frame');
   return {
     converged: (flags & 1) !== 0,
+    settled: (flags & 2) !== 0,
     revision: Number(dv.getBigUint64(8, true)),
     ackSeq: Number(dv.getBigUint64(16, true)),
     iteration: dv.getUint32(24, true),
-    positions: new Float32Array(buf, 32, 3 * n),
+    objective: dv.getFloat64(32, true),
+    positions: new Float32Array(buf, 40, 3 * n),
   };
 }
 

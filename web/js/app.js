@@ -65,7 +65,13 @@ function setState(s) {
 function updateStats() {
   const f = app.last;
   $('stIter').textContent = f ? String(f.iteration) : '–';
-  $('stConv').textContent = f ? (f.converged ? 'converged' : 'iterating…') : '–';
+  $('stConv').textContent = !f
+    ? '–'
+    : f.converged
+      ? 'settled'
+      : f.settled
+        ? `not settled after ${f.iteration} iterations`
+        : 'iterating…';
   $('stFrames').textContent = String(app.frames);
   const l = app.latencies;
   $('stLatency').textContent = '–';

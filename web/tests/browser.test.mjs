@@ -249,6 +249,7 @@ async function main() {
       const f = window.dend.app.last;
       return f && f.ackSeq >= s && f.converged;
     }, lastSeq, 'a converged frame acknowledging the drag', 60000);
+    await waitFor(page, () => document.getElementById('stConv').textContent === 'settled', null, 'the status bar says settled');
     const after = await serverPose(base, session);
     const all = [...Array(n).keys()];
     const moved = maxDiff(before, after, handle);

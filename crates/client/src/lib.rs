@@ -72,6 +72,12 @@ pub struct Pose {
     pub iteration: u32,
     /// Converged flag.
     pub converged: bool,
+    /// Whether the server stopped iterating until the next change.
+    #[serde(default)]
+    pub settled: bool,
+    /// The solver's objective at this pose.
+    #[serde(default)]
+    pub objective: Option<f64>,
     /// Positions.
     pub positions: Vec<[f64; 3]>,
 }

@@ -1,32 +1,37 @@
 //! The binary pose frame pushed over WebSocket (and returned by
 //! `GET /v1/sessions/{id}/pose` with `Accept: application/octet-stream`).
 //!
-//! Layout, all little-endian, 32-byte header then the vertices:
+//! Layout, all little-endian, 40-byte header then the vertices (format
+//! version 2; version 1 had no objective and no `settled` flag):
 //!
 //! | offset | type | field |
 //! |---|---|---|
 //! | 0 | `[u8; 4]` | magic `"DEND"` |
 //! | 4 | `u16` | format version ([`FRAME_VERSION`]) |
-//! | 6 | `u16` | flags: bit 0 = converged |
+//! | 6 | `u16` | flags: bit 0 = converged, bit 1 = settled (the server stopped iterating until the next change) |
 //! | 8 | `u64` | session revision |
 //! | 16 | `u64` | last applied client sequence number (ack) |
 //! | 24 | `u32` | DEND iterations since the targets last changed |
 //! | 28 | `u32` | vertex count `n` |
-//! | 32 | `f32 × 3n` | x, y, z of each vertex (mesh units) |
+//! | 32 | `f64` | the solver's objective at this pose (NaN before any solve) |
+//! | 40 | `f32 × 3n` | x, y, z of each vertex (mesh units) |
 
 use bytes::Bytes;
 
 /// Magic bytes at the start of every frame.
 pub const FRAME_MAGIC: [u8; 4] = *b"DEND";
 /// Frame format version.
-pub const FRAME_VERSION: u16 = 1;
+pub const FRAME_VERSION: u16 = 2;
 /// Header size in bytes.
-pub const FRAME_HEADER_BYTES: usize = 32;
+pub const FRAME_HEADER_BYTES: usize = 40;
 /// Flag bit: the solve had converged when this frame was taken.
 pub const FLAG_CONVERGED: u16 = 1;
+/// Flag bit: the server stopped iterating (converged, or its iteration
+/// budget spent without converging) until the targets change again.
+pub const FLAG_SETTLED: u16 = 2;
 
 /// The header fields of a frame.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[derive(Debug, Clone, Copy, PartialEq)]
 pub struct FrameHeader {
     /// Session revision (increases with every frame and state change).
     pub revision: u64,
@@ -36,6 +41,10 @@ pub struct FrameHeader {
     pub iteration: u32,
     /// Whether the solve had converged.
     pub converged: bool,
+    /// Whether the server stopped iterating until the next change.
+    pub settled: bool,
+    /// The solver's objective at this pose (NaN when unknown).
+    pub objective: f64,
     /// Number of vertices that follow.
     pub vertex_count: u32,
 }
@@ -62,12 +71,14 @@ impl FrameBody {
         let b = &mut self.0;
         b[0..4].copy_from_slice(&FRAME_MAGIC);
         b[4..6].copy_from_slice(&FRAME_VERSION.to_le_bytes());
-        let flags = if h.converged { FLAG_CONVERGED } else { 0 };
+        let flags =
+            if h.converged { FLAG_CONVERGED } else { 0 } | if h.settled { FLAG_SETTLED } else { 0 };
         b[6..8].copy_from_slice(&flags.to_le_bytes());
         b[8..16].copy_from_slice(&h.revision.to_le_bytes());
         b[16..24].copy_from_slice(&h.ack_seq.to_le_bytes());
         b[24..28].copy_from_slice(&h.iteration.to_le_bytes());
         b[28..32].copy_from_slice(&h.vertex_count.to_le_bytes());
+        b[32..40].copy_from_slice(&h.objective.to_le_bytes());
         Bytes::from(self.0)
     }
 }
@@ -104,10 +115,12 @@ pub fn decode_frame(b: &[u8]) -> Result<(FrameHeader, Vec<[f32; 3]>), FrameError
     }
     let h = FrameHeader {
         converged: u16_at(6) & FLAG_CONVERGED != 0,
+        settled: u16_at(6) & FLAG_SETTLED != 0,
         revision: u64_at(8),
         ack_seq: u64_at(16),
         iteration: u32_at(24),
         vertex_count: u32_at(28),
+        objective: f64::from_bits(u64_at(32)),
     };
     let expected = FRAME_HEADER_BYTES + h.vertex_count as usize * 12;
     if b.len() != expected {
@@ -138,26 +151,40 @@ mod tests {
             ack_seq: 0x0102_0304_0506_0708,
             iteration: 9,
             converged: true,
+            settled: false,
+            objective: 12.5,
             vertex_count: 2,
         };
         let bytes = FrameBody::from_pose(&pose).finish(&h);
-        assert_eq!(bytes.len(), 32 + 24);
+        assert_eq!(bytes.len(), 40 + 24);
         assert_eq!(&bytes[0..4], b"DEND");
+        assert_eq!(bytes[4], 2, "format version 2");
         assert_eq!(bytes[6], 1, "converged flag is bit 0 of the flags");
         assert_eq!(bytes[16], 0x08, "ack seq is little-endian at offset 16");
-        assert_eq!(&bytes[32..36], &1.0f32.to_le_bytes());
+        assert_eq!(&bytes[32..40], &12.5f64.to_le_bytes());
+        assert_eq!(&bytes[40..44], &1.0f32.to_le_bytes());
         let (h2, v) = decode_frame(&bytes).unwrap();
         assert_eq!(h2, h);
         assert_eq!(v, vec![[1.0, -2.0, 3.5], [0.25, 0.0, -1e3]]);
+        let settled = FrameBody::from_pose(&pose).finish(&FrameHeader { settled: true, ..h });
+        assert_eq!(settled[6], 3, "settled flag is bit 1");
+        assert!(decode_frame(&settled).unwrap().0.settled);
         assert_eq!(
-            decode_frame(&bytes[..40]),
+            decode_frame(&bytes[..48]),
             Err(FrameError::Length {
-                got: 40,
-                expected: 56
+                got: 48,
+                expected: 64
             })
         );
         assert_eq!(
-            decode_frame(b"XEND0000000000000000000000000000"),
+            decode_frame(b"XEND00000000000000000000000000000000000"),
+            Err(FrameError::Length {
+                got: 39,
+                expected: 40
+            })
+        );
+        assert_eq!(
+            decode_frame(b"XEND000000000000000000000000000000000000"),
             Err(FrameError::Magic)
         );
     }

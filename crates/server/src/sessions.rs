@@ -316,6 +316,11 @@ pub struct PoseJson {
     pub iteration: u32,
     /// Whether the solve converged.
     pub converged: bool,
+    /// Whether the server stopped iterating until the next change
+    /// (converged, or its iteration budget spent).
+    pub settled: bool,
+    /// The solver's objective at this pose (absent before any solve).
+    pub objective: Option<f64>,
     /// `#V×3` positions, mesh units.
     pub positions: Vec<[f64; 3]>,
 }
@@ -326,6 +331,8 @@ fn pose_json(p: PoseSnapshot) -> Json<PoseJson> {
         ack_seq: p.ack_seq,
         iteration: p.iteration,
         converged: p.converged,
+        settled: p.settled,
+        objective: p.objective.is_finite().then_some(p.objective),
         positions: p.positions.to_vec(),
     })
 }

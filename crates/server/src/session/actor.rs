@@ -90,6 +90,8 @@ pub(super) struct Actor {
     applied_seq: u64,
     revision: u64,
     converged: bool,
+    /// The solver's objective at the current pose (NaN before a solve).
+    objective: f64,
     journal: Vec<JournalEntry>,
     waiters: Vec<(usize, Reply<PoseSnapshot>)>,
     inflight: Vec<Reply<PoseSnapshot>>,
@@ -126,6 +128,7 @@ impl Actor {
             applied_seq: 0,
             revision: 0,
             converged: true,
+            objective: f64::NAN,
             journal: vec![],
             waiters: vec![],
             inflight: vec![],
@@ -171,6 +174,8 @@ impl Actor {
             ack_seq: self.applied_seq,
             iteration: self.iters_since_change as u32,
             converged: self.converged,
+            settled: self.settled,
+            objective: self.objective,
             positions: self.pose.clone(),
         }
     }
@@ -446,6 +451,7 @@ impl Actor {
                     Ok(report) => {
                         self.iters_since_change += report.iterations;
                         self.converged = report.converged;
+                        self.objective = report.objective;
                         self.opts
                             .observer
                             .solved(report.iterations, seconds, report.converged);
@@ -465,6 +471,8 @@ impl Actor {
                     ack_seq: applied_seq,
                     iteration: self.iters_since_change as u32,
                     converged: self.converged,
+                    settled: self.settled,
+                    objective: self.objective,
                     vertex_count: self.pose.len() as u32,
                 };
                 let bytes = body.finish(&header);
@@ -492,6 +500,8 @@ impl Actor {
             ack_seq: h.ack_seq,
             iteration: h.iteration,
             converged: h.converged,
+            settled: h.settled,
+            objective: h.objective,
             positions: self.pose.clone(),
         }
     }
@@ -565,6 +575,8 @@ impl Actor {
             ack_seq: self.applied_seq,
             iteration: 0,
             converged: true,
+            settled: true,
+            objective: f64::NAN,
             vertex_count: self.pose.len() as u32,
         };
         let bytes = FrameBody::from_pose(&self.pose).finish(&header);

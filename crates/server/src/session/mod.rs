@@ -137,6 +137,10 @@ pub struct PoseSnapshot {
     pub iteration: u32,
     /// Whether the solve had converged.
     pub converged: bool,
+    /// Whether the server stopped iterating until the next change.
+    pub settled: bool,
+    /// The solver's objective at this pose (NaN when unknown).
+    pub objective: f64,
     /// Vertex positions (mesh units), `#V×3`.
     pub positions: Arc<Vec<[f64; 3]>>,
 }
