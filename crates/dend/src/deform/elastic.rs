@@ -332,7 +332,8 @@ impl ElasticOps {
     }
 
     /// `out = g(R, P) − Q Y` (module docs), `#V`: the negative half-gradient
-    /// of `E` in `Y` at fixed `R` and `P`. `t` is scratch (`#V`).
+    /// of `E` in `Y` at fixed `R` and `P`. `t` (`#V`) and `rm` (`#V`, the
+    /// rotations as matrices) are scratch.
     #[allow(clippy::too_many_arguments)]
     pub fn residual(
         &self,
@@ -341,19 +342,25 @@ impl ElasticOps {
         y: &[Point],
         rot: &[UnitQuaternion<Real>],
         proj: &[[Real; 6]],
-        t: &mut [Point],
+        (t, rm): (&mut [Point], &mut [Matrix3<Real>]),
         out: &mut [Point],
     ) {
         let n = y.len();
+        // R_i as a matrix (zero where the rows are dropped) and
         // t_i = [i free] R_i δ_i
         for i in 0..n {
-            t[i] = if self.b[i] > 0.0 && set.free[i] {
-                (rot[i] * Vector3::from(ops.delta[i])).into()
+            rm[i] = if set.free[i] {
+                rot[i].to_rotation_matrix().into_inner()
+            } else {
+                Matrix3::zeros()
+            };
+            t[i] = if self.b[i] > 0.0 {
+                (rm[i] * Vector3::from(ops.delta[i])).into()
             } else {
                 [0.0; 3]
             };
         }
-        let t: &[Point] = t;
+        let (t, rm): (&[Point], &[Matrix3<Real>]) = (t, rm);
         // out = kbl Lbar t − Q Y − Σ_j c_vj ([v free] R_v + [j free] R_j) e_vj
         let row = |(v, o): (usize, &mut Point)| {
             let mut acc = [0.0; 3];
@@ -376,14 +383,7 @@ impl ElasticOps {
             // c is symmetric and e_jv = −e_vj: the spokes into v gather too
             for s in self.ptr[v]..self.ptr[v + 1] {
                 let j = self.nbr[s] as usize;
-                let e = Vector3::from(self.e[s]);
-                let mut re = Vector3::zeros();
-                if set.free[v] {
-                    re += rot[v] * e;
-                }
-                if set.free[j] {
-                    re += rot[j] * e;
-                }
+                let re = (rm[v] + rm[j]) * Vector3::from(self.e[s]);
                 for a in 0..3 {
                     acc[a] -= self.c[s] * re[a];
                 }
@@ -461,18 +461,23 @@ fn gradient(y: &[Point], el: &AreaElement) -> [Real; 6] {
 pub fn project_area(f: &[Real; 6]) -> [Real; 6] {
     let c0 = Vector3::new(f[0], f[1], f[2]);
     let c1 = Vector3::new(f[3], f[4], f[5]);
-    // FᵀF = V Σ² Vᵀ
-    let ftf = Matrix2::new(c0.dot(&c0), c0.dot(&c1), c0.dot(&c1), c1.dot(&c1));
-    let eig = ftf.symmetric_eigen();
-    let (k1, k2) = if eig.eigenvalues[0] >= eig.eigenvalues[1] {
-        (0, 1)
+    // FᵀF = V Σ² Vᵀ, in closed form: [[a, b], [b, c]]
+    let (a, b, c) = (c0.dot(&c0), c0.dot(&c1), c1.dot(&c1));
+    let half = 0.5 * (a - c);
+    let r = (half * half + b * b).sqrt();
+    let (l1, l2) = (0.5 * (a + c) + r, 0.5 * (a + c) - r);
+    // the eigenvector of l1: (b, l1 − a) or (l1 − c, b), the larger one
+    let (e1, e2) = (Vector2::new(b, l1 - a), Vector2::new(l1 - c, b));
+    let v1 = if e1.norm_squared() >= e2.norm_squared() {
+        e1
     } else {
-        (1, 0)
-    };
-    let s1 = eig.eigenvalues[k1].max(0.0).sqrt();
-    let s2 = eig.eigenvalues[k2].max(0.0).sqrt();
-    let v1: Vector2<Real> = eig.eigenvectors.column(k1).into();
-    let v2: Vector2<Real> = eig.eigenvectors.column(k2).into();
+        e2
+    }
+    .try_normalize(1e-300)
+    .unwrap_or_else(Vector2::x);
+    let v2 = Vector2::new(-v1[1], v1[0]);
+    let s1 = l1.max(0.0).sqrt();
+    let s2 = l2.max(0.0).sqrt();
     let fv = |v: &Vector2<Real>| c0 * v[0] + c1 * v[1];
     let u1 = match (fv(&v1) / s1).try_normalize(1e-12) {
         Some(u) if s1 > 1e-12 => u,
@@ -503,11 +508,12 @@ pub fn project_area(f: &[Real; 6]) -> [Real; 6] {
 }
 
 /// `argmin_{d > 0} (d − σ1)² + (1/d − σ2)²` by Newton on the stationarity
-/// quartic `d⁴ − σ1 d³ + σ2 d − 1 = 0` from three starts.
+/// quartic `d⁴ − σ1 d³ + σ2 d − 1 = 0` from two starts (`√(σ1/σ2)` and
+/// `σ1`), keeping the best of them and `d = 1`.
 fn area_root(s1: Real, s2: Real) -> Real {
     let f = |d: Real| (d - s1).powi(2) + (1.0 / d - s2).powi(2);
     let mut best = (f(1.0), 1.0);
-    for start in [(s1 / s2.max(1e-12)).sqrt(), 1.0, s1.max(1e-6)] {
+    for start in [(s1 / s2.max(1e-12)).sqrt(), s1.max(1e-6)] {
         let mut d: Real = start.clamp(1e-6, 1e6);
         for _ in 0..30 {
             let p = d.powi(4) - s1 * d.powi(3) + s2 * d - 1.0;

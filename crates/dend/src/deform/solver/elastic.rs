@@ -24,7 +24,7 @@
 
 use faer::dyn_stack::{MemBuffer, MemStack};
 use faer::MatMut;
-use nalgebra::{UnitQuaternion, Vector3};
+use nalgebra::{Matrix3, UnitQuaternion, Vector3};
 
 use super::{Deformer, StepReport};
 use crate::deform::anderson::Anderson;
@@ -46,8 +46,10 @@ pub(super) struct State {
     proj_try: Vec<[Real; 6]>,
     /// `L Y`.
     ly: Vec<Point>,
-    /// `R_i δ_i` scratch and the residual `g(R) − Q Y`, `#V`.
+    /// `R_i δ_i` and `R_i` as matrices (scratch), and the residual
+    /// `g(R) − Q Y`, `#V`.
     t: Vec<Point>,
+    rm: Vec<Matrix3<Real>>,
     res: Vec<Point>,
     /// Right-hand side / update, column-major `|U| × 3`.
     rhs: Vec<Real>,
@@ -115,6 +117,7 @@ impl Deformer {
             st.rot_try = vec![UnitQuaternion::identity(); n];
             st.ly = vec![[0.0; 3]; n];
             st.t = vec![[0.0; 3]; n];
+            st.rm = vec![Matrix3::zeros(); n];
             st.res = vec![[0.0; 3]; n];
             st.proj = Vec::new();
         }
@@ -287,7 +290,15 @@ impl Deformer {
     fn global_rhs(&mut self, factor: &Factor, (el, set): (&ElasticOps, &ElasticSet)) {
         let ops = &self.rest.ops;
         let st = &mut self.elastic;
-        el.residual(set, ops, &self.y, &st.rot, &st.proj, &mut st.t, &mut st.res);
+        el.residual(
+            set,
+            ops,
+            &self.y,
+            &st.rot,
+            &st.proj,
+            (&mut st.t, &mut st.rm),
+            &mut st.res,
+        );
         let sys = &factor.sys;
         let nu = sys.unknowns.len();
         for (k, &u) in sys.unknowns.iter().enumerate() {

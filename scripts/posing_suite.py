@@ -1,0 +1,574 @@
+#!/usr/bin/env python3
+"""The posing suite: a fixed list of edits posed by `dend deform` and by
+libigl's ARAP in the same run, with a PASS/FAIL table.
+
+Usage (from the crate root; needs a release build, `cargo build --release`):
+
+    python3 scripts/posing_suite.py [--only NAME ...] [--skip-large]
+        [--formulation NAME] [--max-iters 100] [--tol 1e-3]
+        [--json out.json] [--no-render] [--list]
+
+`--only` takes case names or shell patterns (`'camel-*'`, `'*-limb'`);
+`--list` prints the case names. `--skip-large` skips meshes of 40k+
+vertices (armadillo, feline, survey bumpy plane). `--formulation` is passed
+to `dend deform` (omitted: dend's default). The binary is `$DEND_BIN` or
+`target/release/dend`; meshes come from `$DEND_MESHES` (default
+`../shared/meshes`). numpy and libigl are needed: when `python3` lacks them
+the script re-runs itself with `$DEND_PYTHON`, `.venv/bin/python` or
+`/work/main/.venv/bin/python` (`scripts/setup-test-env.sh` creates .venv).
+
+Edits (cases):
+- `<mesh>-standard` for camel_9770, dino_6013, hand_1502, eth_hand_14k,
+  armadillo_43k, feline_50k: fixed = the lowest 10 % of the vertices by z,
+  handle = the highest 10 %, translated 0.15 * bbox diagonal along +x and
+  rotated 30 degrees about +y about the handle's rest centroid.
+- `<mesh>-limb`, same meshes: handle = the vertices within 0.08 * diagonal
+  of the vertex of largest x, translated 0.1 * diagonal along +y; fixed = the
+  25 % of the vertices of smallest x (minus any handle vertex).
+  Both are written as explicit index lists in a temporary constraints file.
+- `bar-135`, `bar-300` (5 steps): `dend gen bar` with
+  examples/bar-twist-{135,300}.json; `survey-bar`: survey_bar.off + .sel/.def
+  (135 degrees about z).
+- `cylinder-120` (1 step), `cylinder-180` (3 steps): `dend gen cylinder` with
+  examples/cylinder-bend-{120,180}.json (steps as in
+  docs/paper-reproduction.md); `survey-cylinder`, `survey-cactus`,
+  `survey-bumpy_plane`: the survey .off + .sel/.def.
+
+Per case: `dend deform MESH (--constraints C | --sel S --def D) -o OUT
+--steps N --max-iters K --tol T --report R.json [--formulation F]` (R.json:
+iterations, converged, diverged, objective_first/last, objectives,
+precompute_ms, iteration_ms_median, solve_ms, steps[]), then libigl ARAP:
+`ARAPData(max_iter=1)`, `arap_precomputation(V, F, 3, b, data)` with
+b = fixed + handle, and `arap_solve` repeated from the rest pose until the
+largest vertex move is below tol * mean rest edge length or 1000 iterations;
+multi-step edits go through the same increments (rotation angle and
+translation scaled linearly about the same pivot), each step to convergence.
+Edge distortion = |l'/l - 1| over the mesh's edges (mean and max), computed
+here for both poses. Time to settle = precompute + all iterations. Twist and
+bend cases are also measured with `dend measure` (--bar / --bend over the rest
+z span between the fixed and handle regions, as tests/paper_reproduction.rs).
+
+PASS rules (our pose): mean distortion <= 1.5 x ARAP's, max distortion <= 2 x
+ARAP's; every step converged within 30 iterations; the objectives monotone
+(objectives[k+1] <= objectives[k] * (1 + 1e-9), checked within each step);
+not diverged; bar-135 and survey-bar: min area >= 0.92 and twist dev <= 3
+degrees; bar-300: min area >= 0.8; cylinder-120: bend CV <= 0.15. A case
+that cannot run is an ERROR row. Exit code 0 when every case passes, 1
+otherwise, 2 without a dend binary.
+
+Renders (unless --no-render): docs/img/posing/<case>.png, three 360x360
+panels side by side: rest, ours, ARAP (scripts/render_poses.py's rasteriser;
+faces coloured by rest normal direction and banded along rest z).
+"""
+
+import argparse
+import fnmatch
+import importlib.util
+import json
+import math
+import os
+import subprocess
+import sys
+import tempfile
+import time
+
+ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+
+
+def _ensure_numpy_igl():
+    """Re-runs this script with the venv python when numpy/igl are missing."""
+    try:
+        import igl  # noqa: F401
+        import numpy  # noqa: F401
+        return
+    except ImportError:
+        pass
+    if not os.environ.get("POSING_SUITE_REEXEC"):
+        for c in (os.environ.get("DEND_PYTHON"), os.path.join(ROOT, ".venv/bin/python"),
+                  "/work/main/.venv/bin/python"):
+            if c and os.path.exists(c):
+                os.environ["POSING_SUITE_REEXEC"] = "1"
+                os.execv(c, [c, os.path.abspath(__file__)] + sys.argv[1:])
+    sys.exit("error: numpy and libigl are needed: set DEND_PYTHON or run "
+             "scripts/setup-test-env.sh")
+
+
+_ensure_numpy_igl()
+import igl  # noqa: E402
+import numpy as np  # noqa: E402
+
+
+def _load(name):
+    spec = importlib.util.spec_from_file_location(
+        name, os.path.join(ROOT, "scripts", name + ".py"))
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    return mod
+
+
+RP = _load("render_poses")       # face_colours, view_matrix, rasterise, write_png
+AREF = _load("arap_reference")   # Rigid, from_json, from_survey (same reading as Rust)
+
+MESHES = os.environ.get("DEND_MESHES", os.path.join(ROOT, "..", "shared", "meshes"))
+IMG_DIR = os.path.join(ROOT, "docs", "img", "posing")
+LARGE = 40_000
+PNG_LIMIT = 150_000
+MAX_ITERS_PER_STEP = 30
+ARAP_MAX_ITERS = 1000
+FREE_MESHES = [("camel", "camel_9770.off"), ("dino", "dino_6013.obj"),
+               ("hand", "hand_1502.obj"), ("eth_hand", "eth_hand_14k.off"),
+               ("armadillo", "armadillo_43k.obj"), ("feline", "feline_50k.off")]
+TWIST_135 = {"min_area": (">=", 0.92), "twist_dev_deg": ("<=", 3.0)}
+# (name, `dend gen` shape or None for a survey set-up, examples/ file or survey
+#  name, steps, `dend measure` kind, pass rules on our figures, view az/el)
+SHAPE_CASES = [
+    ("bar-135", "bar", "bar-twist-135.json", 1, "bar", TWIST_135, (30, 15)),
+    ("bar-300", "bar", "bar-twist-300.json", 5, "bar", {"min_area": (">=", 0.8)}, (30, 15)),
+    ("survey-bar", None, "bar", 1, "bar", TWIST_135, (30, 15)),
+    ("cylinder-120", "cylinder", "cylinder-bend-120.json", 1, "bend",
+     {"bend_cv": ("<=", 0.15)}, (0, 0)),
+    ("cylinder-180", "cylinder", "cylinder-bend-180.json", 3, "bend", {}, (0, 0)),
+    ("survey-cylinder", None, "cylinder", 1, "bend", {}, (0, 0)),
+    ("survey-cactus", None, "cactus", 1, None, {}, (90, 10)),
+    ("survey-bumpy_plane", None, "bumpy_plane", 1, None, {}, (0, 20)),
+]
+
+
+def log(msg):
+    print(msg, file=sys.stderr, flush=True)
+
+
+def nan_to_none(x):
+    """JSON-safe copy: NaN/inf become null, numpy scalars plain numbers."""
+    if isinstance(x, dict):
+        return {k: nan_to_none(v) for k, v in x.items()}
+    if isinstance(x, (list, tuple)):
+        return [nan_to_none(v) for v in x]
+    if isinstance(x, (np.floating, float)):
+        return float(x) if math.isfinite(x) else None
+    if isinstance(x, np.integer):
+        return int(x)
+    return x
+
+
+# --- case set-up ---------------------------------------------------------------
+
+def case_names():
+    names = [f"{n}-{e}" for n, _ in FREE_MESHES for e in ("standard", "limb")]
+    return names + [c[0] for c in SHAPE_CASES]
+
+
+def diagonal(v):
+    return float(np.linalg.norm(v.max(axis=0) - v.min(axis=0)))
+
+
+def free_mesh_case(name, tmp):
+    short, edit = name.rsplit("-", 1)
+    path = os.path.join(MESHES, dict(FREE_MESHES)[short])
+    v, f = igl.read_triangle_mesh(path)
+    n, d = len(v), diagonal(v)
+    if edit == "standard":
+        order = np.argsort(v[:, 2], kind="stable")
+        k = max(1, int(n * 0.1))
+        fixed, handle = order[:k], order[n - k:]
+        pivot = v[handle].mean(axis=0)
+        target = AREF.Rigid([0, 1, 0], 30.0, [0.15 * d, 0, 0], pivot)
+        view = (0, 10)   # looking along y: the x shift and the y rotation in view
+    else:
+        tip = int(np.argmax(v[:, 0]))
+        handle = np.nonzero(np.linalg.norm(v - v[tip], axis=1) <= 0.08 * d)[0]
+        order = np.argsort(v[:, 0], kind="stable")
+        fixed = np.setdiff1d(order[:max(1, int(n * 0.25))], handle)
+        pivot = v[handle].mean(axis=0)
+        target = AREF.Rigid([0, 0, 1], 0.0, [0, 0.1 * d, 0], pivot)
+        view = (0, 90)   # from above (+z): the y pull in view
+    cons = os.path.join(tmp, f"{name}.json")
+    spec = {"fixed": fixed.tolist(), "handles": [{
+        "name": "handle", "vertices": handle.tolist(),
+        "translate": target.translate.tolist(),
+        "rotate": {"axis": target.axis.tolist(), "degrees": target.degrees},
+        "pivot": pivot.tolist()}]}
+    with open(cons, "w") as fh:
+        json.dump(spec, fh)
+    return dict(name=name, rest=path, v=v, f=f, fixed=fixed, handle=handle, target=target,
+                steps=1, kind=None, rules={}, view=view, dend_args=["--constraints", cons])
+
+
+def shape_case(name, tmp, dend):
+    _, shape, src, steps, kind, rules, view = next(c for c in SHAPE_CASES if c[0] == name)
+    if shape:
+        rest = os.path.join(tmp, f"gen_{shape}.off")
+        if not os.path.exists(rest):
+            subprocess.run([dend, "gen", shape, "-o", rest], check=True, capture_output=True,
+                           text=True)
+        cons = os.path.join(ROOT, "examples", src)
+        v, f = igl.read_triangle_mesh(rest)
+        fixed, handle, target = AREF.from_json(v, cons)
+        dend_args = ["--constraints", cons]
+    else:
+        rest = os.path.join(MESHES, f"survey_{src}.off")
+        sel, dfile = (os.path.join(MESHES, f"survey_{src}.{e}") for e in ("sel", "def"))
+        v, f = igl.read_triangle_mesh(rest)
+        fixed, handle, target = AREF.from_survey(v, sel, dfile)
+        dend_args = ["--sel", sel, "--def", dfile]
+    return dict(name=name, rest=rest, v=v, f=f, fixed=fixed, handle=handle, target=target,
+                steps=steps, kind=kind, rules=rules, view=view, dend_args=dend_args,
+                label=f"dend gen {shape}" if shape else rest)
+
+
+def build_case(name, tmp, dend):
+    if any(name == c[0] for c in SHAPE_CASES):
+        c = shape_case(name, tmp, dend)
+    else:
+        c = free_mesh_case(name, tmp)
+    c["v"] = np.ascontiguousarray(c["v"], dtype=np.float64)
+    c["f"] = np.ascontiguousarray(c["f"], dtype=np.int64)
+    c["fixed"], c["handle"] = np.asarray(c["fixed"], int), np.asarray(c["handle"], int)
+    if len(c["handle"]) == 0 or len(c["fixed"]) == 0:
+        raise ValueError("empty fixed or handle set")
+    if np.intersect1d(c["fixed"], c["handle"]).size:
+        raise ValueError("fixed and handle sets overlap")
+    c["edges"] = igl.edges(c["f"])
+    c["rest_len"] = np.linalg.norm(c["v"][c["edges"][:, 0]] - c["v"][c["edges"][:, 1]], axis=1)
+    return c
+
+
+# --- figures -------------------------------------------------------------------
+
+def edge_distortion(case, u):
+    if u is None or not np.all(np.isfinite(u)):
+        return {"mean": float("nan"), "max": float("nan")}
+    e = case["edges"]
+    d = np.abs(np.linalg.norm(u[e[:, 0]] - u[e[:, 1]], axis=1) / case["rest_len"] - 1)
+    return {"mean": float(d.mean()), "max": float(d.max())}
+
+
+def monotone(report):
+    """Every objectives[k+1] <= objectives[k] * (1 + 1e-9), within each step
+    when the per-step iteration counts add up to the list (a new increment's
+    target may raise the objective), else over the whole list."""
+    obj = report.get("objectives")
+    if not isinstance(obj, list):
+        return None
+    counts = [s.get("iterations", 0) for s in report.get("steps") or []]
+    chunks = [obj]
+    if counts and sum(counts) == len(obj):
+        starts = np.cumsum([0] + counts)
+        chunks = [obj[a:b] for a, b in zip(starts[:-1], starts[1:])]
+    return all(c[k + 1] <= c[k] * (1 + 1e-9) for c in chunks for k in range(len(c) - 1))
+
+
+def write_off(path, v, f):
+    with open(path, "w") as fh:
+        fh.write(f"OFF\n{len(v)} {len(f)} 0\n")
+        np.savetxt(fh, v, fmt="%.17g")
+        np.savetxt(fh, np.hstack([np.full((len(f), 1), 3), f]), fmt="%d")
+
+
+def measure(dend, case, pose_path):
+    """`dend measure` figures of a twist or bend pose ({} for other cases)."""
+    if not case["kind"]:
+        return {}
+    z0 = float(case["v"][case["fixed"], 2].max())
+    z1 = float(case["v"][case["handle"], 2].min())
+    if case["kind"] == "bar":
+        t = case["target"]
+        extra = ["--bar", repr(z0), repr(z1),
+                 "--twist", repr(t.degrees * float(np.sign(t.axis[2])))]
+    else:
+        extra = ["--bend", repr(z0), repr(z1)]
+    res = subprocess.run([dend, "measure", case["rest"], pose_path] + extra,
+                         capture_output=True, text=True)
+    if res.returncode != 0:
+        return {"error": res.stderr.strip()[-300:]}
+    out = json.loads(res.stdout)
+    keep = ("min_area", "twist_dev_deg", "bend_cv", "bend_total_deg")
+    return {k: out[k] for k in keep if k in out}
+
+
+# --- the two solvers ----------------------------------------------------------
+
+def run_ours(dend, case, args, tmp):
+    out = os.path.join(tmp, f"{case['name']}_ours.obj")
+    rep_path = os.path.join(tmp, f"{case['name']}_report.json")
+    for p in (out, rep_path):
+        if os.path.exists(p):
+            os.remove(p)
+    cmd = [dend, "deform", case["rest"], *case["dend_args"], "-o", out,
+           "--steps", str(case["steps"]), "--max-iters", str(args.max_iters),
+           "--tol", repr(args.tol), "--report", rep_path]
+    if args.formulation:
+        cmd += ["--formulation", args.formulation]
+    t0 = time.perf_counter()
+    res = subprocess.run(cmd, capture_output=True, text=True, timeout=args.timeout)
+    wall = (time.perf_counter() - t0) * 1e3
+    if res.returncode != 0:
+        lines = res.stderr.strip().splitlines() or [f"exit {res.returncode}"]
+        msg = next((x for x in lines if x.startswith("error")), lines[-1])
+        hint = " (this dend has no --report: rebuild it)" if "'--report'" in msg else ""
+        raise RuntimeError(f"dend deform failed: {msg[:200]}{hint}")
+    if not os.path.exists(rep_path):
+        raise RuntimeError("dend deform wrote no report (--report)")
+    with open(rep_path) as fh:
+        rep = json.load(fh)
+    u, _ = igl.read_triangle_mesh(out)
+    if u.shape != case["v"].shape:
+        raise RuntimeError(f"pose has {len(u)} vertices, rest {len(case['v'])}")
+    nan = float("nan")
+    steps = rep.get("steps") or [{"iterations": rep.get("iterations"),
+                                  "converged": rep.get("converged")}]
+    row = {
+        "iterations": rep.get("iterations"),
+        "converged": rep.get("converged"),
+        "diverged": rep.get("diverged"),
+        "steps": steps,
+        "objective_first": rep.get("objective_first", nan),
+        "objective_last": rep.get("objective_last", nan),
+        "monotone": monotone(rep),
+        "iteration_ms": rep.get("iteration_ms_median", nan),
+        "precompute_ms": rep.get("precompute_ms", nan),
+        "solve_ms": rep.get("solve_ms", nan),
+        "wall_ms": wall,
+        "report": rep,
+        "pose_path": out,
+    }
+    row["settle_ms"] = row["precompute_ms"] + row["solve_ms"]
+    return u, row
+
+
+def run_arap(case, tol):
+    v, f, fixed, handle = case["v"], case["f"], case["fixed"], case["handle"]
+    b = np.concatenate([fixed, handle]).astype(np.int32)
+    data = igl.ARAPData()
+    data.max_iter = 1
+    t0 = time.perf_counter()
+    igl.arap_precomputation(v, f, 3, b, data)
+    pre = (time.perf_counter() - t0) * 1e3
+    thresh = tol * float(case["rest_len"].mean())
+    u, times, steps = v.copy(), [], []
+    for s in range(1, case["steps"] + 1):
+        tgt = case["target"].fraction(s / case["steps"])
+        bc = np.ascontiguousarray(np.vstack([v[fixed], tgt.apply(v[handle])]))
+        its, move = 0, float("inf")
+        while its < ARAP_MAX_ITERS and not move < thresh:
+            t = time.perf_counter()
+            un = igl.arap_solve(bc, data, u)
+            times.append((time.perf_counter() - t) * 1e3)
+            move = float(np.linalg.norm(un - u, axis=1).max())
+            u, its = un, its + 1
+            if not np.isfinite(move):
+                break
+        steps.append({"iterations": its, "converged": bool(move < thresh),
+                      "last_move_mean_edges": move / thresh * tol})
+    return u, {
+        "iterations": sum(s["iterations"] for s in steps),
+        "converged": all(s["converged"] for s in steps),
+        "steps": steps,
+        "precompute_ms": pre,
+        "iteration_ms": float(np.median(times)) if times else float("nan"),
+        "solve_ms": float(sum(times)),
+        "settle_ms": pre + float(sum(times)),
+    }
+
+
+# --- verdict, render, table ----------------------------------------------------
+
+def judge(row):
+    """Fills row["failures"] and row["verdict"] (PASS / FAIL / ERROR)."""
+    if row.get("error"):
+        row["verdict"] = "ERROR"
+        return
+    o, a, fails = row["ours"], row["arap"], []
+    o["distortion"]["mean_ratio"] = rm = o["distortion"]["mean"] / a["distortion"]["mean"]
+    o["distortion"]["max_ratio"] = rx = o["distortion"]["max"] / a["distortion"]["max"]
+    row["settle_ratio"] = a["settle_ms"] / o["settle_ms"] if o["settle_ms"] else float("nan")
+    if not rm <= 1.5:
+        fails.append(f"mean distortion x{rm:.2f} ARAP")
+    if not rx <= 2.0:
+        fails.append(f"max distortion x{rx:.2f} ARAP")
+    for k, s in enumerate(o["steps"], 1):
+        if not s.get("converged"):
+            fails.append(f"step {k}: not converged in {s.get('iterations')} it")
+        elif not (s.get("iterations") or 0) <= MAX_ITERS_PER_STEP:
+            fails.append(f"step {k}: {s.get('iterations')} it > {MAX_ITERS_PER_STEP}")
+    if o["monotone"] is not True:
+        fails.append("objective not monotone" if o["monotone"] is False else "no objectives")
+    if o["diverged"] is not False:
+        fails.append(f"diverged {o['diverged']}")
+    for key, (op, lim) in row["rules"].items():
+        x = o["measure"].get(key, float("nan"))
+        if not (x >= lim if op == ">=" else x <= lim):
+            fails.append(f"{key} {x:.3g} (need {op} {lim})")
+    row["failures"] = fails
+    row["verdict"] = "PASS" if not fails else "FAIL"
+
+
+def render(path, case, poses, view, panel=360, ss=2):
+    rest, f = case["v"], case["f"]
+    col = RP.face_colours(rest, f)
+    r = RP.view_matrix(*view)
+    views = [m @ r.T for m in [rest] + poses]
+    w = h = panel * ss
+    ext = max(max(np.ptp(q[:, 0]) / w, np.ptp(q[:, 2]) / h) for q in views)
+    scale = 0.9 / ext
+    out = []
+    for q in views:
+        c = ((q[:, 0].max() + q[:, 0].min()) / 2, (q[:, 2].max() + q[:, 2].min()) / 2)
+        img = RP.rasterise(q, f, col, w, h, scale, c)
+        out.append(img.reshape(panel, ss, panel, ss, 3).mean(axis=(1, 3)))
+        out.append(np.full((panel, 4, 3), 0.85))
+    img = np.concatenate(out[:-1], axis=1)
+    # Flat shading of 50k-face meshes compresses badly: fewer colour levels
+    # until the file is under PNG_LIMIT (31 levels is hard to tell by eye).
+    for levels in (None, 31, 15, 7):
+        RP.write_png(path, img if levels is None else np.round(img * levels) / levels)
+        if os.path.getsize(path) <= PNG_LIMIT:
+            break
+
+
+def fmt(x, spec=".3g"):
+    if x is None or (isinstance(x, float) and not math.isfinite(x)):
+        return "-"
+    if isinstance(x, bool):
+        return "yes" if x else "no"
+    return format(x, spec)
+
+
+def figures(o, a):
+    om, am = o.get("measure", {}), a.get("measure", {})
+    if "min_area" in om or "min_area" in am:
+        return (f"area {fmt(om.get('min_area'))}/{fmt(am.get('min_area'))}, "
+                f"dev {fmt(om.get('twist_dev_deg'), '.1f')}/{fmt(am.get('twist_dev_deg'), '.1f')}°")
+    if "bend_cv" in om or "bend_cv" in am:
+        return f"CV {fmt(om.get('bend_cv'))}/{fmt(am.get('bend_cv'))}"
+    return ""
+
+
+def print_table(rows):
+    print("| case | V | steps | ours it | conv | objective first→last | mono | ours dist mean/max "
+          "| ours ms/it | ours settle ms | ARAP it | conv | ARAP dist mean/max | ARAP ms/it "
+          "| ARAP settle ms | mean÷ | max÷ | settle ARAP÷ours | figures ours/ARAP | verdict |")
+    print("|" + "---|" * 20)
+    for r in rows:
+        o, a = r.get("ours", {}), r.get("arap", {})
+        od, ad = o.get("distortion", {}), a.get("distortion", {})
+        verdict = r["verdict"]
+        if r.get("error"):
+            verdict += ": " + r["error"]
+        elif r.get("failures"):
+            verdict += ": " + "; ".join(r["failures"])
+        print(f"| {r['case']} | {r.get('vertices', '-')} | {r.get('steps', '-')} "
+              f"| {fmt(o.get('iterations'), 'd')} | {fmt(o.get('converged'))} "
+              f"| {fmt(o.get('objective_first'))}→{fmt(o.get('objective_last'))} "
+              f"| {fmt(o.get('monotone'))} | {fmt(od.get('mean'))}/{fmt(od.get('max'))} "
+              f"| {fmt(o.get('iteration_ms'), '.1f')} | {fmt(o.get('settle_ms'), '.0f')} "
+              f"| {fmt(a.get('iterations'), 'd')} | {fmt(a.get('converged'))} "
+              f"| {fmt(ad.get('mean'))}/{fmt(ad.get('max'))} | {fmt(a.get('iteration_ms'), '.1f')} "
+              f"| {fmt(a.get('settle_ms'), '.0f')} | {fmt(od.get('mean_ratio'), '.2f')} "
+              f"| {fmt(od.get('max_ratio'), '.2f')} | {fmt(r.get('settle_ratio'), '.2f')} "
+              f"| {figures(o, a)} | {verdict} |")
+
+
+def run_case(name, dend, args, tmp):
+    row = {"case": name, "verdict": "ERROR"}
+    try:
+        case = build_case(name, tmp, dend)
+    except Exception as e:  # noqa: BLE001 -- a bad case is an error row
+        row["error"] = f"set-up: {e}"
+        return row, None
+    row.update(vertices=len(case["v"]), steps=case["steps"], rules=case["rules"],
+               fixed=len(case["fixed"]), handle=len(case["handle"]),
+               rest=case.get("label", case["rest"]))
+    if args.skip_large and len(case["v"]) >= LARGE:
+        row.update(verdict="SKIP")
+        return row, None
+    errors, u_ours, u_arap = [], None, None
+    log(f"{name}: {len(case['v'])} vertices, {case['steps']} step(s): dend deform")
+    try:
+        u_ours, row["ours"] = run_ours(dend, case, args, tmp)
+        row["ours"]["distortion"] = edge_distortion(case, u_ours)
+        row["ours"]["measure"] = measure(dend, case, row["ours"].pop("pose_path"))
+    except Exception as e:  # noqa: BLE001
+        errors.append(f"ours: {e}")
+    log(f"{name}: libigl ARAP")
+    try:
+        u_arap, row["arap"] = run_arap(case, args.tol)
+        row["arap"]["distortion"] = edge_distortion(case, u_arap)
+        pose = os.path.join(tmp, f"{name}_arap.off")
+        write_off(pose, u_arap, case["f"])
+        row["arap"]["measure"] = measure(dend, case, pose)
+    except Exception as e:  # noqa: BLE001
+        errors.append(f"ARAP: {e}")
+    if errors:
+        row["error"] = "; ".join(errors)
+    try:
+        judge(row)
+    except Exception as e:  # noqa: BLE001
+        row.update(verdict="ERROR", error=f"judging: {e}")
+    if not args.no_render:
+        poses = [u_ours, u_arap]
+        if all(p is not None and np.all(np.isfinite(p)) for p in poses):
+            try:
+                os.makedirs(IMG_DIR, exist_ok=True)
+                row["png"] = os.path.relpath(os.path.join(IMG_DIR, f"{name}.png"), ROOT)
+                render(os.path.join(ROOT, row["png"]), case, poses, case["view"])
+            except Exception as e:  # noqa: BLE001
+                row["render_error"] = str(e)
+    return row, case
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0].replace("\n", " "),
+                                 formatter_class=argparse.RawDescriptionHelpFormatter,
+                                 epilog="See the module docstring for the edits and pass rules.")
+    ap.add_argument("--only", nargs="+", metavar="NAME", help="case names or patterns")
+    ap.add_argument("--skip-large", action="store_true", help=f"skip meshes of {LARGE}+ vertices")
+    ap.add_argument("--formulation", help="passed to dend deform (default: dend's default)")
+    ap.add_argument("--max-iters", type=int, default=100, help="dend deform limit per step")
+    ap.add_argument("--tol", type=float, default=1e-3,
+                    help="largest vertex move in mean edge lengths (both solvers)")
+    ap.add_argument("--timeout", type=float, default=3600, help="seconds per dend deform run")
+    ap.add_argument("--json", help="write every figure to this file")
+    ap.add_argument("--no-render", action="store_true", help="no PNGs")
+    ap.add_argument("--list", action="store_true", help="print the case names and exit")
+    args = ap.parse_args()
+    names = case_names()
+    if args.list:
+        print("\n".join(names))
+        return 0
+    if args.only:
+        names = [n for n in names if any(fnmatch.fnmatchcase(n, p) for p in args.only)]
+        if not names:
+            sys.exit(f"error: no case matches {args.only} (see --list)")
+    dend = os.environ.get("DEND_BIN") or os.path.join(ROOT, "target", "release", "dend")
+    if not os.path.exists(dend):
+        print(f"error: no dend binary at {dend}: build it with `cargo build --release` "
+              "(or set DEND_BIN)", file=sys.stderr)
+        return 2
+    rows = []
+    t0 = time.perf_counter()
+    with tempfile.TemporaryDirectory(prefix="posing_suite_") as tmp:
+        for name in names:
+            row, _ = run_case(name, dend, args, tmp)
+            log(f"{name}: {row['verdict']} {row.get('error', '')}")
+            rows.append(row)
+    print_table(rows)
+    ran = [r for r in rows if r["verdict"] != "SKIP"]
+    passed = sum(r["verdict"] == "PASS" for r in ran)
+    errors = sum(r["verdict"] == "ERROR" for r in ran)
+    reported = {r["ours"]["report"].get("formulation") for r in rows if "ours" in r} - {None}
+    formulation = args.formulation or "/".join(sorted(reported)) or "dend's default"
+    print(f"\nPASS {passed}/{len(ran)} ({errors} errors, {len(rows) - len(ran)} skipped; "
+          f"formulation {formulation}, tol {args.tol:g}, "
+          f"{time.perf_counter() - t0:.0f} s)")
+    if args.json:
+        with open(args.json, "w") as fh:
+            json.dump(nan_to_none({
+                "dend": dend, "formulation": formulation, "tol": args.tol,
+                "max_iters": args.max_iters, "arap_max_iters": ARAP_MAX_ITERS,
+                "passed": passed, "total": len(ran), "cases": rows}), fh, indent=1)
+    return 0 if passed == len(ran) else 1
+
+
+if __name__ == "__main__":
+    sys.exit(main())
