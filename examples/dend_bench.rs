@@ -4,7 +4,7 @@
 //! ```text
 //! cargo run --release --example dend_bench -- MESH [--sets FILE.json]
 //!     [--iters 30] [--cg] [--subdivide K] [--write-sets FILE.json]
-//!     [--write-mesh FILE.off] [--formulation least_squares|square|square_lu|both|all]
+//!     [--write-mesh FILE.off] [--formulation elastic|least_squares|square|square_lu|both|all]
 //!     [--precision double|single|both] [--rebuilds K]
 //! ```
 //!
@@ -105,13 +105,14 @@ fn run() -> Result<(), String> {
     let t = Instant::now();
     let rest = Arc::new(Rest::new(mesh.clone()).map_err(|e| e.to_string())?);
     let rest_ms = ms(t.elapsed());
-    let which = arg::<String>(&args, "--formulation").unwrap_or("least_squares".into());
+    let which = arg::<String>(&args, "--formulation").unwrap_or("elastic".into());
     let formulations = match which.as_str() {
         "both" => vec![Formulation::LeastSquares, Formulation::Square],
         "all" => vec![
             Formulation::LeastSquares,
             Formulation::Square,
             Formulation::SquareLu,
+            Formulation::Elastic,
         ],
         name => vec![Formulation::from_name(name).ok_or(format!("bad formulation {name:?}"))?],
     };

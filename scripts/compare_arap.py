@@ -5,6 +5,7 @@ the same meshes and the same fixed/handle sets, in one run, and prints ratios.
 Usage (from the crate root):
 
     python3 scripts/compare_arap.py [MESH ...] [--iters 30] [--rounds 3] [--json out.json]
+        [--formulation elastic|least_squares|square]
 
 MESH is a file or ``tube:N`` (a generated tube of about N vertices); the
 default list is tube:10000, camel_9770.off, armadillo_43k.obj, feline_50k.off
@@ -96,6 +97,8 @@ def main():
     ap.add_argument("--rounds", type=int, default=3,
                     help="alternating dend/ARAP runs per mesh (medians reported)")
     ap.add_argument("--json", help="also write all figures to this file")
+    ap.add_argument("--formulation", default="elastic",
+                    help="dend's formulation: elastic (the default), least_squares, square")
     ap.add_argument("--no-cg", action="store_true",
                     help="skip the paper's CG (minutes per mesh above ~10k vertices)")
     args = ap.parse_args()
@@ -115,7 +118,7 @@ def main():
             for k in range(max(1, args.rounds)):
                 cg = [] if (args.no_cg or k > 0) else ["--cg"]
                 cmd = [exe, path, "--iters", str(args.iters), "--write-sets", sets,
-                       "--write-mesh", off] + cg
+                       "--write-mesh", off, "--formulation", args.formulation] + cg
                 out = subprocess.run(cmd,
                                      check=True, capture_output=True, text=True).stdout
                 dend = json.loads(out)

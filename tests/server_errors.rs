@@ -217,3 +217,57 @@ async fn session_limit_is_503() -> Result<(), ClientError> {
     }
     Ok(())
 }
+
+/// A second server instance on the same SQLite store, where the session
+/// is stored but not live.
+async fn start_on_store(dir: &std::path::Path) -> String {
+    let config = Config {
+        addr: ([127, 0, 0, 1], 0).into(),
+        in_memory: false,
+        data_dir: dir.to_path_buf(),
+        ..Config::default()
+    };
+    let store = dend_server::recover::open_store(&config).expect("store");
+    let listener = tokio::net::TcpListener::bind(config.addr)
+        .await
+        .expect("bind");
+    let addr = listener.local_addr().expect("addr");
+    let state = dend_server::AppState::with_store(config, store).expect("state");
+    drop(tokio::spawn(dend_server::serve_on(
+        listener,
+        dend_server::app(state),
+    )));
+    format!("http://{addr}")
+}
+
+/// A wrong or missing token on a stored session that is not live is
+/// refused before the session is re-opened: no rest operators, no actor,
+/// no factor build (the server's metrics show none); the right token
+/// re-opens it.
+#[tokio::test]
+async fn a_wrong_token_on_a_stored_session_starts_no_work() -> Result<(), ClientError> {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let first = Client::new(&start_on_store(dir.path()).await);
+    let (p, t) = grid(8);
+    let mesh = first.upload_json(&p, &t).await?;
+    let s = first.create_session(&mesh.id, json!({})).await?;
+    s.set_constraints(&grid_constraints(8)).await?;
+    s.wait_ready(Duration::from_secs(60)).await?;
+
+    let base = start_on_store(dir.path()).await;
+    let second = Client::new(&base);
+    let http = reqwest::Client::new();
+    let url = format!("{base}/v1/sessions/{}", s.id);
+    let wrong = http.get(&url).bearer_auth("not-the-token").send().await?;
+    expect(wrong, 403, "forbidden").await;
+    let missing = http.get(&url).send().await?;
+    expect(missing, 401, "missing_token").await;
+    tokio::time::sleep(Duration::from_millis(200)).await;
+    assert_eq!(second.metric("dend_sessions").await?, Some(0.0));
+    assert_eq!(second.metric("dend_factor_cache_builds").await?, Some(0.0));
+
+    let right = http.get(&url).bearer_auth(&s.token).send().await?;
+    assert_eq!(right.status().as_u16(), 200);
+    assert_eq!(second.metric("dend_sessions").await?, Some(1.0));
+    Ok(())
+}

@@ -2,7 +2,7 @@
 //! end-to-end tests and `dend loadtest`, usable by tool backends.
 //!
 //! ```no_run
-//! # async fn demo() -> Result<(), dend::client::ClientError> {
+//! # async fn demo() -> Result<(), dend_client::ClientError> {
 //! use dend::client::Client;
 //! let c = Client::new("http://127.0.0.1:8080");
 //! let mesh = c.upload_json(&[[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]], &[[0, 1, 2]]).await?;

@@ -13,6 +13,8 @@
 
 use std::sync::Arc;
 
+use subtle::ConstantTimeEq;
+
 use super::error::ApiError;
 use super::{rest_for, AppState, Config};
 use crate::session::{Recovered, SessionHandle, SessionOptions};
@@ -33,8 +35,15 @@ pub fn open_store(config: &Config) -> anyhow::Result<Arc<dyn Store>> {
 }
 
 /// Re-opens the stored session `id` if it is not live; `None` when the
-/// store has no such session.
-pub(crate) async fn revive(st: &AppState, id: &str) -> Result<Option<SessionHandle>, ApiError> {
+/// store has no such session. `token` must be the session's: it is checked
+/// against the stored hash before the rest operators are built or a
+/// factor build starts, so a request without the right token costs one
+/// store read.
+pub(crate) async fn revive(
+    st: &AppState,
+    id: &str,
+    token: Option<&str>,
+) -> Result<Option<SessionHandle>, ApiError> {
     let Some(record) = st.store.get_session(id)? else {
         return Ok(None);
     };
@@ -46,6 +55,10 @@ pub(crate) async fn revive(st: &AppState, id: &str) -> Result<Option<SessionHand
         .ok_or_else(|| {
             ApiError::Internal(format!("stored token hash of session `{id}` is malformed"))
         })?;
+    let token = token.ok_or(ApiError::MissingToken)?;
+    if !bool::from(super::sessions::token_hash(token).ct_eq(&token_sha256)) {
+        return Err(ApiError::WrongToken);
+    }
     let rest = rest_for(st, &record.mesh_id).await?;
     let opts = SessionOptions {
         cache: st.cache.clone(),

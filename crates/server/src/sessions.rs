@@ -40,12 +40,18 @@ pub(crate) fn check_token(s: &SessionHandle, token: Option<&str>) -> Result<(), 
 }
 
 /// Looks a live session up, re-opening a stored one after a restart
-/// (see `recover`).
-pub(crate) async fn find(st: &AppState, id: &str) -> Result<SessionHandle, ApiError> {
+/// (see `recover`). A stored session is re-opened only for its own
+/// `token`, checked against the stored hash before any work is done (a
+/// live session's token is checked by the caller).
+pub(crate) async fn find(
+    st: &AppState,
+    id: &str,
+    token: Option<&str>,
+) -> Result<SessionHandle, ApiError> {
     let live = st.sessions.read().get(id).cloned();
     match live {
         Some(s) => Ok(s),
-        None => super::recover::revive(st, id)
+        None => super::recover::revive(st, id, token)
             .await?
             .ok_or_else(|| ApiError::SessionNotFound(id.to_owned())),
     }
@@ -62,7 +68,7 @@ impl FromRequestParts<AppState> for Authed {
             .await
             .map_err(|e| ApiError::InvalidJson(e.body_text()))?;
         let token = bearer(&parts.headers);
-        let s = find(st, &id).await?;
+        let s = find(st, &id, token).await?;
         check_token(&s, token)?;
         s.touch();
         Ok(Authed(s))

@@ -416,13 +416,15 @@ pub async fn upgrade(
     headers: HeaderMap,
     ws: WebSocketUpgrade,
 ) -> Result<Response, ApiError> {
-    let s = find(&st, &id).await?;
     let header_token = headers
         .get(header::AUTHORIZATION)
         .and_then(|v| v.to_str().ok())
         .and_then(|v| v.strip_prefix("Bearer "))
         .map(str::to_owned);
     let token = q.token.or(header_token);
+    // a stored, not-live session is re-opened only with its token here
+    // (not with a later `auth` message)
+    let s = find(&st, &id, token.as_deref()).await?;
     let authed = match token {
         Some(t) => {
             check_token(&s, Some(&t))?;
