@@ -96,6 +96,9 @@ pub struct ElasticOps {
     e: Vec<Point>,
     /// `b_i = λ2 k_b A_i`.
     b: Vec<Real>,
+    /// `k_i = Σ_j c_ij |e_ij|² + b_i |δ_i|²`: the rest part of vertex
+    /// `i`'s energy terms.
+    k_rest: Vec<Real>,
     /// `λ2 k_b`.
     kbl: Real,
     /// `k_a`.
@@ -153,6 +156,14 @@ impl ElasticOps {
             ptr.push(nbr.len());
         }
         let b: Vec<Real> = ops.area.iter().map(|&a| kbl * a).collect();
+        let k_rest = (0..n)
+            .map(|i| {
+                let spokes: Real = (ptr[i]..ptr[i + 1])
+                    .map(|s| c[s] * Vector3::from(e[s]).norm_squared())
+                    .sum();
+                spokes + b[i] * Vector3::from(ops.delta[i]).norm_squared()
+            })
+            .collect();
         let ka = params.area;
         let area = if ka > 0.0 {
             mesh.triangles()
@@ -168,6 +179,7 @@ impl ElasticOps {
             c,
             e,
             b,
+            k_rest,
             kbl,
             ka,
             area,
@@ -246,61 +258,57 @@ impl ElasticOps {
         proj: &mut [[Real; 6]],
         fit: bool,
     ) -> Real {
+        // M_i and Σ_j c_ij |y_j − y_i|² + b_i |(LY)_i|² in one pass over the
+        // spokes; then E_i = k_i + that − 2 tr(R_iᵀ M_i) with the rest
+        // constant k_i = Σ_j c_ij |e_ij|² + b_i |δ_i|²
         let covariance = |i: usize| {
             let mut m = Matrix3::<Real>::zeros();
-            if !set.fit[i] {
-                return m;
+            let mut sq = 0.0;
+            if !set.free[i] {
+                return (m, sq);
             }
             let yi = y[i];
             for s in self.ptr[i]..self.ptr[i + 1] {
                 let yj = y[self.nbr[s] as usize];
                 let d = Vector3::new(yj[0] - yi[0], yj[1] - yi[1], yj[2] - yi[2]);
                 m += self.c[s] * d * Vector3::from(self.e[s]).transpose();
+                sq += self.c[s] * d.norm_squared();
             }
             if self.b[i] > 0.0 {
-                m += self.b[i] * Vector3::from(ly[i]) * Vector3::from(ops.delta[i]).transpose();
+                let l = Vector3::from(ly[i]);
+                m += self.b[i] * l * Vector3::from(ops.delta[i]).transpose();
+                sq += self.b[i] * l.norm_squared();
             }
-            m
+            (m, sq)
         };
-        let energy_of = |i: usize, q: &UnitQuaternion<Real>| {
+        let energy_of = |i: usize, q: &UnitQuaternion<Real>, (m, sq): &(Matrix3<Real>, Real)| {
             if !set.free[i] {
                 return 0.0;
             }
             let r = q.to_rotation_matrix();
-            let yi = y[i];
-            let mut f = 0.0;
-            for s in self.ptr[i]..self.ptr[i + 1] {
-                let yj = y[self.nbr[s] as usize];
-                let re = r * Vector3::from(self.e[s]);
-                f += self.c[s]
-                    * ((yj[0] - yi[0] - re[0]).powi(2)
-                        + (yj[1] - yi[1] - re[1]).powi(2)
-                        + (yj[2] - yi[2] - re[2]).powi(2));
-            }
-            if self.b[i] > 0.0 {
-                let rd = r * Vector3::from(ops.delta[i]);
-                f += self.b[i]
-                    * ((ly[i][0] - rd[0]).powi(2)
-                        + (ly[i][1] - rd[1]).powi(2)
-                        + (ly[i][2] - rd[2]).powi(2));
-            }
-            f
+            let trace = r.matrix().component_mul(m).sum();
+            // never below 0 (rounding near a perfect fit)
+            (self.k_rest[i] + sq - 2.0 * trace).max(0.0)
         };
         let vertices = |(c, o): (usize, &mut [UnitQuaternion<Real>])| -> Real {
             let i0 = c * LANES;
+            let mut cov = [(Matrix3::zeros(), 0.0); LANES];
+            for (k, slot) in cov.iter_mut().take(o.len()).enumerate() {
+                *slot = covariance(i0 + k);
+            }
             if !fit {
                 // keep the rotations
             } else if let Ok(group) = <&mut [UnitQuaternion<Real>; LANES]>::try_from(&mut *o) {
-                let a = std::array::from_fn(|k| covariance(i0 + k));
+                let a = std::array::from_fn(|k| cov[k].0);
                 fit_rotation_quat4(&a, group);
             } else {
                 for (k, q) in o.iter_mut().enumerate() {
-                    *q = fit_rotation_quat(&covariance(i0 + k), q);
+                    *q = fit_rotation_quat(&cov[k].0, q);
                 }
             }
             o.iter()
                 .enumerate()
-                .map(|(k, q)| energy_of(i0 + k, q))
+                .map(|(k, q)| energy_of(i0 + k, q, &cov[k]))
                 .sum()
         };
         let triangles = |(el, p): (&AreaElement, &mut [Real; 6])| -> Real {
@@ -465,7 +473,9 @@ pub fn project_area(f: &[Real; 6]) -> [Real; 6] {
     let (a, b, c) = (c0.dot(&c0), c0.dot(&c1), c1.dot(&c1));
     let half = 0.5 * (a - c);
     let r = (half * half + b * b).sqrt();
-    let (l1, l2) = (0.5 * (a + c) + r, 0.5 * (a + c) - r);
+    let l1 = 0.5 * (a + c) + r;
+    // l2 = det / l1: no cancellation when l2 ≪ l1
+    let l2 = if l1 > 0.0 { (a * c - b * b) / l1 } else { 0.0 };
     // the eigenvector of l1: (b, l1 − a) or (l1 − c, b), the larger one
     let (e1, e2) = (Vector2::new(b, l1 - a), Vector2::new(l1 - c, b));
     let v1 = if e1.norm_squared() >= e2.norm_squared() {
@@ -483,8 +493,9 @@ pub fn project_area(f: &[Real; 6]) -> [Real; 6] {
         Some(u) if s1 > 1e-12 => u,
         _ => Vector3::x(),
     };
-    let u2 = match (fv(&v2) - u1 * u1.dot(&fv(&v2))).try_normalize(1e-12) {
-        Some(u) if s2 > 1e-12 => u,
+    let w2 = fv(&v2) - u1 * u1.dot(&fv(&v2));
+    let u2 = match w2.try_normalize(1e-300) {
+        Some(u) if w2.norm() > 1e-14 * s1 => u,
         _ => {
             // any unit vector orthogonal to u1
             let a = if u1.x.abs() < 0.9 {
@@ -508,27 +519,40 @@ pub fn project_area(f: &[Real; 6]) -> [Real; 6] {
 }
 
 /// `argmin_{d > 0} (d − σ1)² + (1/d − σ2)²` by Newton on the stationarity
-/// quartic `d⁴ − σ1 d³ + σ2 d − 1 = 0` from two starts (`√(σ1/σ2)` and
-/// `σ1`), keeping the best of them and `d = 1`.
+/// quartic `d⁴ − σ1 d³ + σ2 d − 1 = 0` from `√(σ1/σ2)` (exact when
+/// `σ1 = σ2`; 2–4 steps near rest), and again from `σ1` only if that does
+/// not end at a local minimum; the best of the candidates and `d = 1`.
 fn area_root(s1: Real, s2: Real) -> Real {
-    let f = |d: Real| (d - s1).powi(2) + (1.0 / d - s2).powi(2);
-    let mut best = (f(1.0), 1.0);
-    for start in [(s1 / s2.max(1e-12)).sqrt(), s1.max(1e-6)] {
+    let f = |d: Real| (d - s1) * (d - s1) + (1.0 / d - s2) * (1.0 / d - s2);
+    let newton = |start: Real| -> Option<Real> {
         let mut d: Real = start.clamp(1e-6, 1e6);
-        for _ in 0..30 {
-            let p = d.powi(4) - s1 * d.powi(3) + s2 * d - 1.0;
-            let dp = 4.0 * d.powi(3) - 3.0 * s1 * d * d + s2;
+        for _ in 0..40 {
+            let d2 = d * d;
+            let p = d2 * d2 - s1 * d2 * d + s2 * d - 1.0;
+            let dp = 4.0 * d2 * d - 3.0 * s1 * d2 + s2;
             if dp.abs() < 1e-300 {
-                break;
+                return None;
             }
             let next = (d - p / dp).clamp(d * 0.1, d * 10.0);
-            if (next - d).abs() <= 1e-15 * d {
-                d = next;
-                break;
-            }
+            let done = (next - d).abs() <= 1e-14 * d;
             d = next;
+            if done {
+                // a minimum of f: f'' = 2 + 6/d⁴ − 4 σ2/d³ > 0
+                let d3 = d * d * d;
+                let convex = 2.0 + 6.0 / (d3 * d) - 4.0 * s2 / d3 > 0.0;
+                return (d.is_finite() && d > 0.0 && convex).then_some(d);
+            }
         }
-        if d.is_finite() && d > 0.0 && f(d) < best.0 {
+        None
+    };
+    let mut best = (f(1.0), 1.0);
+    let first = newton((s1 / s2.max(1e-12)).sqrt());
+    let candidates = match first {
+        Some(d) => [Some(d), None],
+        None => [None, newton(s1.max(1e-6))],
+    };
+    for d in candidates.into_iter().flatten() {
+        if f(d) < best.0 {
             best = (f(d), d);
         }
     }
