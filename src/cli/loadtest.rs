@@ -80,6 +80,12 @@ struct SessionStats {
     ready: Duration,
     /// Constraints sent → ready (the factor build, as a client sees it).
     constraints_ready: Duration,
+    /// Last drag sent → the settled frame after it.
+    settle: Duration,
+    /// Iterations since the last change in the settled frame.
+    settle_iterations: u32,
+    /// Whether the settled frame converged.
+    settle_converged: bool,
 }
 
 async fn run_async(args: LoadtestArgs) -> anyhow::Result<()> {
@@ -156,8 +162,12 @@ async fn run_async(args: LoadtestArgs) -> anyhow::Result<()> {
     let (mut ready, mut constraints_ready) = (vec![], vec![]);
     let mut frames = 0;
     let mut drag_time = Duration::ZERO;
+    let (mut settles, mut settle_its, mut settled_converged) = (vec![], vec![], 0);
     for t in tasks {
         let (stats, elapsed) = t.await??;
+        settles.push(stats.settle);
+        settle_its.push(stats.settle_iterations);
+        settled_converged += usize::from(stats.settle_converged);
         all.extend(stats.latencies);
         ready.push(stats.ready);
         constraints_ready.push(stats.constraints_ready);
@@ -191,6 +201,18 @@ async fn run_async(args: LoadtestArgs) -> anyhow::Result<()> {
         all.len() as f64 / drag_time.as_secs_f64(),
         drag_time.as_secs_f64(),
         t0.elapsed().as_secs_f64()
+    );
+    settles.sort();
+    settle_its.sort();
+    println!(
+        "settle (last drag sent -> settled frame): median {:.1} ms, max {:.1} ms; \
+         iterations after the last change: median {}, max {}; converged {}/{}",
+        ms(percentile(&settles, 0.5)),
+        ms(percentile(&settles, 1.0)),
+        settle_its.get(settle_its.len() / 2).copied().unwrap_or(0),
+        settle_its.last().copied().unwrap_or(0),
+        settled_converged,
+        settles.len()
     );
     println!("errors: 0 (any error aborts the run)");
     if args.idle > 0 {
@@ -315,10 +337,15 @@ async fn one_session(
         frames: 0,
         ready: created.elapsed(),
         constraints_ready: constrained.elapsed(),
+        settle: Duration::ZERO,
+        settle_iterations: 0,
+        settle_converged: false,
     };
     let start = Instant::now();
+    let mut last_sent = Instant::now();
     for seq in 1..=drags {
         let sent = Instant::now();
+        last_sent = sent;
         ws.drag(0, step, None, seq).await?;
         loop {
             match ws.next().await? {
@@ -336,6 +363,23 @@ async fn one_session(
         }
     }
     let elapsed = start.elapsed();
+    // after the last drag: frames until the server says settled
+    loop {
+        match ws.next().await? {
+            WsEvent::Frame(h, _) => {
+                stats.frames += 1;
+                if h.ack_seq >= drags && h.settled {
+                    stats.settle = last_sent.elapsed();
+                    stats.settle_iterations = h.iteration;
+                    stats.settle_converged = h.converged;
+                    break;
+                }
+            }
+            WsEvent::Event(v) if v["type"] == "error" => anyhow::bail!("server error: {v}"),
+            WsEvent::Closed(c) => anyhow::bail!("connection closed ({c:?})"),
+            WsEvent::Event(_) => {}
+        }
+    }
     ws.close().await?;
     s.delete().await?;
     Ok((stats, elapsed))
