@@ -15,27 +15,27 @@ use faer::dyn_stack::{MemStack, StackReq};
 use faer::sparse::linalg::cholesky::{LltRef, SymbolicCholesky, SymbolicCholeskyRaw};
 use faer::sparse::{SparseColMat, SymbolicSparseColMat};
 use faer::{Conj, MatMut, Par};
-use sprs::CsMat;
 
 use crate::deform::cg::Cg;
 use crate::deform::cholesky::{self, analyse, csr_arrays};
 use crate::deform::constraints::Constraints;
 use crate::deform::elastic::{ElasticOps, ElasticSet};
-use crate::deform::ordering::FillOrdering;
 use crate::deform::params::{Energy, Formulation, Mode, Params};
 use crate::deform::rest::Rest;
 use crate::deform::square::{self, Square};
-use crate::deform::system::partition;
 use crate::deform::system::{Prepared, System};
 use crate::deform::trisolve;
 use crate::deform::DeformError;
 use crate::mesh::{Point, Real};
 
 mod cache;
+mod options;
 #[cfg(test)]
 pub(super) mod tests;
 
+use crate::deform::elastic::elastic_system;
 pub use cache::FactorCache;
+pub use options::{FactorPrecision, SolveOptions, SolverChoice};
 
 /// What a factor depends on, and nothing else: two equal keys give the same
 /// matrix `M`. Handle *targets* are not part of it.
@@ -122,100 +122,6 @@ pub struct Factor {
     cg: Option<Cg>,
     cg_iterations: AtomicU64,
     timings: FactorTimings,
-}
-
-/// How [`Factor::build_with`] solves `M`.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
-pub enum SolverChoice {
-    /// Sparse Cholesky, whatever its size.
-    Direct,
-    /// Jacobi-preconditioned conjugate gradient, no factorisation (the
-    /// paper's method; slow on large meshes).
-    Cg,
-    /// Cholesky when its estimated size fits the budget, CG otherwise.
-    #[default]
-    Auto,
-}
-
-/// Options of [`Factor::build_with`].
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct SolveOptions {
-    /// Direct, CG, or automatic.
-    pub solver: SolverChoice,
-    /// [`SolverChoice::Auto`] falls back to CG when the Cholesky factor
-    /// would exceed this ([`estimated_factor_bytes`]: its values in the
-    /// chosen [`FactorPrecision`] and its row indices).
-    pub factor_budget_bytes: usize,
-    /// CG relative residual tolerance per solve.
-    pub cg_tol: Real,
-    /// CG iteration cap per column and solve.
-    pub cg_max_iters: usize,
-    /// Fill-reducing ordering of the Cholesky factor.
-    pub ordering: FillOrdering,
-    /// Precision the factor is stored in after the (double-precision)
-    /// numeric factorisation.
-    pub precision: FactorPrecision,
-}
-
-/// How a Cholesky factor is stored between solves.
-///
-/// The factorisation always runs in `f64`. Each DEND iteration solves for
-/// an *update* from a residual computed in `f64` (dend.md §4), so a factor
-/// rounded to `f32` changes the step of an iteration by the solve's
-/// relative error (measured 1e-5 to 2e-4 on the benchmark meshes), not the
-/// fixed point the iteration converges to. Single precision halves the
-/// factor's memory and the bytes each solve streams (an iteration 0–25 %
-/// faster), but on eth_hand_14k its inexact steps made the safeguard
-/// reject more candidates (100 iterations took 1.5x as long), so it is an
-/// option for memory-bound servers, not the default (docs/performance.md).
-/// Only supernodal eq. (24) factors are rounded; simplicial (small) factors
-/// and the eq. (23) preconditioner stay in `f64`.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Serialize, serde::Deserialize)]
-#[serde(rename_all = "snake_case")]
-pub enum FactorPrecision {
-    /// `f64` values.
-    #[default]
-    Double,
-    /// `f32` values, `f64` arithmetic in the solves.
-    Single,
-}
-
-impl std::str::FromStr for FactorPrecision {
-    type Err = String;
-
-    /// `double` or `single`.
-    fn from_str(s: &str) -> Result<Self, String> {
-        match s {
-            "double" => Ok(FactorPrecision::Double),
-            "single" => Ok(FactorPrecision::Single),
-            _ => Err(format!("unknown factor precision {s:?} (double or single)")),
-        }
-    }
-}
-
-impl std::fmt::Display for FactorPrecision {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.write_str(match self {
-            FactorPrecision::Double => "double",
-            FactorPrecision::Single => "single",
-        })
-    }
-}
-
-impl Default for SolveOptions {
-    /// Auto, a 2 GiB factor budget, CG tolerance `1e-4` (the paper's),
-    /// at most 5000 CG iterations per column, [`FillOrdering::Auto`],
-    /// [`FactorPrecision::Double`].
-    fn default() -> Self {
-        SolveOptions {
-            solver: SolverChoice::Auto,
-            factor_budget_bytes: 2 << 30,
-            cg_tol: 1e-4,
-            cg_max_iters: 5000,
-            ordering: FillOrdering::Auto,
-            precision: FactorPrecision::Double,
-        }
-    }
 }
 
 impl std::fmt::Debug for Factor {
@@ -618,63 +524,4 @@ fn symbolic_flops(symbolic: &SymbolicCholesky<usize>) -> f64 {
                 .sum::<f64>()
         })
         .sum()
-}
-
-/// The elastic formulation's system of one constraint set: the unknowns
-/// (free vertices; every active vertex with soft constraints) and
-/// `M = Q_UU` (plus `λ1 q̄` on the constrained diagonal with soft
-/// constraints, `q̄` the mean diagonal of `Q`, so that `λ1` is
-/// dimensionless). `rows` are the unknowns; there are no stacked rows.
-fn elastic_system(
-    set: &ElasticSet,
-    params: &Params,
-    constrained: &[u32],
-    active: &[bool],
-) -> System {
-    let q = &set.q;
-    let n = q.rows();
-    let soft = params.lambda1 > 0.0;
-    let (rows, unknowns, col_of) = partition(n, constrained, active, soft);
-    let mean_diag = (0..n)
-        .map(|i| q.get(i, i).copied().unwrap_or(0.0))
-        .sum::<Real>()
-        / (active.iter().filter(|&&a| a).count().max(1) as Real);
-    let lambda1 = params.lambda1 * mean_diag;
-    let mut is_constrained = vec![false; n];
-    for &c in constrained {
-        is_constrained[c as usize] = true;
-    }
-    let mut indptr = Vec::with_capacity(unknowns.len() + 1);
-    indptr.push(0);
-    let (mut indices, mut data) = (Vec::new(), Vec::new());
-    for &u in &unknowns {
-        let u = u as usize;
-        if let Some(row) = q.outer_view(u) {
-            for (j, &v) in row.iter() {
-                let k = col_of[j];
-                if k != u32::MAX {
-                    let diag = if j == u && soft && is_constrained[u] {
-                        lambda1
-                    } else {
-                        0.0
-                    };
-                    indices.push(k as usize);
-                    data.push(v + diag);
-                }
-            }
-        }
-        indptr.push(indices.len());
-    }
-    let k = unknowns.len();
-    let m = CsMat::new((k, k), indptr, indices, data);
-    System {
-        row_weight: Vec::new(),
-        sqrt_lambda2: params.lambda2.sqrt(),
-        rows,
-        unknowns,
-        col_of,
-        m,
-        constrained: constrained.to_vec(),
-        lambda1,
-    }
 }

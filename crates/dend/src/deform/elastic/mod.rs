@@ -54,14 +54,20 @@
 //!
 //! [`Formulation::Elastic`]: super::Formulation::Elastic
 
-use nalgebra::{Matrix2, Matrix3, UnitQuaternion, Vector2, Vector3};
+use nalgebra::{Matrix3, UnitQuaternion, Vector3};
 use rayon::prelude::*;
 use sprs::{CsMat, TriMat};
 
 use super::params::{Energy, Params};
 use super::rotation::{fit_rotation_quat, fit_rotation_quat4, LANES};
+use super::system::{partition, System};
 use crate::mesh::{Mesh, Point, Real};
+
+mod area;
+
 use crate::operators::Operators;
+pub use area::project_area;
+use area::{area_element, gradient, AreaElement};
 use dend_linalg::sparse::matmul;
 
 /// Element count from which the local step runs on the rayon pool.
@@ -69,16 +75,6 @@ const PARALLEL_MIN: usize = 2048;
 
 /// The cap of `G` on the normalised mesh (module docs).
 pub const G_CAP: Real = 1.0;
-
-/// One triangle of the area term: its vertices, `B = D_m⁻¹` (the rest
-/// edges in an orthonormal frame of the rest triangle, inverted) and
-/// `k_a a_t`.
-#[derive(Debug, Clone, Copy)]
-struct AreaElement {
-    v: [u32; 3],
-    b: Matrix2<Real>,
-    weight: Real,
-}
 
 /// The rest-mesh data of the elastic energy for one set of weights:
 /// spokes (CSR over vertices, in ring order), bending weights and area
@@ -435,130 +431,6 @@ impl ElasticOps {
     }
 }
 
-/// The area element of triangle `t` on positions `x`, or `None` when it
-/// is degenerate.
-fn area_element(x: &[Point], t: [u32; 3], ka: Real) -> Option<AreaElement> {
-    let p = t.map(|v| Vector3::from(x[v as usize]));
-    let (e1, e2) = (p[1] - p[0], p[2] - p[0]);
-    let n = e1.cross(&e2);
-    let area = 0.5 * n.norm();
-    let u = e1.try_normalize(1e-300)?;
-    let v = n.cross(&u).try_normalize(1e-300)?;
-    let dm = Matrix2::new(e1.dot(&u), e2.dot(&u), e1.dot(&v), e2.dot(&v));
-    let b = dm.try_inverse()?;
-    (area > 0.0 && b.iter().all(|v| v.is_finite())).then_some(AreaElement {
-        v: t,
-        b,
-        weight: ka * area,
-    })
-}
-
-/// `F = [y1 − y0, y2 − y0] B`, column-major `[F00, F10, F20, F01, F11, F21]`.
-fn gradient(y: &[Point], el: &AreaElement) -> [Real; 6] {
-    let [v0, v1, v2] = el.v.map(|v| Vector3::from(y[v as usize]));
-    let (e1, e2) = (v1 - v0, v2 - v0);
-    let c0 = e1 * el.b[(0, 0)] + e2 * el.b[(1, 0)];
-    let c1 = e1 * el.b[(0, 1)] + e2 * el.b[(1, 1)];
-    [c0[0], c0[1], c0[2], c1[0], c1[1], c1[2]]
-}
-
-/// The nearest 3×2 matrix to `f` (column-major) with singular values
-/// `d, 1/d` (Frobenius norm): from `F = U diag(σ1, σ2) Vᵀ`,
-/// `P = U diag(d, 1/d) Vᵀ` with `d` the positive root of
-/// `d⁴ − σ1 d³ + σ2 d − 1 = 0` minimising `(d − σ1)² + (1/d − σ2)²`.
-pub fn project_area(f: &[Real; 6]) -> [Real; 6] {
-    let c0 = Vector3::new(f[0], f[1], f[2]);
-    let c1 = Vector3::new(f[3], f[4], f[5]);
-    // FᵀF = V Σ² Vᵀ, in closed form: [[a, b], [b, c]]
-    let (a, b, c) = (c0.dot(&c0), c0.dot(&c1), c1.dot(&c1));
-    let half = 0.5 * (a - c);
-    let r = (half * half + b * b).sqrt();
-    let l1 = 0.5 * (a + c) + r;
-    // l2 = det / l1: no cancellation when l2 ≪ l1
-    let l2 = if l1 > 0.0 { (a * c - b * b) / l1 } else { 0.0 };
-    // the eigenvector of l1: (b, l1 − a) or (l1 − c, b), the larger one
-    let (e1, e2) = (Vector2::new(b, l1 - a), Vector2::new(l1 - c, b));
-    let v1 = if e1.norm_squared() >= e2.norm_squared() {
-        e1
-    } else {
-        e2
-    }
-    .try_normalize(1e-300)
-    .unwrap_or_else(Vector2::x);
-    let v2 = Vector2::new(-v1[1], v1[0]);
-    let s1 = l1.max(0.0).sqrt();
-    let s2 = l2.max(0.0).sqrt();
-    let fv = |v: &Vector2<Real>| c0 * v[0] + c1 * v[1];
-    let u1 = match (fv(&v1) / s1).try_normalize(1e-12) {
-        Some(u) if s1 > 1e-12 => u,
-        _ => Vector3::x(),
-    };
-    let w2 = fv(&v2) - u1 * u1.dot(&fv(&v2));
-    let u2 = match w2.try_normalize(1e-300) {
-        Some(u) if w2.norm() > 1e-14 * s1 => u,
-        _ => {
-            // any unit vector orthogonal to u1
-            let a = if u1.x.abs() < 0.9 {
-                Vector3::x()
-            } else {
-                Vector3::y()
-            };
-            u1.cross(&a).normalize()
-        }
-    };
-    let d = area_root(s1, s2);
-    let p = u1 * v1.transpose() * d + u2 * v2.transpose() / d;
-    [
-        p[(0, 0)],
-        p[(1, 0)],
-        p[(2, 0)],
-        p[(0, 1)],
-        p[(1, 1)],
-        p[(2, 1)],
-    ]
-}
-
-/// `argmin_{d > 0} (d − σ1)² + (1/d − σ2)²` by Newton on the stationarity
-/// quartic `d⁴ − σ1 d³ + σ2 d − 1 = 0` from `√(σ1/σ2)` (exact when
-/// `σ1 = σ2`; 2–4 steps near rest), and again from `σ1` only if that does
-/// not end at a local minimum; the best of the candidates and `d = 1`.
-fn area_root(s1: Real, s2: Real) -> Real {
-    let f = |d: Real| (d - s1) * (d - s1) + (1.0 / d - s2) * (1.0 / d - s2);
-    let newton = |start: Real| -> Option<Real> {
-        let mut d: Real = start.clamp(1e-6, 1e6);
-        for _ in 0..40 {
-            let d2 = d * d;
-            let p = d2 * d2 - s1 * d2 * d + s2 * d - 1.0;
-            let dp = 4.0 * d2 * d - 3.0 * s1 * d2 + s2;
-            if dp.abs() < 1e-300 {
-                return None;
-            }
-            let next = (d - p / dp).clamp(d * 0.1, d * 10.0);
-            let done = (next - d).abs() <= 1e-14 * d;
-            d = next;
-            if done {
-                // a minimum of f: f'' = 2 + 6/d⁴ − 4 σ2/d³ > 0
-                let d3 = d * d * d;
-                let convex = 2.0 + 6.0 / (d3 * d) - 4.0 * s2 / d3 > 0.0;
-                return (d.is_finite() && d > 0.0 && convex).then_some(d);
-            }
-        }
-        None
-    };
-    let mut best = (f(1.0), 1.0);
-    let first = newton((s1 / s2.max(1e-12)).sqrt());
-    let candidates = match first {
-        Some(d) => [Some(d), None],
-        None => [None, newton(s1.max(1e-6))],
-    };
-    for d in candidates.into_iter().flatten() {
-        if f(d) < best.0 {
-            best = (f(d), d);
-        }
-    }
-    best.1
-}
-
 /// `out = L y`, `#V`.
 pub fn laplacian(ops: &Operators, y: &[Point], out: &mut [Point]) {
     let row = |(v, o): (usize, &mut Point)| {
@@ -579,32 +451,61 @@ pub fn laplacian(ops: &Operators, y: &[Point], out: &mut [Point]) {
     }
 }
 
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn the_area_projection_has_unit_determinant_and_fixes_rotations() {
-        // a rotation-like F (orthonormal columns) is its own projection
-        let f = [0.6, 0.8, 0.0, 0.0, 0.0, 1.0];
-        let p = project_area(&f);
-        for k in 0..6 {
-            assert!((p[k] - f[k]).abs() < 1e-12, "{p:?}");
-        }
-        // a scaled F goes to singular values d, 1/d (product 1) and is
-        // nearer to F than the unscaled rotation is
-        for (s1, s2) in [(2.0, 0.5), (0.5, 0.4), (3.0, 1.0), (1.0, 1e-9)] {
-            let f = [s1, 0.0, 0.0, 0.0, s2, 0.0];
-            let p = project_area(&f);
-            let (d1, d2) = (p[0], p[4]);
-            assert!((d1 * d2 - 1.0).abs() < 1e-9, "{s1} {s2}: {p:?}");
-            let dist = |a: Real, b: Real| (a - s1).powi(2) + (b - s2).powi(2);
-            assert!(dist(d1, d2) <= dist(1.0, 1.0) + 1e-12);
-            // stationary: no better d on a fine grid
-            for k in 1..2000 {
-                let d = k as Real * 0.005;
-                assert!(dist(d1, d2) <= dist(d, 1.0 / d) + 1e-9, "{s1} {s2} d {d}");
+/// The elastic formulation's system of one constraint set: the unknowns
+/// (free vertices; every active vertex with soft constraints) and
+/// `M = Q_UU` (plus `λ1 q̄` on the constrained diagonal with soft
+/// constraints, `q̄` the mean diagonal of `Q`, so that `λ1` is
+/// dimensionless). `rows` are the unknowns; there are no stacked rows.
+pub(crate) fn elastic_system(
+    set: &ElasticSet,
+    params: &Params,
+    constrained: &[u32],
+    active: &[bool],
+) -> System {
+    let q = &set.q;
+    let n = q.rows();
+    let soft = params.lambda1 > 0.0;
+    let (rows, unknowns, col_of) = partition(n, constrained, active, soft);
+    let mean_diag = (0..n)
+        .map(|i| q.get(i, i).copied().unwrap_or(0.0))
+        .sum::<Real>()
+        / (active.iter().filter(|&&a| a).count().max(1) as Real);
+    let lambda1 = params.lambda1 * mean_diag;
+    let mut is_constrained = vec![false; n];
+    for &c in constrained {
+        is_constrained[c as usize] = true;
+    }
+    let mut indptr = Vec::with_capacity(unknowns.len() + 1);
+    indptr.push(0);
+    let (mut indices, mut data) = (Vec::new(), Vec::new());
+    for &u in &unknowns {
+        let u = u as usize;
+        if let Some(row) = q.outer_view(u) {
+            for (j, &v) in row.iter() {
+                let k = col_of[j];
+                if k != u32::MAX {
+                    let diag = if j == u && soft && is_constrained[u] {
+                        lambda1
+                    } else {
+                        0.0
+                    };
+                    indices.push(k as usize);
+                    data.push(v + diag);
+                }
             }
         }
+        indptr.push(indices.len());
+    }
+    let k = unknowns.len();
+    let m = CsMat::new((k, k), indptr, indices, data);
+    System {
+        row_weight: Vec::new(),
+        sqrt_lambda2: params.lambda2.sqrt(),
+        rows,
+        unknowns,
+        col_of,
+        m,
+        constrained: constrained.to_vec(),
+        lambda1,
     }
 }
