@@ -15,6 +15,8 @@
 //! `--nocapture`); docs/paper-reproduction.md tabulates them beside libigl's
 //! ARAP (`scripts/arap_reference.py`).
 
+mod support;
+
 use std::path::PathBuf;
 use std::sync::Arc;
 use std::time::Instant;
@@ -138,15 +140,7 @@ fn generated(shape: Shape) -> Mesh {
 }
 
 fn meshes_dir() -> Option<PathBuf> {
-    let dir = std::env::var_os("DEND_MESHES")
-        .map(PathBuf::from)
-        .unwrap_or_else(|| PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../shared/meshes"));
-    if dir.is_dir() {
-        Some(dir)
-    } else {
-        eprintln!("skipping: survey meshes folder {} not found", dir.display());
-        None
-    }
+    support::shared_meshes()
 }
 
 /// A survey set-up: mesh, status 0 fixed, status 2 the handle, the `.def`

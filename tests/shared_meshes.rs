@@ -2,21 +2,15 @@
 //! and matches the README's table; the survey `.sel`/`.def` files parse and
 //! their conventions hold.
 
+mod support;
+
 use std::path::PathBuf;
 
 use dend::mesh::io::read_path;
 use dend::mesh::io::survey::{read_def, read_sel, VertexStatus};
 
 fn meshes_dir() -> Option<PathBuf> {
-    let dir = std::env::var_os("DEND_MESHES")
-        .map(PathBuf::from)
-        .unwrap_or_else(|| PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../shared/meshes"));
-    if dir.is_dir() {
-        Some(dir)
-    } else {
-        println!("skipping: {} not found", dir.display());
-        None
-    }
+    support::shared_meshes()
 }
 
 /// (file, V, F, boundary loops, genus) from the meshes' README.

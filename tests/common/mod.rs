@@ -263,7 +263,18 @@ pub fn meshes_dir() -> Option<PathBuf> {
     if dir.is_dir() {
         Some(dir)
     } else {
-        println!("skipping: {} not found", dir.display());
+        let test = std::thread::current().name().unwrap_or("?").to_owned();
+        println!("skipping {test}: {} not found", dir.display());
+        if let Ok(path) = std::env::var("DEND_SKIP_LOG") {
+            use std::io::Write;
+            if let Ok(mut f) = std::fs::OpenOptions::new()
+                .create(true)
+                .append(true)
+                .open(path)
+            {
+                let _ = writeln!(f, "{test}: shared meshes not found at {}", dir.display());
+            }
+        }
         None
     }
 }

@@ -96,7 +96,9 @@ pub fn max_dist(a: &[Point], b: &[Point]) -> f64 {
         .fold(0.0, f64::max)
 }
 
-/// Where the shared meshes live, or `None` (the caller prints a skip).
+/// Where the shared meshes live (`DEND_MESHES`, default
+/// `../shared/meshes` beside the repository), or `None` after recording
+/// that the caller skips ([`record_skip`]).
 pub fn shared_meshes() -> Option<std::path::PathBuf> {
     let dir = std::env::var("DEND_MESHES")
         .map(std::path::PathBuf::from)
@@ -106,8 +108,26 @@ pub fn shared_meshes() -> Option<std::path::PathBuf> {
     if dir.is_dir() {
         Some(dir)
     } else {
-        eprintln!("skipping: shared meshes not found at {}", dir.display());
+        record_skip(&format!("shared meshes not found at {}", dir.display()));
         None
+    }
+}
+
+/// Prints a skip and appends it, with the test's name, to the file named
+/// by `DEND_SKIP_LOG` (scripts/test.sh prints that file as the run's skip
+/// summary: cargo hides a passing test's output).
+pub fn record_skip(why: &str) {
+    let test = std::thread::current().name().unwrap_or("?").to_owned();
+    eprintln!("skipping {test}: {why}");
+    if let Ok(path) = std::env::var("DEND_SKIP_LOG") {
+        use std::io::Write;
+        if let Ok(mut f) = std::fs::OpenOptions::new()
+            .create(true)
+            .append(true)
+            .open(path)
+        {
+            let _ = writeln!(f, "{test}: {why}");
+        }
     }
 }
 
