@@ -58,6 +58,21 @@ pub struct AppState {
 }
 
 impl AppState {
+    /// Runs `f` on the store from tokio's blocking pool: the SQLite store's
+    /// calls block (a mutex and an fsync per write) and must not hold an
+    /// async worker thread that other sessions' requests and frames need.
+    pub(crate) async fn store_call<T, F>(&self, f: F) -> Result<T, ApiError>
+    where
+        F: FnOnce(&dyn Store) -> Result<T, crate::store::StoreError> + Send + 'static,
+        T: Send + 'static,
+    {
+        let store = self.store.clone();
+        tokio::task::spawn_blocking(move || f(&*store))
+            .await
+            .map_err(|e| ApiError::Internal(format!("store task: {e}")))?
+            .map_err(ApiError::from)
+    }
+
     /// State with the embedded in-memory store.
     pub fn new(config: Config) -> anyhow::Result<Self> {
         Self::with_store(config, Arc::new(MemoryStore::new()))
@@ -253,9 +268,10 @@ pub(crate) async fn rest_for(st: &AppState, mesh_id: &str) -> Result<Arc<Rest>, 
     if let Some(r) = st.rests.lock().get(mesh_id).and_then(Weak::upgrade) {
         return Ok(r);
     }
+    let id = mesh_id.to_owned();
     let mesh = st
-        .store
-        .get_mesh(mesh_id)?
+        .store_call(move |s| s.get_mesh(&id))
+        .await?
         .ok_or_else(|| ApiError::MeshNotFound(mesh_id.to_owned()))?;
     let rest = tokio::task::spawn_blocking(move || Rest::new((*mesh).clone()))
         .await

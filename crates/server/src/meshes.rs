@@ -127,13 +127,19 @@ pub(crate) fn parse_format(name: &str) -> Result<Format, ApiError> {
 
 async fn store_mesh(st: &AppState, mesh: Mesh) -> Result<(StatusCode, Json<MeshInfo>), ApiError> {
     check_vertices(st, mesh.num_vertices())?;
-    if st.store.mesh_count()? >= st.config.max_meshes {
+    if st.store_call(|s| s.mesh_count()).await? >= st.config.max_meshes {
         return Err(ApiError::TooManyMeshes(st.config.max_meshes));
     }
     let id = new_id();
     let info = info_of(id.clone(), &mesh);
-    st.store.put_mesh(&id, Arc::new(mesh))?;
-    st.metrics.meshes.set(st.store.mesh_count()? as i64);
+    let key = id.clone();
+    let count = st
+        .store_call(move |s| {
+            s.put_mesh(&key, Arc::new(mesh))?;
+            s.mesh_count()
+        })
+        .await?;
+    st.metrics.meshes.set(count as i64);
     Ok((StatusCode::CREATED, Json(info)))
 }
 
@@ -175,9 +181,10 @@ pub async fn info(
     State(st): State<AppState>,
     Path(id): Path<String>,
 ) -> Result<Json<MeshInfo>, ApiError> {
+    let key = id.clone();
     let m = st
-        .store
-        .get_mesh(&id)?
+        .store_call(move |s| s.get_mesh(&key))
+        .await?
         .ok_or_else(|| ApiError::MeshNotFound(id.clone()))?;
     Ok(Json(info_of(id, &m)))
 }

@@ -44,7 +44,8 @@ pub(crate) async fn revive(
     id: &str,
     token: Option<&str>,
 ) -> Result<Option<SessionHandle>, ApiError> {
-    let Some(record) = st.store.get_session(id)? else {
+    let key = id.to_owned();
+    let Some(record) = st.store_call(move |s| s.get_session(&key)).await? else {
         return Ok(None);
     };
     let params: Params = serde_json::from_value(record.params.clone())
@@ -102,8 +103,10 @@ pub(crate) async fn revive(
     }
     st.metrics.sessions.set(st.sessions.read().len() as i64);
     if let Some(spec) = record.constraints {
-        let checkpoint = st.store.get_checkpoint(id)?;
-        let journal = st.store.journal(id)?;
+        let key = id.to_owned();
+        let (checkpoint, journal) = st
+            .store_call(move |s| Ok((s.get_checkpoint(&key)?, s.journal(&key)?)))
+            .await?;
         let journaled_seq = journal
             .iter()
             .map(|JournalEntry::Drag { seq, .. }| *seq)

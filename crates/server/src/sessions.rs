@@ -125,7 +125,7 @@ pub async fn create(
     let id = new_id();
     let token = hex::encode(rand::random::<[u8; 32]>());
     let hash = token_hash(&token);
-    st.store.put_session(&SessionRecord {
+    let record = SessionRecord {
         id: id.clone(),
         mesh_id: req.mesh_id.clone(),
         token_sha256: hex::encode(hash),
@@ -135,7 +135,8 @@ pub async fn create(
             .duration_since(UNIX_EPOCH)
             .map(|d| d.as_secs())
             .unwrap_or(0),
-    })?;
+    };
+    st.store_call(move |s| s.put_session(&record)).await?;
     let opts = SessionOptions {
         cache: st.cache.clone(),
         store: st.store.clone(),
@@ -154,7 +155,8 @@ pub async fn create(
     };
     if !inserted {
         handle.close().await;
-        st.store.delete_session(&id)?;
+        let key = id.clone();
+        st.store_call(move |s| s.delete_session(&key)).await?;
         return Err(ApiError::TooManySessions(st.config.max_sessions));
     }
     st.metrics.sessions_created.inc();
@@ -180,7 +182,8 @@ pub async fn info(Authed(s): Authed) -> impl IntoResponse {
 pub(crate) async fn close_session(st: &AppState, s: &SessionHandle) {
     let _ = st.sessions.write().remove(s.id());
     s.close().await;
-    if let Err(e) = st.store.delete_session(s.id()) {
+    let key = s.id().to_owned();
+    if let Err(e) = st.store_call(move |s| s.delete_session(&key)).await {
         tracing::error!(session = s.id(), error = %e, "deleting session from the store failed");
     }
     st.metrics.sessions.set(st.sessions.read().len() as i64);
