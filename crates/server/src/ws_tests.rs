@@ -255,6 +255,14 @@ async fn two_clients_both_get_frames_and_grabs_are_exclusive() {
         b.event("handle_released").await["client"],
         grabbed["client"]
     );
+    // a new constraint set ends every grab, and says so
+    a.send(serde_json::json!({"type": "grab", "handle": 0}))
+        .await;
+    let _ = b.event("handle_grabbed").await;
+    let _ = s.set_constraints(constraints()).await.expect("constraints");
+    let released = b.event("handle_released").await;
+    assert_eq!(released["handle"], 0);
+    assert_eq!(released["client"], grabbed["client"]);
 }
 
 #[tokio::test]

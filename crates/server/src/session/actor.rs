@@ -5,38 +5,16 @@ use std::collections::VecDeque;
 use std::sync::Arc;
 use std::time::Instant;
 
-use tokio::sync::{mpsc, oneshot, watch};
+use tokio::sync::{mpsc, watch};
 
 use super::frame::{FrameBody, FrameHeader};
-use super::handle::{Inner, SessionOptions};
+use super::shared::{Cmd, Inner, Reply, Restore, SessionOptions};
 use super::{Delta, Event, Frame, PoseSnapshot, SessionError, SessionState};
 use crate::store::{Checkpoint, JournalEntry, StoredTransform};
 use dend::deform::{Constraints, Deformer, RigidTransform, StepReport};
 
-type Reply<T> = oneshot::Sender<Result<T, SessionError>>;
-
 /// Most history entries kept per session (older ones are dropped).
 const HISTORY_LIMIT: usize = 64;
-
-pub(super) enum Cmd {
-    Drag {
-        handle: usize,
-        delta: Delta,
-        seq: u64,
-        reply: Option<(usize, Reply<PoseSnapshot>)>,
-    },
-    SetConstraints {
-        spec: serde_json::Value,
-        constraints: Constraints,
-        restore: Option<Restore>,
-        reply: Reply<SessionState>,
-    },
-    Undo(Reply<PoseSnapshot>),
-    Redo(Reply<PoseSnapshot>),
-    Reset(Reply<PoseSnapshot>),
-    Pose(Reply<PoseSnapshot>),
-    Close,
-}
 
 // One message per solve, moved once: boxing the deformer would buy nothing.
 #[allow(clippy::large_enum_variant)]
@@ -54,16 +32,6 @@ enum Internal {
         /// Wall time of the factor's lookup or build.
         seconds: f64,
     },
-}
-
-/// Re-opening a stored session: constraints already carry the recovered
-/// targets; the store is left as is (its checkpoint + journal stay valid
-/// until the first commit writes a new checkpoint).
-pub(super) struct Restore {
-    /// Warm start (the last checkpoint's pose).
-    pub pose: Option<Vec<[f64; 3]>>,
-    /// Highest sequence number included in the targets.
-    pub ack_seq: u64,
 }
 
 struct Snapshot {
@@ -297,7 +265,14 @@ impl Actor {
         self.state = SessionState::Building;
         self.inner.shared.lock().handles =
             constraints.handles.iter().map(|h| h.name.clone()).collect();
-        self.inner.shared.lock().grabs.clear();
+        // the handle list changed: every grab ends, visibly
+        let released = self.inner.shared.lock().grabs.clear();
+        for (handle, client) in released {
+            let _ = self
+                .inner
+                .events
+                .send(Event::HandleReleased { handle, client });
+        }
         self.journal.clear();
         self.history.clear();
         self.cursor = 0;

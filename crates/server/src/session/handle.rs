@@ -1,6 +1,5 @@
 //! [`SessionHandle`]: the shared, cloneable front of a session actor.
 
-use std::collections::HashMap;
 use std::sync::atomic::{AtomicU64, AtomicUsize, Ordering};
 use std::sync::Arc;
 use std::time::Instant;
@@ -8,52 +7,13 @@ use std::time::Instant;
 use parking_lot::Mutex;
 use tokio::sync::{broadcast, mpsc, oneshot, watch};
 
-use super::actor::{Actor, Cmd, Restore};
+use super::actor::Actor;
+pub use super::shared::SessionOptions;
+use super::shared::{Cmd, Grabs, Inner, Restore, Shared};
 use super::{
-    ClientId, Delta, Event, Frame, HandleRef, Observer, PoseSnapshot, Recovered, SessionError,
-    SessionState,
+    ClientId, Delta, Event, Frame, HandleRef, PoseSnapshot, Recovered, SessionError, SessionState,
 };
-use crate::store::Store;
-use dend::deform::{ConstraintsSpec, FactorCache, Params, Rest};
-
-/// What a session needs besides its rest mesh and parameters.
-#[derive(Clone)]
-pub struct SessionOptions {
-    /// The shared factor cache.
-    pub cache: Arc<FactorCache>,
-    /// Where drags are journaled and checkpoints kept.
-    pub store: Arc<dyn Store>,
-    /// Solver statistics sink.
-    pub observer: Arc<dyn Observer>,
-    /// DEND iterations per frame while settling.
-    pub iters_per_frame: usize,
-}
-
-/// State shared between the actor and the handles.
-pub(super) struct Shared {
-    pub state: SessionState,
-    pub revision: u64,
-    pub handles: Vec<String>,
-    pub grabs: HashMap<usize, ClientId>,
-    pub can_undo: bool,
-    pub can_redo: bool,
-}
-
-pub(super) struct Inner {
-    pub id: String,
-    pub mesh_id: String,
-    pub token_sha256: [u8; 32],
-    pub params: Params,
-    pub rest: Arc<Rest>,
-    pub cmd_tx: mpsc::Sender<Cmd>,
-    pub frames: watch::Receiver<Option<Frame>>,
-    pub events: broadcast::Sender<Event>,
-    pub shared: Mutex<Shared>,
-    started: Instant,
-    last_active_ms: AtomicU64,
-    clients: AtomicUsize,
-    next_client: AtomicU64,
-}
+use dend::deform::{ConstraintsSpec, Params, Rest};
 
 /// A snapshot of a session's public state.
 #[derive(Debug, Clone, serde::Serialize)]
@@ -110,7 +70,7 @@ impl SessionHandle {
                 state: SessionState::Empty,
                 revision: 0,
                 handles: vec![],
-                grabs: HashMap::new(),
+                grabs: Grabs::default(),
                 can_undo: false,
                 can_redo: false,
             }),
@@ -205,7 +165,7 @@ impl SessionHandle {
             return Err(SessionError::NotReady { state });
         }
         let idx = self.handle_index(h)?;
-        if let Some(&holder) = self.inner.shared.lock().grabs.get(&idx) {
+        if let Some(holder) = self.inner.shared.lock().grabs.holder(idx) {
             if Some(holder) != client {
                 return Err(SessionError::HandleGrabbed { handle: h.clone() });
             }
@@ -371,19 +331,7 @@ impl SessionHandle {
 
     /// Unregisters a client, releasing its handles; everyone gets `PeerLeft`.
     pub fn leave(&self, client: ClientId) {
-        let released: Vec<usize> = {
-            let mut s = self.inner.shared.lock();
-            let mine: Vec<usize> = s
-                .grabs
-                .iter()
-                .filter(|(_, c)| **c == client)
-                .map(|(h, _)| *h)
-                .collect();
-            for h in &mine {
-                let _ = s.grabs.remove(h);
-            }
-            mine
-        };
+        let released = self.inner.shared.lock().grabs.release_client(client);
         for handle in released {
             let _ = self
                 .inner
@@ -398,17 +346,10 @@ impl SessionHandle {
     /// Grabs a handle for `client` (one holder at a time).
     pub fn grab(&self, client: ClientId, h: &HandleRef) -> Result<usize, SessionError> {
         let handle = self.handle_index(h)?;
-        {
-            let mut s = self.inner.shared.lock();
-            match s.grabs.get(&handle) {
-                Some(&c) if c != client => {
-                    return Err(SessionError::HandleGrabbed { handle: h.clone() })
-                }
-                Some(_) => return Ok(handle),
-                None => {
-                    let _ = s.grabs.insert(handle, client);
-                }
-            }
+        match self.inner.shared.lock().grabs.grab(handle, client) {
+            Err(_) => return Err(SessionError::HandleGrabbed { handle: h.clone() }),
+            Ok(false) => return Ok(handle),
+            Ok(true) => {}
         }
         let _ = self
             .inner
@@ -420,15 +361,7 @@ impl SessionHandle {
     /// Releases a handle held by `client` (a no-op if not held by it).
     pub fn release(&self, client: ClientId, h: &HandleRef) -> Result<usize, SessionError> {
         let handle = self.handle_index(h)?;
-        let released = {
-            let mut s = self.inner.shared.lock();
-            if s.grabs.get(&handle) == Some(&client) {
-                let _ = s.grabs.remove(&handle);
-                true
-            } else {
-                false
-            }
-        };
+        let released = self.inner.shared.lock().grabs.release(handle, client);
         if released {
             let _ = self
                 .inner

@@ -16,6 +16,7 @@
 mod actor;
 mod handle;
 mod recovery;
+mod shared;
 
 pub use dend_protocol as frame;
 pub use dend_protocol::{decode_frame, FrameError, FrameHeader};

@@ -1,0 +1,144 @@
+//! The state a session's actor and its handles share: the options a
+//! session runs with, the `Inner` both hold, and the grab table, whose
+//! changes all go through [`Grabs`].
+
+use std::collections::HashMap;
+use std::sync::atomic::{AtomicU64, AtomicUsize};
+use std::sync::Arc;
+use std::time::Instant;
+
+use parking_lot::Mutex;
+use tokio::sync::{broadcast, mpsc, watch};
+
+use tokio::sync::oneshot;
+
+use super::{ClientId, Delta, Event, Frame, Observer, PoseSnapshot, SessionError, SessionState};
+use crate::store::Store;
+use dend::deform::Constraints;
+use dend::deform::{FactorCache, Params, Rest};
+
+/// What a session needs besides its rest mesh and parameters.
+#[derive(Clone)]
+pub struct SessionOptions {
+    /// The shared factor cache.
+    pub cache: Arc<FactorCache>,
+    /// Where drags are journaled and checkpoints kept.
+    pub store: Arc<dyn Store>,
+    /// Solver statistics sink.
+    pub observer: Arc<dyn Observer>,
+    /// DEND iterations per frame while settling.
+    pub iters_per_frame: usize,
+}
+
+/// State shared between the actor and the handles.
+pub(super) struct Shared {
+    pub state: SessionState,
+    pub revision: u64,
+    pub handles: Vec<String>,
+    pub grabs: Grabs,
+    pub can_undo: bool,
+    pub can_redo: bool,
+}
+
+pub(super) struct Inner {
+    pub id: String,
+    pub mesh_id: String,
+    pub token_sha256: [u8; 32],
+    pub params: Params,
+    pub rest: Arc<Rest>,
+    pub cmd_tx: mpsc::Sender<Cmd>,
+    pub frames: watch::Receiver<Option<Frame>>,
+    pub events: broadcast::Sender<Event>,
+    pub shared: Mutex<Shared>,
+    pub started: Instant,
+    pub last_active_ms: AtomicU64,
+    pub clients: AtomicUsize,
+    pub next_client: AtomicU64,
+}
+
+/// Which client holds which handle (by index): one holder per handle.
+#[derive(Debug, Default)]
+pub(super) struct Grabs(HashMap<usize, ClientId>);
+
+impl Grabs {
+    /// The client holding `handle`, if any.
+    pub fn holder(&self, handle: usize) -> Option<ClientId> {
+        self.0.get(&handle).copied()
+    }
+
+    /// Gives `handle` to `client` unless another client holds it (then
+    /// `Err(holder)`); `Ok(true)` when it was newly grabbed.
+    pub fn grab(&mut self, handle: usize, client: ClientId) -> Result<bool, ClientId> {
+        match self.0.get(&handle) {
+            Some(&c) if c != client => Err(c),
+            Some(_) => Ok(false),
+            None => {
+                let _ = self.0.insert(handle, client);
+                Ok(true)
+            }
+        }
+    }
+
+    /// Releases `handle` if `client` holds it; whether it did.
+    pub fn release(&mut self, handle: usize, client: ClientId) -> bool {
+        if self.0.get(&handle) == Some(&client) {
+            let _ = self.0.remove(&handle);
+            true
+        } else {
+            false
+        }
+    }
+
+    /// Releases every handle `client` holds; the handles released.
+    pub fn release_client(&mut self, client: ClientId) -> Vec<usize> {
+        let mine: Vec<usize> = self
+            .0
+            .iter()
+            .filter(|(_, c)| **c == client)
+            .map(|(h, _)| *h)
+            .collect();
+        for h in &mine {
+            let _ = self.0.remove(h);
+        }
+        mine
+    }
+
+    /// Releases every handle (the handle list changed); what was held.
+    pub fn clear(&mut self) -> Vec<(usize, ClientId)> {
+        self.0.drain().collect()
+    }
+}
+
+/// A reply channel of a command.
+pub(super) type Reply<T> = oneshot::Sender<Result<T, SessionError>>;
+
+/// What a handle asks the actor to do.
+pub(super) enum Cmd {
+    Drag {
+        handle: usize,
+        delta: Delta,
+        seq: u64,
+        reply: Option<(usize, Reply<PoseSnapshot>)>,
+    },
+    SetConstraints {
+        spec: serde_json::Value,
+        constraints: Constraints,
+        restore: Option<Restore>,
+        reply: Reply<SessionState>,
+    },
+    Undo(Reply<PoseSnapshot>),
+    Redo(Reply<PoseSnapshot>),
+    Reset(Reply<PoseSnapshot>),
+    Pose(Reply<PoseSnapshot>),
+    Close,
+}
+
+/// Re-opening a stored session: constraints already carry the recovered
+/// targets; the store is left as is (its checkpoint + journal stay valid
+/// until the first commit writes a new checkpoint).
+pub(super) struct Restore {
+    /// Warm start (the last checkpoint's pose).
+    pub pose: Option<Vec<[f64; 3]>>,
+    /// Highest sequence number included in the targets.
+    pub ack_seq: u64,
+}
