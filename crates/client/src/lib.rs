@@ -15,7 +15,6 @@
 use std::time::Duration;
 
 use futures_util::{SinkExt, StreamExt};
-use serde::Deserialize;
 use serde_json::{json, Value};
 use tokio_tungstenite::tungstenite::Message;
 
@@ -48,39 +47,10 @@ pub enum ClientError {
     Protocol(String),
 }
 
-/// Mesh info from the server.
-#[derive(Debug, Clone, Deserialize)]
-pub struct MeshInfo {
-    /// Mesh id.
-    pub id: String,
-    /// Vertices.
-    pub vertices: usize,
-    /// Triangles.
-    pub triangles: usize,
-    /// Bounding box.
-    pub bbox: [[f64; 3]; 2],
-}
-
-/// A pose as JSON.
-#[derive(Debug, Clone, Deserialize)]
-pub struct Pose {
-    /// Revision.
-    pub revision: u64,
-    /// Last applied seq.
-    pub ack_seq: u64,
-    /// Iterations since the last target change.
-    pub iteration: u32,
-    /// Converged flag.
-    pub converged: bool,
-    /// Whether the server stopped iterating until the next change.
-    #[serde(default)]
-    pub settled: bool,
-    /// The solver's objective at this pose.
-    #[serde(default)]
-    pub objective: Option<f64>,
-    /// Positions.
-    pub positions: Vec<[f64; 3]>,
-}
+/// A mesh as the API describes it (the server's own type).
+pub use dend_protocol::MeshInfo;
+/// A pose as JSON (the server's own type).
+pub use dend_protocol::PoseJson as Pose;
 
 /// An HTTP client bound to a server base URL (`http://host:port`).
 #[derive(Debug, Clone)]

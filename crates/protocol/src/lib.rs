@@ -17,6 +17,7 @@
 //! | 40 | `f32 × 3n` | x, y, z of each vertex (mesh units) |
 
 use bytes::Bytes;
+use serde::{Deserialize, Serialize};
 
 /// Magic bytes at the start of every frame.
 pub const FRAME_MAGIC: [u8; 4] = *b"DEND";
@@ -137,6 +138,43 @@ pub fn decode_frame(b: &[u8]) -> Result<(FrameHeader, Vec<[f32; 3]>), FrameError
         })
         .collect();
     Ok((h, verts))
+}
+
+/// A mesh as the API describes it: the answer of upload, generate and
+/// `GET /v1/meshes/{id}`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct MeshInfo {
+    /// Mesh id.
+    pub id: String,
+    /// Vertex count.
+    pub vertices: usize,
+    /// Triangle count.
+    pub triangles: usize,
+    /// Bounding box `[min, max]`.
+    pub bbox: [[f64; 3]; 2],
+}
+
+/// A pose as JSON: the answer of drags, undo/redo/reset and
+/// `GET /v1/sessions/{id}/pose`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct PoseJson {
+    /// Session revision.
+    pub revision: u64,
+    /// Last applied client sequence number.
+    pub ack_seq: u64,
+    /// Iterations since the targets last changed.
+    pub iteration: u32,
+    /// Whether the solve converged.
+    pub converged: bool,
+    /// Whether the server stopped iterating until the next change
+    /// (converged, or its iteration budget spent).
+    #[serde(default)]
+    pub settled: bool,
+    /// The solver's objective at this pose (absent before any solve).
+    #[serde(default)]
+    pub objective: Option<f64>,
+    /// `#V×3` positions, mesh units.
+    pub positions: Vec<[f64; 3]>,
 }
 
 #[cfg(test)]

@@ -8,7 +8,7 @@ use axum::http::{header, HeaderMap, StatusCode};
 use axum::response::IntoResponse;
 use axum::Json;
 use bytes::Bytes;
-use serde::{Deserialize, Serialize};
+use serde::Deserialize;
 
 use super::error::ApiError;
 use super::AppState;
@@ -24,18 +24,7 @@ pub struct FormatQuery {
     pub format: Option<String>,
 }
 
-/// Answer of upload/generate/info.
-#[derive(Debug, Serialize)]
-pub struct MeshInfo {
-    /// Mesh id.
-    pub id: String,
-    /// Vertex count.
-    pub vertices: usize,
-    /// Triangle count.
-    pub triangles: usize,
-    /// Bounding box `[min, max]`.
-    pub bbox: [[f64; 3]; 2],
-}
+pub use dend_protocol::MeshInfo;
 
 fn info_of(id: String, m: &Mesh) -> MeshInfo {
     let (lo, hi) = m.bounding_box();

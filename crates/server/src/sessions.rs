@@ -314,25 +314,7 @@ pub struct DragRequest {
     pub max_iters: Option<usize>,
 }
 
-/// A pose as JSON.
-#[derive(Debug, Serialize, Deserialize)]
-pub struct PoseJson {
-    /// Session revision.
-    pub revision: u64,
-    /// Last applied client sequence number.
-    pub ack_seq: u64,
-    /// Iterations since the targets last changed.
-    pub iteration: u32,
-    /// Whether the solve converged.
-    pub converged: bool,
-    /// Whether the server stopped iterating until the next change
-    /// (converged, or its iteration budget spent).
-    pub settled: bool,
-    /// The solver's objective at this pose (absent before any solve).
-    pub objective: Option<f64>,
-    /// `#V×3` positions, mesh units.
-    pub positions: Vec<[f64; 3]>,
-}
+pub use dend_protocol::PoseJson;
 
 fn pose_json(p: PoseSnapshot) -> Json<PoseJson> {
     Json(PoseJson {
