@@ -255,7 +255,8 @@ async fn factor_ready_times_are_exported() -> Result<(), ClientError> {
 /// One drag, then the settle loop's frames: the objective never grows from
 /// frame to frame (the default formulation's Anderson history carries
 /// across the loop's one-iteration steps), and the last frame says
-/// settled and converged.
+/// settled and converged. (That the objective is monotone across the
+/// iterations themselves is tests/elastic.rs's job.)
 #[tokio::test]
 async fn settle_frames_report_a_falling_objective_and_end_settled() -> Result<(), ClientError> {
     let (base, _state) = start(Config::default()).await;
@@ -286,7 +287,8 @@ async fn settle_frames_report_a_falling_objective_and_end_settled() -> Result<()
         }
     };
     assert!(last.converged, "{last:?}");
-    assert!(objectives.len() > 1, "{objectives:?}");
+    // frames go out on a latest-wins channel: a slow reader may see only
+    // the last ones; every frame it sees has a finite, non-growing objective
     for w in objectives.windows(2) {
         assert!(
             w[0].is_finite() && w[1] <= w[0] * (1.0 + 1e-10),
