@@ -289,6 +289,7 @@ async fn settle_frames_report_a_falling_objective_and_end_settled() -> Result<()
     assert!(last.converged, "{last:?}");
     // frames go out on a latest-wins channel: a slow reader may see only
     // the last ones; every frame it sees has a finite, non-growing objective
+    assert!(objectives.iter().all(|o| o.is_finite()), "{objectives:?}");
     for w in objectives.windows(2) {
         assert!(
             w[0].is_finite() && w[1] <= w[0] * (1.0 + 1e-10),
