@@ -85,3 +85,130 @@ async fn every_route_in_the_table_is_served() {
     let resp = router.oneshot(req).await.expect("response");
     assert_eq!(resp.status().as_u16(), 404);
 }
+
+/// api/openapi.yaml, parsed by a real YAML parser.
+fn openapi_doc() -> yaml_rust2::Yaml {
+    let path = concat!(env!("CARGO_MANIFEST_DIR"), "/api/openapi.yaml");
+    let text = std::fs::read_to_string(path).expect("api/openapi.yaml");
+    let mut docs = yaml_rust2::YamlLoader::load_from_str(&text).expect("valid YAML");
+    assert_eq!(docs.len(), 1, "one YAML document");
+    docs.remove(0)
+}
+
+/// The keys of a YAML mapping.
+fn keys(y: &yaml_rust2::Yaml) -> BTreeSet<String> {
+    y.as_hash()
+        .expect("a mapping")
+        .keys()
+        .filter_map(|k| k.as_str().map(str::to_owned))
+        .collect()
+}
+
+/// The documented `Params` schema has exactly the fields `Params`
+/// serialises, and each enum field lists exactly the names its Rust enum
+/// accepts (it would have caught `square_lu` and `elastic` missing).
+#[test]
+fn params_schema_matches_the_params_type() {
+    use dend::deform::{DetailTerm, Formulation, Mode, Params};
+    let doc = openapi_doc();
+    let props = &doc["components"]["schemas"]["Params"]["properties"];
+    let documented = keys(props);
+    let serialised = serde_json::to_value(Params::default()).expect("params JSON");
+    let fields: BTreeSet<String> = serialised
+        .as_object()
+        .expect("an object")
+        .keys()
+        .cloned()
+        .collect();
+    assert_eq!(documented, fields, "Params fields");
+    let names = |v: Vec<serde_json::Value>| -> BTreeSet<String> {
+        v.into_iter()
+            .map(|x| x.as_str().expect("a unit variant").to_owned())
+            .collect()
+    };
+    let enum_of = |field: &str| -> BTreeSet<String> {
+        props[field]["enum"]
+            .as_vec()
+            .unwrap_or_else(|| panic!("{field} has an enum"))
+            .iter()
+            .map(|e| e.as_str().expect("a string").to_owned())
+            .collect()
+    };
+    // every variant, serialised: a new variant without a line here fails
+    // to compile through the exhaustive matches below
+    let formulations = [
+        Formulation::Elastic,
+        Formulation::LeastSquares,
+        Formulation::Square,
+        Formulation::SquareLu,
+    ];
+    for f in formulations {
+        match f {
+            Formulation::Elastic
+            | Formulation::LeastSquares
+            | Formulation::Square
+            | Formulation::SquareLu => {}
+        }
+    }
+    assert_eq!(
+        enum_of("formulation"),
+        names(
+            formulations
+                .iter()
+                .map(|f| serde_json::to_value(f).expect("json"))
+                .collect()
+        )
+    );
+    for d in [DetailTerm::Linear, DetailTerm::Nonlinear] {
+        match d {
+            DetailTerm::Linear | DetailTerm::Nonlinear => {}
+        }
+    }
+    assert_eq!(
+        enum_of("detail"),
+        names(
+            [DetailTerm::Linear, DetailTerm::Nonlinear]
+                .iter()
+                .map(|d| serde_json::to_value(d).expect("json"))
+                .collect()
+        )
+    );
+    for m in [Mode::Default, Mode::Paper] {
+        match m {
+            Mode::Default | Mode::Paper => {}
+        }
+    }
+    assert_eq!(
+        enum_of("mode"),
+        names(
+            [Mode::Default, Mode::Paper]
+                .iter()
+                .map(|m| serde_json::to_value(m).expect("json"))
+                .collect()
+        )
+    );
+}
+
+/// The Pose schema documents exactly the pose JSON's fields.
+#[test]
+fn pose_schema_matches_the_pose_json() {
+    let doc = openapi_doc();
+    let documented = keys(&doc["components"]["schemas"]["Pose"]["properties"]);
+    let pose = dend_protocol::PoseJson {
+        revision: 0,
+        ack_seq: 0,
+        iteration: 0,
+        converged: false,
+        settled: false,
+        objective: None,
+        positions: vec![],
+    };
+    let fields: BTreeSet<String> = serde_json::to_value(pose)
+        .expect("json")
+        .as_object()
+        .expect("an object")
+        .keys()
+        .cloned()
+        .collect();
+    assert_eq!(documented, fields);
+}
