@@ -426,3 +426,86 @@ fn characters_keep_their_proportions_under_the_standard_edit() {
         assert!(worst <= 2.0 * arap_max, "{file}: max distortion {worst}");
     }
 }
+
+/// Soft constraints in the elastic formulation: the factor builds even
+/// without the area term (a handle vertex whose neighbours are all
+/// constrained has no kept row; λ1 alone holds it), the objective falls
+/// monotonically, and the handle approaches its target as λ1 grows.
+#[test]
+fn soft_constraints_build_and_approach_their_targets() {
+    let mesh = random_delaunay_patch(400, 21);
+    let rest = Arc::new(Rest::new(mesh.clone()).unwrap());
+    let c = x_edit(
+        &mesh,
+        -0.5,
+        0.5,
+        [0.0, 0.0, 0.3],
+        UnitQuaternion::identity(),
+    );
+    let miss = |lambda1: f64, area: f64| {
+        let params = Params {
+            lambda1,
+            area,
+            ..Params::default()
+        };
+        let (obj, converged, pose) = objectives(&rest, params, &c, 300);
+        assert!(converged, "λ1 {lambda1}, area {area}");
+        assert_monotone(&obj);
+        c.handles[0]
+            .target_positions()
+            .map(|(v, p)| max_dist(&[pose[v as usize]], &[p]))
+            .fold(0.0, f64::max)
+    };
+    for area in [0.0, 15.0] {
+        let (weak, strong) = (miss(1.0, area), miss(1e4, area));
+        assert!(strong < weak, "area {area}: {strong} !< {weak}");
+        assert!(
+            strong < 1e-2 * mesh.diagonal(),
+            "area {area}: misses by {strong}"
+        );
+    }
+}
+
+/// The elastic formulation has total curvature (or thin plate) as its
+/// bending energy and no paper mode: other choices are refused with a
+/// typed error naming the way out, never silently ignored.
+#[test]
+fn the_elastic_formulation_refuses_what_it_does_not_have() {
+    use dend::deform::{DeformError, Energy, Mode};
+    for params in [
+        Params {
+            energy: Energy::Membrane,
+            ..Params::default()
+        },
+        Params {
+            energy: Energy::TotalCurvaturePaper,
+            ..Params::default()
+        },
+        Params {
+            mode: Mode::Paper,
+            ..Params::default()
+        },
+    ] {
+        assert!(
+            matches!(params.validate(), Err(DeformError::Unsupported { .. })),
+            "{params:?}"
+        );
+    }
+    // nothing would hold the free vertices: refused, not a singular factor
+    let none = Params {
+        stretch: 0.0,
+        area: 0.0,
+        lambda2: 0.0,
+        ..Params::default()
+    };
+    assert!(matches!(
+        none.validate(),
+        Err(DeformError::InvalidParam { .. })
+    ));
+    assert!(Params {
+        energy: Energy::ThinPlate,
+        ..Params::default()
+    }
+    .validate()
+    .is_ok());
+}

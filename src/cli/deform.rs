@@ -76,8 +76,10 @@ pub struct Args {
     /// System solved: elastic (dend.md §9: E_T as an energy in rotated
     /// frames + stretch + area, monotone; default), least_squares (paper
     /// eq. 24, the default before), square or square_lu (paper eq. 23).
-    #[arg(long, default_value = "elastic")]
-    formulation: String,
+    /// Default: elastic, or least_squares with --paper or an energy the
+    /// elastic formulation does not have (membrane, combined, total-paper).
+    #[arg(long)]
+    formulation: Option<String>,
     /// Print the objective after every iteration.
     #[arg(short, long)]
     verbose: bool,
@@ -148,12 +150,15 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         stretch: args.stretch,
         bending: args.bending,
         area: args.area,
-        formulation: Formulation::from_name(&args.formulation).with_context(|| {
-            format!(
-                "unknown formulation {:?} (elastic, least_squares, square, square_lu)",
-                args.formulation
-            )
-        })?,
+        formulation: match &args.formulation {
+            Some(name) => Formulation::from_name(name).with_context(|| {
+                format!("unknown formulation {name:?} (elastic, least_squares, square, square_lu)")
+            })?,
+            None if args.paper || !matches!(energy, Energy::TotalCurvature | Energy::ThinPlate) => {
+                Formulation::LeastSquares
+            }
+            None => Formulation::Elastic,
+        },
     };
     params.validate()?;
     if args.steps == 0 {
@@ -256,7 +261,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         sorted.sort_by(f64::total_cmp);
         let median = sorted.get(sorted.len() / 2).copied().unwrap_or(0.0);
         let report = serde_json::json!({
-            "formulation": args.formulation,
+            "formulation": params.formulation,
             "vertices": mesh.num_vertices(),
             "unknowns": factor.num_unknowns(),
             "iterations": iterations,

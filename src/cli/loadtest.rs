@@ -343,6 +343,7 @@ async fn one_session(
     };
     let start = Instant::now();
     let mut last_sent = Instant::now();
+    let mut already_settled = false;
     for seq in 1..=drags {
         let sent = Instant::now();
         last_sent = sent;
@@ -353,6 +354,13 @@ async fn one_session(
                     stats.frames += 1;
                     if h.ack_seq >= seq {
                         stats.latencies.push(sent.elapsed());
+                        if seq == drags && h.settled {
+                            // already settled: no further frame will come
+                            stats.settle = sent.elapsed();
+                            stats.settle_iterations = h.iteration;
+                            stats.settle_converged = h.converged;
+                            already_settled = true;
+                        }
                         break;
                     }
                 }
@@ -364,7 +372,7 @@ async fn one_session(
     }
     let elapsed = start.elapsed();
     // after the last drag: frames until the server says settled
-    loop {
+    while !already_settled {
         match ws.next().await? {
             WsEvent::Frame(h, _) => {
                 stats.frames += 1;
@@ -372,7 +380,7 @@ async fn one_session(
                     stats.settle = last_sent.elapsed();
                     stats.settle_iterations = h.iteration;
                     stats.settle_converged = h.converged;
-                    break;
+                    already_settled = true;
                 }
             }
             WsEvent::Event(v) if v["type"] == "error" => anyhow::bail!("server error: {v}"),

@@ -67,11 +67,11 @@ function updateStats() {
   $('stIter').textContent = f ? String(f.iteration) : '–';
   $('stConv').textContent = !f
     ? '–'
-    : f.converged
-      ? 'settled'
-      : f.settled
-        ? `not settled after ${f.iteration} iterations`
-        : 'iterating…';
+    : !f.settled
+      ? 'iterating…'
+      : f.converged
+        ? 'settled'
+        : `not settled after ${f.iteration} iterations`;
   $('stFrames').textContent = String(app.frames);
   const l = app.latencies;
   $('stLatency').textContent = '–';
@@ -157,12 +157,18 @@ export function strokeEnded() {
 function params() {
   const e = $('energy').value;
   const energy = e === 'combined' ? { combined: { ks: +$('ks').value, kb: +$('kb').value } } : e;
+  const mode = $('mode').value;
+  // the default (elastic) formulation has total curvature or thin plate as
+  // its bending energy and no paper mode: the other choices are the
+  // paper's eq. (24) least squares
+  const elastic = (e === 'total' || e === 'thin-plate') && mode !== 'paper';
   return {
     energy,
     lambda1: $('hard').checked ? 0 : +$('lambda1').value,
     lambda2: +$('lambda2').value,
     detail: $('detail').value,
-    mode: $('mode').value,
+    mode,
+    formulation: elastic ? 'elastic' : 'least_squares',
   };
 }
 

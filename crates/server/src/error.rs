@@ -218,7 +218,9 @@ impl From<&SessionError> for ApiError {
 fn deform_ref(d: &DeformError, msg: String) -> ApiError {
     match d {
         DeformError::UnknownVertex { .. } => ApiError::VertexOutOfRange(msg),
-        DeformError::InvalidParam { .. } => ApiError::InvalidParams(msg),
+        DeformError::InvalidParam { .. } | DeformError::Unsupported { .. } => {
+            ApiError::InvalidParams(msg)
+        }
         DeformError::NonFinite { .. } => ApiError::NonFinite(msg),
         DeformError::Mesh(_) => ApiError::InvalidMesh(msg),
         DeformError::EmptyHandle { .. }

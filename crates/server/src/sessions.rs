@@ -129,7 +129,10 @@ pub async fn create(
         id: id.clone(),
         mesh_id: req.mesh_id.clone(),
         token_sha256: hex::encode(hash),
-        params: params_json,
+        // the resolved parameters, every field written out: a stored
+        // session keeps its formulation and defaults across upgrades
+        params: serde_json::to_value(params)
+            .map_err(|e| ApiError::Internal(format!("params: {e}")))?,
         constraints: None,
         created_unix: SystemTime::now()
             .duration_since(UNIX_EPOCH)

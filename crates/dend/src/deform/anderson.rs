@@ -2,8 +2,10 @@
 //! as used for local–global geometry solvers by Peng, Deng, Zhang & Liu,
 //! "Anderson acceleration for geometry optimization and physics simulation",
 //! ACM TOG 37(4), 2018. The caller keeps it safe: an accelerated iterate is
-//! accepted only if it lowers the objective, otherwise the history is reset
-//! and the plain step is taken.
+//! accepted only if it lowers the objective, otherwise the plain step is
+//! taken (the least-squares iteration also resets the history then; the
+//! elastic one keeps it, as Peng et al. do: its pairs are exact iterates of
+//! the map).
 
 use nalgebra::{DMatrix, DVector};
 

@@ -149,6 +149,12 @@ pub enum DeformError {
     /// The factor was built for another constraint set, mesh or parameters.
     #[error("factor does not match this constraint set or these parameters")]
     FactorMismatch,
+    /// A combination of parameters the chosen formulation does not have.
+    #[error("unsupported: {what}")]
+    Unsupported {
+        /// What, and what to use instead.
+        what: &'static str,
+    },
     /// The mesh was rejected.
     #[error(transparent)]
     Mesh(#[from] MeshError),

@@ -207,6 +207,30 @@ impl Params {
         if !(self.area.is_finite() && self.area >= 0.0) {
             return Err(bad("area", self.area));
         }
+        if self.formulation == Formulation::Elastic {
+            // the elastic formulation's bending energy is total curvature
+            // (or thin plate), in our reading: the others belong to the
+            // paper's formulations (least_squares, square)
+            match self.energy {
+                Energy::TotalCurvature | Energy::ThinPlate => {}
+                Energy::Membrane | Energy::Combined { .. } | Energy::TotalCurvaturePaper => {
+                    return Err(DeformError::Unsupported {
+                        what: "this energy with the elastic formulation (use total or thin-plate, or formulation least_squares)",
+                    });
+                }
+            }
+            if self.mode == Mode::Paper {
+                return Err(DeformError::Unsupported {
+                    what: "the paper mode with the elastic formulation (use formulation least_squares)",
+                });
+            }
+            // with no stretch, no area and no Laplacian rows nothing holds
+            // the free vertices' tangential positions: a singular system
+            let laplacian_rows = self.lambda2 > 0.0 && self.bending > 0.0;
+            if self.stretch == 0.0 && self.area == 0.0 && !laplacian_rows {
+                return Err(bad("stretch", self.stretch));
+            }
+        }
         if self.anderson > super::anderson::MAX_WINDOW {
             return Err(bad("anderson", self.anderson as f64));
         }

@@ -539,6 +539,7 @@ impl Actor {
         self.dirty = false;
         self.settled = true;
         self.converged = true;
+        self.objective = f64::NAN;
         self.iters_since_change = 0;
         self.journal.clear();
         for (_, w) in self.waiters.drain(..) {

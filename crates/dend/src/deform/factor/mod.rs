@@ -303,7 +303,8 @@ impl Factor {
             symbolic.as_ref().map(|s| s.raw()),
             preconditions_gmres(&square),
         ) {
-            if options.precision == FactorPrecision::Single && square.is_none() {
+            if options.precision == FactorPrecision::Single && square.is_none() && elastic.is_none()
+            {
                 values32 = values.iter().map(|&v| v as f32).collect();
                 values = Vec::new();
             }
@@ -415,6 +416,12 @@ impl Factor {
             + self.sys.col_of.len() * 4
             + self.cg.as_ref().map_or(0, |_| self.sys.unknowns.len() * 8)
             + self.square.as_ref().map_or(0, Square::memory_bytes)
+            // the constraint set's Q and row masks (the ElasticOps are the
+            // rest mesh's, shared)
+            + self
+                .elastic
+                .as_ref()
+                .map_or(0, |(_, set)| csr(&set.q) + 2 * set.free.len())
     }
 
     /// Scratch needed by [`Factor::solve_in_place`] for `k` right-hand sides.

@@ -218,6 +218,9 @@ impl Deformer {
             }
             // 2.–4. accelerated candidate, kept only if the energy falls
             let mut accepted = false;
+            // a converged plain step is taken as it is: the pose returned is
+            // the one the convergence test measured
+            let accelerate = accelerate && max_dx >= self.params.tol;
             if accelerate {
                 mul_m(&factor.sys.m, &st.rhs, &mut st.mf);
             }
