@@ -277,16 +277,8 @@ impl Deformer {
         } else {
             (&mut st.rot, &mut st.proj)
         };
-        let mut e = el.local_step(set, ops, &self.y, &st.ly, rot, proj, fit);
-        let lambda1 = factor.sys.lambda1;
-        if lambda1 > 0.0 {
-            for &(v, p) in &self.scratch.targets {
-                let y = self.y[v as usize];
-                let d2: Real = (0..3).map(|k| (y[k] - p[k]).powi(2)).sum();
-                e += lambda1 * d2;
-            }
-        }
-        e
+        let e = el.local_step(set, ops, &self.y, &st.ly, rot, proj, fit);
+        e + super::soft_energy(factor.sys.lambda1, &self.scratch.targets, &self.y)
     }
 
     /// `rhs = (g(R) − Q Y)_U` (+ `λ1 (C − Y)` on constrained unknowns).
@@ -310,18 +302,7 @@ impl Deformer {
             st.rhs[nu + k] = r[1];
             st.rhs[2 * nu + k] = r[2];
         }
-        if sys.lambda1 > 0.0 {
-            for &(v, p) in &self.scratch.targets {
-                let k = sys.col_of[v as usize];
-                if k == u32::MAX {
-                    continue;
-                }
-                let y = self.y[v as usize];
-                for d in 0..3 {
-                    st.rhs[d * nu + k as usize] += sys.lambda1 * (p[d] - y[d]);
-                }
-            }
-        }
+        super::add_soft_rhs(sys, &self.scratch.targets, &self.y, &mut st.rhs);
     }
 
     /// The rotations of a sequence that starts at the rest pose: with `w_h`

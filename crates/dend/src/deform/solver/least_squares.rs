@@ -439,19 +439,12 @@ impl Deformer {
                 )
             }
         };
-        let mut obj = for_row_chunks(&mut s.r[..3 * nrows], |row, out| {
+        let obj = for_row_chunks(&mut s.r[..3 * nrows], |row, out| {
             let acc = row_residual(row);
             *out = acc;
             acc[0] * acc[0] + acc[1] * acc[1] + acc[2] * acc[2]
         });
-        if sys.lambda1 > 0.0 {
-            for &(v, p) in &s.targets {
-                let y = self.y[v as usize];
-                let d2: Real = (0..3).map(|k| (y[k] - p[k]).powi(2)).sum();
-                obj += sys.lambda1 * d2;
-            }
-        }
-        obj
+        obj + super::soft_energy(sys.lambda1, &s.targets, &self.y)
     }
 
     /// `rhs = J_Uᵀ r` (+ `λ1 (C - Y)` on constrained unknowns).
@@ -491,18 +484,7 @@ impl Deformer {
             }
             0.0
         });
-        if sys.lambda1 > 0.0 {
-            for &(v, p) in &s.targets {
-                let k = sys.col_of[v as usize];
-                if k == u32::MAX {
-                    continue;
-                }
-                let y = self.y[v as usize];
-                for d in 0..3 {
-                    s.rhs[d * nu + k as usize] += sys.lambda1 * (p[d] - y[d]);
-                }
-            }
-        }
+        super::add_soft_rhs(sys, &s.targets, &self.y, &mut s.rhs);
     }
 }
 
