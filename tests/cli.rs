@@ -112,3 +112,44 @@ fn errors_exit_with_code_2_not_101() {
     let (code, _, _) = dend(&["gen", "sphere", "-o", "x.obj"]);
     assert_eq!(code, 2);
 }
+
+/// A missing file is reported once: its path and the system's reason each
+/// appear a single time, for every command that reads a mesh or a survey
+/// file (they read "reading X: X: No such file …: No such file …" before).
+#[test]
+fn a_missing_file_is_named_once() {
+    let dir = tempfile::tempdir().unwrap();
+    let missing = dir.path().join("missing.obj");
+    let missing = missing.to_str().unwrap();
+    let sel = dir.path().join("missing.sel");
+    let sel = sel.to_str().unwrap();
+    let bar = dir.path().join("bar.obj");
+    let bar = bar.to_str().unwrap();
+    assert_eq!(dend(&["gen", "bar", "-o", bar]).0, 0);
+    let out = dir.path().join("out.obj");
+    let out = out.to_str().unwrap();
+    for (args, path) in [
+        (vec!["info", missing], missing),
+        (
+            vec![
+                "deform",
+                missing,
+                "--constraints",
+                "examples/bar-twist-135.json",
+                "-o",
+                out,
+            ],
+            missing,
+        ),
+        (vec!["measure", missing, bar, "--bar", "0", "1"], missing),
+        (
+            vec!["deform", bar, "--sel", sel, "--def", sel, "-o", out],
+            sel,
+        ),
+    ] {
+        let (code, _, err) = dend(&args);
+        assert_eq!(code, 2, "{args:?}: {err}");
+        assert_eq!(err.matches(path).count(), 1, "{args:?}: {err}");
+        assert_eq!(err.matches("os error").count(), 1, "{args:?}: {err}");
+    }
+}

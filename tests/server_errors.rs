@@ -184,7 +184,7 @@ async fn each_bad_input_gets_its_code() -> Result<(), ClientError> {
     expect(
         sess(reqwest::Method::POST, "/redo").send().await?,
         409,
-        "nothing_to_undo",
+        "nothing_to_redo",
     )
     .await;
     expect(

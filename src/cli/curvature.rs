@@ -27,8 +27,7 @@ pub struct CurvatureArgs {
 
 /// Reads the mesh, builds its operators and writes the CSV.
 pub fn run(args: &CurvatureArgs) -> anyhow::Result<()> {
-    let mesh = dend::mesh::io::read_path(&args.mesh)
-        .with_context(|| format!("reading {}", args.mesh.display()))?;
+    let mesh = dend::mesh::io::read_path(&args.mesh)?;
     let t = std::time::Instant::now();
     let op = Operators::new(&mesh);
     tracing::info!(

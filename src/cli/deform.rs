@@ -91,8 +91,7 @@ pub struct Args {
 
 /// Runs `dend deform`.
 pub fn run(args: Args) -> anyhow::Result<()> {
-    let mesh =
-        io::read_path(&args.mesh).with_context(|| format!("reading {}", args.mesh.display()))?;
+    let mesh = io::read_path(&args.mesh)?;
     for v in mesh.unreferenced_vertices().iter().take(1) {
         eprintln!(
             "warning: {} unreferenced vertices (first: {v}) are kept in place",
@@ -107,11 +106,9 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         spec.resolve(&mesh)?
     } else {
         let (sel_path, def_path) = (args.sel.as_ref().unwrap(), args.def.as_ref().unwrap());
-        let sel = survey::read_sel(sel_path)
-            .with_context(|| format!("reading {}", sel_path.display()))?;
+        let sel = survey::read_sel(sel_path)?;
         sel.check_len(mesh.num_vertices())?;
-        let def = survey::read_def(def_path)
-            .with_context(|| format!("reading {}", def_path.display()))?;
+        let def = survey::read_def(def_path)?;
         let fixed = sel.indices(survey::VertexStatus::Fixed);
         let handle = sel.indices(survey::VertexStatus::Handle);
         let mut c = Constraints::new(&mesh, fixed, vec![("handle".into(), handle, None)])?;

@@ -5,7 +5,7 @@
 
 use std::path::PathBuf;
 
-use anyhow::{bail, Context};
+use anyhow::bail;
 use dend::measure::{bar_slabs, bend_angles};
 use dend::mesh::io;
 use serde_json::json;
@@ -37,10 +37,8 @@ pub struct Args {
 
 /// Runs `dend measure`.
 pub fn run(args: Args) -> anyhow::Result<()> {
-    let rest =
-        io::read_path(&args.rest).with_context(|| format!("reading {}", args.rest.display()))?;
-    let pose =
-        io::read_path(&args.pose).with_context(|| format!("reading {}", args.pose.display()))?;
+    let rest = io::read_path(&args.rest)?;
+    let pose = io::read_path(&args.pose)?;
     if rest.num_vertices() != pose.num_vertices() {
         bail!(
             "the pose has {} vertices, the rest mesh {}",

@@ -18,7 +18,11 @@ pub enum ApiError {
     #[error("invalid JSON: {0}")]
     InvalidJson(String),
     /// A mesh body that does not parse, or a mesh that fails validation.
-    #[error("invalid mesh: {0}")]
+    /// The message is the reader's or the validation's own (the code
+    /// `invalid_mesh` already says what kind of error it is: clients show
+    /// `code: message`, which read "invalid mesh: invalid mesh: …" when
+    /// both said it).
+    #[error("{0}")]
     InvalidMesh(String),
     /// Mesh format not known or not given.
     #[error("unsupported mesh format: {0}")]
@@ -59,9 +63,12 @@ pub enum ApiError {
     /// The handle is held by another client.
     #[error("{0}")]
     HandleGrabbed(String),
-    /// Undo/redo with no history entry to go to.
+    /// Undo with no earlier history entry.
     #[error("{0}")]
     NothingToUndo(String),
+    /// Redo with no later history entry.
+    #[error("{0}")]
+    NothingToRedo(String),
     /// The solver failed on this input (not positive definite, diverged...).
     #[error("solve failed: {0}")]
     SolveFailed(String),
@@ -126,6 +133,7 @@ impl ApiError {
             NotReady(_) => ("not_ready", StatusCode::CONFLICT),
             HandleGrabbed(_) => ("handle_grabbed", StatusCode::CONFLICT),
             NothingToUndo(_) => ("nothing_to_undo", StatusCode::CONFLICT),
+            NothingToRedo(_) => ("nothing_to_redo", StatusCode::CONFLICT),
             SolveFailed(_) => ("solve_failed", StatusCode::UNPROCESSABLE_ENTITY),
             PayloadTooLarge(_) => ("payload_too_large", StatusCode::PAYLOAD_TOO_LARGE),
             TooManyVertices { .. } => ("too_many_vertices", StatusCode::PAYLOAD_TOO_LARGE),
@@ -203,9 +211,8 @@ impl From<&SessionError> for ApiError {
             SessionError::UnknownHandle { .. } => ApiError::UnknownHandle(msg),
             SessionError::NonFinite { .. } => ApiError::NonFinite(msg),
             SessionError::HandleGrabbed { .. } => ApiError::HandleGrabbed(msg),
-            SessionError::NothingToUndo | SessionError::NothingToRedo => {
-                ApiError::NothingToUndo(msg)
-            }
+            SessionError::NothingToUndo => ApiError::NothingToUndo(msg),
+            SessionError::NothingToRedo => ApiError::NothingToRedo(msg),
             SessionError::InvalidConstraints(m) => ApiError::InvalidConstraints(m.clone()),
             SessionError::Deform(d) => deform_ref(d, msg),
             SessionError::Store(s) => ApiError::Internal(s.to_string()),
@@ -266,6 +273,7 @@ mod tests {
             ApiError::NotReady(String::new()),
             ApiError::HandleGrabbed(String::new()),
             ApiError::NothingToUndo(String::new()),
+            ApiError::NothingToRedo(String::new()),
             ApiError::SolveFailed(String::new()),
             ApiError::PayloadTooLarge(1),
             ApiError::TooManyVertices { got: 2, limit: 1 },

@@ -158,12 +158,13 @@ impl ParseError {
 #[derive(Debug, Error)]
 pub enum IoError {
     /// The file could not be opened, read or written. Fix: check the path and permissions.
-    #[error("{path}: {source}")]
+    #[error("{path}: {error}")]
     Io {
         /// The file.
         path: PathBuf,
-        /// The operating-system error.
-        source: std::io::Error,
+        /// The operating-system error (in the message, not as a `source`:
+        /// chained reports would print it twice).
+        error: std::io::Error,
     },
     /// The extension names no supported format. Fix: use `.obj`, `.off`, `.ply` or `.stl`.
     #[error("{path}: unknown mesh format (expected .obj, .off, .ply or .stl)")]
@@ -241,9 +242,9 @@ pub fn read_bytes(bytes: &[u8], format: Format) -> Result<Mesh, IoError> {
 /// Reads the file at `path` (format from its extension) without validating.
 pub fn parse_path(path: &Path) -> Result<RawMesh, IoError> {
     let format = Format::from_path(path)?;
-    let bytes = std::fs::read(path).map_err(|source| IoError::Io {
+    let bytes = std::fs::read(path).map_err(|error| IoError::Io {
         path: path.to_path_buf(),
-        source,
+        error,
     })?;
     parse_bytes(&bytes, format).map_err(|e| IoError::parse(format, e))
 }
@@ -294,10 +295,10 @@ pub fn write_path_with(
     encoding: Encoding,
 ) -> Result<(), IoError> {
     let format = Format::from_path(path)?;
-    std::fs::write(path, to_bytes_with(positions, triangles, format, encoding)).map_err(|source| {
+    std::fs::write(path, to_bytes_with(positions, triangles, format, encoding)).map_err(|error| {
         IoError::Io {
             path: path.to_path_buf(),
-            source,
+            error,
         }
     })
 }

@@ -21,12 +21,13 @@ use crate::mesh::Point;
 #[derive(Debug, Error)]
 pub enum SurveyError {
     /// The file could not be read. Fix: check the path.
-    #[error("{path}: {source}")]
+    #[error("{path}: {error}")]
     Io {
         /// The file.
         path: PathBuf,
-        /// The operating-system error.
-        source: std::io::Error,
+        /// The operating-system error (in the message, not as a `source`:
+        /// chained reports would print it twice).
+        error: std::io::Error,
     },
     /// Malformed content. Fix: the message names the line and what was expected.
     #[error("line {line}: {message}")]
@@ -192,9 +193,9 @@ pub fn parse_def(bytes: &[u8]) -> Result<HandleTransform, SurveyError> {
 }
 
 fn read(path: &Path) -> Result<Vec<u8>, SurveyError> {
-    std::fs::read(path).map_err(|source| SurveyError::Io {
+    std::fs::read(path).map_err(|error| SurveyError::Io {
         path: path.to_path_buf(),
-        source,
+        error,
     })
 }
 
