@@ -251,7 +251,10 @@ impl Actor {
         restore: Option<Restore>,
     ) -> Result<SessionState, SessionError> {
         match restore {
-            None => self.opts.store.set_constraints(&self.inner.id, &spec)?,
+            None => {
+                let (store, id) = (&self.opts.store, &self.inner.id);
+                off_worker(|| store.set_constraints(id, &spec))?
+            }
             Some(r) => {
                 if let (Some(pose), Some(d)) = (r.pose, self.deformer.as_mut()) {
                     d.set_pose(pose)?;
@@ -516,7 +519,8 @@ impl Actor {
             pose: self.pose.to_vec(),
             targets: self.targets().iter().map(stored).collect(),
         };
-        if let Err(e) = self.opts.store.checkpoint(&self.inner.id, &cp) {
+        let (store, id) = (&self.opts.store, &self.inner.id);
+        if let Err(e) = off_worker(|| store.checkpoint(id, &cp)) {
             tracing::error!(session = %self.inner.id, error = %e, "checkpoint failed");
         }
     }
@@ -613,5 +617,18 @@ fn stored(t: &RigidTransform) -> StoredTransform {
         rotation: [q.x, q.y, q.z, q.w],
         translation: t.translation,
         pivot: t.pivot,
+    }
+}
+
+/// Runs a blocking store call from the actor's task without holding an
+/// async worker: on a multi-threaded runtime (the server's) the worker
+/// hands its other tasks to a new worker while `f` blocks
+/// (`block_in_place`), so a slow store delays this session only, and the
+/// call stays ordered with the actor's other work. On a current-thread
+/// runtime (some tests) it simply runs.
+fn off_worker<T>(f: impl FnOnce() -> T) -> T {
+    match tokio::runtime::Handle::try_current().map(|h| h.runtime_flavor()) {
+        Ok(tokio::runtime::RuntimeFlavor::MultiThread) => tokio::task::block_in_place(f),
+        _ => f(),
     }
 }

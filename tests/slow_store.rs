@@ -1,0 +1,141 @@
+//! A store made slow on purpose for one session does not delay another
+//! session's frames: the session actor's store writes (checkpoint,
+//! constraints) leave the async worker (`block_in_place`) while they block.
+
+mod server_common;
+
+use std::sync::Arc;
+use std::time::{Duration, Instant};
+
+use dend::mesh::Mesh;
+use dend_client::{Client, ClientError, WsEvent};
+use dend_server::store::{Checkpoint, JournalEntry, MemoryStore, SessionRecord, Store, StoreError};
+use dend_server::{app, AppState, Config};
+use parking_lot::Mutex;
+use serde_json::json;
+use server_common::{grid, grid_constraints};
+
+/// A memory store whose writes for one session sleep `delay` first.
+struct SlowStore {
+    inner: MemoryStore,
+    slow: Mutex<Option<String>>,
+    delay: Duration,
+}
+
+impl SlowStore {
+    fn nap(&self, id: &str) {
+        if self.slow.lock().as_deref() == Some(id) {
+            std::thread::sleep(self.delay);
+        }
+    }
+}
+
+impl Store for SlowStore {
+    fn put_mesh(&self, id: &str, mesh: Arc<Mesh>) -> Result<(), StoreError> {
+        self.inner.put_mesh(id, mesh)
+    }
+    fn get_mesh(&self, id: &str) -> Result<Option<Arc<Mesh>>, StoreError> {
+        self.inner.get_mesh(id)
+    }
+    fn mesh_count(&self) -> Result<usize, StoreError> {
+        self.inner.mesh_count()
+    }
+    fn put_session(&self, record: &SessionRecord) -> Result<(), StoreError> {
+        self.inner.put_session(record)
+    }
+    fn get_session(&self, id: &str) -> Result<Option<SessionRecord>, StoreError> {
+        self.inner.get_session(id)
+    }
+    fn list_sessions(&self) -> Result<Vec<SessionRecord>, StoreError> {
+        self.inner.list_sessions()
+    }
+    fn delete_session(&self, id: &str) -> Result<(), StoreError> {
+        self.inner.delete_session(id)
+    }
+    fn set_constraints(&self, id: &str, spec: &serde_json::Value) -> Result<(), StoreError> {
+        self.nap(id);
+        self.inner.set_constraints(id, spec)
+    }
+    fn append(&self, id: &str, entries: &[JournalEntry]) -> Result<(), StoreError> {
+        self.inner.append(id, entries)
+    }
+    fn journal(&self, id: &str) -> Result<Vec<JournalEntry>, StoreError> {
+        self.inner.journal(id)
+    }
+    fn checkpoint(&self, id: &str, checkpoint: &Checkpoint) -> Result<(), StoreError> {
+        self.nap(id);
+        self.inner.checkpoint(id, checkpoint)
+    }
+    fn get_checkpoint(&self, id: &str) -> Result<Option<Checkpoint>, StoreError> {
+        self.inner.get_checkpoint(id)
+    }
+}
+
+/// One async worker thread, so that a write blocking it would stop every
+/// other task: session A's checkpoints take 1.5 s each while session B is
+/// dragged over WebSocket; B's frames keep coming.
+#[tokio::test(flavor = "multi_thread", worker_threads = 1)]
+async fn a_slow_store_for_one_session_does_not_stall_another() -> Result<(), ClientError> {
+    let store = Arc::new(SlowStore {
+        inner: MemoryStore::new(),
+        slow: Mutex::new(None),
+        delay: Duration::from_millis(1500),
+    });
+    let config = Config {
+        addr: ([127, 0, 0, 1], 0).into(),
+        ..Config::default()
+    };
+    let listener = tokio::net::TcpListener::bind(config.addr)
+        .await
+        .expect("bind");
+    let base = format!("http://{}", listener.local_addr().expect("addr"));
+    let state = AppState::with_store(config, store.clone()).expect("state");
+    drop(tokio::spawn(dend_server::serve_on(listener, app(state))));
+
+    let c = Client::new(&base);
+    let (p, t) = grid(8);
+    let mesh = c.upload_json(&p, &t).await?;
+    let a = c.create_session(&mesh.id, json!({})).await?;
+    let b = c.create_session(&mesh.id, json!({})).await?;
+    for s in [&a, &b] {
+        s.set_constraints(&grid_constraints(8)).await?;
+        s.wait_ready(Duration::from_secs(60)).await?;
+    }
+    let mut ws = b.connect().await?;
+    let _ = ws.frame_acking(0, true).await?;
+    *store.slow.lock() = Some(a.id.clone());
+
+    // A: drags answered after a settle, each followed by a slow checkpoint
+    let slow = tokio::spawn(async move {
+        for k in 0..3 {
+            let d = json!({"translate": [0.0, 0.0, 0.1 * (k + 1) as f64]});
+            a.drag(json!(0), d, Some(200)).await?;
+            tokio::time::sleep(Duration::from_millis(50)).await;
+        }
+        Ok::<_, ClientError>(())
+    });
+    // B: drag after drag while A's checkpoints block
+    let start = Instant::now();
+    let mut worst = Duration::ZERO;
+    let mut seq = 0;
+    while start.elapsed() < Duration::from_secs(3) {
+        seq += 1;
+        let sent = Instant::now();
+        ws.drag(0, [0.0, 0.01, 0.0], None, seq).await?;
+        loop {
+            if let WsEvent::Frame(h, _) = ws.next().await? {
+                if h.ack_seq >= seq {
+                    break;
+                }
+            }
+        }
+        worst = worst.max(sent.elapsed());
+    }
+    slow.await.expect("join")?;
+    assert!(seq > 5, "only {seq} drags of B in 3 s");
+    assert!(
+        worst < Duration::from_millis(750),
+        "B waited {worst:?} for a frame while A's store was slow (1.5 s writes)"
+    );
+    Ok(())
+}
