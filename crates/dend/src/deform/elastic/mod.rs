@@ -97,6 +97,11 @@ pub struct ElasticOps {
     k_rest: Vec<Real>,
     /// `λ2 k_b`.
     kbl: Real,
+    /// `Q` with every row kept, and copies of `Lbar` and `L` (the rows a
+    /// constraint set drops are subtracted from it, see `system`).
+    q_all: CsMat<Real>,
+    lbar: CsMat<Real>,
+    l: CsMat<Real>,
     /// `k_a`.
     ka: Real,
     area: Vec<AreaElement>,
@@ -169,7 +174,7 @@ impl ElasticOps {
         } else {
             Vec::new()
         };
-        ElasticOps {
+        let mut ops_ = ElasticOps {
             ptr,
             nbr,
             c,
@@ -179,7 +184,12 @@ impl ElasticOps {
             kbl,
             ka,
             area,
-        }
+            q_all: CsMat::zero((n, n)),
+            lbar: ops.lbar.clone(),
+            l: ops.l.clone(),
+        };
+        ops_.q_all = ops_.assemble_q(ops, &vec![true; n]);
+        ops_
     }
 
     /// Memory held, in bytes.
@@ -190,6 +200,7 @@ impl ElasticOps {
             + self.e.len() * 24
             + self.b.len() * 8
             + self.area.len() * std::mem::size_of::<AreaElement>()
+            + (self.q_all.nnz() + self.lbar.nnz() + self.l.nnz()) * 16
     }
 
     /// `Q` of the constrained set `constrained` (module docs).
@@ -207,6 +218,48 @@ impl ElasticOps {
             free[v as usize] = false;
         }
         let fit = free.clone();
+        // Q of this set = Q of all rows (built once per rest mesh and
+        // weights) minus the rows centred at constrained vertices: a few
+        // entries per constrained vertex instead of a sparse product per
+        // constraint set; assembled directly in the rare case the full Q
+        // lacks an entry the subtraction needs
+        let q = self
+            .drop_rows(&free)
+            .unwrap_or_else(|| self.assemble_q(ops, &free));
+        ElasticSet { free, fit, q }
+    }
+
+    /// `Q` with the rows centred at the vertices where `free` is false
+    /// removed from `q_all`, or `None` when an entry it must change is not
+    /// stored.
+    fn drop_rows(&self, free: &[bool]) -> Option<CsMat<Real>> {
+        let mut q = self.q_all.clone();
+        for c in (0..free.len()).filter(|&c| !free[c]) {
+            for s in self.ptr[c]..self.ptr[c + 1] {
+                let (j, w) = (self.nbr[s] as usize, self.c[s]);
+                if w != 0.0 {
+                    *q.get_mut(c, c)? -= w;
+                    *q.get_mut(j, j)? -= w;
+                    *q.get_mut(c, j)? += w;
+                    *q.get_mut(j, c)? += w;
+                }
+            }
+            if self.kbl > 0.0 {
+                // − kbl Lbar[:, c] L[c, :] (Lbar symmetric)
+                let (lbar_c, l_c) = (self.lbar.outer_view(c)?, self.l.outer_view(c)?);
+                for (i, &a) in lbar_c.iter() {
+                    for (k, &b) in l_c.iter() {
+                        *q.get_mut(i, k)? -= self.kbl * a * b;
+                    }
+                }
+            }
+        }
+        Some(q)
+    }
+
+    /// `Q` assembled from its terms for the rows where `free` is true.
+    fn assemble_q(&self, ops: &Operators, free: &[bool]) -> CsMat<Real> {
+        let n = free.len();
         // K_c: each kept spoke adds c to both diagonals, −c off them
         let mut k = TriMat::new((n, n));
         for i in (0..n).filter(|&i| free[i]) {
@@ -235,7 +288,7 @@ impl ElasticOps {
             area.map_inplace(|v| -self.ka * v);
             q = &q + &area;
         }
-        ElasticSet { free, fit, q }
+        q
     }
 
     /// The local step: for every free vertex the rotation `R_i` maximising
@@ -513,6 +566,43 @@ mod tests {
     use super::*;
     use crate::deform::factor::tests::grid;
     use crate::deform::Rest;
+
+    /// The constraint set's `Q` from the full one minus the dropped rows
+    /// equals `Q` assembled from the kept rows, entry by entry.
+    #[test]
+    fn dropping_rows_equals_assembling_the_kept_ones() {
+        let mesh = grid(9);
+        let rest = Rest::new(mesh.clone()).unwrap();
+        let ops = rest.operators();
+        let el = ElasticOps::new(&mesh, ops, &Params::default());
+        let n = mesh.num_vertices();
+        let mut free = vec![true; n];
+        for v in (0..9).chain(40..44).chain(72..81) {
+            free[v] = false;
+        }
+        let fast = el.drop_rows(&free).expect("every entry stored");
+        let slow = el.assemble_q(ops, &free);
+        let scale = slow.data().iter().fold(0.0f64, |m, v| m.max(v.abs()));
+        let mut worst: Real = 0.0;
+        for i in 0..n {
+            for j in 0..n {
+                let a = fast.get(i, j).copied().unwrap_or(0.0);
+                let b = slow.get(i, j).copied().unwrap_or(0.0);
+                worst = worst.max((a - b).abs());
+            }
+        }
+        assert!(worst < 1e-12 * scale, "difference {worst} (scale {scale})");
+        // and it differs from the full Q (rows were really dropped)
+        let full = &el.q_all;
+        let changed = (0..n).any(|i| {
+            (0..n).any(|j| {
+                let a = full.get(i, j).copied().unwrap_or(0.0);
+                let b = fast.get(i, j).copied().unwrap_or(0.0);
+                (a - b).abs() > 1e-6 * scale
+            })
+        });
+        assert!(changed);
+    }
 
     /// `residual` is `−½ ∇_Y E(Y, R, P)` at fixed rotations and
     /// projections: checked against central differences of the energy
