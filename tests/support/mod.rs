@@ -1,6 +1,12 @@
 //! Meshes and measurements shared by the solver tests.
 #![allow(dead_code)]
 
+use std::sync::Arc;
+
+use dend::deform::{
+    BoxSel, ConstraintsSpec, Deformer, Factor, Formulation, HandleSpec, Params, Rest, RotationSpec,
+    StepReport, VertexSet,
+};
 use dend::mesh::{Mesh, Point};
 
 /// An open square tube `w × w × h` along z (bottom at z = 0), `k` vertices
@@ -166,4 +172,62 @@ pub fn random_delaunay_patch(n: usize, seed: u64) -> Mesh {
         .filter(|f| Mesh::new(p.clone(), vec![*f]).is_ok())
         .collect();
     Mesh::new(p, t).expect("valid Delaunay patch")
+}
+
+/// Eq. (24) least squares (the default before the elastic formulation):
+/// the energies' properties below are this formulation's; the elastic
+/// default's are in tests/elastic.rs.
+pub fn ls() -> Params {
+    Params {
+        formulation: Formulation::LeastSquares,
+        ..Params::default()
+    }
+}
+
+/// Solves `spec` on `mesh` from rest with up to `iters` iterations.
+pub fn solve(
+    mesh: &Mesh,
+    params: Params,
+    spec: &ConstraintsSpec,
+    iters: usize,
+) -> (Vec<[f64; 3]>, StepReport) {
+    let rest = Arc::new(Rest::new(mesh.clone()).unwrap());
+    let c = spec.resolve(mesh).unwrap();
+    let f = Factor::build(&rest, &params, &c).unwrap();
+    let mut d = Deformer::new(rest, params);
+    let rep = d.step(&f, &c, iters).unwrap();
+    (d.pose().to_vec(), rep)
+}
+
+pub fn tube_spec(mesh: &Mesh, handle: HandleSpec) -> ConstraintsSpec {
+    let (lo, hi) = mesh.bounding_box();
+    let _ = lo;
+    ConstraintsSpec {
+        fixed: VertexSet::Box {
+            bbox: BoxSel {
+                min: [-9.0, -9.0, -0.01],
+                max: [9.0, 9.0, 0.01 * hi[2] + 0.3],
+            },
+        },
+        handles: vec![HandleSpec {
+            vertices: VertexSet::Box {
+                bbox: BoxSel {
+                    min: [-9.0, -9.0, hi[2] * 0.99 - 0.3],
+                    max: [9.0, 9.0, hi[2] + 1.0],
+                },
+            },
+            ..handle
+        }],
+    }
+}
+
+pub fn handle(translate: Option<[f64; 3]>, rotate: Option<RotationSpec>) -> HandleSpec {
+    HandleSpec {
+        name: Some("top".into()),
+        vertices: VertexSet::Indices(vec![]),
+        translate,
+        rotate,
+        pivot: None,
+        positions: None,
+    }
 }

@@ -8,31 +8,13 @@ use std::time::Instant;
 use tokio::sync::{mpsc, watch};
 
 use super::frame::{FrameBody, FrameHeader};
-use super::shared::{Cmd, Inner, Reply, Restore, SessionOptions};
+use super::shared::{off_worker, Cmd, Inner, Internal, Reply, Restore, SessionOptions};
 use super::{Delta, Event, Frame, PoseSnapshot, SessionError, SessionState};
 use crate::store::{Checkpoint, JournalEntry, StoredTransform};
-use dend::deform::{Constraints, Deformer, RigidTransform, StepReport};
+use dend::deform::{Constraints, Deformer, RigidTransform};
 
 /// Most history entries kept per session (older ones are dropped).
 const HISTORY_LIMIT: usize = 64;
-
-// One message per solve, moved once: boxing the deformer would buy nothing.
-#[allow(clippy::large_enum_variant)]
-enum Internal {
-    Solved {
-        deformer: Deformer,
-        result: Result<StepReport, SessionError>,
-        body: FrameBody,
-        seconds: f64,
-        applied_seq: u64,
-    },
-    Built {
-        generation: u64,
-        result: Result<(), SessionError>,
-        /// Wall time of the factor's lookup or build.
-        seconds: f64,
-    },
-}
 
 struct Snapshot {
     pose: Arc<Vec<[f64; 3]>>,
@@ -517,7 +499,7 @@ impl Actor {
             revision: self.revision,
             ack_seq: self.applied_seq,
             pose: self.pose.to_vec(),
-            targets: self.targets().iter().map(stored).collect(),
+            targets: self.targets().iter().map(StoredTransform::from).collect(),
         };
         let (store, id) = (&self.opts.store, &self.inner.id);
         if let Err(e) = off_worker(|| store.checkpoint(id, &cp)) {
@@ -608,27 +590,5 @@ impl Actor {
         self.uncommitted = true;
         self.commit();
         Ok(snap)
-    }
-}
-
-fn stored(t: &RigidTransform) -> StoredTransform {
-    let q = t.rotation.coords;
-    StoredTransform {
-        rotation: [q.x, q.y, q.z, q.w],
-        translation: t.translation,
-        pivot: t.pivot,
-    }
-}
-
-/// Runs a blocking store call from the actor's task without holding an
-/// async worker: on a multi-threaded runtime (the server's) the worker
-/// hands its other tasks to a new worker while `f` blocks
-/// (`block_in_place`), so a slow store delays this session only, and the
-/// call stays ordered with the actor's other work. On a current-thread
-/// runtime (some tests) it simply runs.
-fn off_worker<T>(f: impl FnOnce() -> T) -> T {
-    match tokio::runtime::Handle::try_current().map(|h| h.runtime_flavor()) {
-        Ok(tokio::runtime::RuntimeFlavor::MultiThread) => tokio::task::block_in_place(f),
-        _ => f(),
     }
 }

@@ -14,7 +14,9 @@ use tokio::sync::oneshot;
 
 use super::{ClientId, Delta, Event, Frame, Observer, PoseSnapshot, SessionError, SessionState};
 use crate::store::Store;
-use dend::deform::Constraints;
+use dend::deform::{Constraints, Deformer, StepReport};
+
+use super::frame::FrameBody;
 use dend::deform::{FactorCache, Params, Rest};
 
 /// What a session needs besides its rest mesh and parameters.
@@ -141,4 +143,36 @@ pub(super) struct Restore {
     pub pose: Option<Vec<[f64; 3]>>,
     /// Highest sequence number included in the targets.
     pub ack_seq: u64,
+}
+
+/// Runs a blocking store call from the actor's task without holding an
+/// async worker: on a multi-threaded runtime (the server's) the worker
+/// hands its other tasks to a new worker while `f` blocks
+/// (`block_in_place`), so a slow store delays this session only, and the
+/// call stays ordered with the actor's other work. On a current-thread
+/// runtime (some tests) it simply runs.
+pub(super) fn off_worker<T>(f: impl FnOnce() -> T) -> T {
+    match tokio::runtime::Handle::try_current().map(|h| h.runtime_flavor()) {
+        Ok(tokio::runtime::RuntimeFlavor::MultiThread) => tokio::task::block_in_place(f),
+        _ => f(),
+    }
+}
+
+/// What the solver and factor-build tasks send back to the actor.
+// One message per solve, moved once: boxing the deformer would buy nothing.
+#[allow(clippy::large_enum_variant)]
+pub(super) enum Internal {
+    Solved {
+        deformer: Deformer,
+        result: Result<StepReport, SessionError>,
+        body: FrameBody,
+        seconds: f64,
+        applied_seq: u64,
+    },
+    Built {
+        generation: u64,
+        result: Result<(), SessionError>,
+        /// Wall time of the factor's lookup or build.
+        seconds: f64,
+    },
 }

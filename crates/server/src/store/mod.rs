@@ -141,3 +141,15 @@ pub trait Store: Send + Sync + 'static {
     /// The last checkpoint.
     fn get_checkpoint(&self, id: &str) -> Result<Option<Checkpoint>, StoreError>;
 }
+
+impl From<&dend::deform::RigidTransform> for StoredTransform {
+    /// The stored form of a handle transform (quaternion `[x, y, z, w]`).
+    fn from(t: &dend::deform::RigidTransform) -> Self {
+        let q = t.rotation.coords;
+        StoredTransform {
+            rotation: [q.x, q.y, q.z, q.w],
+            translation: t.translation,
+            pivot: t.pivot,
+        }
+    }
+}
