@@ -41,6 +41,11 @@ fi
 
 [ "${1:-}" = "--install-only" ] && exit 0
 
-cargo build --bin dend
-export CHROMIUM
-DEND_BIN="${CARGO_TARGET_DIR:-$(pwd)/target}/debug/dend" node web/tests/browser.test.mjs
+# scripts/test.sh passes the binary its `cargo test` just built (same
+# features, so nothing is compiled twice); run alone, build it here
+if [ -z "${DEND_BIN:-}" ] || [ ! -x "$DEND_BIN" ]; then
+  cargo build --bin dend
+  DEND_BIN="${CARGO_TARGET_DIR:-$(pwd)/target}/debug/dend"
+fi
+export CHROMIUM DEND_BIN
+node web/tests/browser.test.mjs

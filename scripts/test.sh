@@ -15,7 +15,8 @@ cargo clippy --workspace --all-targets -- -D warnings
 export DEND_SKIP_LOG="$(mktemp)"
 trap 'rm -f "$DEND_SKIP_LOG"' EXIT
 cargo test --workspace --lib --bins --tests --examples
-bash scripts/test-web.sh
+# the browser test drives the `dend` binary cargo test built for the CLI tests
+DEND_BIN="${CARGO_TARGET_DIR:-$(pwd)/target}/debug/dend" bash scripts/test-web.sh
 if [ -s "$DEND_SKIP_LOG" ]; then
   echo "== skipped (the properties are also tested on generated meshes):"
   sort -u "$DEND_SKIP_LOG"
