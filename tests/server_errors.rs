@@ -218,26 +218,16 @@ async fn session_limit_is_503() -> Result<(), ClientError> {
     Ok(())
 }
 
-/// A second server instance on the same SQLite store, where the session
-/// is stored but not live.
+/// A server instance on the SQLite store in `dir` (the second one sees the
+/// first one's sessions as stored, not live).
 async fn start_on_store(dir: &std::path::Path) -> String {
     let config = Config {
-        addr: ([127, 0, 0, 1], 0).into(),
         in_memory: false,
         data_dir: dir.to_path_buf(),
         ..Config::default()
     };
     let store = dend_server::recover::open_store(&config).expect("store");
-    let listener = tokio::net::TcpListener::bind(config.addr)
-        .await
-        .expect("bind");
-    let addr = listener.local_addr().expect("addr");
-    let state = dend_server::AppState::with_store(config, store).expect("state");
-    drop(tokio::spawn(dend_server::serve_on(
-        listener,
-        dend_server::app(state),
-    )));
-    format!("http://{addr}")
+    server_common::start_with_store(config, store).await.0
 }
 
 /// A wrong or missing token on a stored session that is not live is

@@ -10,10 +10,10 @@ use std::time::{Duration, Instant};
 use dend::mesh::Mesh;
 use dend_client::{Client, ClientError, WsEvent};
 use dend_server::store::{Checkpoint, JournalEntry, MemoryStore, SessionRecord, Store, StoreError};
-use dend_server::{app, AppState, Config};
+use dend_server::Config;
 use parking_lot::Mutex;
 use serde_json::json;
-use server_common::{grid, grid_constraints};
+use server_common::{grid, grid_constraints, start_with_store};
 
 /// A memory store whose writes for one session sleep `delay` first.
 struct SlowStore {
@@ -81,16 +81,7 @@ async fn a_slow_store_for_one_session_does_not_stall_another() -> Result<(), Cli
         slow: Mutex::new(None),
         delay: Duration::from_millis(1500),
     });
-    let config = Config {
-        addr: ([127, 0, 0, 1], 0).into(),
-        ..Config::default()
-    };
-    let listener = tokio::net::TcpListener::bind(config.addr)
-        .await
-        .expect("bind");
-    let base = format!("http://{}", listener.local_addr().expect("addr"));
-    let state = AppState::with_store(config, store.clone()).expect("state");
-    drop(tokio::spawn(dend_server::serve_on(listener, app(state))));
+    let (base, _state) = start_with_store(Config::default(), store.clone()).await;
 
     let c = Client::new(&base);
     let (p, t) = grid(8);

@@ -4,8 +4,21 @@
 
 use dend_server::{app, AppState, Config};
 
-/// Starts a server on 127.0.0.1:0; returns its base URL and state.
+/// Starts a server on 127.0.0.1:0 with the in-memory store; returns its
+/// base URL and state.
 pub async fn start(config: Config) -> (String, AppState) {
+    start_with_store(
+        config,
+        std::sync::Arc::new(dend_server::store::MemoryStore::new()),
+    )
+    .await
+}
+
+/// [`start`] on the given store.
+pub async fn start_with_store(
+    config: Config,
+    store: std::sync::Arc<dyn dend_server::store::Store>,
+) -> (String, AppState) {
     let config = Config {
         addr: ([127, 0, 0, 1], 0).into(),
         ..config
@@ -14,7 +27,7 @@ pub async fn start(config: Config) -> (String, AppState) {
         .await
         .expect("bind");
     let addr = listener.local_addr().expect("addr");
-    let state = AppState::new(config).expect("state");
+    let state = AppState::with_store(config, store).expect("state");
     let router = app(state.clone());
     drop(tokio::spawn(
         async move { axum::serve(listener, router).await },

@@ -130,27 +130,17 @@ impl Anderson {
         // the new pair's row of the Gram matrix and b = ΔFᵀ f, one pass
         let mut row = [0.0; MAX_WINDOW];
         let mut b = [0.0; MAX_WINDOW];
-        match mf {
-            // ΔFᵀ M ΔF and ΔFᵀ M f (M symmetric: (M Δf_k)ᵀ Δf_q)
-            Some(mf) => {
-                for (i, &mfi) in mf.iter().enumerate() {
-                    let dk = self.mdf[k][i];
-                    for q in 0..m {
-                        let d = self.df[q][i];
-                        row[q] += dk * d;
-                        b[q] += d * mfi;
-                    }
-                }
-            }
-            None => {
-                for (i, &fi) in f.iter().enumerate() {
-                    let dk = self.df[k][i];
-                    for q in 0..m {
-                        let d = self.df[q][i];
-                        row[q] += dk * d;
-                        b[q] += d * fi;
-                    }
-                }
+        // ΔFᵀ M ΔF and ΔFᵀ M f with a metric (M symmetric: (M Δf_k)ᵀ Δf_q),
+        // ΔFᵀ ΔF and ΔFᵀ f without
+        let (dk, rhs) = match mf {
+            Some(mf) => (&self.mdf[k], mf),
+            None => (&self.df[k], f),
+        };
+        for (i, (&dki, &ri)) in dk.iter().zip(rhs).enumerate() {
+            for q in 0..m {
+                let d = self.df[q][i];
+                row[q] += dki * d;
+                b[q] += d * ri;
             }
         }
         for (q, &v) in row[..m].iter().enumerate() {

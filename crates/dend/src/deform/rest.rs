@@ -102,27 +102,11 @@ impl Rest {
 
     /// `energy`'s matrix and `A X`, built on first use and kept.
     pub(crate) fn energy(&self, energy: Energy) -> Arc<EnergyOperator> {
-        let find = |v: &[(Energy, Arc<EnergyOperator>)]| {
-            v.iter()
-                .find(|(e, _)| *e == energy)
-                .map(|(_, op)| op.clone())
-        };
-        if let Some(op) = self.energies.lock().ok().and_then(|v| find(&v)) {
-            return op;
-        }
-        let a = super::system::energy_matrix(&self.ops, energy);
-        let ax = crate::operators::laplacian_coordinates(&a, &self.ops.positions);
-        let op = Arc::new(EnergyOperator { a, ax });
-        if let Ok(mut v) = self.energies.lock() {
-            if let Some(found) = find(&v) {
-                return found;
-            }
-            if v.len() == ENERGY_CACHE {
-                v.remove(0);
-            }
-            v.push((energy, op.clone()));
-        }
-        op
+        cached(&self.energies, energy, || {
+            let a = super::system::energy_matrix(&self.ops, energy);
+            let ax = crate::operators::laplacian_coordinates(&a, &self.ops.positions);
+            EnergyOperator { a, ax }
+        })
     }
 
     /// The elastic formulation's operators for `params`' weights, built on
@@ -135,23 +119,9 @@ impl Rest {
             params.lambda2.to_bits(),
             params.area.to_bits(),
         );
-        let find = |v: &[(ElasticKey, Arc<ElasticOps>)]| {
-            v.iter().find(|(k, _)| *k == key).map(|(_, op)| op.clone())
-        };
-        if let Some(op) = self.elastics.lock().ok().and_then(|v| find(&v)) {
-            return op;
-        }
-        let op = Arc::new(ElasticOps::new(&self.mesh, &self.ops, params));
-        if let Ok(mut v) = self.elastics.lock() {
-            if let Some(found) = find(&v) {
-                return found;
-            }
-            if v.len() == ENERGY_CACHE {
-                v.remove(0);
-            }
-            v.push((key, op.clone()));
-        }
-        op
+        cached(&self.elastics, key, || {
+            ElasticOps::new(&self.mesh, &self.ops, params)
+        })
     }
 
     pub(super) fn mu(&self, mode: Mode) -> &Mu {
@@ -167,4 +137,29 @@ impl Rest {
             }),
         }
     }
+}
+
+/// The value of `key` in a small most-recent-last cache of at most
+/// [`ENERGY_CACHE`] entries, built by `build` (outside the lock) when
+/// missing; a value another thread stored meanwhile wins.
+fn cached<K: PartialEq + Copy, V>(
+    cache: &Mutex<Vec<(K, Arc<V>)>>,
+    key: K,
+    build: impl FnOnce() -> V,
+) -> Arc<V> {
+    let find = |v: &[(K, Arc<V>)]| v.iter().find(|(k, _)| *k == key).map(|(_, op)| op.clone());
+    if let Some(op) = cache.lock().ok().and_then(|v| find(&v)) {
+        return op;
+    }
+    let op = Arc::new(build());
+    if let Ok(mut v) = cache.lock() {
+        if let Some(found) = find(&v) {
+            return found;
+        }
+        if v.len() == ENERGY_CACHE {
+            v.remove(0);
+        }
+        v.push((key, op.clone()));
+    }
+    op
 }

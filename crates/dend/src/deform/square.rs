@@ -212,18 +212,7 @@ impl Square {
             r[nu + k] = acc[1];
             r[2 * nu + k] = acc[2];
         }
-        if sys.lambda1 > 0.0 {
-            for &(v, p) in targets {
-                let k = sys.col_of[v as usize];
-                if k == u32::MAX {
-                    continue;
-                }
-                let q = y[v as usize];
-                for d in 0..3 {
-                    r[d * nu + k as usize] += sys.lambda1 * (p[d] - q[d]);
-                }
-            }
-        }
+        sys.add_soft_rhs(targets, y, r);
         let mut merit = 0.0;
         for (k, &a) in self.mass.iter().enumerate() {
             merit += (r[k] * r[k] + r[nu + k] * r[nu + k] + r[2 * nu + k] * r[2 * nu + k]) / a;

@@ -17,7 +17,7 @@
 use sprs::{CsMat, TriMat};
 
 use super::params::{Energy, Params};
-use crate::mesh::Real;
+use crate::mesh::{Point, Real};
 use crate::operators::Operators;
 use dend_linalg::sparse::{matmul, product_pattern, product_values, scale_and_shift_diagonal};
 
@@ -250,6 +250,41 @@ impl System {
     /// Number of stacked rows `2|R|`.
     pub fn num_rows(&self) -> usize {
         2 * self.rows.len()
+    }
+
+    /// `rhs += λ1 (C − Y)` on the constrained unknowns (soft constraints;
+    /// nothing with hard ones). `rhs` is column-major `|U| × 3`, `targets`
+    /// the normalised `(vertex, C)` pairs.
+    pub(crate) fn add_soft_rhs(&self, targets: &[(u32, Point)], y: &[Point], rhs: &mut [Real]) {
+        if self.lambda1 <= 0.0 {
+            return;
+        }
+        let nu = self.unknowns.len();
+        for &(v, p) in targets {
+            let k = self.col_of[v as usize];
+            if k == u32::MAX {
+                continue;
+            }
+            let y = y[v as usize];
+            for d in 0..3 {
+                rhs[d * nu + k as usize] += self.lambda1 * (p[d] - y[d]);
+            }
+        }
+    }
+
+    /// The soft-constraint term `λ1 Σ_c |Y_c − C_c|²` (0 with hard
+    /// constraints).
+    pub(crate) fn soft_energy(&self, targets: &[(u32, Point)], y: &[Point]) -> Real {
+        if self.lambda1 <= 0.0 {
+            return 0.0;
+        }
+        targets
+            .iter()
+            .map(|&(v, p)| {
+                let y = y[v as usize];
+                self.lambda1 * (0..3).map(|k| (y[k] - p[k]).powi(2)).sum::<Real>()
+            })
+            .sum()
     }
 }
 

@@ -97,11 +97,9 @@ pub struct ElasticOps {
     k_rest: Vec<Real>,
     /// `λ2 k_b`.
     kbl: Real,
-    /// `Q` with every row kept, and copies of `Lbar` and `L` (the rows a
-    /// constraint set drops are subtracted from it, see `system`).
+    /// `Q` with every row kept (the rows a constraint set drops are
+    /// subtracted from it, see `system`).
     q_all: CsMat<Real>,
-    lbar: CsMat<Real>,
-    l: CsMat<Real>,
     /// `k_a`.
     ka: Real,
     area: Vec<AreaElement>,
@@ -185,8 +183,6 @@ impl ElasticOps {
             ka,
             area,
             q_all: CsMat::zero((n, n)),
-            lbar: ops.lbar.clone(),
-            l: ops.l.clone(),
         };
         ops_.q_all = ops_.assemble_q(ops, &vec![true; n]);
         ops_
@@ -200,7 +196,7 @@ impl ElasticOps {
             + self.e.len() * 24
             + self.b.len() * 8
             + self.area.len() * std::mem::size_of::<AreaElement>()
-            + (self.q_all.nnz() + self.lbar.nnz() + self.l.nnz()) * 16
+            + self.q_all.nnz() * 16
     }
 
     /// `Q` of the constrained set `constrained` (module docs).
@@ -224,7 +220,7 @@ impl ElasticOps {
         // constraint set; assembled directly in the rare case the full Q
         // lacks an entry the subtraction needs
         let q = self
-            .drop_rows(&free)
+            .drop_rows(ops, &free)
             .unwrap_or_else(|| self.assemble_q(ops, &free));
         ElasticSet { free, fit, q }
     }
@@ -232,7 +228,7 @@ impl ElasticOps {
     /// `Q` with the rows centred at the vertices where `free` is false
     /// removed from `q_all`, or `None` when an entry it must change is not
     /// stored.
-    fn drop_rows(&self, free: &[bool]) -> Option<CsMat<Real>> {
+    fn drop_rows(&self, ops: &Operators, free: &[bool]) -> Option<CsMat<Real>> {
         let mut q = self.q_all.clone();
         for c in (0..free.len()).filter(|&c| !free[c]) {
             for s in self.ptr[c]..self.ptr[c + 1] {
@@ -246,7 +242,7 @@ impl ElasticOps {
             }
             if self.kbl > 0.0 {
                 // − kbl Lbar[:, c] L[c, :] (Lbar symmetric)
-                let (lbar_c, l_c) = (self.lbar.outer_view(c)?, self.l.outer_view(c)?);
+                let (lbar_c, l_c) = (ops.lbar.outer_view(c)?, ops.l.outer_view(c)?);
                 for (i, &a) in lbar_c.iter() {
                     for (k, &b) in l_c.iter() {
                         *q.get_mut(i, k)? -= self.kbl * a * b;
@@ -481,26 +477,6 @@ impl ElasticOps {
             let c1 = r * Vector3::new(f[3], f[4], f[5]);
             *p = [c0[0], c0[1], c0[2], c1[0], c1[1], c1[2]];
         }
-    }
-}
-
-/// `out = L y`, `#V`.
-pub fn laplacian(ops: &Operators, y: &[Point], out: &mut [Point]) {
-    let row = |(v, o): (usize, &mut Point)| {
-        let mut acc = [0.0; 3];
-        if let Some(r) = ops.l.outer_view(v) {
-            for (j, &w) in r.iter() {
-                for a in 0..3 {
-                    acc[a] += w * y[j][a];
-                }
-            }
-        }
-        *o = acc;
-    };
-    if y.len() >= PARALLEL_MIN {
-        out.par_iter_mut().enumerate().for_each(row);
-    } else {
-        out.iter_mut().enumerate().for_each(row);
     }
 }
 

@@ -29,9 +29,10 @@ use nalgebra::{Matrix3, UnitQuaternion, Vector3};
 use super::{Deformer, StepReport};
 use crate::deform::anderson::Anderson;
 use crate::deform::constraints::Constraints;
-use crate::deform::elastic::{laplacian, ElasticOps, ElasticSet};
+use crate::deform::elastic::{ElasticOps, ElasticSet};
 use crate::deform::factor::Factor;
 use crate::deform::params::DetailTerm;
+use crate::deform::stacked::mul_l;
 use crate::deform::DeformError;
 use crate::mesh::{Point, Real};
 
@@ -269,7 +270,7 @@ impl Deformer {
     ) -> Real {
         let ops = &self.rest.ops;
         let st = &mut self.elastic;
-        laplacian(ops, &self.y, &mut st.ly);
+        mul_l(ops, &self.y, &mut st.ly);
         let (rot, proj) = if trial {
             st.rot_try.copy_from_slice(&st.rot);
             st.proj_try.copy_from_slice(&st.proj);
@@ -278,7 +279,7 @@ impl Deformer {
             (&mut st.rot, &mut st.proj)
         };
         let e = el.local_step(set, ops, &self.y, &st.ly, rot, proj, fit);
-        e + super::soft_energy(factor.sys.lambda1, &self.scratch.targets, &self.y)
+        e + factor.sys.soft_energy(&self.scratch.targets, &self.y)
     }
 
     /// `rhs = (g(R) − Q Y)_U` (+ `λ1 (C − Y)` on constrained unknowns).
@@ -302,7 +303,7 @@ impl Deformer {
             st.rhs[nu + k] = r[1];
             st.rhs[2 * nu + k] = r[2];
         }
-        super::add_soft_rhs(sys, &self.scratch.targets, &self.y, &mut st.rhs);
+        sys.add_soft_rhs(&self.scratch.targets, &self.y, &mut st.rhs);
     }
 
     /// The rotations of a sequence that starts at the rest pose: with `w_h`

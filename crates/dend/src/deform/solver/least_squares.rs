@@ -444,7 +444,7 @@ impl Deformer {
             *out = acc;
             acc[0] * acc[0] + acc[1] * acc[1] + acc[2] * acc[2]
         });
-        obj + super::soft_energy(sys.lambda1, &s.targets, &self.y)
+        obj + sys.soft_energy(&s.targets, &self.y)
     }
 
     /// `rhs = J_Uᵀ r` (+ `λ1 (C - Y)` on constrained unknowns).
@@ -484,7 +484,7 @@ impl Deformer {
             }
             0.0
         });
-        super::add_soft_rhs(sys, &s.targets, &self.y, &mut s.rhs);
+        sys.add_soft_rhs(&s.targets, &self.y, &mut s.rhs);
     }
 }
 

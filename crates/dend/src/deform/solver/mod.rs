@@ -6,7 +6,6 @@ use super::constraints::Constraints;
 use super::factor::Factor;
 use super::params::Params;
 use super::rest::Rest;
-use super::system::System;
 use super::DeformError;
 use crate::mesh::{Point, Real};
 
@@ -187,37 +186,4 @@ impl Deformer {
             *p = ops.denormalise(y);
         }
     }
-}
-
-/// `rhs += λ1 (C − Y)` on the constrained unknowns (soft constraints;
-/// `rhs` column-major `|U| × 3`).
-fn add_soft_rhs(sys: &System, targets: &[(u32, Point)], y: &[Point], rhs: &mut [Real]) {
-    if sys.lambda1 <= 0.0 {
-        return;
-    }
-    let nu = sys.unknowns.len();
-    for &(v, p) in targets {
-        let k = sys.col_of[v as usize];
-        if k == u32::MAX {
-            continue;
-        }
-        let y = y[v as usize];
-        for d in 0..3 {
-            rhs[d * nu + k as usize] += sys.lambda1 * (p[d] - y[d]);
-        }
-    }
-}
-
-/// The soft-constraint term `λ1 Σ_c |Y_c − C_c|²` (0 with hard constraints).
-fn soft_energy(lambda1: Real, targets: &[(u32, Point)], y: &[Point]) -> Real {
-    if lambda1 <= 0.0 {
-        return 0.0;
-    }
-    targets
-        .iter()
-        .map(|&(v, p)| {
-            let y = y[v as usize];
-            lambda1 * (0..3).map(|k| (y[k] - p[k]).powi(2)).sum::<Real>()
-        })
-        .sum()
 }
