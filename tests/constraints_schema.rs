@@ -53,7 +53,10 @@ fn schema_and_serde_agree_on_examples_and_invalid_documents() {
         r#"{"fixed": [0, 1, 2]}"#,
         r#"{"fixed": {"sphere": {"center": [0,0,0], "radius": 1}}, "handles": [{"vertices": [5], "rotate": {"quaternion": [1,0,0,0]}}]}"#,
         r#"{"fixed": [0], "handles": [{"vertices": [5], "positions": [[1,2,3]], "pivot": [0,0,0]}]}"#,
+        r#"{"fixed": [0, 4], "fixed_positions": [[0,0,1], [1,0,1]]}"#,
         // invalid ones
+        r#"{"fixed": [0], "fixed_positions": [[0,0]]}"#,
+        r#"{"fixed": [0], "fixed_positions": [0, 0, 1]}"#,
         r#"{"fixed": [0], "extra": true}"#,
         r#"{"fixed": [-1]}"#,
         r#"{"fixed": [0], "handles": [{"name": "h"}]}"#,
