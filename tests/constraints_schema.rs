@@ -118,5 +118,8 @@ for line in sys.stdin:
         );
         invalid += (!serde_ok) as usize;
     }
-    assert_eq!(invalid, 11, "the invalid documents must be rejected by both");
+    assert_eq!(
+        invalid, 11,
+        "the invalid documents must be rejected by both"
+    );
 }

@@ -149,3 +149,45 @@ async fn a_revived_session_has_the_anchored_set_and_the_kept_pose() -> Result<()
     assert!(d < 1e-6, "the revived pose differs by {d}");
     Ok(())
 }
+
+#[tokio::test]
+async fn the_session_shows_its_constraints_and_refuses_stale_edits() -> Result<(), ClientError> {
+    let (_c, s, _posed) = posed_session(Arc::new(MemoryStore::new())).await?;
+    let info = s.info().await?;
+    assert_eq!(info["constraints"], grid_constraints(N));
+    let r1 = info["constraints_revision"].as_u64().expect("revision");
+    // a joined client sees the set and its revision in its first state
+    let mut ws = s.connect().await?;
+    let st = ws.event("state").await?;
+    assert_eq!(st["constraints"], grid_constraints(N));
+    // an edit based on the current revision applies...
+    let r2 = s.set_constraints_if(&pinned_middle(), r1).await?;
+    assert_ne!(r2, r1);
+    // ...and reaches the joined client
+    loop {
+        let st = ws.event("state").await?;
+        if st["constraints_revision"] == r2 {
+            assert_eq!(st["constraints"], pinned_middle());
+            break;
+        }
+    }
+    // a second edit based on the old revision is refused, the set unchanged
+    match s.set_constraints_if(&grid_constraints(N), r1).await {
+        Err(ClientError::Api { status, code, .. }) => {
+            assert_eq!((status, code.as_str()), (409, "stale_constraints"));
+        }
+        other => panic!("expected stale_constraints, got {other:?}"),
+    }
+    let info = s.info().await?;
+    assert_eq!(info["constraints"], pinned_middle());
+    assert_eq!(info["constraints_revision"], r2);
+    // undo to the first set (the edit's own solve and this drag are one
+    // entry) changes the revision back to the first set's
+    s.wait_ready(Duration::from_secs(60)).await?;
+    let _ = drag(&s, [0.0; 3]).await?;
+    let _ = s.undo().await?;
+    let info = s.info().await?;
+    assert_eq!(info["constraints"], grid_constraints(N));
+    assert_eq!(info["constraints_revision"], r1);
+    Ok(())
+}

@@ -191,11 +191,19 @@ impl Actor {
             } => self.on_drag(handle, delta, seq, reply),
             Cmd::SetConstraints {
                 spec,
+                if_revision,
                 constraints,
                 restore,
                 reply,
             } => {
-                let _ = reply.send(self.on_set_constraints(spec, constraints, restore));
+                let current = self.set.as_ref().map_or(0, |s| s.id);
+                let r = match if_revision {
+                    Some(given) if given != current => {
+                        Err(SessionError::StaleConstraints { current, given })
+                    }
+                    _ => self.on_set_constraints(spec, constraints, restore),
+                };
+                let _ = reply.send(r);
             }
             Cmd::Undo(reply) => {
                 let r = self.undo_redo(true);
@@ -358,6 +366,11 @@ impl Actor {
         }
         let constraints = Arc::new(set.constraints.clone());
         self.constraints = Some(constraints.clone());
+        {
+            let mut s = self.inner.shared.lock();
+            s.constraints = serde_json::to_value(&set.client).ok().map(Arc::new);
+            s.constraints_revision = set.id;
+        }
         self.set = Some(set);
         self.revision += 1;
         self.sync_shared();

@@ -40,6 +40,10 @@ pub(super) struct Shared {
     pub grabs: Grabs,
     pub can_undo: bool,
     pub can_redo: bool,
+    /// The installed constraint set as its client sent it, and its
+    /// revision (0: none yet).
+    pub constraints: Option<Arc<serde_json::Value>>,
+    pub constraints_revision: u64,
 }
 
 pub(super) struct Inner {
@@ -124,6 +128,8 @@ pub(super) enum Cmd {
     },
     SetConstraints {
         spec: serde_json::Value,
+        /// The constraints revision the edit is based on (None: any).
+        if_revision: Option<u64>,
         constraints: Constraints,
         restore: Option<Restore>,
         reply: Reply<SessionState>,
