@@ -191,3 +191,32 @@ async fn the_session_shows_its_constraints_and_refuses_stale_edits() -> Result<(
     assert_eq!(info["constraints_revision"], r1);
     Ok(())
 }
+
+#[tokio::test]
+async fn one_gesture_is_one_undo_step_however_often_it_settles() -> Result<(), ClientError> {
+    let (_c, s, posed) = posed_session(Arc::new(MemoryStore::new())).await?;
+    let mut ws = s.connect().await?;
+    ws.send(&json!({"type": "grab", "handle": "top"})).await?;
+    // three moves, each settling before the next
+    for seq in 1..=3 {
+        ws.drag(0, [0.3, 0.0, 0.0], None, seq).await?;
+        let (h, _) = ws.frame_acking(seq, true).await?;
+        assert!(h.settled);
+    }
+    let mid = s.pose().await?.positions;
+    assert!(max_diff(&mid, &posed) > 0.5);
+    ws.send(&json!({"type": "release", "handle": "top"}))
+        .await?;
+    // one undo goes back to before the grab...
+    let back = s.undo().await?;
+    let d = max_diff(&back.positions, &posed);
+    assert!(
+        d < 1e-12,
+        "one undo should undo the whole gesture (off by {d})"
+    );
+    // ...and the release made the gesture's end one entry: redo reaches it
+    let again = s.redo().await?;
+    let d = max_diff(&again.positions, &mid);
+    assert!(d < 1e-12, "redo should give the gesture's end (off by {d})");
+    Ok(())
+}

@@ -220,6 +220,11 @@ impl Actor {
             Cmd::Pose(reply) => {
                 let _ = reply.send(Ok(self.snapshot()));
             }
+            Cmd::GestureEnded => {
+                if self.settled && self.deformer.is_some() {
+                    self.commit_gesture();
+                }
+            }
             Cmd::Close => return false,
         }
         true
@@ -417,7 +422,7 @@ impl Actor {
             let remaining = max_iters.saturating_sub(self.iters_since_change);
             if remaining == 0 {
                 self.settled = true;
-                self.commit();
+                self.commit_gesture();
                 return;
             }
             self.opts.iters_per_frame.clamp(1, remaining)
@@ -549,7 +554,7 @@ impl Actor {
                     let _ = self.inner.events.send(Event::Error(e));
                 }
                 if self.settled {
-                    self.commit();
+                    self.commit_gesture();
                 }
                 self.sync_shared();
             }
@@ -575,6 +580,15 @@ impl Actor {
             .unwrap_or_default()
     }
 
+    /// [`commit`](Self::commit) unless a client holds a handle: one user
+    /// gesture (grab … release) is one undo step, however often the pose
+    /// settles during it; the release commits ([`Cmd::GestureEnded`]).
+    fn commit_gesture(&mut self) {
+        if self.inner.shared.lock().grabs.is_empty() {
+            self.commit();
+        }
+    }
+
     /// Records the settled state as a history entry and checkpoints it.
     fn commit(&mut self) {
         if !self.uncommitted {
@@ -598,6 +612,8 @@ impl Actor {
         self.cursor = self.history.len() - 1;
         self.checkpoint();
         self.sync_shared();
+        // clients enable their undo/redo buttons from `can_undo`/`can_redo`
+        let _ = self.inner.events.send(Event::State);
     }
 
     fn checkpoint(&mut self) {
@@ -682,6 +698,7 @@ impl Actor {
         let snap = self.restore(pose, &targets)?;
         self.checkpoint();
         self.sync_shared();
+        let _ = self.inner.events.send(Event::State);
         Ok(snap)
     }
 

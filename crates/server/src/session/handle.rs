@@ -351,6 +351,9 @@ impl SessionHandle {
     /// Unregisters a client, releasing its handles; everyone gets `PeerLeft`.
     pub fn leave(&self, client: ClientId) {
         let released = self.inner.shared.lock().grabs.release_client(client);
+        if !released.is_empty() {
+            let _ = self.inner.cmd_tx.try_send(Cmd::GestureEnded);
+        }
         for handle in released {
             let _ = self
                 .inner
@@ -382,6 +385,8 @@ impl SessionHandle {
         let handle = self.handle_index(h)?;
         let released = self.inner.shared.lock().grabs.release(handle, client);
         if released {
+            // a full queue already holds work that ends in a settle check
+            let _ = self.inner.cmd_tx.try_send(Cmd::GestureEnded);
             let _ = self
                 .inner
                 .events

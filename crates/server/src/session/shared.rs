@@ -67,6 +67,11 @@ pub(super) struct Inner {
 pub(super) struct Grabs(HashMap<usize, ClientId>);
 
 impl Grabs {
+    /// Whether no handle is held (no gesture is open).
+    pub fn is_empty(&self) -> bool {
+        self.0.is_empty()
+    }
+
     /// The client holding `handle`, if any.
     pub fn holder(&self, handle: usize) -> Option<ClientId> {
         self.0.get(&handle).copied()
@@ -138,6 +143,8 @@ pub(super) enum Cmd {
     Redo(Reply<PoseSnapshot>),
     Reset(Reply<PoseSnapshot>),
     Pose(Reply<PoseSnapshot>),
+    /// A grab ended: the gesture's settled pose may become a history entry.
+    GestureEnded,
     Close,
 }
 
