@@ -37,6 +37,7 @@ export const app = {
   frames: 0,
   last: null, // last frame header
   needsDraw: true,
+  eventLog: [],
 };
 
 // ---------- errors and status ----------
@@ -59,6 +60,7 @@ function guarded(fn) {
 }
 
 function setState(s) {
+  app.eventLog.push(`setState:${s}`);
   app.state = s;
   $('stState').textContent = `session: ${s}`;
 }
@@ -141,6 +143,9 @@ function constraintsJson() {
 const applyConstraints = guarded(async () => {
   if (!app.session) throw new ApiError('no_session', 'generate or upload a mesh first');
   const c = constraintsJson();
+  const before = app.state;
+  // before the request: its `ready` event may come before its response
+  setState('building');
   try {
     // based on the set these labels came from: a collaborator's edit in
     // between is refused instead of silently replaced
@@ -148,9 +153,9 @@ const applyConstraints = guarded(async () => {
     app.applied = c;
     app.dirtyLabels = false;
     if (r && r.constraints_revision !== undefined) app.constraintsRevision = r.constraints_revision;
-    setState('building');
     recolor();
   } catch (e) {
+    setState(before);
     if (e.code === 'stale_constraints') {
       // show the collaborator's set; the user's strokes are gone
       const info = await app.api.session(app.session.id, app.session.token);
@@ -325,6 +330,9 @@ function onFrame(f) {
 }
 
 function onEvent(e) {
+  // the last events, for the browser test's failure messages
+  app.eventLog.push(e.type === 'state' ? `state:${e.state}:${e.constraints_revision}` : e.type);
+  if (app.eventLog.length > 40) app.eventLog.shift();
   switch (e.type) {
     case 'state':
       if (e.you !== undefined) app.you = e.you;
@@ -467,5 +475,5 @@ window.dend = {
     const s = project(app.positions, Renderer.mvp(app.camera, c.clientWidth / c.clientHeight), c.clientWidth, c.clientHeight);
     return indices.map((i) => [s[3 * i], s[3 * i + 1]]);
   },
-  stats: () => ({ state: app.state, frames: app.frames, last: app.last && { ...app.last, positions: undefined }, latencies: [...app.latencies] }),
+  stats: () => ({ events: [...app.eventLog], state: app.state, frames: app.frames, last: app.last && { ...app.last, positions: undefined }, latencies: [...app.latencies] }),
 };
