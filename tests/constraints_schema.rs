@@ -51,7 +51,8 @@ fn schema_and_serde_agree_on_examples_and_invalid_documents() {
     assert!(docs.len() >= 4, "expected the example constraint files");
     let more = [
         r#"{"fixed": [0, 1, 2]}"#,
-        r#"{"fixed": {"sphere": {"center": [0,0,0], "radius": 1}}, "handles": [{"vertices": [5], "rotate": {"quaternion": [1,0,0,0]}}]}"#,
+        r#"{"fixed": {"sphere": {"center": [0,0,0], "radius": 1}}, "handles": [{"vertices": [5], "rotate": {"quaternion": [0,0,0,1]}}]}"#,
+        r#"{"fixed": [0], "handles": [{"vertices": [5], "rotate": {"quaternion_wxyz": [1,0,0,0]}}]}"#,
         r#"{"fixed": [0], "handles": [{"vertices": [5], "positions": [[1,2,3]], "pivot": [0,0,0]}]}"#,
         r#"{"fixed": [0, 4], "fixed_positions": [[0,0,1], [1,0,1]]}"#,
         // invalid ones

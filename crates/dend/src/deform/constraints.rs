@@ -164,7 +164,9 @@ pub struct SphereSel {
 }
 
 /// A rotation in the constraints JSON: axis–angle in degrees, or a unit
-/// quaternion `[w, x, y, z]`.
+/// quaternion. Quaternions are `[x, y, z, w]` across the whole API (as in
+/// drags, WebSocket messages, the store and glTF); `[w, x, y, z]` is
+/// accepted only under its explicit name `quaternion_wxyz`.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(untagged)]
 pub enum RotationSpec {
@@ -175,10 +177,15 @@ pub enum RotationSpec {
         /// Angle in degrees (right-hand rule).
         degrees: f64,
     },
-    /// `{"quaternion": [w, x, y, z]}` (normalised on use).
+    /// `{"quaternion": [x, y, z, w]}` (normalised on use).
     Quaternion {
-        /// `[w, x, y, z]`.
+        /// `[x, y, z, w]`.
         quaternion: [f64; 4],
+    },
+    /// `{"quaternion_wxyz": [w, x, y, z]}` (normalised on use).
+    QuaternionWxyz {
+        /// `[w, x, y, z]`.
+        quaternion_wxyz: [f64; 4],
     },
 }
 
@@ -204,11 +211,18 @@ impl RotationSpec {
                     degrees.to_radians(),
                 ))
             }
-            RotationSpec::Quaternion { quaternion: q } => {
+            RotationSpec::Quaternion { quaternion: q }
+            | RotationSpec::QuaternionWxyz { quaternion_wxyz: q } => {
                 if !q.iter().all(|v| v.is_finite()) {
                     return Err(DeformError::NonFinite { what: "rotation" });
                 }
-                let quat = nalgebra::Quaternion::new(q[0], q[1], q[2], q[3]);
+                // nalgebra's constructor takes (w, x, y, z)
+                let quat = match self {
+                    RotationSpec::Quaternion { .. } => {
+                        nalgebra::Quaternion::new(q[3], q[0], q[1], q[2])
+                    }
+                    _ => nalgebra::Quaternion::new(q[0], q[1], q[2], q[3]),
+                };
                 if quat.norm() == 0.0 {
                     return Err(DeformError::InvalidTransform {
                         reason: "quaternion is zero",
@@ -755,5 +769,30 @@ mod tests {
             s.resolve_at(&mesh, Some(&pose)),
             Err(DeformError::NonFinite { .. })
         ));
+    }
+
+    #[test]
+    fn quaternions_are_xyzw_unless_named_wxyz() {
+        let axis_angle = RotationSpec::AxisAngle {
+            axis: [0.0, 0.0, 1.0],
+            degrees: 90.0,
+        }
+        .to_quaternion()
+        .unwrap();
+        let h = std::f64::consts::FRAC_1_SQRT_2;
+        let xyzw: RotationSpec =
+            serde_json::from_str(&format!("{{\"quaternion\": [0, 0, {h}, {h}]}}")).unwrap();
+        let wxyz: RotationSpec =
+            serde_json::from_str(&format!("{{\"quaternion_wxyz\": [{h}, 0, 0, {h}]}}")).unwrap();
+        for r in [xyzw, wxyz] {
+            assert!(
+                r.to_quaternion().unwrap().angle_to(&axis_angle) < 1e-12,
+                "{r:?}"
+            );
+        }
+        // [w, x, y, z] under the plain name is another rotation
+        let wrong: RotationSpec =
+            serde_json::from_str(&format!("{{\"quaternion\": [{h}, 0, 0, {h}]}}")).unwrap();
+        assert!(wrong.to_quaternion().unwrap().angle_to(&axis_angle) > 0.5);
     }
 }
