@@ -118,6 +118,30 @@ function recolor() {
   $('selinfo').textContent = `fixed ${nf}; handles [${counts.join(', ')}]${app.dirtyLabels ? ' — not applied' : ''}`;
 }
 
+/** Grows (adds every neighbour) or shrinks (removes every vertex with a
+ * neighbour outside) the region of the current paint target by one ring. */
+function growShrink(grow) {
+  const t = $('target').value;
+  if (!app.labels || t === 'erase') return;
+  const label = t === 'fixed' ? FIXED : Number(t.slice(1)) + 1;
+  const change = [];
+  const e = app.mesh.edges; // flat [a, b, a, b, ...]
+  for (let k = 0; k < e.length; k += 2) {
+    const [a, b] = [e[k], e[k + 1]];
+    const [la, lb] = [app.labels[a], app.labels[b]];
+    if (grow) {
+      if (la === label && lb === FREE) change.push(b);
+      if (lb === label && la === FREE) change.push(a);
+    } else if ((la === label) !== (lb === label)) {
+      change.push(la === label ? a : b);
+    }
+  }
+  for (const i of change) app.labels[i] = grow ? label : FREE;
+  app.dirtyLabels = true;
+  recolor();
+  strokeEnded();
+}
+
 /** Paints vertex indices with the current target (fixed, a handle, erase). */
 export function paint(indices, erase = false) {
   const t = $('target').value;
@@ -247,7 +271,11 @@ function setMesh(obj) {
   app.colors = new Float32Array(obj.positions.length);
   app.labels = new Int32Array(obj.positions.length / 3);
   app.renderer.setTopology(app.mesh.triangles, app.mesh.edges);
-  app.camera.fit(bbox(obj.positions));
+  // a fresh camera per mesh: the default orbit, framed on it
+  const fresh = new OrbitCamera();
+  app.camera.yaw = fresh.yaw;
+  app.camera.pitch = fresh.pitch;
+  app.camera.fit(bbox(obj.positions), viewAspect());
   uploadPose();
   recolor();
   $('meshinfo').textContent = `${obj.positions.length / 3} vertices, ${obj.triangles.length / 3} triangles`;
@@ -463,6 +491,32 @@ $('upload').onchange = upload;
 $('addHandle').onclick = addHandle;
 $('apply').onclick = applyConstraints;
 $('clearSel').onclick = () => { app.labels.fill(FREE); app.dirtyLabels = true; recolor(); };
+$('growSel').onclick = () => growShrink(true);
+$('shrinkSel').onclick = () => growShrink(false);
+$('saveCons').onclick = guarded(async () => {
+  if (!app.applied) throw new ApiError('no_constraints', 'apply a constraint set first');
+  await download('constraints.json', new Blob([JSON.stringify(app.applied.json, null, 1)], { type: 'application/json' }));
+});
+$('loadCons').onchange = guarded(async (ev) => {
+  const file = ev.target.files[0];
+  ev.target.value = '';
+  if (!file) return;
+  needSession();
+  let json;
+  try {
+    json = JSON.parse(await file.text());
+  } catch (e) {
+    throw new ApiError('invalid_json', `${file.name} is not JSON: ${e.message}`);
+  }
+  const r = await app.api.setConstraints(app.session.id, app.session.token, json, app.constraintsRevision);
+  showConstraints({ constraints: json, constraints_revision: r.constraints_revision });
+});
+$('panelToggle').onclick = () => {
+  const p = $('panel');
+  p.classList.toggle('collapsed');
+  $('panelToggle').setAttribute('aria-expanded', String(!p.classList.contains('collapsed')));
+  app.needsDraw = true;
+};
 $('applyParams').onclick = restartWithParams;
 $('undo').onclick = () => send({ type: 'undo' });
 $('redo').onclick = () => send({ type: 'redo' });
@@ -483,10 +537,16 @@ $('hard').onchange = (e) => { $('lambda1').disabled = e.target.checked; };
 
 // ---------- keyboard ----------
 
+/** Width / height of the canvas. */
+function viewAspect() {
+  const c = $('view');
+  return c.clientHeight > 0 ? c.clientWidth / c.clientHeight : 1;
+}
+
 /** Frames the current pose: the camera fits its bounding box. */
 function frameView() {
   if (!app.positions) return;
-  app.camera.fit(bbox(app.positions));
+  app.camera.fit(bbox(app.positions), viewAspect());
   app.needsDraw = true;
 }
 

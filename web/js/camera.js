@@ -60,11 +60,15 @@ export class OrbitCamera {
   }
 
   /** Frames a bounding box [min, max]. */
-  fit(bbox) {
+  /** Frames the bounding sphere of `bbox` in a view of width/height
+   * `aspect` (on a portrait screen the horizontal field of view is the
+   * narrower one). */
+  fit(bbox, aspect = 1) {
     const [lo, hi] = bbox;
     this.target = scale(add(lo, hi), 0.5);
     this.radius = Math.max(1e-9, 0.5 * Math.hypot(hi[0] - lo[0], hi[1] - lo[1], hi[2] - lo[2]));
-    this.distance = (this.radius / Math.sin(this.fovy / 2)) * 1.05;
+    const half = Math.min(this.fovy / 2, Math.atan(Math.tan(this.fovy / 2) * Math.max(aspect, 1e-3)));
+    this.distance = (this.radius / Math.sin(half)) * 1.05;
   }
 
   eye() {

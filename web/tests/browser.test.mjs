@@ -400,6 +400,32 @@ async function main() {
     await page.keyboard.press('Control+z');
     await waitFor(page, (v) => window.dend.labels()[v] !== -1 && document.getElementById('warnings').hidden, stray, 'Ctrl+Z back to the set without the stray pick', 30000);
 
+    // Grow and shrink the fixed region by one ring: a round trip.
+    const before2 = await page.evaluate(() => window.dend.labels());
+    await page.selectOption('#target', 'fixed');
+    await page.click('#growSel');
+    const grown = await page.evaluate(() => window.dend.labels());
+    const count = (ls) => ls.filter((l) => l === -1).length;
+    assert.ok(count(grown) > count(before2), 'Grow adds a ring to the fixed region');
+    await page.click('#shrinkSel');
+    assert.ok(count(await page.evaluate(() => window.dend.labels())) < count(grown), 'Shrink removes a ring');
+
+    // Phone width: the canvas keeps most of the screen, the panel folds.
+    const phone = await ctx.newPage();
+    await phone.setViewportSize({ width: 390, height: 844 });
+    phone.on('pageerror', (e) => pageErrors.push(`phone: ${e.message}`));
+    await phone.goto(link);
+    await waitFor(phone, () => window.dend.app.positions && window.dend.app.state === 'ready', null, 'the phone-width tab');
+    const view = await phone.locator('#view').boundingBox();
+    log('phone-width canvas', `${view.width.toFixed(0)}×${view.height.toFixed(0)} of 390×844`);
+    assert.ok(view.width >= 0.6 * 390, `the canvas takes at least 60 % of the width (${view.width})`);
+    assert.ok(view.height >= 0.4 * 844, `and a good part of the height (${view.height})`);
+    await phone.click('#panelToggle');
+    await phone.waitForTimeout(100);
+    const folded = await phone.locator('#view').boundingBox();
+    assert.ok(folded.height > view.height, 'folding the panel gives the canvas more room');
+    await phone.screenshot({ path: join(artifacts, '7-phone.png') });
+
     // Upload: a 4×4 grid as OBJ through the file input.
     const g = [];
     for (let j = 0; j < 4; j++) for (let i = 0; i < 4; i++) g.push(`v ${i} ${j} 0`);
