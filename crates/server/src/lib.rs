@@ -6,6 +6,7 @@
 //! `api/openapi.yaml`.
 
 pub mod config;
+mod curvature;
 pub mod error;
 pub mod fuzzing;
 mod meshes;
@@ -110,6 +111,7 @@ pub const ROUTES: &[(&str, &[&str])] = &[
     ("/v1/sessions/{id}/drag", &["post"]),
     ("/v1/sessions/{id}/pose", &["get"]),
     ("/v1/sessions/{id}/export", &["get"]),
+    ("/v1/sessions/{id}/curvature", &["get"]),
     ("/v1/sessions/{id}/undo", &["post"]),
     ("/v1/sessions/{id}/redo", &["post"]),
     ("/v1/sessions/{id}/reset", &["post"]),
@@ -135,6 +137,7 @@ fn route_list() -> Vec<(&'static str, MethodRouter<AppState>)> {
         ("/v1/sessions/{id}/drag", post(sessions::drag)),
         ("/v1/sessions/{id}/pose", get(sessions::pose)),
         ("/v1/sessions/{id}/export", get(sessions::export)),
+        ("/v1/sessions/{id}/curvature", get(curvature::curvature)),
         ("/v1/sessions/{id}/undo", post(sessions::undo)),
         ("/v1/sessions/{id}/redo", post(sessions::redo)),
         ("/v1/sessions/{id}/reset", post(sessions::reset)),

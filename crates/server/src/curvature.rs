@@ -1,0 +1,49 @@
+//! `GET /v1/sessions/{id}/curvature`: per-vertex curvatures of the current
+//! pose, for the editor's colour map (mean curvature `H`, Gaussian
+//! curvature `K`, and `G = H² − K`, the density of the total curvature's
+//! gradient term, paper eq. (12)). Computed by the same operators as
+//! `dend curvature` (`dend::operators::Operators`), in the mesh's own units.
+
+use axum::Json;
+use serde::Serialize;
+
+use super::error::ApiError;
+use super::sessions::Authed;
+use dend::operators::Operators;
+
+/// The curvatures of the pose, one value per vertex (mesh units).
+#[derive(Debug, Serialize)]
+pub struct CurvatureJson {
+    /// The session revision of the pose they were computed on.
+    pub revision: u64,
+    /// Mean curvature `H` (`+1/r` on a sphere of radius `r`).
+    pub mean: Vec<f64>,
+    /// Gaussian curvature `K` (angle defect over area).
+    pub gaussian: Vec<f64>,
+    /// `G = H² − K`.
+    pub g: Vec<f64>,
+}
+
+/// `GET /v1/sessions/{id}/curvature`.
+pub async fn curvature(Authed(s): Authed) -> Result<Json<CurvatureJson>, ApiError> {
+    let pose = s.pose().await?;
+    let rest = s.rest().clone();
+    let revision = pose.revision;
+    let out = tokio::task::spawn_blocking(move || {
+        let mesh = rest
+            .mesh()
+            .with_positions(pose.positions.to_vec())
+            .map_err(|e| ApiError::Internal(format!("pose as a mesh: {e}")))?;
+        let op = Operators::new(&mesh);
+        let (s, s2) = (op.scale, op.scale * op.scale);
+        Ok::<_, ApiError>(CurvatureJson {
+            revision,
+            mean: op.mean_curvature.iter().map(|h| h / s).collect(),
+            gaussian: op.gaussian_curvature.iter().map(|k| k / s2).collect(),
+            g: op.g.iter().map(|g| g / s2).collect(),
+        })
+    })
+    .await
+    .map_err(|e| ApiError::Internal(e.to_string()))??;
+    Ok(Json(out))
+}
