@@ -10,7 +10,7 @@ use serde::Serialize;
 /// Arguments of `dend info`.
 #[derive(Debug, Args)]
 pub struct InfoArgs {
-    /// The mesh file (.obj, .off, .ply, .stl).
+    /// The mesh file (.obj, .off, .ply, .stl, .gltf, .glb).
     mesh: PathBuf,
     /// Print one JSON object instead of text.
     #[arg(long)]
@@ -33,6 +33,9 @@ struct Info {
     euler_characteristic: Option<i64>,
     genus: Option<i64>,
     unreferenced_vertices: Option<usize>,
+    /// The file's own layout (glTF/GLB, OBJ): vertex counts before and
+    /// after welding, and what export keeps.
+    asset: Option<dend::mesh::asset::AssetInfo>,
     warnings: Vec<String>,
 }
 
@@ -54,6 +57,7 @@ pub fn run(args: InfoArgs) -> anyhow::Result<()> {
         euler_characteristic: None,
         genus: None,
         unreferenced_vertices: None,
+        asset: None,
         warnings: Vec::new(),
     };
     match raw.into_mesh() {
@@ -78,6 +82,7 @@ pub fn run(args: InfoArgs) -> anyhow::Result<()> {
             info.euler_characteristic = Some(m.euler_characteristic());
             info.genus = Some(m.genus());
             info.unreferenced_vertices = Some(unref.len());
+            info.asset = Some(dend::mesh::asset::Asset::read_path(&args.mesh)?.info());
         }
         Err(e) => info.error = Some(e.to_string()),
     }
@@ -122,6 +127,15 @@ fn print_text(i: &Info) {
             println!("genus:       {g} (of the surface with its boundary loops capped)");
         }
         println!("validation:  ok");
+    }
+    if let Some(a) = &i.asset {
+        println!(
+            "asset:       {} vertices in the file's layout, {} welded ({})",
+            a.asset_vertices, a.welded_vertices, a.format
+        );
+        if !a.attributes.is_empty() {
+            println!("attributes:  {}", a.attributes.join(", "));
+        }
     }
     for w in &i.warnings {
         println!("warning:     {w}");

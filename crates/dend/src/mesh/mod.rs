@@ -12,6 +12,7 @@
 //! [`Mesh::unreferenced_vertices`]; the CLI prints a warning for them. They have
 //! an empty 1-ring, zero area, and the solver leaves them where they are.
 
+pub mod asset;
 pub mod gen;
 pub mod io;
 mod topology;
