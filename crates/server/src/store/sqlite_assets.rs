@@ -1,0 +1,34 @@
+//! The `mesh_assets` table of [`super::SqliteStore`]: the uploaded file of a
+//! mesh whose export keeps the file's layout (see [`super::StoredAsset`]).
+//! The table was added without a schema version bump: `CREATE TABLE IF NOT
+//! EXISTS` adds it to older databases, and older programs ignore it.
+
+use rusqlite::{params, Connection, OptionalExtension};
+
+use super::{StoreError, StoredAsset};
+
+/// Stores (or replaces) the asset of mesh `id`.
+pub(super) fn put(conn: &Connection, id: &str, a: &StoredAsset) -> Result<(), StoreError> {
+    conn.execute(
+        "INSERT OR REPLACE INTO mesh_assets (id, format, bytes) VALUES (?1, ?2, ?3)",
+        params![id, a.format, a.bytes],
+    )
+    .map(|_| ())
+    .map_err(|e| StoreError::Backend(e.to_string()))
+}
+
+/// The asset of mesh `id`.
+pub(super) fn get(conn: &Connection, id: &str) -> Result<Option<StoredAsset>, StoreError> {
+    conn.query_row(
+        "SELECT format, bytes FROM mesh_assets WHERE id = ?1",
+        params![id],
+        |r| {
+            Ok(StoredAsset {
+                format: r.get(0)?,
+                bytes: r.get(1)?,
+            })
+        },
+    )
+    .optional()
+    .map_err(|e| StoreError::Backend(e.to_string()))
+}
