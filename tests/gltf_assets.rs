@@ -459,3 +459,45 @@ fn an_obj_asset_keeps_its_lines_and_rewrites_v_and_vn() {
     }
     assert_eq!(v, m.num_vertices());
 }
+
+#[test]
+fn a_ply_asset_keeps_its_extra_vertex_properties() {
+    let mut spec = dend::mesh::gen::ShapeSpec::default_for(dend::mesh::gen::Shape::Bar);
+    spec.params.nu = Some(3);
+    spec.params.nv = Some(9);
+    let m = dend::mesh::gen::generate(&spec).unwrap();
+    let mut ply = format!(
+        "ply\nformat binary_little_endian 1.0\nelement vertex {}\nproperty float x\nproperty float y\nproperty float z\nproperty uchar red\nproperty float s\nproperty float t\nelement face {}\nproperty list uchar uint vertex_indices\nend_header\n",
+        m.num_vertices(),
+        m.num_triangles()
+    )
+    .into_bytes();
+    let header = ply.len();
+    for (i, p) in m.positions().iter().enumerate() {
+        p.iter().for_each(|x| ply.extend((*x as f32).to_le_bytes()));
+        ply.push(i as u8);
+        ply.extend((p[0] as f32).to_le_bytes());
+        ply.extend((p[2] as f32 / 6.0).to_le_bytes());
+    }
+    for t in m.triangles() {
+        ply.push(3);
+        t.iter().for_each(|i| ply.extend(i.to_le_bytes()));
+    }
+    let a = Asset::read_bytes(&ply, Format::Ply, Sidecars::Refuse).unwrap();
+    assert_eq!(a.info().attributes, vec!["red", "s", "t"]);
+    assert_eq!(a.export(a.mesh().positions(), Format::Ply).unwrap(), ply);
+    let (pose, _) = support::solve(a.mesh(), Params::default(), &twist_spec(a.mesh(), 60.0), 20);
+    let out = a.export(&pose, Format::Ply).unwrap();
+    assert_eq!(out.len(), ply.len());
+    // only x y z bytes changed: the 9 bytes of red, s, t after each vertex's 12
+    let stride = 12 + 9;
+    for v in 0..m.num_vertices() {
+        let at = header + v * stride + 12;
+        assert_eq!(out[at..at + 9], ply[at..at + 9], "vertex {v} extras");
+    }
+    let faces = header + m.num_vertices() * stride;
+    assert_eq!(out[faces..], ply[faces..]);
+    let back = Asset::read_bytes(&out, Format::Ply, Sidecars::Refuse).unwrap();
+    let want: Vec<Point> = pose.iter().map(|p| p.map(|x| x as f32 as f64)).collect();
+    assert_eq!(back.positions(), &want[..]);
+}

@@ -15,7 +15,7 @@ use dend::mesh::io::{self, survey};
 /// Arguments of `dend deform`.
 #[derive(Debug, clap::Args)]
 pub struct Args {
-    /// The rest mesh (OBJ, OFF, PLY, STL, glTF or GLB). glTF/GLB and OBJ are
+    /// The rest mesh (OBJ, OFF, PLY, STL, glTF or GLB). glTF/GLB, OBJ and PLY are
     /// read as assets: the solver deforms the welded surface (vertex indices
     /// of constraints name welded vertices) and an output of the same family
     /// keeps the file's vertex layout, UVs, skin and materials.

@@ -152,7 +152,7 @@ pub struct MeshInfo {
     pub triangles: usize,
     /// Bounding box `[min, max]`.
     pub bbox: [[f64; 3]; 2],
-    /// For uploads kept as assets (glTF/GLB, OBJ): the file's format, its
+    /// For uploads kept as assets (glTF/GLB, OBJ, PLY): the file's format, its
     /// own vertex count (seam copies included; `vertices` counts the welded
     /// surface the sessions deform) and what export keeps besides positions.
     #[serde(default, skip_serializing_if = "Option::is_none")]
@@ -162,7 +162,7 @@ pub struct MeshInfo {
 /// What an uploaded asset holds (see [`MeshInfo::asset`]).
 #[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
 pub struct AssetSummary {
-    /// `glb`, `gltf` or `obj`.
+    /// `glb`, `gltf`, `obj` or `ply`.
     pub format: String,
     /// Vertices in the file's own layout.
     pub asset_vertices: usize,

@@ -1,6 +1,6 @@
 //! Mesh routes: upload (JSON or a mesh file), generate, info.
 //!
-//! glTF/GLB and OBJ uploads are read as assets (`dend::mesh::asset`): the
+//! glTF/GLB, OBJ and PLY uploads are read as assets (`dend::mesh::asset`): the
 //! stored mesh is the welded surface, and the uploaded bytes are kept
 //! ([`StoredAsset`]) so that export writes the pose in the file's layout.
 
@@ -123,7 +123,7 @@ fn check_vertices(st: &AppState, n: usize) -> Result<(), ApiError> {
 type Parsed = (Mesh, Option<(Asset, StoredAsset)>);
 
 fn parse_mesh(format: &str, body: &[u8], max_vertices: usize) -> Result<Parsed, ApiError> {
-    if let Ok(f @ (Format::Gltf | Format::Glb | Format::Obj)) = parse_format(format) {
+    if let Ok(f @ (Format::Gltf | Format::Glb | Format::Obj | Format::Ply)) = parse_format(format) {
         let asset = Asset::read_bytes(body, f, Sidecars::Refuse).map_err(|e| match e {
             IoError::Mesh(e) => ApiError::InvalidMesh(e.to_string()),
             e => ApiError::InvalidMesh(format!("{f}: {e}")),

@@ -389,7 +389,7 @@ pub struct ExportQuery {
 
 /// `GET /v1/sessions/{id}/export?format=obj|off|ply|stl|gltf|glb`: the
 /// current pose as a mesh file (PLY and STL binary little-endian). A mesh
-/// uploaded as glTF/GLB (OBJ) exported as glTF/GLB (OBJ) keeps the file's
+/// uploaded as glTF/GLB (OBJ, PLY) exported as glTF/GLB (OBJ, PLY) keeps the file's
 /// layout and attributes (`dend::mesh::asset::Asset::export`); otherwise the
 /// welded surface is written as a plain mesh.
 pub async fn export(

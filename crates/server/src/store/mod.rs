@@ -52,11 +52,11 @@ pub enum StoreError {
 }
 
 /// The file a mesh was uploaded from, kept for the formats whose export
-/// writes the pose back into the file's own layout (glTF/GLB and OBJ
+/// writes the pose back into the file's own layout (glTF/GLB, OBJ and PLY
 /// assets, `dend::mesh::asset`): its bytes as received and its format name.
 #[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
 pub struct StoredAsset {
-    /// The format's name (`glb`, `gltf`, `obj`).
+    /// The format's name (`glb`, `gltf`, `obj`, `ply`).
     pub format: String,
     /// The uploaded bytes.
     pub bytes: Vec<u8>,

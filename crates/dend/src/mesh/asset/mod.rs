@@ -11,17 +11,19 @@
 //!   seam copies the two numberings are the same.
 //!
 //! [`Asset::export`] writes a welded pose back in the asset's layout, in its
-//! own format family (glTF/GLB ↔ glTF/GLB, OBJ → OBJ); any other target
+//! own format family (glTF/GLB ↔ glTF/GLB, OBJ → OBJ, PLY → PLY); any other target
 //! format gets the welded mesh as a plain file.
 //!
 //! | format | kept (copied) | recomputed |
 //! |---|---|---|
 //! | glTF / GLB | vertex count and layout, indices, UVs, colours, joints, weights, morph targets, materials, textures, images, skins, animations, extensions, extras | POSITION (local = inverse node matrix × world pose), POSITION `min`/`max`, NORMAL and TANGENT direction ([`normals`]); buffers merged into one |
 //! | OBJ | every line (`vt`, `g`, `o`, `s`, `usemtl`, `mtllib`, comments, faces with their `v/vt/vn` indices, vertex colours after `v x y z`) | the coordinates of `v` lines and of `vn` lines ([`normals`], grouped by `vn` index) |
-//! | OFF, PLY, STL | vertices and triangles | positions (written as a plain mesh) |
+//! | PLY | every byte but the vertices' `x y z` and `nx ny nz` values: extra vertex properties (colours, UVs, …), other elements, comments, faces | `x y z`; `nx ny nz` ([`normals`]) |
+//! | OFF, STL | vertices and triangles | positions (written as a plain mesh) |
 
 pub mod normals;
 mod obj;
+mod ply;
 pub mod sample;
 pub mod weld;
 
@@ -34,6 +36,7 @@ use crate::mesh::io::{self, Format, IoError};
 use crate::mesh::{Mesh, Point};
 use normals::{group_turns, Turn};
 use obj::ObjAsset;
+use ply::PlyAsset;
 use weld::Weld;
 
 /// What kept the file's own data.
@@ -41,7 +44,8 @@ use weld::Weld;
 enum Source {
     Gltf(Box<GltfAsset>),
     Obj(ObjAsset),
-    /// A format whose extra data is not kept (OFF, PLY, STL, JSON).
+    Ply(PlyAsset),
+    /// A format whose extra data is not kept (OFF, STL, JSON).
     Plain,
 }
 
@@ -104,6 +108,11 @@ impl Asset {
                 let o = ObjAsset::parse(bytes).map_err(|e| parse_error(format, e))?;
                 let (p, t) = (o.positions.clone(), o.triangles.clone());
                 (Source::Obj(o), p, t)
+            }
+            Format::Ply => {
+                let o = PlyAsset::parse(bytes).map_err(|e| parse_error(format, e))?;
+                let (p, t) = (o.positions.clone(), o.triangles.clone());
+                (Source::Ply(o), p, t)
             }
             _ => {
                 let raw = io::parse_bytes(bytes, format).map_err(|e| parse_error(format, e))?;
@@ -212,6 +221,7 @@ impl Asset {
                 (a, Some(s))
             }
             Source::Obj(o) => (o.kept(), None),
+            Source::Ply(o) => (o.kept(), None),
             Source::Plain => (Vec::new(), None),
         };
         AssetInfo {
@@ -239,7 +249,8 @@ impl Asset {
 
     /// Writes the welded `pose` as `format`: in the asset's own layout when
     /// `format` is of the asset's family (glTF/GLB for a glTF asset, OBJ for
-    /// an OBJ asset), else as a plain mesh of the welded surface.
+    /// an OBJ asset, PLY for a PLY asset), else as a plain mesh of the welded
+    /// surface.
     pub fn export(&self, pose: &[Point], format: Format) -> Result<Vec<u8>, IoError> {
         let asset_pose = self.asset_pose(pose)?;
         match (&self.source, format) {
@@ -252,20 +263,22 @@ impl Asset {
                 Ok(g.export(&asset_pose, &self.gltf_shading(g, &asset_pose), container))
             }
             (Source::Obj(o), Format::Obj) => Ok(o.export(&asset_pose)),
+            (Source::Ply(o), Format::Ply) => {
+                let turns = self.vertex_turns(&o.normals(), &asset_pose);
+                Ok(o.export(&asset_pose, &turns))
+            }
             _ => Ok(io::to_bytes(pose, self.mesh.triangles(), format)),
         }
     }
 
-    /// New normals and tangents (world space) for a glTF pose: see [`normals`].
-    fn gltf_shading(&self, g: &GltfAsset, pose: &[Point]) -> Shading {
-        // normal groups: (welded vertex, the file normal's bits)
+    /// The turn of each asset vertex's normal group (groups: welded vertex ×
+    /// the file normal's bits; see [`normals`]).
+    fn vertex_turns(&self, file_normals: &[Option<Point>], pose: &[Point]) -> Vec<Turn> {
         let mut ids = std::collections::HashMap::new();
         let group: Vec<u32> = (0..self.positions.len())
             .map(|a| {
-                let key = (
-                    self.weld.to_welded[a],
-                    g.normals()[a].map(|n| n.map(f64::to_bits)),
-                );
+                let n = file_normals.get(a).copied().flatten();
+                let key = (self.weld.to_welded[a], n.map(|n| n.map(f64::to_bits)));
                 let next = ids.len() as u32;
                 *ids.entry(key).or_insert(next)
             })
@@ -276,8 +289,14 @@ impl Asset {
             .map(|t| t.map(|a| group[a as usize]))
             .collect();
         let turns = group_turns(&self.positions, pose, &self.triangles, &corner, ids.len());
+        group.iter().map(|&g| turns[g as usize]).collect()
+    }
+
+    /// New normals and tangents (world space) for a glTF pose: see [`normals`].
+    fn gltf_shading(&self, g: &GltfAsset, pose: &[Point]) -> Shading {
+        let turns = self.vertex_turns(g.normals(), pose);
         let turned = |a: usize, v: Option<Point>| {
-            let t = turns[group[a] as usize];
+            let t = turns[a];
             (t != Turn::Keep).then(|| v.map(|v| t.apply(v))).flatten()
         };
         let normals = (0..self.positions.len())

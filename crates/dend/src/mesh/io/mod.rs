@@ -29,7 +29,7 @@
 pub mod gltf;
 mod obj;
 mod off;
-mod ply;
+pub(crate) mod ply;
 mod stl;
 pub mod survey;
 
