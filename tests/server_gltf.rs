@@ -141,3 +141,42 @@ async fn the_sqlite_store_keeps_the_asset_across_a_restart() -> Result<(), Clien
     assert_eq!(s.export("glb").await?, input);
     Ok(())
 }
+
+#[tokio::test]
+async fn delete_mesh_is_refused_while_a_session_uses_it() -> Result<(), ClientError> {
+    let (base, state) = start(Config {
+        max_meshes: 1,
+        ..Config::default()
+    })
+    .await;
+    let c = Client::new(&base);
+    let input = sample::tube(TubeOptions::default()).unwrap();
+    let id = c.upload_file(input.clone(), "glb").await?.id;
+    // the one slot is taken
+    let r = upload(&base, input.clone(), "model/gltf-binary").await;
+    assert_eq!(r.status(), 503);
+    let s = c.create_session(&id, json!({})).await?;
+    s.set_constraints(&twist()).await?;
+    s.wait_ready(Duration::from_secs(60)).await?;
+    assert!(state.cache.bytes() > 0, "a factor is cached");
+    let http = reqwest::Client::new();
+    let del = || http.delete(format!("{base}/v1/meshes/{id}")).send();
+    let r = del().await.unwrap();
+    assert_eq!(r.status(), 409);
+    let e: serde_json::Value = r.json().await.unwrap();
+    assert_eq!(e["code"], "mesh_in_use");
+    s.delete().await?;
+    assert_eq!(del().await.unwrap().status(), 204);
+    assert_eq!(state.cache.bytes(), 0, "its factors are evicted");
+    assert_eq!(del().await.unwrap().status(), 404);
+    let r = reqwest::get(format!("{base}/v1/meshes/{id}"))
+        .await
+        .unwrap();
+    assert_eq!(r.status(), 404);
+    // the slot is free again
+    assert_eq!(
+        upload(&base, input, "model/gltf-binary").await.status(),
+        201
+    );
+    Ok(())
+}

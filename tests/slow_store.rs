@@ -48,6 +48,9 @@ impl Store for SlowStore {
     fn get_asset(&self, id: &str) -> Result<Option<StoredAsset>, StoreError> {
         self.inner.get_asset(id)
     }
+    fn delete_mesh(&self, id: &str) -> Result<bool, StoreError> {
+        self.inner.delete_mesh(id)
+    }
     fn put_session(&self, record: &SessionRecord) -> Result<(), StoreError> {
         self.inner.put_session(record)
     }

@@ -228,6 +228,45 @@ pub async fn generate(
     store_mesh(&st, (mesh, None)).await
 }
 
+/// `DELETE /v1/meshes/{id}`: 204; 409 `mesh_in_use` while live or stored
+/// sessions use the mesh, 404 when there is none. Frees a `max_meshes`
+/// slot, and evicts the mesh's rest operators and cached factors.
+pub async fn remove(
+    State(st): State<AppState>,
+    Path(id): Path<String>,
+) -> Result<StatusCode, ApiError> {
+    let live = st
+        .sessions
+        .read()
+        .values()
+        .filter(|s| s.info().mesh_id == id)
+        .count();
+    let key = id.clone();
+    let stored = st
+        .store_call(move |s| s.list_sessions())
+        .await?
+        .into_iter()
+        .filter(|r| r.mesh_id == key)
+        .count();
+    if live + stored > 0 {
+        return Err(ApiError::MeshInUse {
+            mesh: id,
+            sessions: live.max(stored),
+        });
+    }
+    let key = id.clone();
+    let (found, count) = st
+        .store_call(move |s| Ok((s.delete_mesh(&key)?, s.mesh_count()?)))
+        .await?;
+    if !found {
+        return Err(ApiError::MeshNotFound(id));
+    }
+    st.metrics.meshes.set(count as i64);
+    let evicted = crate::evict_mesh(&st, &id);
+    tracing::info!(mesh = %id, evicted, "mesh deleted");
+    Ok(StatusCode::NO_CONTENT)
+}
+
 /// `GET /v1/meshes/{id}`.
 pub async fn info(
     State(st): State<AppState>,

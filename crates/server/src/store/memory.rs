@@ -58,6 +58,11 @@ impl Store for MemoryStore {
         Ok(self.assets.lock().get(id).cloned())
     }
 
+    fn delete_mesh(&self, id: &str) -> Result<bool, StoreError> {
+        let _ = self.assets.lock().remove(id);
+        Ok(self.meshes.lock().remove(id).is_some())
+    }
+
     fn put_session(&self, record: &SessionRecord) -> Result<(), StoreError> {
         self.sessions
             .lock()

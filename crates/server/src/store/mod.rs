@@ -138,6 +138,9 @@ pub trait Store: Send + Sync + 'static {
     fn put_asset(&self, id: &str, asset: &StoredAsset) -> Result<(), StoreError>;
     /// The source file of mesh `id`, if one was kept.
     fn get_asset(&self, id: &str) -> Result<Option<StoredAsset>, StoreError>;
+    /// Deletes mesh `id` and its source file (atomically); false when there
+    /// was no such mesh. The server refuses while sessions use it.
+    fn delete_mesh(&self, id: &str) -> Result<bool, StoreError>;
     /// Stores or replaces a session record.
     fn put_session(&self, record: &SessionRecord) -> Result<(), StoreError>;
     /// The session record stored under `id`.

@@ -40,11 +40,7 @@ CREATE TABLE IF NOT EXISTS meshes (
     positions BLOB NOT NULL,
     triangles BLOB NOT NULL
 );
-CREATE TABLE IF NOT EXISTS mesh_assets (
-    id TEXT PRIMARY KEY,
-    format TEXT NOT NULL,
-    bytes BLOB NOT NULL
-);
+CREATE TABLE IF NOT EXISTS mesh_assets (id TEXT PRIMARY KEY, format TEXT NOT NULL, bytes BLOB NOT NULL);
 CREATE TABLE IF NOT EXISTS sessions (
     id TEXT PRIMARY KEY,
     mesh_id TEXT NOT NULL,
@@ -404,6 +400,10 @@ impl Store for SqliteStore {
 
     fn get_asset(&self, id: &str) -> Result<Option<StoredAsset>, StoreError> {
         sqlite_assets::get(&self.conn.lock(), id)
+    }
+
+    fn delete_mesh(&self, id: &str) -> Result<bool, StoreError> {
+        sqlite_assets::delete_mesh(&mut self.conn.lock(), id)
     }
 
     fn put_session(&self, r: &SessionRecord) -> Result<(), StoreError> {
