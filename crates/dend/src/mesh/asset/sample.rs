@@ -202,10 +202,12 @@ pub fn tube(o: TubeOptions) -> Result<Vec<u8>, GltfError> {
     });
     if o.skinned {
         // view 8: JOINTS_0 for tube+caps (u16 ×4), 9: WEIGHTS_0, 10: inverse binds
-        let mut joints = |count: usize, b: &mut Buf| {
+        let mut joints = |ps: &[[f32; 3]], b: &mut Buf| {
             let s = b.0.len();
-            for _ in 0..count {
-                for j in [0u16, 1, 0, 0] {
+            for p in ps {
+                // joint 1 has weight z/3: not named where that is 0
+                let j1 = u16::from(p[2] > 0.0);
+                for j in [0u16, j1, 0, 0] {
                     b.0.extend_from_slice(&j.to_le_bytes());
                 }
             }
@@ -214,8 +216,8 @@ pub fn tube(o: TubeOptions) -> Result<Vec<u8>, GltfError> {
             );
             views.len() - 1
         };
-        let jt = joints(nt, &mut b);
-        let jc = joints(nc, &mut b);
+        let jt = joints(&tube_pos, &mut b);
+        let jc = joints(&cap_pos, &mut b);
         let mut weights = |ps: &[[f32; 3]], b: &mut Buf| {
             let s = b.0.len();
             for p in ps {
