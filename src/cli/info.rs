@@ -4,7 +4,8 @@ use std::path::PathBuf;
 
 use anyhow::anyhow;
 use clap::Args;
-use dend::mesh::io::parse_path;
+use dend::mesh::asset::Asset;
+use dend::mesh::io::{parse_path, Format, RawMesh};
 use serde::Serialize;
 
 /// Arguments of `dend info`.
@@ -42,7 +43,20 @@ struct Info {
 /// Reads the mesh and prints the report; an invalid mesh is an error (exit 2)
 /// after the report.
 pub fn run(args: InfoArgs) -> anyhow::Result<()> {
-    let raw = parse_path(&args.mesh)?;
+    // asset formats report the welded surface the solver deforms (what
+    // `dend deform` reads); a file that fails as an asset is reported by the
+    // plain reader, which names what is wrong
+    let asset = match Format::from_path(&args.mesh)? {
+        Format::Obj | Format::Ply | Format::Gltf | Format::Glb => Asset::read_path(&args.mesh).ok(),
+        _ => None,
+    };
+    let raw = match &asset {
+        Some(a) => RawMesh {
+            positions: a.mesh().positions().to_vec(),
+            triangles: a.mesh().triangles().to_vec(),
+        },
+        None => parse_path(&args.mesh)?,
+    };
     let mut info = Info {
         file: args.mesh.display().to_string(),
         vertices: raw.positions.len(),
@@ -82,7 +96,7 @@ pub fn run(args: InfoArgs) -> anyhow::Result<()> {
             info.euler_characteristic = Some(m.euler_characteristic());
             info.genus = Some(m.genus());
             info.unreferenced_vertices = Some(unref.len());
-            info.asset = Some(dend::mesh::asset::Asset::read_path(&args.mesh)?.info());
+            info.asset = asset.as_ref().map(Asset::info);
         }
         Err(e) => info.error = Some(e.to_string()),
     }
@@ -135,6 +149,12 @@ fn print_text(i: &Info) {
         );
         if !a.attributes.is_empty() {
             println!("attributes:  {}", a.attributes.join(", "));
+        }
+        if a.dropped_triangles > 0 {
+            println!(
+                "warning:     {} degenerate triangles of the file are left out of the welded surface",
+                a.dropped_triangles
+            );
         }
     }
     for w in &i.warnings {

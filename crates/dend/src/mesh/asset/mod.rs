@@ -60,6 +60,7 @@ pub struct Asset {
     triangles: Vec<[u32; 3]>,
     weld: Weld,
     mesh: Mesh,
+    dropped: usize,
 }
 
 /// What `dend info` and the server report about an asset.
@@ -71,14 +72,33 @@ pub struct AssetInfo {
     pub asset_vertices: usize,
     /// Vertices of the welded surface the solver deforms.
     pub welded_vertices: usize,
-    /// Triangles (the same in both numberings).
+    /// Triangles in the file (fanned).
     pub triangles: usize,
+    /// Degenerate file triangles (a repeated vertex after welding, or zero
+    /// area as [`Mesh::new`] judges it) left out of the welded surface; the
+    /// file keeps them and export writes their vertices like any other.
+    #[serde(default)]
+    pub dropped_triangles: usize,
     /// What the file holds besides positions and triangles, as kept by
     /// export (`TEXCOORD_0`, `vt`, `usemtl`, `skin`, …).
     pub attributes: Vec<String>,
     /// glTF counts (meshes, primitives, skins, …), for glTF/GLB.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub gltf: Option<GltfSummary>,
+}
+
+/// Leaves degenerate triangles (a repeated vertex, or zero area as
+/// [`Mesh::new`] judges it) out of a welded surface: exported game assets
+/// often hold some. Triangles with an index out of range stay, for
+/// [`Mesh::new`] to report.
+pub(crate) fn drop_degenerate(welded: &[Point], tris: &mut Vec<[u32; 3]>) {
+    tris.retain(|t| {
+        t.iter().any(|&i| i as usize >= welded.len())
+            || !(t[0] == t[1]
+                || t[1] == t[2]
+                || t[0] == t[2]
+                || crate::mesh::is_zero_area(welded, t))
+    });
 }
 
 fn parse_error(format: Format, e: io::ParseError) -> IoError {
@@ -147,6 +167,7 @@ impl Asset {
                 welded: n,
             },
             mesh,
+            dropped: 0,
         }
     }
 
@@ -164,7 +185,14 @@ impl Asset {
             },
             _ => weld::weld(&positions, &triangles),
         };
-        let mesh = Mesh::new(weld.positions(&positions), weld.triangles(&triangles))?;
+        let welded = weld.positions(&positions);
+        let mut tris = weld.triangles(&triangles);
+        let all = tris.len();
+        if !matches!(source, Source::Plain) {
+            drop_degenerate(&welded, &mut tris);
+        }
+        let dropped = all - tris.len();
+        let mesh = Mesh::new(welded, tris)?;
         Ok(Asset {
             format,
             source,
@@ -172,6 +200,7 @@ impl Asset {
             triangles,
             weld,
             mesh,
+            dropped,
         })
     }
 
@@ -229,6 +258,7 @@ impl Asset {
             asset_vertices: self.positions.len(),
             welded_vertices: self.mesh.num_vertices(),
             triangles: self.triangles.len(),
+            dropped_triangles: self.dropped,
             attributes,
             gltf,
         }
@@ -306,5 +336,28 @@ impl Asset {
             .map(|a| turned(a, g.tangents()[a]))
             .collect();
         Shading { normals, tangents }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn degenerate_asset_triangles_are_left_out_of_the_welded_surface() {
+        // a quad, a triangle repeating a vertex and a collinear sliver
+        let obj = "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nv 0.5 0 0\nf 1 2 3 4\nf 1 2 1\nf 1 5 2\n";
+        let a = Asset::read_bytes(obj.as_bytes(), Format::Obj, Sidecars::Refuse).unwrap();
+        assert_eq!(a.mesh().triangles(), &[[0, 1, 2], [0, 2, 3]]);
+        let info = a.info();
+        assert_eq!((info.triangles, info.dropped_triangles), (4, 2));
+        // the file keeps them: an identity export is the input
+        assert_eq!(
+            a.export(a.mesh().positions(), Format::Obj).unwrap(),
+            obj.as_bytes()
+        );
+        // plain formats stay strict
+        let off = "OFF\n3 1 0\n0 0 0\n1 0 0\n2 0 0\n3 0 1 2\n";
+        assert!(Asset::read_bytes(off.as_bytes(), Format::Off, Sidecars::Refuse).is_err());
     }
 }

@@ -250,7 +250,8 @@ impl RawMesh {
 
 /// Parses `bytes` in `format` without validating the mesh (used by the fuzzers).
 ///
-/// glTF/GLB give the scene's welded surface (see [`crate::mesh::asset`]);
+/// glTF/GLB give the scene's welded surface without its degenerate
+/// triangles (see [`crate::mesh::asset`]);
 /// side-car buffers are refused here ([`crate::mesh::asset::Asset::read_path`]
 /// reads them).
 pub fn parse_bytes(bytes: &[u8], format: Format) -> Result<RawMesh, ParseError> {
@@ -266,9 +267,12 @@ pub fn parse_bytes(bytes: &[u8], format: Format) -> Result<RawMesh, ParseError> 
 fn parse_gltf(bytes: &[u8], sidecars: gltf::Sidecars<'_>) -> Result<RawMesh, ParseError> {
     let g = gltf::GltfAsset::parse(bytes, sidecars).map_err(|e| gltf_parse_error(&e))?;
     let w = crate::mesh::asset::weld::weld(g.positions(), g.triangles());
+    let positions = w.positions(g.positions());
+    let mut triangles = w.triangles(g.triangles());
+    crate::mesh::asset::drop_degenerate(&positions, &mut triangles);
     Ok(RawMesh {
-        positions: w.positions(g.positions()),
-        triangles: w.triangles(g.triangles()),
+        positions,
+        triangles,
     })
 }
 
