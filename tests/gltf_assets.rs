@@ -428,6 +428,7 @@ fn an_obj_asset_keeps_its_lines_and_rewrites_v_and_vn() {
     }
     let a = Asset::read_bytes(obj.as_bytes(), Format::Obj, Sidecars::Refuse).unwrap();
     assert_eq!(a.info().welded_vertices, m.num_vertices());
+    assert_eq!(a.info().name.as_deref(), Some("bar"));
     assert_eq!(
         a.export(a.mesh().positions(), Format::Obj).unwrap(),
         obj.as_bytes()

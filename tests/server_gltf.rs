@@ -43,6 +43,7 @@ async fn a_glb_upload_exports_posed_in_its_own_layout() -> Result<(), ClientErro
     assert_eq!(info["vertices"], 16 * 13 + 2, "the welded surface");
     assert_eq!(info["asset"]["asset_vertices"], 17 * 15);
     assert_eq!(info["asset"]["format"], "glb");
+    assert_eq!(info["asset"]["name"], "skinned tube");
     let c = Client::new(&base);
     let id = info["id"].as_str().unwrap();
     let got: serde_json::Value = reqwest::get(format!("{base}/v1/meshes/{id}"))

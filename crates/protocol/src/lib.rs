@@ -164,6 +164,9 @@ pub struct MeshInfo {
 pub struct AssetSummary {
     /// `glb`, `gltf`, `obj` or `ply`.
     pub format: String,
+    /// The glTF scene's (else first mesh's) name, the name on the OBJ's first `o`/`g` line.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub name: Option<String>,
     /// Vertices in the file's own layout.
     pub asset_vertices: usize,
     /// Attributes and counts kept by export (`TEXCOORD_0`, `JOINTS_0`,

@@ -44,6 +44,7 @@ fn info_of(id: String, m: &Mesh, asset: Option<&Asset>) -> MeshInfo {
             let i = a.info();
             AssetSummary {
                 format: i.format.extension().to_owned(),
+                name: i.name,
                 asset_vertices: i.asset_vertices,
                 attributes: i.attributes,
             }

@@ -68,6 +68,10 @@ pub struct Asset {
 pub struct AssetInfo {
     /// The file format.
     pub format: Format,
+    /// The asset's name: the glTF scene's (else its first deformed mesh's),
+    /// the name on the OBJ's first `o` or `g` line.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub name: Option<String>,
     /// Vertices in the file's layout.
     pub asset_vertices: usize,
     /// Vertices of the welded surface the solver deforms.
@@ -231,6 +235,11 @@ impl Asset {
 
     /// Counts and kept attributes.
     pub fn info(&self) -> AssetInfo {
+        let name = match &self.source {
+            Source::Gltf(g) => g.summary().name.clone(),
+            Source::Obj(o) => o.name.clone(),
+            _ => None,
+        };
         let (attributes, gltf) = match &self.source {
             Source::Gltf(g) => {
                 let s = g.summary().clone();
@@ -255,6 +264,7 @@ impl Asset {
         };
         AssetInfo {
             format: self.format,
+            name,
             asset_vertices: self.positions.len(),
             welded_vertices: self.mesh.num_vertices(),
             triangles: self.triangles.len(),

@@ -32,6 +32,8 @@ pub(crate) struct ObjAsset {
     corner_vn: Vec<[u32; 3]>,
     /// Counts of `vt`, `g`/`o`, `usemtl`, `mtllib` lines.
     counts: [usize; 4],
+    /// The name on the first `o` or `g` line.
+    pub name: Option<String>,
 }
 
 fn resolve(tok: &str, defined: usize, ln: usize, what: &str) -> Result<u32, ParseError> {
@@ -69,6 +71,7 @@ impl ObjAsset {
             triangles: Vec::new(),
             corner_vn: Vec::new(),
             counts: [0; 4],
+            name: None,
         };
         let mut poly: Vec<(u32, u32)> = Vec::new();
         let mut fanned: Vec<[u32; 3]> = Vec::new();
@@ -126,7 +129,13 @@ impl ObjAsset {
                     }
                 }
                 Some("vt") => a.counts[0] += 1,
-                Some("g" | "o") => a.counts[1] += 1,
+                Some("g" | "o") => {
+                    a.counts[1] += 1;
+                    let name = toks.collect::<Vec<_>>().join(" ");
+                    if a.name.is_none() && !name.is_empty() {
+                        a.name = Some(name);
+                    }
+                }
                 Some("usemtl") => a.counts[2] += 1,
                 Some("mtllib") => a.counts[3] += 1,
                 _ => {}

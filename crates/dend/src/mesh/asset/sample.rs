@@ -258,7 +258,7 @@ pub fn tube(o: TubeOptions) -> Result<Vec<u8>, GltfError> {
             {"name": "hip", "children": [2]},
             {"name": "tip", "translation": [0.0, 0.0, 1.5]}
         ]);
-        doc["scenes"] = json!([{"nodes": [0, 1]}]);
+        doc["scenes"] = json!([{"name": "skinned tube", "nodes": [0, 1]}]);
     } else {
         doc["nodes"] = json!([
             {"name": "parent", "translation": [1.0, 2.0, 3.0], "children": [1]},

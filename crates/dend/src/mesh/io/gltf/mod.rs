@@ -196,6 +196,8 @@ pub enum GltfError {
 /// Counts and names describing a glTF asset.
 #[derive(Debug, Clone, Default, PartialEq, Eq, Serialize, Deserialize)]
 pub struct GltfSummary {
+    /// The scene's name, else the first deformed mesh's.
+    pub name: Option<String>,
     /// Mesh instances deformed (nodes with a mesh in the scene).
     pub meshes: usize,
     /// Triangle primitives deformed.

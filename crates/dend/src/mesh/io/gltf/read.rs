@@ -112,6 +112,10 @@ pub(crate) fn parse(bytes: &[u8], sidecars: Sidecars<'_>) -> Result<GltfAsset, G
         tangents: Vec::new(),
         summary: Default::default(),
     };
+    asset.summary.name = doc
+        .default_scene()
+        .or_else(|| doc.scenes().next())
+        .and_then(|s| s.name().map(str::to_owned));
     let mut visited = vec![false; doc.nodes().len()];
     let mut stack: Vec<(gltf::Node<'_>, Matrix4<f64>)> = roots(&doc)
         .into_iter()
@@ -159,6 +163,9 @@ fn add_mesh(
         .ok_or(GltfError::SingularTransform { node: node.index() })?;
     let flip = world.fixed_view::<3, 3>(0, 0).determinant() < 0.0;
     asset.summary.meshes += 1;
+    if asset.summary.name.is_none() {
+        asset.summary.name = mesh.name().map(str::to_owned);
+    }
     for prim in mesh.primitives() {
         let at = format!("mesh {} primitive {}", mesh.index(), prim.index());
         if prim.mode() != Mode::Triangles {
