@@ -195,7 +195,8 @@ pub(crate) fn resolve_buffer(
                 })
             }
             Sidecars::Folder(dir) => {
-                let rel = Path::new(uri);
+                let decoded = percent_decoded(uri);
+                let rel = Path::new(&decoded);
                 if rel.is_absolute() || uri.contains("://") {
                     return Err(GltfError::ExternalBuffer {
                         buffer: index,
@@ -223,9 +224,42 @@ pub(crate) fn resolve_buffer(
     Ok(bytes)
 }
 
+/// A relative URI with its `%XX` escapes decoded (`my%20mesh.bin`); a
+/// malformed escape is kept as written.
+fn percent_decoded(uri: &str) -> String {
+    let b = uri.as_bytes();
+    let mut out = Vec::with_capacity(b.len());
+    let mut i = 0;
+    while i < b.len() {
+        let hex = |c: u8| (c as char).to_digit(16);
+        match (
+            b[i],
+            b.get(i + 1).copied().and_then(hex),
+            b.get(i + 2).copied().and_then(hex),
+        ) {
+            (b'%', Some(h), Some(l)) => {
+                out.push((h * 16 + l) as u8);
+                i += 3;
+            }
+            (c, ..) => {
+                out.push(c);
+                i += 1;
+            }
+        }
+    }
+    String::from_utf8_lossy(&out).into_owned()
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn uri_escapes_are_decoded() {
+        assert_eq!(percent_decoded("my%20mesh.bin"), "my mesh.bin");
+        assert_eq!(percent_decoded("a%2"), "a%2");
+        assert_eq!(percent_decoded("%zz.bin"), "%zz.bin");
+    }
 
     #[test]
     fn glb_round_trip_and_padding() {
