@@ -6,7 +6,7 @@ Usage (from the crate root; needs a release build, `cargo build --release`):
 
     python3 scripts/posing_suite.py [--only NAME ...] [--skip-large]
         [--formulation NAME] [--max-iters 100] [--tol 1e-3]
-        [--json out.json] [--no-render] [--list]
+        [--json out.json] [--no-render] [--list] [--arap-cache DIR]
 
 `--only` takes case names or shell patterns (`'camel-*'`, `'*-limb'`);
 `--list` prints the case names. `--skip-large` skips meshes of 40k+
@@ -371,6 +371,27 @@ def run_arap(case, tol):
     }
 
 
+def cached_arap(case, args):
+    """`run_arap`, or its result stored by an earlier run in `--arap-cache`
+    (keyed by case, tol and the rest mesh's and constraints' bytes: ARAP's
+    timings are then those of the run that stored it)."""
+    if not args.arap_cache:
+        return run_arap(case, args.tol)
+    import hashlib
+    h = hashlib.sha256()
+    for a in (case["v"], case["f"], case["fixed"], case["handle"]):
+        h.update(np.ascontiguousarray(a).tobytes())
+    h.update(repr((case["steps"], args.tol)).encode())
+    path = os.path.join(args.arap_cache, f"{case['name']}-{h.hexdigest()[:16]}.npz")
+    if os.path.exists(path):
+        with np.load(path, allow_pickle=False) as z:
+            return z["u"], json.loads(str(z["row"]))
+    u, row = run_arap(case, args.tol)
+    os.makedirs(args.arap_cache, exist_ok=True)
+    np.savez(path, u=u, row=json.dumps(row))
+    return u, row
+
+
 # --- verdict, render, table ----------------------------------------------------
 
 def judge(row):
@@ -492,7 +513,7 @@ def run_case(name, dend, args, tmp):
         errors.append(f"ours: {e}")
     log(f"{name}: libigl ARAP")
     try:
-        u_arap, row["arap"] = run_arap(case, args.tol)
+        u_arap, row["arap"] = cached_arap(case, args)
         row["arap"]["distortion"] = edge_distortion(case, u_arap)
         pose = os.path.join(tmp, f"{name}_arap.off")
         write_off(pose, u_arap, case["f"])
@@ -531,6 +552,9 @@ def main():
     ap.add_argument("--json", help="write every figure to this file")
     ap.add_argument("--no-render", action="store_true", help="no PNGs")
     ap.add_argument("--list", action="store_true", help="print the case names and exit")
+    ap.add_argument("--arap-cache", metavar="DIR",
+                    help="reuse libigl ARAP results stored here by an earlier run (for "
+                         "solver experiments; the figures' ARAP timings are then that run's)")
     args = ap.parse_args()
     names = case_names()
     if args.list:

@@ -51,9 +51,13 @@ fn schema_and_serde_agree_on_examples_and_invalid_documents() {
     assert!(docs.len() >= 4, "expected the example constraint files");
     let more = [
         r#"{"fixed": [0, 1, 2]}"#,
-        r#"{"fixed": {"sphere": {"center": [0,0,0], "radius": 1}}, "handles": [{"vertices": [5], "rotate": {"quaternion": [1,0,0,0]}}]}"#,
+        r#"{"fixed": {"sphere": {"center": [0,0,0], "radius": 1}}, "handles": [{"vertices": [5], "rotate": {"quaternion": [0,0,0,1]}}]}"#,
+        r#"{"fixed": [0], "handles": [{"vertices": [5], "rotate": {"quaternion_wxyz": [1,0,0,0]}}]}"#,
         r#"{"fixed": [0], "handles": [{"vertices": [5], "positions": [[1,2,3]], "pivot": [0,0,0]}]}"#,
+        r#"{"fixed": [0, 4], "fixed_positions": [[0,0,1], [1,0,1]]}"#,
         // invalid ones
+        r#"{"fixed": [0], "fixed_positions": [[0,0]]}"#,
+        r#"{"fixed": [0], "fixed_positions": [0, 0, 1]}"#,
         r#"{"fixed": [0], "extra": true}"#,
         r#"{"fixed": [-1]}"#,
         r#"{"fixed": [0], "handles": [{"name": "h"}]}"#,
@@ -115,5 +119,8 @@ for line in sys.stdin:
         );
         invalid += (!serde_ok) as usize;
     }
-    assert_eq!(invalid, 9, "the invalid documents must be rejected by both");
+    assert_eq!(
+        invalid, 11,
+        "the invalid documents must be rejected by both"
+    );
 }

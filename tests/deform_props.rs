@@ -14,6 +14,7 @@ fn identity_edit_keeps_the_rest_pose_on_irregular_meshes() {
     for seed in 0..3 {
         let m = irregular_saddle(12, seed);
         let spec = ConstraintsSpec {
+            fixed_positions: None,
             fixed: VertexSet::Indices((0..12).collect()),
             handles: vec![HandleSpec {
                 vertices: VertexSet::Indices((132..144).collect()),
@@ -259,6 +260,7 @@ fn scaling_mesh_and_targets_scales_the_result() {
             .unwrap();
         let c = spec.resolve(&m).unwrap();
         let mut c_s = ConstraintsSpec {
+            fixed_positions: None,
             fixed: VertexSet::Indices(c.fixed.iter().map(|&v| v as u64).collect()),
             handles: vec![HandleSpec {
                 vertices: VertexSet::Indices(
@@ -341,6 +343,7 @@ fn identity_edit_on_random_delaunay_patches() {
             .filter(|&v| m.positions()[v as usize][0] > 0.8)
             .collect();
         let spec = ConstraintsSpec {
+            fixed_positions: None,
             fixed: VertexSet::Indices(fixed),
             handles: vec![HandleSpec {
                 vertices: VertexSet::Indices(hv),
@@ -372,6 +375,7 @@ fn identity_edit_on_random_delaunay_patches() {
         // never returns NaN, never ends more than 5 % worse than it started, and
         // says so.
         let spec2 = ConstraintsSpec {
+            fixed_positions: None,
             handles: vec![HandleSpec {
                 translate: Some([0.0, 0.0, 0.5]),
                 ..spec.handles[0].clone()
@@ -413,6 +417,7 @@ fn real_edit_converges_on_an_irregular_grid() {
             .filter(|&v| m.positions()[v as usize][0] > 14.5)
             .collect();
         let spec = ConstraintsSpec {
+            fixed_positions: None,
             fixed: VertexSet::Indices(fixed),
             handles: vec![HandleSpec {
                 vertices: VertexSet::Indices(hv),

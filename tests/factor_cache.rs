@@ -100,6 +100,7 @@ fn near_degenerate_triangles_give_finite_poses() {
     ];
     m = m.with_positions(p).unwrap();
     let spec = ConstraintsSpec {
+        fixed_positions: None,
         fixed: VertexSet::Indices((0..8).collect()),
         handles: vec![HandleSpec {
             vertices: VertexSet::Indices((56..64).collect()),

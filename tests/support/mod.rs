@@ -205,6 +205,7 @@ pub fn tube_spec(mesh: &Mesh, handle: HandleSpec) -> ConstraintsSpec {
     let (lo, hi) = mesh.bounding_box();
     let _ = lo;
     ConstraintsSpec {
+        fixed_positions: None,
         fixed: VertexSet::Box {
             bbox: BoxSel {
                 min: [-9.0, -9.0, -0.01],

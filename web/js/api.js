@@ -48,8 +48,8 @@ export class Api {
     this.base = base;
   }
 
-  async json(method, path, body, token) {
-    const headers = {};
+  async json(method, path, body, token, extra = {}) {
+    const headers = { ...extra };
     if (body !== undefined) headers['Content-Type'] = 'application/json';
     if (token) headers.Authorization = `Bearer ${token}`;
     const res = await checked(await fetch(this.base + path, {
@@ -76,7 +76,12 @@ export class Api {
 
   session(id, token) { return this.json('GET', `/v1/sessions/${id}`, undefined, token); }
 
-  setConstraints(id, token, c) { return this.json('PUT', `/v1/sessions/${id}/constraints`, c, token); }
+  /** PUT constraints; with `ifRevision`, only if the session's constraints
+   * revision still is that one (else ApiError `stale_constraints`). */
+  setConstraints(id, token, c, ifRevision) {
+    const extra = ifRevision === undefined || ifRevision === null ? {} : { 'If-Match': `"${ifRevision}"` };
+    return this.json('PUT', `/v1/sessions/${id}/constraints`, c, token, extra);
+  }
 
   undo(id, token) { return this.json('POST', `/v1/sessions/${id}/undo`, undefined, token); }
 

@@ -29,6 +29,7 @@ export const app = {
   labels: null,
   handles: 0,
   applied: null, // {serverIndexOf: Map(uiHandle → server index), json}
+  constraintsRevision: 0, // the session's constraint set these labels show
   dirtyLabels: false,
   seq: 0,
   sent: new Map(), // seq → send time (ms)
@@ -36,6 +37,7 @@ export const app = {
   frames: 0,
   last: null, // last frame header
   needsDraw: true,
+  eventLog: [],
 };
 
 // ---------- errors and status ----------
@@ -58,6 +60,7 @@ function guarded(fn) {
 }
 
 function setState(s) {
+  app.eventLog.push(`setState:${s}`);
   app.state = s;
   $('stState').textContent = `session: ${s}`;
 }
@@ -140,12 +143,54 @@ function constraintsJson() {
 const applyConstraints = guarded(async () => {
   if (!app.session) throw new ApiError('no_session', 'generate or upload a mesh first');
   const c = constraintsJson();
+  const before = app.state;
+  // before the request: its `ready` event may come before its response
   setState('building');
-  app.applied = c;
+  try {
+    // based on the set these labels came from: a collaborator's edit in
+    // between is refused instead of silently replaced
+    const r = await app.api.setConstraints(app.session.id, app.session.token, c.json, app.constraintsRevision);
+    app.applied = c;
+    app.dirtyLabels = false;
+    if (r && r.constraints_revision !== undefined) app.constraintsRevision = r.constraints_revision;
+    recolor();
+  } catch (e) {
+    setState(before);
+    if (e.code === 'stale_constraints') {
+      // show the collaborator's set; the user's strokes are gone
+      const info = await app.api.session(app.session.id, app.session.token);
+      showConstraints(info);
+      throw new ApiError(e.code, 'another collaborator changed the constraints: their regions are shown now; paint again to edit them');
+    }
+    throw e;
+  }
+});
+
+/** Labels from the session's constraint set (the `constraints` of a state
+ * message or of GET session): index lists as painted; box and sphere
+ * selectors are not shown (this client paints index lists). */
+function showConstraints(info) {
+  if (!app.labels || info.constraints_revision === undefined) return;
+  app.constraintsRevision = info.constraints_revision;
+  const c = info.constraints;
+  app.labels.fill(FREE);
+  for (const o of [...$('target').options]) if (o.value.startsWith('h')) o.remove();
+  app.handles = 0;
+  const serverIndexOf = new Map();
+  const n = app.labels.length;
+  const inRange = (i) => Number.isInteger(i) && i >= 0 && i < n;
+  if (c && Array.isArray(c.fixed)) for (const i of c.fixed) if (inRange(i)) app.labels[i] = FIXED;
+  for (const [k, h] of ((c && c.handles) || []).entries()) {
+    addHandle();
+    serverIndexOf.set(k, k);
+    if (Array.isArray(h.vertices)) for (const i of h.vertices) if (inRange(i)) app.labels[i] = k + 1;
+  }
+  if (app.handles === 0) addHandle();
+  $('target').value = 'fixed';
+  app.applied = c ? { json: c, serverIndexOf } : null;
   app.dirtyLabels = false;
   recolor();
-  await app.api.setConstraints(app.session.id, app.session.token, c.json);
-});
+}
 
 /** Called by the painting tools when a stroke ends. */
 export function strokeEnded() {
@@ -205,6 +250,8 @@ async function openSession(id, token, meshId) {
   updateStats();
   const link = `${location.origin}${location.pathname}#session=${id}&token=${token}`;
   $('shareLink').value = link;
+  // the session in the URL: a reload or a bookmark reopens it
+  history.replaceState(null, '', `#session=${id}&token=${token}`);
   app.ws = await app.api.connect(id, token, { frame: onFrame, event: onEvent, close: onClose });
 }
 
@@ -236,6 +283,7 @@ const upload = guarded(async (ev) => {
 function resetPaint() {
   app.handles = 0;
   app.applied = null;
+  app.constraintsRevision = 0;
   app.dirtyLabels = false;
   for (const o of [...$('target').options]) if (o.value.startsWith('h')) o.remove();
   addHandle();
@@ -257,6 +305,7 @@ async function join(id, token) {
   const info = await app.api.session(id, token);
   setMesh(parseObj(await app.api.exportObj(id, token)));
   resetPaint();
+  showConstraints(info);
   setState(info.state);
   await openSession(id, token, info.mesh_id);
 }
@@ -281,11 +330,21 @@ function onFrame(f) {
 }
 
 function onEvent(e) {
+  // the last events, for the browser test's failure messages
+  app.eventLog.push(e.type === 'state' ? `state:${e.state}:${e.constraints_revision}` : e.type);
+  if (app.eventLog.length > 40) app.eventLog.shift();
   switch (e.type) {
     case 'state':
       if (e.you !== undefined) app.you = e.you;
       setState(e.state);
       $('stPeers').textContent = String(e.peers);
+      $('undo').disabled = !e.can_undo;
+      $('redo').disabled = !e.can_redo;
+      // another client's constraint edit (or undo to another set): show it,
+      // unless this tab has strokes of its own not applied yet
+      if (e.constraints_revision !== undefined && e.constraints_revision !== app.constraintsRevision && !app.dirtyLabels) {
+        showConstraints(e);
+      }
       break;
     case 'ready':
       setState('ready');
@@ -300,6 +359,9 @@ function onEvent(e) {
       break;
     case 'handle_grabbed':
       if (e.client !== app.you) $('stState').textContent = `handle ${e.handle} held by client ${e.client}`;
+      break;
+    case 'handle_released':
+      if (e.client !== app.you) setState(app.state);
       break;
     case 'peer_joined':
     case 'peer_left':
@@ -413,5 +475,5 @@ window.dend = {
     const s = project(app.positions, Renderer.mvp(app.camera, c.clientWidth / c.clientHeight), c.clientWidth, c.clientHeight);
     return indices.map((i) => [s[3 * i], s[3 * i + 1]]);
   },
-  stats: () => ({ state: app.state, frames: app.frames, last: app.last && { ...app.last, positions: undefined }, latencies: [...app.latencies] }),
+  stats: () => ({ events: [...app.eventLog], state: app.state, frames: app.frames, last: app.last && { ...app.last, positions: undefined }, latencies: [...app.latencies] }),
 };

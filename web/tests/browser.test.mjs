@@ -9,7 +9,9 @@
 // (server vertex buffers and screenshot pixels); fixed vertices stay put;
 // the client draws exactly the server's pose; a second tab opened from the
 // share link receives the same pose; Shift+drag twists the handle by the
-// angle sent. Screenshots go to web/test-artifacts/.
+// angle sent; pinning more after posing keeps the pose and reaches the
+// second tab; one mouse drag is one Undo step; a reload reopens the session
+// from the URL with its regions. Screenshots go to web/test-artifacts/.
 
 import { spawn } from 'node:child_process';
 import { mkdirSync, writeFileSync, copyFileSync } from 'node:fs';
@@ -308,6 +310,73 @@ async function main() {
     await page.waitForTimeout(300);
     await page.screenshot({ path: join(artifacts, '4-twisted.png') });
     if (process.env.DEND_UPDATE_SCREENSHOT) copyFileSync(join(artifacts, '4-twisted.png'), join(root, 'docs', 'screenshot.png'));
+
+    // Posing workflow. Side view again, then pin the middle of the bar
+    // where the pose has it: the pose must not jump.
+    await page.evaluate(() => {
+      const c = window.dend.app.camera;
+      c.yaw = Math.PI / 2;
+      c.pitch = 0.3;
+      window.dend.app.needsDraw = true;
+    });
+    await page.waitForTimeout(200);
+    const posed = await serverPose(base, session);
+    const midIdx = [...Array(n).keys()].filter((i) => Math.abs(z(i) - 0.5 * zmax) < 0.05 * zmax);
+    await page.check('input[name=tool][value=box]');
+    await page.selectOption('#target', 'fixed');
+    await boxSelect(page, await screenBox(page, midIdx, 4));
+    const rev0 = await page.evaluate(() => window.dend.app.constraintsRevision);
+    await page.click('#apply');
+    await waitFor(page, (r) => window.dend.app.constraintsRevision !== r && window.dend.app.state === 'ready', rev0, 'the edited constraints ready', 60000);
+    await waitFor(page, () => window.dend.app.last && window.dend.app.last.settled, null, 'the edit settled', 60000);
+    const edited = await serverPose(base, session);
+    const jump = maxDiff(posed, edited, all);
+    log('pose jump on a constraint edit', jump.toExponential(2), `(bar length ${zmax.toFixed(2)})`);
+    assert.ok(jump < 0.02 * zmax, `a constraint edit keeps the pose (jump ${jump})`);
+    const labels1 = await page.evaluate(() => window.dend.labels());
+    const nFixed1 = labels1.filter((l) => l === -1).length;
+    assert.ok(nFixed1 > fixed.length, 'the middle is painted fixed');
+    await page.screenshot({ path: join(artifacts, '5-pinned-middle.png') });
+
+    // The second tab shows the new regions.
+    await waitFor(page2, (k) => window.dend.labels().filter((l) => l === -1).length === k, nFixed1, 'the second tab to show the edited regions');
+    assert.deepEqual(await page2.evaluate(() => window.dend.labels()), labels1, 'both tabs show the same regions');
+
+    // One mouse drag = one undo step, however many frames it took.
+    await page.check('input[name=tool][value=navigate]');
+    const [ux, uy] = (await page.evaluate((i) => window.dend.project([i]), handle[0]))[0];
+    await page.mouse.move(cb.x + ux, cb.y + uy);
+    await page.mouse.down();
+    for (let k = 1; k <= 4; k++) {
+      await page.mouse.move(cb.x + ux + 15 * k, cb.y + uy, { steps: 3 });
+      await page.waitForTimeout(150); // let the solver settle mid-gesture
+    }
+    await page.mouse.up();
+    const seq3 = await page.evaluate(() => window.dend.app.seq);
+    await waitFor(page, (q) => window.dend.app.last.ackSeq >= q && window.dend.app.last.settled, seq3, 'the gesture to settle', 60000);
+    const gestured = await serverPose(base, session);
+    assert.ok(maxDiff(edited, gestured, handle) > 0.05 * zmax, 'the gesture moved the handle');
+    await waitFor(page, () => !document.getElementById('undo').disabled, null, 'Undo enabled');
+    await page.click('#undo');
+    await waitFor(page, (e) => {
+      const p = window.dend.positions();
+      let m = 0;
+      for (let i = 0; i < p.length; i++) m = Math.max(m, Math.abs(p[i] - e[i]));
+      return m < 1e-5;
+    }, Array.from(edited), 'one Undo to return to the pose before the gesture', 30000);
+    const undone = await serverPose(base, session);
+    log('after one Undo, off the pre-gesture pose by', maxDiff(undone, edited, all).toExponential(2));
+    assert.ok(maxDiff(undone, edited, all) < 1e-5, 'one Undo undoes the whole gesture');
+
+    // Reload: the URL carries the session; the regions and pose come back.
+    assert.match(page2.url(), /#session=[0-9a-f]+&token=[0-9a-f]+/);
+    await page2.reload();
+    await waitFor(page2, () => window.dend.app.positions && window.dend.app.ws && window.dend.app.state === 'ready', null, 'the reloaded tab');
+    assert.equal(await page2.evaluate(() => window.dend.app.session.id), session.id, 'the reload reopened the same session');
+    assert.deepEqual(await page2.evaluate(() => window.dend.labels()), labels1, 'the reloaded tab shows the regions');
+    const reloaded = await page2.evaluate(() => window.dend.positions());
+    assert.ok(maxDiff(reloaded, undone, all) < 1e-5, 'the reloaded tab shows the pose');
+    await page2.screenshot({ path: join(artifacts, '6-reloaded-tab.png') });
 
     // Upload: a 4×4 grid as OBJ through the file input.
     const g = [];

@@ -243,6 +243,28 @@ impl SessionClient {
         Ok(())
     }
 
+    /// Sets constraints only if the session's constraints revision is still
+    /// `revision` (`If-Match`); returns the new revision. Another client's
+    /// edit in between gives `ClientError::Api` with `stale_constraints`.
+    pub async fn set_constraints_if(
+        &self,
+        spec: &Value,
+        revision: u64,
+    ) -> Result<u64, ClientError> {
+        let r = self
+            .http
+            .put(self.url("/constraints"))
+            .bearer_auth(&self.token)
+            .header("if-match", format!("\"{revision}\""))
+            .json(spec)
+            .send()
+            .await?;
+        let body: Value = check(r).await?.json().await?;
+        body["constraints_revision"]
+            .as_u64()
+            .ok_or_else(|| ClientError::Protocol(format!("no constraints_revision in {body}")))
+    }
+
     /// Polls until the state is `ready` (or `failed` → error).
     pub async fn wait_ready(&self, timeout: Duration) -> Result<(), ClientError> {
         let end = tokio::time::Instant::now() + timeout;

@@ -78,6 +78,9 @@ pub enum ApiError {
     /// Redo with no later history entry.
     #[error("{0}")]
     NothingToRedo(String),
+    /// A constraint edit based on a replaced constraint set.
+    #[error("{0}")]
+    StaleConstraints(String),
     /// The solver failed on this input (not positive definite, diverged...).
     #[error("solve failed: {0}")]
     SolveFailed(String),
@@ -144,6 +147,7 @@ impl ApiError {
             HandleGrabbed(_) => ("handle_grabbed", StatusCode::CONFLICT),
             NothingToUndo(_) => ("nothing_to_undo", StatusCode::CONFLICT),
             NothingToRedo(_) => ("nothing_to_redo", StatusCode::CONFLICT),
+            StaleConstraints(_) => ("stale_constraints", StatusCode::CONFLICT),
             SolveFailed(_) => ("solve_failed", StatusCode::UNPROCESSABLE_ENTITY),
             PayloadTooLarge(_) => ("payload_too_large", StatusCode::PAYLOAD_TOO_LARGE),
             TooManyVertices { .. } => ("too_many_vertices", StatusCode::PAYLOAD_TOO_LARGE),
@@ -223,6 +227,7 @@ impl From<&SessionError> for ApiError {
             SessionError::HandleGrabbed { .. } => ApiError::HandleGrabbed(msg),
             SessionError::NothingToUndo => ApiError::NothingToUndo(msg),
             SessionError::NothingToRedo => ApiError::NothingToRedo(msg),
+            SessionError::StaleConstraints { .. } => ApiError::StaleConstraints(msg),
             SessionError::InvalidConstraints(m) => ApiError::InvalidConstraints(m.clone()),
             SessionError::Deform(d) => deform_ref(d, msg),
             SessionError::Store(s) => ApiError::Internal(s.to_string()),
@@ -284,6 +289,7 @@ mod tests {
             ApiError::HandleGrabbed(String::new()),
             ApiError::NothingToUndo(String::new()),
             ApiError::NothingToRedo(String::new()),
+            ApiError::StaleConstraints(String::new()),
             ApiError::SolveFailed(String::new()),
             ApiError::PayloadTooLarge(1),
             ApiError::TooManyVertices { got: 2, limit: 1 },

@@ -199,16 +199,35 @@ pub async fn remove(State(st): State<AppState>, Authed(s): Authed) -> StatusCode
     StatusCode::NO_CONTENT
 }
 
-/// `PUT /v1/sessions/{id}/constraints`: 202 while the factor builds.
+/// `PUT /v1/sessions/{id}/constraints`: 202 while the factor builds. An
+/// `If-Match: <constraints_revision>` header (quoted or not) makes the edit
+/// conditional: 409 `stale_constraints` when another edit came first.
 pub async fn set_constraints(
     Authed(s): Authed,
+    headers: HeaderMap,
     body: Result<Json<serde_json::Value>, JsonRejection>,
 ) -> Result<impl IntoResponse, ApiError> {
+    let if_revision = match headers.get(header::IF_MATCH) {
+        None => None,
+        Some(v) => Some(
+            v.to_str()
+                .ok()
+                .map(|t| t.trim().trim_matches('"'))
+                .and_then(|t| t.parse::<u64>().ok())
+                .ok_or_else(|| {
+                    ApiError::InvalidConstraints(
+                        "If-Match must be a constraints revision (an integer)".into(),
+                    )
+                })?,
+        ),
+    };
     let Json(spec) = body?;
-    let state = s.set_constraints(spec).await?;
+    let state = s.set_constraints(spec, if_revision).await?;
+    let revision = s.info().constraints_revision;
     Ok((
         StatusCode::ACCEPTED,
-        Json(serde_json::json!({ "state": state })),
+        [(header::ETAG, format!("\"{revision}\""))],
+        Json(serde_json::json!({ "state": state, "constraints_revision": revision })),
     ))
 }
 

@@ -73,6 +73,10 @@ pub enum ClientMsg {
     SetConstraints {
         /// The spec.
         constraints: serde_json::Value,
+        /// The constraints revision the edit is based on: refused with
+        /// `stale_constraints` if another edit replaced it (omitted: any).
+        #[serde(default)]
+        if_revision: Option<u64>,
     },
     /// Undo.
     Undo,
@@ -385,8 +389,11 @@ async fn handle_message(s: &SessionHandle, me: ClientId, text: &str) -> Option<S
             ClientMsg::Release { handle } => {
                 s.release(me, &handle).map(|_| None).map_err(ApiError::from)
             }
-            ClientMsg::SetConstraints { constraints } => s
-                .set_constraints(constraints)
+            ClientMsg::SetConstraints {
+                constraints,
+                if_revision,
+            } => s
+                .set_constraints(constraints, if_revision)
                 .await
                 .map(|_| None)
                 .map_err(ApiError::from),

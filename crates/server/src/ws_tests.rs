@@ -220,7 +220,9 @@ async fn errors_pong_and_drags_acknowledged() {
 async fn two_clients_both_get_frames_and_grabs_are_exclusive() {
     let s = session();
     assert_eq!(
-        s.set_constraints(constraints()).await.expect("constraints"),
+        s.set_constraints(constraints(), None)
+            .await
+            .expect("constraints"),
         crate::session::SessionState::Building
     );
     let mut a = connect(&s, true, 1000);
@@ -259,7 +261,10 @@ async fn two_clients_both_get_frames_and_grabs_are_exclusive() {
     a.send(serde_json::json!({"type": "grab", "handle": 0}))
         .await;
     let _ = b.event("handle_grabbed").await;
-    let _ = s.set_constraints(constraints()).await.expect("constraints");
+    let _ = s
+        .set_constraints(constraints(), None)
+        .await
+        .expect("constraints");
     let released = b.event("handle_released").await;
     assert_eq!(released["handle"], 0);
     assert_eq!(released["client"], grabbed["client"]);

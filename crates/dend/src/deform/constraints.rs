@@ -164,7 +164,9 @@ pub struct SphereSel {
 }
 
 /// A rotation in the constraints JSON: axis–angle in degrees, or a unit
-/// quaternion `[w, x, y, z]`.
+/// quaternion. Quaternions are `[x, y, z, w]` across the whole API (as in
+/// drags, WebSocket messages, the store and glTF); `[w, x, y, z]` is
+/// accepted only under its explicit name `quaternion_wxyz`.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(untagged)]
 pub enum RotationSpec {
@@ -175,10 +177,15 @@ pub enum RotationSpec {
         /// Angle in degrees (right-hand rule).
         degrees: f64,
     },
-    /// `{"quaternion": [w, x, y, z]}` (normalised on use).
+    /// `{"quaternion": [x, y, z, w]}` (normalised on use).
     Quaternion {
-        /// `[w, x, y, z]`.
+        /// `[x, y, z, w]`.
         quaternion: [f64; 4],
+    },
+    /// `{"quaternion_wxyz": [w, x, y, z]}` (normalised on use).
+    QuaternionWxyz {
+        /// `[w, x, y, z]`.
+        quaternion_wxyz: [f64; 4],
     },
 }
 
@@ -204,11 +211,18 @@ impl RotationSpec {
                     degrees.to_radians(),
                 ))
             }
-            RotationSpec::Quaternion { quaternion: q } => {
+            RotationSpec::Quaternion { quaternion: q }
+            | RotationSpec::QuaternionWxyz { quaternion_wxyz: q } => {
                 if !q.iter().all(|v| v.is_finite()) {
                     return Err(DeformError::NonFinite { what: "rotation" });
                 }
-                let quat = nalgebra::Quaternion::new(q[0], q[1], q[2], q[3]);
+                // nalgebra's constructor takes (w, x, y, z)
+                let quat = match self {
+                    RotationSpec::Quaternion { .. } => {
+                        nalgebra::Quaternion::new(q[3], q[0], q[1], q[2])
+                    }
+                    _ => nalgebra::Quaternion::new(q[0], q[1], q[2], q[3]),
+                };
                 if quat.norm() == 0.0 {
                     return Err(DeformError::InvalidTransform {
                         reason: "quaternion is zero",
@@ -249,9 +263,16 @@ pub struct HandleSpec {
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct ConstraintsSpec {
-    /// Vertices that stay at their rest positions.
+    /// Vertices that stay where they are: at their rest positions, or at
+    /// `fixed_positions`.
     #[serde(default = "empty_set")]
     pub fixed: VertexSet,
+    /// Explicit positions of the fixed vertices, one per fixed vertex in
+    /// increasing index order (default: their rest positions). A constraint
+    /// edit on a posed session pins the new set where the pose has it
+    /// ([`ConstraintsSpec::resolve_at`], [`ConstraintsSpec::anchored`]).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub fixed_positions: Option<Vec<Point>>,
     /// Handle groups.
     #[serde(default)]
     pub handles: Vec<HandleSpec>,
@@ -293,6 +314,9 @@ impl HandleGroup {
 pub struct Constraints {
     /// Fixed vertices, sorted.
     pub fixed: Vec<u32>,
+    /// Where each fixed vertex is held (mesh units; its rest position
+    /// unless the spec or an anchoring pose said otherwise).
+    pub fixed_at: Vec<Point>,
     /// Handle groups.
     pub handles: Vec<HandleGroup>,
 }
@@ -358,8 +382,13 @@ impl Constraints {
         if fixed.is_empty() && groups.is_empty() {
             return Err(DeformError::NoConstraints);
         }
+        let fixed_at = fixed
+            .iter()
+            .map(|&v| mesh.positions()[v as usize])
+            .collect();
         Ok(Constraints {
             fixed,
+            fixed_at,
             handles: groups,
         })
     }
@@ -383,6 +412,35 @@ impl Constraints {
 impl ConstraintsSpec {
     /// Selects the vertex sets on the rest mesh and validates the result.
     pub fn resolve(&self, mesh: &Mesh) -> Result<Constraints, DeformError> {
+        self.resolve_at(mesh, None)
+    }
+
+    /// [`resolve`](Self::resolve), with the constrained vertices held where
+    /// `pose` has them instead of at rest: fixed vertices stay at their
+    /// posed positions, and handle transforms act on the posed positions
+    /// (default pivot: their posed centroid). Explicit `fixed_positions`
+    /// and handle `positions` still win. Vertex sets (boxes, spheres) are
+    /// always selected on the rest mesh. This is how a constraint edit keeps
+    /// the pose.
+    pub fn resolve_at(
+        &self,
+        mesh: &Mesh,
+        pose: Option<&[Point]>,
+    ) -> Result<Constraints, DeformError> {
+        if let Some(p) = pose {
+            if p.len() != mesh.num_vertices() {
+                return Err(DeformError::PositionsMismatch {
+                    handle: "(anchoring pose)".into(),
+                    expected: mesh.num_vertices(),
+                    got: p.len(),
+                });
+            }
+            if p.iter().flatten().any(|v| !v.is_finite()) {
+                return Err(DeformError::NonFinite {
+                    what: "anchoring pose",
+                });
+            }
+        }
         let fixed = select(&self.fixed, mesh)?;
         let mut handles = Vec::with_capacity(self.handles.len());
         for (k, h) in self.handles.iter().enumerate() {
@@ -395,7 +453,28 @@ impl ConstraintsSpec {
             .map(|(name, vs, _)| (name.clone(), vs.clone(), None))
             .collect();
         let mut c = Constraints::new(mesh, fixed, plain)?;
+        if let Some(pos) = &self.fixed_positions {
+            if pos.len() != c.fixed.len() {
+                return Err(DeformError::PositionsMismatch {
+                    handle: "(fixed)".into(),
+                    expected: c.fixed.len(),
+                    got: pos.len(),
+                });
+            }
+            if pos.iter().flatten().any(|v| !v.is_finite()) {
+                return Err(DeformError::NonFinite {
+                    what: "fixed positions",
+                });
+            }
+            c.fixed_at = pos.clone();
+        } else if let Some(p) = pose {
+            c.fixed_at = c.fixed.iter().map(|&v| p[v as usize]).collect();
+        }
         for (g, (_, _, spec)) in c.handles.iter_mut().zip(&handles) {
+            if let (None, Some(p)) = (&spec.positions, pose) {
+                g.base = g.vertices.iter().map(|&v| p[v as usize]).collect();
+                g.rest_centroid = centroid(&g.base);
+            }
             if let Some(pos) = &spec.positions {
                 if pos.len() != g.vertices.len() {
                     return Err(DeformError::PositionsMismatch {
@@ -430,6 +509,31 @@ impl ConstraintsSpec {
             };
         }
         Ok(c)
+    }
+}
+
+impl ConstraintsSpec {
+    /// This spec with the positions `c` holds its vertices at written out
+    /// wherever they differ from the rest mesh's (`fixed_positions`, each
+    /// handle's `positions`), so that [`resolve`](Self::resolve) on the rest
+    /// mesh gives `c`'s vertex sets and bases again: what a session stores
+    /// after a constraint edit that kept the pose. `c` must be this spec
+    /// resolved on `mesh` (same vertex sets, same handle order).
+    pub fn anchored(&self, mesh: &Mesh, c: &Constraints) -> ConstraintsSpec {
+        let rest = mesh.positions();
+        let differs =
+            |vs: &[u32], at: &[Point]| vs.iter().zip(at).any(|(&v, p)| rest[v as usize] != *p);
+        let mut out = self.clone();
+        out.fixed_positions = differs(&c.fixed, &c.fixed_at).then(|| c.fixed_at.clone());
+        for (h, g) in out.handles.iter_mut().zip(&c.handles) {
+            if differs(&g.vertices, &g.base) {
+                h.positions = Some(g.base.clone());
+                // the pivot the resolution chose, kept explicit: a default
+                // pivot is the centroid of the positions it acts on
+                h.pivot.get_or_insert(g.target.pivot);
+            }
+        }
+        out
     }
 }
 
@@ -580,5 +684,115 @@ mod tests {
         assert!(matches!(s.handles[1].vertices, VertexSet::Sphere { .. }));
         let bad = r#"{"fixed": [0], "handles": [], "oops": 1}"#;
         assert!(serde_json::from_str::<ConstraintsSpec>(bad).is_err());
+    }
+
+    /// A posed grid (sheared, bent) to anchor on.
+    fn posed_grid() -> (Mesh, Vec<Point>) {
+        let mesh = crate::deform::factor::tests::grid(8);
+        let pose = mesh
+            .positions()
+            .iter()
+            .map(|p| [p[0] + 0.1 * p[1], p[1], p[2] + 0.05 * p[0] * p[0]])
+            .collect();
+        (mesh, pose)
+    }
+
+    fn spec(j: &str) -> ConstraintsSpec {
+        serde_json::from_str(j).unwrap()
+    }
+
+    #[test]
+    fn resolving_at_a_pose_holds_the_sets_where_the_pose_has_them() {
+        let (mesh, pose) = posed_grid();
+        let s = spec(
+            r#"{"fixed": [0, 1, 2], "handles": [{"name": "h", "vertices": [40, 41],
+                         "translate": [0, 0, 1]}]}"#,
+        );
+        let c = s.resolve_at(&mesh, Some(&pose)).unwrap();
+        for (&v, p) in c.fixed.iter().zip(&c.fixed_at) {
+            assert_eq!(*p, pose[v as usize]);
+        }
+        for (v, p) in c.handles[0].target_positions() {
+            let q = pose[v as usize];
+            assert_eq!(p, [q[0], q[1], q[2] + 1.0]);
+        }
+        // the default pivot is the posed centroid
+        let b = &c.handles[0].base;
+        let mid = [
+            (b[0][0] + b[1][0]) / 2.0,
+            (b[0][1] + b[1][1]) / 2.0,
+            (b[0][2] + b[1][2]) / 2.0,
+        ];
+        assert_eq!(c.handles[0].target.pivot, mid);
+        // resolved at rest, the same spec holds them at rest
+        let r = s.resolve(&mesh).unwrap();
+        assert_eq!(r.fixed_at[2], mesh.positions()[2]);
+        assert_ne!(r.fixed_at[2], c.fixed_at[2]);
+    }
+
+    #[test]
+    fn an_anchored_spec_resolves_to_the_same_constraints_on_the_rest_mesh() {
+        let (mesh, pose) = posed_grid();
+        let s = spec(
+            r#"{"fixed": [0, 1, 2, 3], "handles": [{"name": "h", "vertices": [40, 41, 47],
+                         "rotate": {"axis": [0, 0, 1], "degrees": 30}},
+                         {"name": "g", "vertices": [20], "pivot": [1, 2, 3]}]}"#,
+        );
+        let c = s.resolve_at(&mesh, Some(&pose)).unwrap();
+        let stored = s.anchored(&mesh, &c);
+        assert!(stored.fixed_positions.is_some());
+        assert_eq!(stored.handles[1].pivot, Some([1.0, 2.0, 3.0]));
+        // through JSON, as a store keeps it
+        let json = serde_json::to_string(&stored).unwrap();
+        let back: ConstraintsSpec = serde_json::from_str(&json).unwrap();
+        assert_eq!(back.resolve(&mesh).unwrap(), c);
+        // anchored at rest, nothing is written out
+        let r = s.resolve(&mesh).unwrap();
+        assert_eq!(s.anchored(&mesh, &r), s);
+    }
+
+    #[test]
+    fn bad_anchors_are_typed_errors() {
+        let (mesh, mut pose) = posed_grid();
+        let s = spec(r#"{"fixed": [0, 1], "fixed_positions": [[0, 0, 0]]}"#);
+        assert!(matches!(
+            s.resolve(&mesh),
+            Err(DeformError::PositionsMismatch { .. })
+        ));
+        let s = spec(r#"{"fixed": [0, 1]}"#);
+        assert!(matches!(
+            s.resolve_at(&mesh, Some(&pose[1..])),
+            Err(DeformError::PositionsMismatch { .. })
+        ));
+        pose[3][1] = f64::NAN;
+        assert!(matches!(
+            s.resolve_at(&mesh, Some(&pose)),
+            Err(DeformError::NonFinite { .. })
+        ));
+    }
+
+    #[test]
+    fn quaternions_are_xyzw_unless_named_wxyz() {
+        let axis_angle = RotationSpec::AxisAngle {
+            axis: [0.0, 0.0, 1.0],
+            degrees: 90.0,
+        }
+        .to_quaternion()
+        .unwrap();
+        let h = std::f64::consts::FRAC_1_SQRT_2;
+        let xyzw: RotationSpec =
+            serde_json::from_str(&format!("{{\"quaternion\": [0, 0, {h}, {h}]}}")).unwrap();
+        let wxyz: RotationSpec =
+            serde_json::from_str(&format!("{{\"quaternion_wxyz\": [{h}, 0, 0, {h}]}}")).unwrap();
+        for r in [xyzw, wxyz] {
+            assert!(
+                r.to_quaternion().unwrap().angle_to(&axis_angle) < 1e-12,
+                "{r:?}"
+            );
+        }
+        // [w, x, y, z] under the plain name is another rotation
+        let wrong: RotationSpec =
+            serde_json::from_str(&format!("{{\"quaternion\": [{h}, 0, 0, {h}]}}")).unwrap();
+        assert!(wrong.to_quaternion().unwrap().angle_to(&axis_angle) > 0.5);
     }
 }

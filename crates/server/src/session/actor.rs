@@ -11,14 +11,40 @@ use super::frame::{FrameBody, FrameHeader};
 use super::shared::{off_worker, Cmd, Inner, Internal, Reply, Restore, SessionOptions};
 use super::{Delta, Event, Frame, PoseSnapshot, SessionError, SessionState};
 use crate::store::{Checkpoint, JournalEntry, StoredTransform};
-use dend::deform::{Constraints, Deformer, RigidTransform};
+use dend::deform::{Constraints, ConstraintsSpec, Deformer, RigidTransform};
 
 /// Most history entries kept per session (older ones are dropped).
 const HISTORY_LIMIT: usize = 64;
 
+/// One history entry: a settled pose, its handle targets and the
+/// constraint set they belong to (undo and redo span constraint edits).
 struct Snapshot {
     pose: Arc<Vec<[f64; 3]>>,
     targets: Vec<RigidTransform>,
+    set: Arc<InstalledSet>,
+}
+
+/// A constraint set as the session installed it.
+struct InstalledSet {
+    /// Installation number (equal numbers: the same set).
+    id: u64,
+    /// The spec as the client sent it (anchors, if any, its own).
+    client: ConstraintsSpec,
+    /// The spec as stored: anchored at the pose it was installed on
+    /// (`ConstraintsSpec::anchored`), so a revival resolves the same set.
+    stored: serde_json::Value,
+    /// The resolved set with the targets it was installed with.
+    constraints: Constraints,
+}
+
+/// What the session does once a constraint set's factor is ready.
+#[derive(Clone, Copy, PartialEq, Eq)]
+enum AfterBuild {
+    /// Solve towards the set's targets; the settled pose becomes a history
+    /// entry (a new set, a revival).
+    Solve,
+    /// Keep the pose as it is (undo, redo and reset to another set).
+    Keep,
 }
 
 pub(super) struct Actor {
@@ -29,6 +55,10 @@ pub(super) struct Actor {
     internal_rx: Option<mpsc::UnboundedReceiver<Internal>>,
     deformer: Option<Deformer>,
     constraints: Option<Arc<Constraints>>,
+    /// The installed constraint set (None before the first).
+    set: Option<Arc<InstalledSet>>,
+    sets_installed: u64,
+    after_build: AfterBuild,
     state: SessionState,
     generation: u64,
     /// Targets changed since the last solve started.
@@ -69,6 +99,9 @@ impl Actor {
             internal_rx: Some(internal_rx),
             deformer: Some(deformer),
             constraints: None,
+            set: None,
+            sets_installed: 0,
+            after_build: AfterBuild::Solve,
             state: SessionState::Empty,
             generation: 0,
             dirty: false,
@@ -140,7 +173,11 @@ impl Actor {
 
     /// Handles one command; false when the session must stop.
     fn on_cmd(&mut self, cmd: Cmd) -> bool {
-        let needs_deformer = matches!(cmd, Cmd::Undo(_) | Cmd::Redo(_) | Cmd::Reset(_));
+        // these read or replace the pose: they wait for a running solve
+        let needs_deformer = matches!(
+            cmd,
+            Cmd::Undo(_) | Cmd::Redo(_) | Cmd::Reset(_) | Cmd::SetConstraints { restore: None, .. }
+        );
         if needs_deformer && self.deformer.is_none() {
             self.deferred.push_back(cmd);
             return true;
@@ -154,11 +191,19 @@ impl Actor {
             } => self.on_drag(handle, delta, seq, reply),
             Cmd::SetConstraints {
                 spec,
+                if_revision,
                 constraints,
                 restore,
                 reply,
             } => {
-                let _ = reply.send(self.on_set_constraints(spec, constraints, restore));
+                let current = self.set.as_ref().map_or(0, |s| s.id);
+                let r = match if_revision {
+                    Some(given) if given != current => {
+                        Err(SessionError::StaleConstraints { current, given })
+                    }
+                    _ => self.on_set_constraints(spec, constraints, restore),
+                };
+                let _ = reply.send(r);
             }
             Cmd::Undo(reply) => {
                 let r = self.undo_redo(true);
@@ -174,6 +219,11 @@ impl Actor {
             }
             Cmd::Pose(reply) => {
                 let _ = reply.send(Ok(self.snapshot()));
+            }
+            Cmd::GestureEnded => {
+                if self.settled && self.deformer.is_some() {
+                    self.commit_gesture();
+                }
             }
             Cmd::Close => return false,
         }
@@ -226,16 +276,37 @@ impl Actor {
         }
     }
 
+    /// A new constraint set. From a client (`restore` None): the set is
+    /// anchored at the current pose (`ConstraintsSpec::resolve_at`: fixed
+    /// vertices stay where the pose has them, handles move from there), the
+    /// pose before it stays in the history, and the pose does not jump.
+    /// From the store (`restore`): the recovered targets and pose.
     fn on_set_constraints(
         &mut self,
-        spec: serde_json::Value,
+        spec_json: serde_json::Value,
         constraints: Constraints,
         restore: Option<Restore>,
     ) -> Result<SessionState, SessionError> {
+        let client: ConstraintsSpec = serde_json::from_value(spec_json.clone())
+            .map_err(|e| SessionError::InvalidConstraints(e.to_string()))?;
         match restore {
             None => {
-                let (store, id) = (&self.opts.store, &self.inner.id);
-                off_worker(|| store.set_constraints(id, &spec))?
+                // the pose the edit starts from is an undo step of its own
+                self.commit();
+                let mesh = self.inner.rest.mesh();
+                let anchored = client.resolve_at(mesh, Some(&self.pose))?;
+                let stored = serde_json::to_value(client.anchored(mesh, &anchored))
+                    .map_err(|e| SessionError::InvalidConstraints(e.to_string()))?;
+                self.sets_installed += 1;
+                let set = Arc::new(InstalledSet {
+                    id: self.sets_installed,
+                    client,
+                    stored,
+                    constraints: anchored,
+                });
+                self.install(set, AfterBuild::Solve)?;
+                // the store's checkpoint went with its old constraints
+                self.checkpoint();
             }
             Some(r) => {
                 if let (Some(pose), Some(d)) = (r.pose, self.deformer.as_mut()) {
@@ -244,12 +315,44 @@ impl Actor {
                 }
                 self.last_seq = r.ack_seq;
                 self.applied_seq = r.ack_seq;
+                // a revived session's history starts here
+                self.history.clear();
+                self.cursor = 0;
+                self.uncommitted = false;
+                self.sets_installed += 1;
+                let set = Arc::new(InstalledSet {
+                    id: self.sets_installed,
+                    client,
+                    stored: spec_json,
+                    constraints,
+                });
+                self.activate(set, AfterBuild::Solve);
             }
         }
+        Ok(SessionState::Building)
+    }
+
+    /// Writes `set`'s stored spec to the store, then [`activate`](Self::activate)s it.
+    fn install(&mut self, set: Arc<InstalledSet>, after: AfterBuild) -> Result<(), SessionError> {
+        let (store, id) = (&self.opts.store, &self.inner.id);
+        off_worker(|| store.set_constraints(id, &set.stored))?;
+        self.activate(set, after);
+        Ok(())
+    }
+
+    /// Makes `set` the session's constraint set (with the targets it
+    /// carries) and starts its factor's lookup or build (state
+    /// `building`); every grab ends, visibly.
+    fn activate(&mut self, set: Arc<InstalledSet>, after: AfterBuild) {
         self.generation += 1;
         self.state = SessionState::Building;
-        self.inner.shared.lock().handles =
-            constraints.handles.iter().map(|h| h.name.clone()).collect();
+        self.after_build = after;
+        self.inner.shared.lock().handles = set
+            .constraints
+            .handles
+            .iter()
+            .map(|h| h.name.clone())
+            .collect();
         // the handle list changed: every grab ends, visibly
         let released = self.inner.shared.lock().grabs.clear();
         for (handle, client) in released {
@@ -259,9 +362,6 @@ impl Actor {
                 .send(Event::HandleReleased { handle, client });
         }
         self.journal.clear();
-        self.history.clear();
-        self.cursor = 0;
-        self.uncommitted = false;
         self.dirty = false;
         self.settled = true;
         for (_, w) in self.waiters.drain(..) {
@@ -269,8 +369,14 @@ impl Actor {
                 state: SessionState::Building,
             }));
         }
-        let constraints = Arc::new(constraints);
+        let constraints = Arc::new(set.constraints.clone());
         self.constraints = Some(constraints.clone());
+        {
+            let mut s = self.inner.shared.lock();
+            s.constraints = serde_json::to_value(&set.client).ok().map(Arc::new);
+            s.constraints_revision = set.id;
+        }
+        self.set = Some(set);
         self.revision += 1;
         self.sync_shared();
         let _ = self.inner.events.send(Event::State);
@@ -292,7 +398,6 @@ impl Actor {
                 seconds: t0.elapsed().as_secs_f64(),
             });
         }));
-        Ok(SessionState::Building)
     }
 
     fn maybe_start_solve(&mut self) {
@@ -317,7 +422,7 @@ impl Actor {
             let remaining = max_iters.saturating_sub(self.iters_since_change);
             if remaining == 0 {
                 self.settled = true;
-                self.commit();
+                self.commit_gesture();
                 return;
             }
             self.opts.iters_per_frame.clamp(1, remaining)
@@ -379,11 +484,13 @@ impl Actor {
                 match result {
                     Ok(()) => {
                         self.state = SessionState::Ready;
-                        // Solve towards the spec's initial targets; the settled
-                        // result becomes history entry 0.
-                        self.dirty = true;
-                        self.settled = false;
-                        self.uncommitted = true;
+                        if self.after_build == AfterBuild::Solve {
+                            // solve towards the set's targets; the settled
+                            // result becomes a history entry
+                            self.dirty = true;
+                            self.settled = false;
+                            self.uncommitted = true;
+                        }
                         self.sync_shared();
                         let _ = self.inner.events.send(Event::Ready {
                             revision: self.revision,
@@ -447,7 +554,7 @@ impl Actor {
                     let _ = self.inner.events.send(Event::Error(e));
                 }
                 if self.settled {
-                    self.commit();
+                    self.commit_gesture();
                 }
                 self.sync_shared();
             }
@@ -473,6 +580,15 @@ impl Actor {
             .unwrap_or_default()
     }
 
+    /// [`commit`](Self::commit) unless a client holds a handle: one user
+    /// gesture (grab … release) is one undo step, however often the pose
+    /// settles during it; the release commits ([`Cmd::GestureEnded`]).
+    fn commit_gesture(&mut self) {
+        if self.inner.shared.lock().grabs.is_empty() {
+            self.commit();
+        }
+    }
+
     /// Records the settled state as a history entry and checkpoints it.
     fn commit(&mut self) {
         if !self.uncommitted {
@@ -482,9 +598,13 @@ impl Actor {
         if !self.history.is_empty() {
             self.history.truncate(self.cursor + 1);
         }
+        let Some(set) = self.set.clone() else {
+            return;
+        };
         self.history.push(Snapshot {
             pose: self.pose.clone(),
             targets: self.targets(),
+            set,
         });
         if self.history.len() > HISTORY_LIMIT {
             let _ = self.history.remove(0);
@@ -492,6 +612,8 @@ impl Actor {
         self.cursor = self.history.len() - 1;
         self.checkpoint();
         self.sync_shared();
+        // clients enable their undo/redo buttons from `can_undo`/`can_redo`
+        let _ = self.inner.events.send(Event::State);
     }
 
     fn checkpoint(&mut self) {
@@ -564,15 +686,19 @@ impl Actor {
                 .filter(|i| !self.uncommitted && *i < self.history.len())
                 .ok_or(SessionError::NothingToRedo)?
         };
-        let (pose, targets) = (
-            self.history[target].pose.clone(),
-            self.history[target].targets.clone(),
-        );
+        let entry = &self.history[target];
+        let (pose, targets, set) = (entry.pose.clone(), entry.targets.clone(), entry.set.clone());
+        if self.set.as_ref().map(|s| s.id) != Some(set.id) {
+            // back to another constraint set: its factor is looked up (or
+            // rebuilt) while the pose is already the entry's
+            self.install(set, AfterBuild::Keep)?;
+        }
         self.cursor = target;
         self.uncommitted = false;
         let snap = self.restore(pose, &targets)?;
         self.checkpoint();
         self.sync_shared();
+        let _ = self.inner.events.send(Event::State);
         Ok(snap)
     }
 
@@ -580,12 +706,35 @@ impl Actor {
         if self.state != SessionState::Ready {
             return Err(SessionError::NotReady { state: self.state });
         }
-        let rest = Arc::new(self.inner.rest.mesh().positions().to_vec());
+        let mesh = self.inner.rest.mesh();
+        let rest = Arc::new(mesh.positions().to_vec());
+        // the set anchored at rest again (a set installed on a posed mesh
+        // holds its vertices where that pose had them)
+        if let Some(set) = self.set.clone() {
+            let at_rest = set.client.resolve(mesh)?;
+            let stored = serde_json::to_value(set.client.anchored(mesh, &at_rest))
+                .map_err(|e| SessionError::InvalidConstraints(e.to_string()))?;
+            if stored != set.stored {
+                self.sets_installed += 1;
+                let set = Arc::new(InstalledSet {
+                    id: self.sets_installed,
+                    client: set.client.clone(),
+                    stored,
+                    constraints: at_rest,
+                });
+                self.install(set, AfterBuild::Keep)?;
+            }
+        }
         let targets: Vec<RigidTransform> = self
-            .targets()
-            .iter()
-            .map(|t| RigidTransform::identity(t.pivot))
-            .collect();
+            .constraints
+            .as_ref()
+            .map(|c| {
+                c.handles
+                    .iter()
+                    .map(|h| RigidTransform::identity(h.rest_centroid))
+                    .collect()
+            })
+            .unwrap_or_default();
         let snap = self.restore(rest, &targets)?;
         self.uncommitted = true;
         self.commit();

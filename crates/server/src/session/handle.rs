@@ -36,6 +36,14 @@ pub struct SessionInfo {
     pub can_redo: bool,
     /// Vertex count of the mesh.
     pub vertices: usize,
+    /// The constraint set as its client sent it (null before the first).
+    pub constraints: Option<serde_json::Value>,
+    /// Revision of the constraint set: it changes with every constraint
+    /// edit, and with undo, redo or reset to another set. An edit may name
+    /// the revision it is based on (`If-Match`, or `if_revision` over
+    /// WebSocket) and is then refused with `stale_constraints` (409) if the
+    /// set was replaced meanwhile.
+    pub constraints_revision: u64,
 }
 
 /// A cloneable handle to a running session actor.
@@ -73,6 +81,8 @@ impl SessionHandle {
                 grabs: Grabs::default(),
                 can_undo: false,
                 can_redo: false,
+                constraints: None,
+                constraints_revision: 0,
             }),
             started: Instant::now(),
             last_active_ms: AtomicU64::new(0),
@@ -117,6 +127,8 @@ impl SessionHandle {
             can_undo: s.can_undo,
             can_redo: s.can_redo,
             vertices: self.inner.rest.mesh().num_vertices(),
+            constraints: s.constraints.as_deref().cloned(),
+            constraints_revision: s.constraints_revision,
         }
     }
 
@@ -230,9 +242,14 @@ impl SessionHandle {
 
     /// Validates and resolves a constraints spec against the mesh, then
     /// starts building its factor in the background (state `building`).
+    ///
+    /// With `if_revision`, the edit applies only if the session's
+    /// constraints revision still is that one ([`SessionError::StaleConstraints`]
+    /// otherwise): the rule for concurrent edits.
     pub async fn set_constraints(
         &self,
         spec_json: serde_json::Value,
+        if_revision: Option<u64>,
     ) -> Result<SessionState, SessionError> {
         let spec: ConstraintsSpec = serde_json::from_value(spec_json.clone())
             .map_err(|e| SessionError::InvalidConstraints(e.to_string()))?;
@@ -242,6 +259,7 @@ impl SessionHandle {
             .map_err(|_| SessionError::Closed)??;
         self.call(|tx| Cmd::SetConstraints {
             spec: spec_json,
+            if_revision,
             constraints,
             restore: None,
             reply: tx,
@@ -278,6 +296,7 @@ impl SessionHandle {
         let restore = Some(Restore { pose, ack_seq });
         self.call(|tx| Cmd::SetConstraints {
             spec: spec_json,
+            if_revision: None,
             constraints,
             restore,
             reply: tx,
@@ -332,6 +351,9 @@ impl SessionHandle {
     /// Unregisters a client, releasing its handles; everyone gets `PeerLeft`.
     pub fn leave(&self, client: ClientId) {
         let released = self.inner.shared.lock().grabs.release_client(client);
+        if !released.is_empty() {
+            let _ = self.inner.cmd_tx.try_send(Cmd::GestureEnded);
+        }
         for handle in released {
             let _ = self
                 .inner
@@ -363,6 +385,8 @@ impl SessionHandle {
         let handle = self.handle_index(h)?;
         let released = self.inner.shared.lock().grabs.release(handle, client);
         if released {
+            // a full queue already holds work that ends in a settle check
+            let _ = self.inner.cmd_tx.try_send(Cmd::GestureEnded);
             let _ = self
                 .inner
                 .events

@@ -110,6 +110,15 @@ pub enum SessionError {
     /// Redo with no later history entry.
     #[error("nothing to redo")]
     NothingToRedo,
+    /// A constraint edit based on a constraint set that another client has
+    /// replaced since. Fix: read the session's `constraints` again.
+    #[error("the constraints changed (revision {current}, the edit was based on {given}); reload them and edit again")]
+    StaleConstraints {
+        /// The session's constraints revision.
+        current: u64,
+        /// The revision the edit was based on.
+        given: u64,
+    },
     /// The constraints JSON does not parse as a constraints spec.
     #[error("invalid constraints: {0}")]
     InvalidConstraints(String),

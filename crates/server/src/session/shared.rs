@@ -40,6 +40,10 @@ pub(super) struct Shared {
     pub grabs: Grabs,
     pub can_undo: bool,
     pub can_redo: bool,
+    /// The installed constraint set as its client sent it, and its
+    /// revision (0: none yet).
+    pub constraints: Option<Arc<serde_json::Value>>,
+    pub constraints_revision: u64,
 }
 
 pub(super) struct Inner {
@@ -63,6 +67,11 @@ pub(super) struct Inner {
 pub(super) struct Grabs(HashMap<usize, ClientId>);
 
 impl Grabs {
+    /// Whether no handle is held (no gesture is open).
+    pub fn is_empty(&self) -> bool {
+        self.0.is_empty()
+    }
+
     /// The client holding `handle`, if any.
     pub fn holder(&self, handle: usize) -> Option<ClientId> {
         self.0.get(&handle).copied()
@@ -124,6 +133,8 @@ pub(super) enum Cmd {
     },
     SetConstraints {
         spec: serde_json::Value,
+        /// The constraints revision the edit is based on (None: any).
+        if_revision: Option<u64>,
         constraints: Constraints,
         restore: Option<Restore>,
         reply: Reply<SessionState>,
@@ -132,6 +143,8 @@ pub(super) enum Cmd {
     Redo(Reply<PoseSnapshot>),
     Reset(Reply<PoseSnapshot>),
     Pose(Reply<PoseSnapshot>),
+    /// A grab ended: the gesture's settled pose may become a history entry.
+    GestureEnded,
     Close,
 }
 

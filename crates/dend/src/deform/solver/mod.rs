@@ -155,8 +155,13 @@ impl Deformer {
         let ops = &self.rest.ops;
         let s = &mut self.scratch;
         s.targets.clear();
-        for &v in &constraints.fixed {
-            s.targets.push((v, ops.positions[v as usize]));
+        for (&v, &p) in constraints.fixed.iter().zip(&constraints.fixed_at) {
+            if p.iter().any(|c| !c.is_finite()) {
+                return Err(DeformError::NonFinite {
+                    what: "fixed position",
+                });
+            }
+            s.targets.push((v, ops.normalise(p)));
         }
         for h in &constraints.handles {
             for (v, p) in h.target_positions() {

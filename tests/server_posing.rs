@@ -1,0 +1,222 @@
+//! Posing workflow over the HTTP API: a constraint edit on a posed session
+//! keeps the pose (the new set is anchored where the pose has it), undo and
+//! redo span constraint edits, and a revived session gets the anchored set
+//! back from the store.
+
+mod server_common;
+
+use std::sync::Arc;
+use std::time::Duration;
+
+use dend_client::{Client, ClientError, SessionClient};
+use dend_server::store::MemoryStore;
+use dend_server::Config;
+use serde_json::json;
+use server_common::{grid, grid_constraints, start_with_store};
+
+const N: usize = 8;
+
+fn max_diff(a: &[[f64; 3]], b: &[[f64; 3]]) -> f64 {
+    a.iter()
+        .zip(b)
+        .flat_map(|(p, q)| (0..3).map(move |k| (p[k] - q[k]).abs()))
+        .fold(0.0, f64::max)
+}
+
+/// Row `r` of the grid.
+fn row(r: usize) -> Vec<usize> {
+    (r * N..(r + 1) * N).collect()
+}
+
+/// A drag of `top` by `t`, solved to convergence; the pose.
+async fn drag(s: &SessionClient, t: [f64; 3]) -> Result<Vec<[f64; 3]>, ClientError> {
+    let p = s
+        .drag(json!("top"), json!({ "translate": t }), Some(2000))
+        .await?;
+    assert!(p.converged, "drag by {t:?} did not converge");
+    Ok(p.positions)
+}
+
+async fn posed_session(
+    store: Arc<MemoryStore>,
+) -> Result<(Client, SessionClient, Vec<[f64; 3]>), ClientError> {
+    let (base, _state) = start_with_store(Config::default(), store).await;
+    let c = Client::new(&base);
+    let (p, t) = grid(N);
+    let mesh = c.upload_json(&p, &t).await?;
+    let s = c
+        .create_session(&mesh.id, json!({"tol": 1e-9, "max_iters": 2000}))
+        .await?;
+    s.set_constraints(&grid_constraints(N)).await?;
+    s.wait_ready(Duration::from_secs(60)).await?;
+    let posed = drag(&s, [0.0, 0.0, 3.0]).await?;
+    Ok((c, s, posed))
+}
+
+/// Bottom and row 3 fixed, the top row the handle `top`.
+fn pinned_middle() -> serde_json::Value {
+    let mut fixed = row(0);
+    fixed.extend(row(3));
+    json!({"fixed": fixed, "handles": [{"name": "top", "vertices": row(N - 1)}]})
+}
+
+#[tokio::test]
+async fn a_constraint_edit_keeps_the_pose_and_undo_spans_it() -> Result<(), ClientError> {
+    let (_c, s, posed) = posed_session(Arc::new(MemoryStore::new())).await?;
+    let lifted = posed[3 * N + 2][2];
+    assert!(lifted > 0.5, "the drag should lift row 3: z = {lifted}");
+    // pin row 3 where the pose has it
+    s.set_constraints(&pinned_middle()).await?;
+    s.wait_ready(Duration::from_secs(60)).await?;
+    let kept = drag(&s, [0.0; 3]).await?;
+    for v in row(3).into_iter().chain(row(N - 1)).chain(row(0)) {
+        assert!(
+            max_diff(&kept[v..v + 1], &posed[v..v + 1]) < 1e-12,
+            "constrained vertex {v} moved: {:?} -> {:?}",
+            posed[v],
+            kept[v]
+        );
+    }
+    let jump = max_diff(&kept, &posed);
+    assert!(jump < 0.05, "pose jump {jump} on an 8-unit grid");
+    // a drag with the new set moves the top, not row 3
+    let moved = drag(&s, [1.0, 0.0, 0.0]).await?;
+    assert!(
+        max_diff(
+            &moved[row(3)[0]..row(3)[N - 1] + 1],
+            &kept[row(3)[0]..row(3)[N - 1] + 1]
+        ) < 1e-12
+    );
+    assert!((moved[N * N - 1][0] - kept[N * N - 1][0] - 1.0).abs() < 1e-9);
+    // undo: the pose after the edit, then the pose before it (old set)
+    assert!(max_diff(&s.undo().await?.positions, &kept) < 1e-12);
+    let before = s.undo().await?;
+    assert!(max_diff(&before.positions, &posed) < 1e-12);
+    s.wait_ready(Duration::from_secs(60)).await?;
+    // the old set again: row 3 is free, so dragging the top moves it
+    let old = drag(&s, [0.0, 0.0, 1.0]).await?;
+    let r3 = row(3)[2];
+    assert!(
+        (old[r3][2] - posed[r3][2]).abs() > 0.05,
+        "row 3 should be free after undoing the edit: {:?} vs {:?}",
+        old[r3],
+        posed[r3]
+    );
+    Ok(())
+}
+
+#[tokio::test]
+async fn redo_and_reset_cross_constraint_sets() -> Result<(), ClientError> {
+    let (_c, s, _posed) = posed_session(Arc::new(MemoryStore::new())).await?;
+    s.set_constraints(&pinned_middle()).await?;
+    s.wait_ready(Duration::from_secs(60)).await?;
+    let kept = drag(&s, [0.0; 3]).await?;
+    let _ = s.undo().await?;
+    s.wait_ready(Duration::from_secs(60)).await?;
+    let again = s.redo().await?;
+    assert!(max_diff(&again.positions, &kept) < 1e-12);
+    s.wait_ready(Duration::from_secs(60)).await?;
+    // reset: the rest pose, and the set anchored at rest (row 3 held at
+    // rest, so a zero drag keeps the rest pose)
+    let z = s.reset().await?;
+    let (rest, _) = grid(N);
+    assert!(max_diff(&z.positions, &rest) < 1e-12);
+    s.wait_ready(Duration::from_secs(60)).await?;
+    let still = drag(&s, [0.0; 3]).await?;
+    assert!(
+        max_diff(&still, &rest) < 1e-9,
+        "{}",
+        max_diff(&still, &rest)
+    );
+    Ok(())
+}
+
+#[tokio::test]
+async fn a_revived_session_has_the_anchored_set_and_the_kept_pose() -> Result<(), ClientError> {
+    let store = Arc::new(MemoryStore::new());
+    let (_c, s, _posed) = posed_session(store.clone()).await?;
+    s.set_constraints(&pinned_middle()).await?;
+    s.wait_ready(Duration::from_secs(60)).await?;
+    let kept = drag(&s, [0.0; 3]).await?;
+    let moved = drag(&s, [0.5, 0.0, 0.0]).await?;
+    assert!(max_diff(&moved, &kept) > 0.1);
+    // a second instance on the same store revives the session
+    let (base2, _state2) = start_with_store(Config::default(), store).await;
+    let s2 = Client::new(&base2).session(&s.id, &s.token);
+    s2.wait_ready(Duration::from_secs(60)).await?;
+    let revived = drag(&s2, [0.0; 3]).await?;
+    let d = max_diff(&revived, &moved);
+    assert!(d < 1e-6, "the revived pose differs by {d}");
+    Ok(())
+}
+
+#[tokio::test]
+async fn the_session_shows_its_constraints_and_refuses_stale_edits() -> Result<(), ClientError> {
+    let (_c, s, _posed) = posed_session(Arc::new(MemoryStore::new())).await?;
+    let info = s.info().await?;
+    assert_eq!(info["constraints"], grid_constraints(N));
+    let r1 = info["constraints_revision"].as_u64().expect("revision");
+    // a joined client sees the set and its revision in its first state
+    let mut ws = s.connect().await?;
+    let st = ws.event("state").await?;
+    assert_eq!(st["constraints"], grid_constraints(N));
+    // an edit based on the current revision applies...
+    let r2 = s.set_constraints_if(&pinned_middle(), r1).await?;
+    assert_ne!(r2, r1);
+    // ...and reaches the joined client
+    loop {
+        let st = ws.event("state").await?;
+        if st["constraints_revision"] == r2 {
+            assert_eq!(st["constraints"], pinned_middle());
+            break;
+        }
+    }
+    // a second edit based on the old revision is refused, the set unchanged
+    match s.set_constraints_if(&grid_constraints(N), r1).await {
+        Err(ClientError::Api { status, code, .. }) => {
+            assert_eq!((status, code.as_str()), (409, "stale_constraints"));
+        }
+        other => panic!("expected stale_constraints, got {other:?}"),
+    }
+    let info = s.info().await?;
+    assert_eq!(info["constraints"], pinned_middle());
+    assert_eq!(info["constraints_revision"], r2);
+    // undo to the first set (the edit's own solve and this drag are one
+    // entry) changes the revision back to the first set's
+    s.wait_ready(Duration::from_secs(60)).await?;
+    let _ = drag(&s, [0.0; 3]).await?;
+    let _ = s.undo().await?;
+    let info = s.info().await?;
+    assert_eq!(info["constraints"], grid_constraints(N));
+    assert_eq!(info["constraints_revision"], r1);
+    Ok(())
+}
+
+#[tokio::test]
+async fn one_gesture_is_one_undo_step_however_often_it_settles() -> Result<(), ClientError> {
+    let (_c, s, posed) = posed_session(Arc::new(MemoryStore::new())).await?;
+    let mut ws = s.connect().await?;
+    ws.send(&json!({"type": "grab", "handle": "top"})).await?;
+    // three moves, each settling before the next
+    for seq in 1..=3 {
+        ws.drag(0, [0.3, 0.0, 0.0], None, seq).await?;
+        let (h, _) = ws.frame_acking(seq, true).await?;
+        assert!(h.settled);
+    }
+    let mid = s.pose().await?.positions;
+    assert!(max_diff(&mid, &posed) > 0.5);
+    ws.send(&json!({"type": "release", "handle": "top"}))
+        .await?;
+    // one undo goes back to before the grab...
+    let back = s.undo().await?;
+    let d = max_diff(&back.positions, &posed);
+    assert!(
+        d < 1e-12,
+        "one undo should undo the whole gesture (off by {d})"
+    );
+    // ...and the release made the gesture's end one entry: redo reaches it
+    let again = s.redo().await?;
+    let d = max_diff(&again.positions, &mid);
+    assert!(d < 1e-12, "redo should give the gesture's end (off by {d})");
+    Ok(())
+}
