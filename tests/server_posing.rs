@@ -220,3 +220,28 @@ async fn one_gesture_is_one_undo_step_however_often_it_settles() -> Result<(), C
     assert!(d < 1e-12, "redo should give the gesture's end (off by {d})");
     Ok(())
 }
+
+#[tokio::test]
+async fn the_session_reports_the_warnings_of_its_constraint_set() -> Result<(), ClientError> {
+    let (_c, s, _posed) = posed_session(Arc::new(MemoryStore::new())).await?;
+    assert_eq!(s.info().await?["warnings"], json!([]));
+    // one handle, nothing fixed, and a stray handle vertex in row 3
+    let mut top = row(N - 1);
+    top.push(3 * N + 3);
+    s.set_constraints(&json!({"handles": [{"name": "top", "vertices": top}]}))
+        .await?;
+    let w = s.info().await?["warnings"].clone();
+    let codes: Vec<&str> = w
+        .as_array()
+        .expect("warnings")
+        .iter()
+        .map(|x| x["code"].as_str().expect("code"))
+        .collect();
+    assert_eq!(codes, ["nothing_fixed", "stray_vertices"], "{w}");
+    assert_eq!(w[1]["vertices"], json!([3 * N + 3]));
+    assert!(w[0]["message"]
+        .as_str()
+        .expect("message")
+        .contains("rigidly"));
+    Ok(())
+}

@@ -90,10 +90,15 @@ export class Api {
   reset(id, token) { return this.json('POST', `/v1/sessions/${id}/reset`, undefined, token); }
 
   async exportObj(id, token) {
-    const res = await checked(await fetch(`${this.base}/v1/sessions/${id}/export?format=obj`, {
+    return (await this.exportAs(id, token, 'obj')).text();
+  }
+
+  /** The pose in one of the export formats (obj, off, ply, stl) as a Blob. */
+  async exportAs(id, token, format) {
+    const res = await checked(await fetch(`${this.base}/v1/sessions/${id}/export?format=${encodeURIComponent(format)}`, {
       headers: { Authorization: `Bearer ${token}` },
     }));
-    return res.text();
+    return res.blob();
   }
 
   /** Opens the session socket; `on.frame(frame)`, `on.event(json)`,

@@ -38,6 +38,7 @@ export const app = {
   last: null, // last frame header
   needsDraw: true,
   eventLog: [],
+  warnings: [],
 };
 
 // ---------- errors and status ----------
@@ -82,6 +83,20 @@ function updateStats() {
     const s = [...l].sort((a, b) => a - b);
     $('stLatency').textContent = `${l[l.length - 1].toFixed(0)} ms (median ${s[s.length >> 1].toFixed(0)})`;
   }
+}
+
+/** The server's warnings about the constraint set (nothing fixed, a loose
+ * part, stray picks), shown until the set changes. */
+function showWarnings(list) {
+  app.warnings = list;
+  const box = $('warnings');
+  box.replaceChildren(...list.map((w) => {
+    const p = document.createElement('p');
+    p.textContent = `⚠ ${w.message}`;
+    p.dataset.code = w.code;
+    return p;
+  }));
+  box.hidden = list.length === 0;
 }
 
 // ---------- colours and labels ----------
@@ -192,9 +207,17 @@ function showConstraints(info) {
   recolor();
 }
 
-/** Called by the painting tools when a stroke ends. */
+let autoApplyTimer = null;
+
+/** Called by the painting tools when a stroke ends: with "auto" on, the
+ * set is applied once painting pauses (400 ms), and only when it can be
+ * solved (some handle has vertices): a fixed-only stroke builds nothing. */
 export function strokeEnded() {
-  if ($('autoApply').checked && app.session) applyConstraints();
+  if (!$('autoApply').checked || !app.session) return;
+  clearTimeout(autoApplyTimer);
+  autoApplyTimer = setTimeout(() => {
+    if (app.labels && app.labels.some((l) => l > 0)) applyConstraints();
+  }, 400);
 }
 
 // ---------- session ----------
@@ -265,6 +288,7 @@ async function startSession(meshId) {
 }
 
 const generate = guarded(async () => {
+  $('error').hidden = true;
   setState('creating');
   const m = await app.api.generate($('shape').value);
   await startSession(m.id);
@@ -274,8 +298,18 @@ const generate = guarded(async () => {
 const upload = guarded(async (ev) => {
   const file = ev.target.files[0];
   if (!file) return;
+  $('error').hidden = true;
+  const before = app.state;
   setState('uploading');
-  const m = await app.api.upload(file);
+  let m;
+  try {
+    m = await app.api.upload(file);
+  } catch (e) {
+    setState(before);
+    throw e;
+  } finally {
+    ev.target.value = ''; // the same file can be picked again
+  }
   await startSession(m.id);
   resetPaint();
 });
@@ -345,11 +379,14 @@ function onEvent(e) {
       if (e.constraints_revision !== undefined && e.constraints_revision !== app.constraintsRevision && !app.dirtyLabels) {
         showConstraints(e);
       }
+      showWarnings(e.warnings || []);
       break;
     case 'ready':
       setState('ready');
       break;
     case 'error':
+      // a refused drag never gets a frame: not a latency sample
+      if (e.seq !== undefined && e.seq !== null) app.sent.delete(e.seq);
       if ((e.code === 'unknown_handle' || e.code === 'not_ready') && (app.dirtyLabels || !app.applied)) {
         showError({ code: e.code, message: `${e.message} — the painted regions are not applied yet: paint a fixed region and press “Apply constraints”` });
       } else {
@@ -408,9 +445,9 @@ export function sendDrag(uiHandle, translate, rotate) {
 
 // ---------- pose buttons ----------
 
-async function download(name, text) {
+async function download(name, blob) {
   const a = document.createElement('a');
-  a.href = URL.createObjectURL(new Blob([text], { type: 'model/obj' }));
+  a.href = URL.createObjectURL(blob);
   a.download = name;
   a.click();
   setTimeout(() => URL.revokeObjectURL(a.href), 1000);
@@ -432,7 +469,8 @@ $('redo').onclick = () => send({ type: 'redo' });
 $('reset').onclick = guarded(async () => { const s = needSession(); await app.api.reset(s.id, s.token); });
 $('export').onclick = guarded(async () => {
   const s = needSession();
-  await download(`dend-${s.id.slice(0, 8)}.obj`, await app.api.exportObj(s.id, s.token));
+  const f = $('exportFormat').value;
+  await download(`dend-${s.id.slice(0, 8)}.${f}`, await app.api.exportAs(s.id, s.token, f));
 });
 $('share').onclick = guarded(async () => {
   needSession();
@@ -442,6 +480,34 @@ $('share').onclick = guarded(async () => {
 $('wireframe').onchange = (e) => { app.renderer.wireframe = e.target.checked; app.needsDraw = true; };
 $('energy').onchange = (e) => { $('combinedRow').hidden = e.target.value !== 'combined'; };
 $('hard').onchange = (e) => { $('lambda1').disabled = e.target.checked; };
+
+// ---------- keyboard ----------
+
+/** Frames the current pose: the camera fits its bounding box. */
+function frameView() {
+  if (!app.positions) return;
+  app.camera.fit(bbox(app.positions));
+  app.needsDraw = true;
+}
+
+window.addEventListener('keydown', (e) => {
+  const t = e.target;
+  if (t && (t.tagName === 'INPUT' || t.tagName === 'SELECT' || t.tagName === 'TEXTAREA')) return;
+  const key = e.key.toLowerCase();
+  const ctrl = e.ctrlKey || e.metaKey;
+  const tool = (v) => { const r = document.querySelector(`input[name=tool][value=${v}]`); if (r) r.checked = true; };
+  if (ctrl && key === 'z' && !e.shiftKey) send({ type: 'undo' });
+  else if (ctrl && (key === 'y' || (key === 'z' && e.shiftKey))) send({ type: 'redo' });
+  else if (ctrl) return;
+  else if (key === 'f') frameView();
+  else if (key === 'n') tool('navigate');
+  else if (key === 'b') tool('brush');
+  else if (key === 'x') tool('box');
+  else if (key === 'a') applyConstraints();
+  else if (key === '?') document.querySelector('.help').classList.toggle('flash');
+  else return;
+  e.preventDefault();
+});
 
 // ---------- start ----------
 
@@ -475,5 +541,5 @@ window.dend = {
     const s = project(app.positions, Renderer.mvp(app.camera, c.clientWidth / c.clientHeight), c.clientWidth, c.clientHeight);
     return indices.map((i) => [s[3 * i], s[3 * i + 1]]);
   },
-  stats: () => ({ events: [...app.eventLog], state: app.state, frames: app.frames, last: app.last && { ...app.last, positions: undefined }, latencies: [...app.latencies] }),
+  stats: () => ({ events: [...app.eventLog], warnings: app.warnings.map((w) => w.code), state: app.state, frames: app.frames, last: app.last && { ...app.last, positions: undefined }, latencies: [...app.latencies] }),
 };

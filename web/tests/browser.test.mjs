@@ -378,6 +378,28 @@ async function main() {
     assert.ok(maxDiff(reloaded, undone, all) < 1e-5, 'the reloaded tab shows the pose');
     await page2.screenshot({ path: join(artifacts, '6-reloaded-tab.png') });
 
+    // A collaborator's edit over the API with a stray pick: both tabs show
+    // the new regions and the server's warning; Ctrl+Z in the first tab
+    // goes back to the set before it and the warning goes away.
+    const spec = await page.evaluate(() => window.dend.app.applied.json);
+    const stray = [...Array(n).keys()].find((i) => Math.abs(z(i) - 0.75 * zmax) < 0.05 * zmax);
+    const r = await fetch(`${base}/v1/sessions/${session.id}/constraints`, {
+      method: 'PUT',
+      headers: { Authorization: `Bearer ${session.token}`, 'Content-Type': 'application/json' },
+      body: JSON.stringify({ ...spec, fixed: [...spec.fixed, stray] }),
+    });
+    assert.equal(r.status, 202);
+    for (const p of [page, page2]) {
+      await waitFor(p, (v) => window.dend.labels()[v] === -1 && !document.getElementById('warnings').hidden, stray, 'the collaborator\'s edit and its warning');
+    }
+    const warning = await page.locator('#warnings p').first();
+    assert.equal(await warning.getAttribute('data-code'), 'stray_vertices');
+    log('warning shown:', (await warning.textContent()).trim());
+    await waitFor(page, () => window.dend.app.state === 'ready' && !document.getElementById('undo').disabled, null, 'ready after the collaborator\'s edit', 60000);
+    await page.locator('#view').focus();
+    await page.keyboard.press('Control+z');
+    await waitFor(page, (v) => window.dend.labels()[v] !== -1 && document.getElementById('warnings').hidden, stray, 'Ctrl+Z back to the set without the stray pick', 30000);
+
     // Upload: a 4×4 grid as OBJ through the file input.
     const g = [];
     for (let j = 0; j < 4; j++) for (let i = 0; i < 4; i++) g.push(`v ${i} ${j} 0`);

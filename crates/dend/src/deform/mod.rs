@@ -28,6 +28,7 @@ mod solver;
 mod square;
 mod stacked;
 mod system;
+mod warnings;
 
 pub use constraints::{
     select, BoxSel, Constraints, ConstraintsSpec, HandleGroup, HandleSpec, RigidTransform,
@@ -43,6 +44,7 @@ pub use rest::Rest;
 pub use rotation::{best_rotation, fit_rotation, fit_rotation_quat, rotation_from_covariance};
 pub use solver::{Deformer, StepReport};
 pub use system::energy_matrix;
+pub use warnings::{ConstraintWarning, STRAY_LISTED};
 
 use thiserror::Error;
 

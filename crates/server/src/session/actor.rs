@@ -371,10 +371,21 @@ impl Actor {
         }
         let constraints = Arc::new(set.constraints.clone());
         self.constraints = Some(constraints.clone());
+        let warnings: Vec<serde_json::Value> = set
+            .constraints
+            .warnings(self.inner.rest.mesh())
+            .iter()
+            .filter_map(|w| {
+                let mut j = serde_json::to_value(w).ok()?;
+                j["message"] = w.to_string().into();
+                Some(j)
+            })
+            .collect();
         {
             let mut s = self.inner.shared.lock();
             s.constraints = serde_json::to_value(&set.client).ok().map(Arc::new);
             s.constraints_revision = set.id;
+            s.warnings = Arc::new(warnings);
         }
         self.set = Some(set);
         self.revision += 1;

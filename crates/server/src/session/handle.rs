@@ -44,6 +44,11 @@ pub struct SessionInfo {
     /// WebSocket) and is then refused with `stale_constraints` (409) if the
     /// set was replaced meanwhile.
     pub constraints_revision: u64,
+    /// What the installed constraint set does that its user should know
+    /// (the set is valid): `nothing_fixed`, `unconstrained_component`
+    /// (`component`, `vertices`), `stray_vertices` (`count`, `vertices`),
+    /// each with a readable `message`.
+    pub warnings: Vec<serde_json::Value>,
 }
 
 /// A cloneable handle to a running session actor.
@@ -83,6 +88,7 @@ impl SessionHandle {
                 can_redo: false,
                 constraints: None,
                 constraints_revision: 0,
+                warnings: Arc::default(),
             }),
             started: Instant::now(),
             last_active_ms: AtomicU64::new(0),
@@ -129,6 +135,7 @@ impl SessionHandle {
             vertices: self.inner.rest.mesh().num_vertices(),
             constraints: s.constraints.as_deref().cloned(),
             constraints_revision: s.constraints_revision,
+            warnings: s.warnings.to_vec(),
         }
     }
 

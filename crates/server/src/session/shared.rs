@@ -44,6 +44,9 @@ pub(super) struct Shared {
     /// revision (0: none yet).
     pub constraints: Option<Arc<serde_json::Value>>,
     pub constraints_revision: u64,
+    /// The installed set's warnings (`Constraints::warnings`), each with
+    /// its `code`, details and a `message`.
+    pub warnings: Arc<Vec<serde_json::Value>>,
 }
 
 pub(super) struct Inner {
