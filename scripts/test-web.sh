@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
 # Browser test of the web client (web/tests/browser.test.mjs): installs what
-# it needs if missing (Debian's chromium, node/npm, playwright-core from npm),
+# it needs if missing (Debian's chromium, node/npm, playwright-core and the
+# glTF validator from npm),
 # builds `dend`, and runs the test against the real `dend serve`.
 # Idempotent. Under CI=true a failed install is a failure; otherwise the test
 # is skipped with a message. Screenshots: web/test-artifacts/.
@@ -35,8 +36,10 @@ if [ ! -x "$CHROMIUM" ] || ! command -v node >/dev/null || ! command -v npm >/de
 fi
 [ -x "$CHROMIUM" ] || skip_or_fail "no chromium at $CHROMIUM"
 
-if [ ! -f web/node_modules/playwright-core/package.json ]; then
-  (cd web && npm ci --no-audit --no-fund --loglevel=error) || skip_or_fail "npm ci (playwright-core) failed"
+# web/package.json's dev dependencies: playwright-core (this test) and
+# gltf-validator (the Khronos glTF validator, run by tests/cli_gltf.rs)
+if [ ! -f web/node_modules/playwright-core/package.json ] || [ ! -f web/node_modules/gltf-validator/package.json ]; then
+  (cd web && npm ci --no-audit --no-fund --loglevel=error) || skip_or_fail "npm ci (playwright-core, gltf-validator) failed"
 fi
 
 [ "${1:-}" = "--install-only" ] && exit 0

@@ -89,6 +89,11 @@ fn parse_stl_corpus() {
 }
 
 #[test]
+fn parse_gltf_corpus() {
+    replay("parse_gltf", dend_server::fuzzing::gltf_asset);
+}
+
+#[test]
 fn parse_sel_corpus() {
     replay("parse_sel", dend_server::fuzzing::sel_file);
 }

@@ -1,7 +1,10 @@
 //! Fuzz-style property tests run in CI: random bytes and mutated valid files
 //! never make a reader panic (they parse or return an error).
 
+use dend::mesh::asset::sample::{self, TubeOptions};
+use dend::mesh::asset::Asset;
 use dend::mesh::gen::{generate, Shape, ShapeSpec};
+use dend::mesh::io::gltf::{Container, Sidecars};
 use dend::mesh::io::survey::{parse_def, parse_sel};
 use dend::mesh::io::{parse_bytes, to_bytes_with, Encoding, Format};
 use proptest::prelude::*;
@@ -21,6 +24,19 @@ fn seeds() -> Vec<(Format, Vec<u8>)> {
             out.push((f, to_bytes_with(m.positions(), m.triangles(), f, enc)));
         }
     }
+    // a seamed, skinned, two-primitive glTF asset, both containers
+    for (f, container) in [
+        (Format::Glb, Container::Glb),
+        (Format::Gltf, Container::Json),
+    ] {
+        let o = TubeOptions {
+            around: 4,
+            rings: 3,
+            skinned: true,
+            container,
+        };
+        out.push((f, sample::tube(o).unwrap()));
+    }
     out
 }
 
@@ -38,7 +54,7 @@ proptest! {
 
     #[test]
     fn mutated_valid_files_never_panic(
-        which in 0usize..12,
+        which in 0usize..20,
         edits in prop::collection::vec((any::<prop::sample::Index>(), any::<u8>(), 0u8..3), 1..8),
         cut in any::<prop::sample::Index>(),
     ) {
@@ -52,6 +68,10 @@ proptest! {
             }
         }
         let _ = parse_bytes(&bytes, f);
+        // the asset reader (layout, weld, normals, export) neither
+        if let Ok(a) = Asset::read_bytes(&bytes, f, Sidecars::Refuse) {
+            let _ = a.export(a.mesh().positions(), f);
+        }
         let n = cut.index(bytes.len() + 1);
         if let Ok(raw) = parse_bytes(&bytes[..n], f) {
             // whatever parses either validates or is rejected, without panicking

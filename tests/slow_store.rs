@@ -9,7 +9,9 @@ use std::time::{Duration, Instant};
 
 use dend::mesh::Mesh;
 use dend_client::{Client, ClientError, WsEvent};
-use dend_server::store::{Checkpoint, JournalEntry, MemoryStore, SessionRecord, Store, StoreError};
+use dend_server::store::{
+    Checkpoint, JournalEntry, MemoryStore, SessionRecord, Store, StoreError, StoredAsset,
+};
 use dend_server::Config;
 use parking_lot::Mutex;
 use serde_json::json;
@@ -39,6 +41,15 @@ impl Store for SlowStore {
     }
     fn mesh_count(&self) -> Result<usize, StoreError> {
         self.inner.mesh_count()
+    }
+    fn put_asset(&self, id: &str, asset: &StoredAsset) -> Result<(), StoreError> {
+        self.inner.put_asset(id, asset)
+    }
+    fn get_asset(&self, id: &str) -> Result<Option<StoredAsset>, StoreError> {
+        self.inner.get_asset(id)
+    }
+    fn delete_mesh(&self, id: &str) -> Result<bool, StoreError> {
+        self.inner.delete_mesh(id)
     }
     fn put_session(&self, record: &SessionRecord) -> Result<(), StoreError> {
         self.inner.put_session(record)

@@ -15,7 +15,10 @@ use dend::mesh::io::{self, survey};
 /// Arguments of `dend deform`.
 #[derive(Debug, clap::Args)]
 pub struct Args {
-    /// The rest mesh (OBJ, OFF, PLY or STL).
+    /// The rest mesh (OBJ, OFF, PLY, STL, glTF or GLB). glTF/GLB, OBJ and PLY are
+    /// read as assets: the solver deforms the welded surface (vertex indices
+    /// of constraints name welded vertices) and an output of the same family
+    /// keeps the file's vertex layout, UVs, skin and materials.
     mesh: PathBuf,
     /// Constraints file (JSON).
     #[arg(long, conflicts_with_all = ["sel", "def"], required_unless_present = "sel")]
@@ -91,7 +94,8 @@ pub struct Args {
 
 /// Runs `dend deform`.
 pub fn run(args: Args) -> anyhow::Result<()> {
-    let mesh = io::read_path(&args.mesh)?;
+    let asset = dend::mesh::asset::Asset::read_path(&args.mesh)?;
+    let mesh = asset.mesh().clone();
     for v in mesh.unreferenced_vertices().iter().take(1) {
         eprintln!(
             "warning: {} unreferenced vertices (first: {v}) are kept in place",
@@ -278,13 +282,10 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         std::fs::write(path, serde_json::to_string_pretty(&report)?)
             .with_context(|| format!("writing {}", path.display()))?;
     }
-    io::write_path_with(
-        &args.output,
-        deformer.pose(),
-        mesh.triangles(),
-        Default::default(),
-    )
-    .with_context(|| format!("writing {}", args.output.display()))?;
+    let format = io::Format::from_path(&args.output)?;
+    let bytes = asset.export(deformer.pose(), format)?;
+    std::fs::write(&args.output, bytes)
+        .with_context(|| format!("writing {}", args.output.display()))?;
     Ok(())
 }
 

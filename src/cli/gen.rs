@@ -13,7 +13,7 @@ pub struct GenArgs {
     /// The shape to generate.
     #[arg(value_enum)]
     shape: Shape,
-    /// Output file; the format comes from the extension (.obj, .off, .ply, .stl).
+    /// Output file; the format comes from the extension (.obj, .off, .ply, .stl, .gltf, .glb).
     #[arg(short, long)]
     output: PathBuf,
     /// Write PLY/STL as ASCII instead of binary little-endian.

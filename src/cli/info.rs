@@ -4,13 +4,14 @@ use std::path::PathBuf;
 
 use anyhow::anyhow;
 use clap::Args;
-use dend::mesh::io::parse_path;
+use dend::mesh::asset::Asset;
+use dend::mesh::io::{parse_path, Format, RawMesh};
 use serde::Serialize;
 
 /// Arguments of `dend info`.
 #[derive(Debug, Args)]
 pub struct InfoArgs {
-    /// The mesh file (.obj, .off, .ply, .stl).
+    /// The mesh file (.obj, .off, .ply, .stl, .gltf, .glb).
     mesh: PathBuf,
     /// Print one JSON object instead of text.
     #[arg(long)]
@@ -33,13 +34,29 @@ struct Info {
     euler_characteristic: Option<i64>,
     genus: Option<i64>,
     unreferenced_vertices: Option<usize>,
+    /// The file's own layout (glTF/GLB, OBJ): vertex counts before and
+    /// after welding, and what export keeps.
+    asset: Option<dend::mesh::asset::AssetInfo>,
     warnings: Vec<String>,
 }
 
 /// Reads the mesh and prints the report; an invalid mesh is an error (exit 2)
 /// after the report.
 pub fn run(args: InfoArgs) -> anyhow::Result<()> {
-    let raw = parse_path(&args.mesh)?;
+    // asset formats report the welded surface the solver deforms (what
+    // `dend deform` reads); a file that fails as an asset is reported by the
+    // plain reader, which names what is wrong
+    let asset = match Format::from_path(&args.mesh)? {
+        Format::Obj | Format::Ply | Format::Gltf | Format::Glb => Asset::read_path(&args.mesh).ok(),
+        _ => None,
+    };
+    let raw = match &asset {
+        Some(a) => RawMesh {
+            positions: a.mesh().positions().to_vec(),
+            triangles: a.mesh().triangles().to_vec(),
+        },
+        None => parse_path(&args.mesh)?,
+    };
     let mut info = Info {
         file: args.mesh.display().to_string(),
         vertices: raw.positions.len(),
@@ -54,6 +71,7 @@ pub fn run(args: InfoArgs) -> anyhow::Result<()> {
         euler_characteristic: None,
         genus: None,
         unreferenced_vertices: None,
+        asset: None,
         warnings: Vec::new(),
     };
     match raw.into_mesh() {
@@ -78,6 +96,7 @@ pub fn run(args: InfoArgs) -> anyhow::Result<()> {
             info.euler_characteristic = Some(m.euler_characteristic());
             info.genus = Some(m.genus());
             info.unreferenced_vertices = Some(unref.len());
+            info.asset = asset.as_ref().map(Asset::info);
         }
         Err(e) => info.error = Some(e.to_string()),
     }
@@ -122,6 +141,21 @@ fn print_text(i: &Info) {
             println!("genus:       {g} (of the surface with its boundary loops capped)");
         }
         println!("validation:  ok");
+    }
+    if let Some(a) = &i.asset {
+        println!(
+            "asset:       {} vertices in the file's layout, {} welded ({})",
+            a.asset_vertices, a.welded_vertices, a.format
+        );
+        if !a.attributes.is_empty() {
+            println!("attributes:  {}", a.attributes.join(", "));
+        }
+        if a.dropped_triangles > 0 {
+            println!(
+                "warning:     {} degenerate triangles of the file are left out of the welded surface",
+                a.dropped_triangles
+            );
+        }
     }
     for w in &i.warnings {
         println!("warning:     {w}");

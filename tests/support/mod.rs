@@ -1,6 +1,8 @@
 //! Meshes and measurements shared by the solver tests.
 #![allow(dead_code)]
 
+pub mod gltf_validator;
+
 use std::sync::Arc;
 
 use dend::deform::{

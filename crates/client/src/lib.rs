@@ -135,7 +135,7 @@ impl Client {
         Ok(check(r).await?.json().await?)
     }
 
-    /// Uploads a mesh file (`format`: obj, off, ply, stl).
+    /// Uploads a mesh file (`format`: obj, off, ply, stl, gltf, glb).
     pub async fn upload_file(&self, bytes: Vec<u8>, format: &str) -> Result<MeshInfo, ClientError> {
         let r = self
             .http

@@ -152,6 +152,26 @@ pub struct MeshInfo {
     pub triangles: usize,
     /// Bounding box `[min, max]`.
     pub bbox: [[f64; 3]; 2],
+    /// For uploads kept as assets (glTF/GLB, OBJ, PLY): the file's format, its
+    /// own vertex count (seam copies included; `vertices` counts the welded
+    /// surface the sessions deform) and what export keeps besides positions.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub asset: Option<AssetSummary>,
+}
+
+/// What an uploaded asset holds (see [`MeshInfo::asset`]).
+#[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
+pub struct AssetSummary {
+    /// `glb`, `gltf`, `obj` or `ply`.
+    pub format: String,
+    /// The glTF scene's (else first mesh's) name, the name on the OBJ's first `o`/`g` line.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub name: Option<String>,
+    /// Vertices in the file's own layout.
+    pub asset_vertices: usize,
+    /// Attributes and counts kept by export (`TEXCOORD_0`, `JOINTS_0`,
+    /// `skins: 1`, `vt: 120`, …).
+    pub attributes: Vec<String>,
 }
 
 /// A pose as JSON: the answer of drags, undo/redo/reset and

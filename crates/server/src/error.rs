@@ -42,6 +42,15 @@ pub enum ApiError {
     /// No mesh with this id.
     #[error("no mesh `{0}`")]
     MeshNotFound(String),
+    /// `DELETE /v1/meshes/{id}` while sessions still edit the mesh. Fix:
+    /// delete those sessions first.
+    #[error("mesh `{mesh}` is used by {sessions} session(s)")]
+    MeshInUse {
+        /// The mesh id.
+        mesh: String,
+        /// How many sessions use it.
+        sessions: usize,
+    },
     /// No session with this id.
     #[error("no session `{0}`")]
     SessionNotFound(String),
@@ -134,6 +143,7 @@ impl ApiError {
             MissingToken => ("missing_token", StatusCode::UNAUTHORIZED),
             WrongToken => ("forbidden", StatusCode::FORBIDDEN),
             NotReady(_) => ("not_ready", StatusCode::CONFLICT),
+            MeshInUse { .. } => ("mesh_in_use", StatusCode::CONFLICT),
             HandleGrabbed(_) => ("handle_grabbed", StatusCode::CONFLICT),
             NothingToUndo(_) => ("nothing_to_undo", StatusCode::CONFLICT),
             NothingToRedo(_) => ("nothing_to_redo", StatusCode::CONFLICT),

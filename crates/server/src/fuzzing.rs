@@ -66,6 +66,29 @@ pub fn mesh_file(data: &[u8], format: Format) -> bool {
     parse_bytes(data, format).is_ok_and(|raw| raw.into_mesh().is_ok())
 }
 
+/// Reads `data` as a glTF asset (GLB, or glTF JSON with data-URI buffers;
+/// side-car files refused) as uploads are read, welds and validates it, and
+/// exports it at rest and under a shear in both containers; true when it
+/// gave an asset.
+pub fn gltf_asset(data: &[u8]) -> bool {
+    use dend::mesh::asset::Asset;
+    use dend::mesh::io::gltf::Sidecars;
+    let Ok(a) = Asset::read_bytes(data, Format::Glb, Sidecars::Refuse) else {
+        return false;
+    };
+    let rest = a.mesh().positions();
+    let sheared: Vec<_> = rest
+        .iter()
+        .map(|p| [p[0] + 0.5 * p[2], p[1], p[2]])
+        .collect();
+    for pose in [rest, &sheared[..]] {
+        for f in [Format::Glb, Format::Gltf] {
+            let _ = a.export(pose, f);
+        }
+    }
+    true
+}
+
 /// Reads `data` as a survey `.sel` vertex-status file; true when it parsed.
 pub fn sel_file(data: &[u8]) -> bool {
     survey::parse_sel(data).is_ok()

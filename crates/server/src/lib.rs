@@ -56,6 +56,9 @@ pub struct AppState {
     pub sessions: Arc<RwLock<HashMap<String, SessionHandle>>>,
     /// Rest precomputations by mesh id, shared by that mesh's sessions.
     rests: Arc<Mutex<HashMap<String, Weak<Rest>>>>,
+    /// Ids of every rest built per mesh id (factors are cached by rest id):
+    /// deleting a mesh evicts their factors.
+    rest_ids: Arc<Mutex<HashMap<String, Vec<u64>>>>,
 }
 
 impl AppState {
@@ -94,6 +97,7 @@ impl AppState {
             metrics: Arc::new(Metrics::new()?),
             sessions: Arc::new(RwLock::new(HashMap::new())),
             rests: Arc::new(Mutex::new(HashMap::new())),
+            rest_ids: Arc::new(Mutex::new(HashMap::new())),
         })
     }
 }
@@ -104,7 +108,7 @@ pub const ROUTES: &[(&str, &[&str])] = &[
     ("/metrics", &["get"]),
     ("/v1/meshes", &["post"]),
     ("/v1/meshes/generate", &["post"]),
-    ("/v1/meshes/{id}", &["get"]),
+    ("/v1/meshes/{id}", &["get", "delete"]),
     ("/v1/sessions", &["post"]),
     ("/v1/sessions/{id}", &["get", "delete"]),
     ("/v1/sessions/{id}/constraints", &["put"]),
@@ -124,7 +128,10 @@ fn route_list() -> Vec<(&'static str, MethodRouter<AppState>)> {
         ("/metrics", get(metrics::render)),
         ("/v1/meshes", post(meshes::upload)),
         ("/v1/meshes/generate", post(meshes::generate)),
-        ("/v1/meshes/{id}", get(meshes::info)),
+        (
+            "/v1/meshes/{id}",
+            get(meshes::info).merge(delete(meshes::remove)),
+        ),
         ("/v1/sessions", post(sessions::create)),
         (
             "/v1/sessions/{id}",
@@ -288,5 +295,21 @@ pub(crate) async fn rest_for(st: &AppState, mesh_id: &str) -> Result<Arc<Rest>, 
     }
     rests.retain(|_, w| w.strong_count() > 0);
     let _ = rests.insert(mesh_id.to_owned(), Arc::downgrade(&rest));
+    st.rest_ids
+        .lock()
+        .entry(mesh_id.to_owned())
+        .or_default()
+        .push(rest.id());
     Ok(rest)
+}
+
+/// Forgets mesh `mesh_id`'s rest precomputations and evicts their cached
+/// factors ([`FactorCache::evict_rest`]); returns how many rests it had.
+pub(crate) fn evict_mesh(st: &AppState, mesh_id: &str) -> usize {
+    let _ = st.rests.lock().remove(mesh_id);
+    let ids = st.rest_ids.lock().remove(mesh_id).unwrap_or_default();
+    for &id in &ids {
+        st.cache.evict_rest(id);
+    }
+    ids.len()
 }

@@ -1,4 +1,8 @@
 //! Mesh routes: upload (JSON or a mesh file), generate, info.
+//!
+//! glTF/GLB, OBJ and PLY uploads are read as assets (`dend::mesh::asset`): the
+//! stored mesh is the welded surface, and the uploaded bytes are kept
+//! ([`StoredAsset`]) so that export writes the pose in the file's layout.
 
 use std::sync::Arc;
 
@@ -12,28 +16,56 @@ use serde::Deserialize;
 
 use super::error::ApiError;
 use super::AppState;
+use crate::store::StoredAsset;
+use dend::mesh::asset::Asset;
 use dend::mesh::gen::{self, ShapeSpec};
-use dend::mesh::io::{self, Format};
+use dend::mesh::io::gltf::Sidecars;
+use dend::mesh::io::{self, Format, IoError};
 use dend::mesh::Mesh;
 
 /// `?format=` of an upload.
 #[derive(Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct FormatQuery {
-    /// `json`, `obj`, `off`, `ply` or `stl`.
+    /// `json`, `obj`, `off`, `ply`, `stl`, `gltf` or `glb`.
     pub format: Option<String>,
 }
 
-pub use dend_protocol::MeshInfo;
+pub use dend_protocol::{AssetSummary, MeshInfo};
 
-fn info_of(id: String, m: &Mesh) -> MeshInfo {
+fn info_of(id: String, m: &Mesh, asset: Option<&Asset>) -> MeshInfo {
     let (lo, hi) = m.bounding_box();
     MeshInfo {
         id,
         vertices: m.num_vertices(),
         triangles: m.num_triangles(),
         bbox: [lo, hi],
+        asset: asset.map(|a| {
+            let i = a.info();
+            AssetSummary {
+                format: i.format.extension().to_owned(),
+                name: i.name,
+                asset_vertices: i.asset_vertices,
+                attributes: i.attributes,
+            }
+        }),
     }
+}
+
+/// The asset kept for mesh `id`, read again from its stored bytes.
+pub(crate) async fn stored_asset(st: &AppState, id: &str) -> Result<Option<Asset>, ApiError> {
+    let key = id.to_owned();
+    let Some(stored) = st.store_call(move |s| s.get_asset(&key)).await? else {
+        return Ok(None);
+    };
+    tokio::task::spawn_blocking(move || {
+        let f = parse_format(&stored.format)?;
+        Asset::read_bytes(&stored.bytes, f, Sidecars::Refuse)
+            .map(Some)
+            .map_err(|e| ApiError::Internal(format!("stored asset: {e}")))
+    })
+    .await
+    .map_err(|e| ApiError::Internal(e.to_string()))?
 }
 
 /// A new random 128-bit id, hex.
@@ -62,6 +94,8 @@ fn format_of(q: &FormatQuery, headers: &HeaderMap) -> Result<String, ApiError> {
         "model/off" | "text/x-off" => "off",
         "model/ply" | "application/ply" | "text/x-ply" => "ply",
         "model/stl" | "application/sla" | "model/x.stl-binary" => "stl",
+        "model/gltf-binary" => "glb",
+        "model/gltf+json" => "gltf",
         "" => {
             return Err(ApiError::UnsupportedFormat(
                 "no Content-Type and no ?format=".into(),
@@ -86,7 +120,27 @@ fn check_vertices(st: &AppState, n: usize) -> Result<(), ApiError> {
     Ok(())
 }
 
-fn parse_mesh(format: &str, body: &[u8], max_vertices: usize) -> Result<Mesh, ApiError> {
+/// A parsed upload: the welded mesh, and the asset when its layout is kept.
+type Parsed = (Mesh, Option<(Asset, StoredAsset)>);
+
+fn parse_mesh(format: &str, body: &[u8], max_vertices: usize) -> Result<Parsed, ApiError> {
+    if let Ok(f @ (Format::Gltf | Format::Glb | Format::Obj | Format::Ply)) = parse_format(format) {
+        let asset = Asset::read_bytes(body, f, Sidecars::Refuse).map_err(|e| match e {
+            IoError::Mesh(e) => ApiError::InvalidMesh(e.to_string()),
+            e => ApiError::InvalidMesh(format!("{f}: {e}")),
+        })?;
+        if asset.positions().len() > max_vertices {
+            return Err(ApiError::TooManyVertices {
+                got: asset.positions().len(),
+                limit: max_vertices,
+            });
+        }
+        let stored = StoredAsset {
+            format: f.extension().to_owned(),
+            bytes: body.to_vec(),
+        };
+        return Ok((asset.mesh().clone(), Some((asset, stored))));
+    }
     let raw = match format {
         "json" => io::parse_json(body).map_err(|e| ApiError::InvalidJson(e.to_string()))?,
         other => {
@@ -101,29 +155,39 @@ fn parse_mesh(format: &str, body: &[u8], max_vertices: usize) -> Result<Mesh, Ap
         });
     }
     raw.into_mesh()
+        .map(|m| (m, None))
         .map_err(|e| ApiError::InvalidMesh(e.to_string()))
 }
 
-/// A mesh file format by name (`obj`, `off`, `ply`, `stl`).
+/// A mesh file format by name (`obj`, `off`, `ply`, `stl`, `gltf`, `glb`).
 pub(crate) fn parse_format(name: &str) -> Result<Format, ApiError> {
     Format::ALL
         .into_iter()
         .find(|f| f.extension() == name)
         .ok_or_else(|| {
-            ApiError::UnsupportedFormat(format!("`{name}` (use json, obj, off, ply or stl)"))
+            ApiError::UnsupportedFormat(format!(
+                "`{name}` (use json, obj, off, ply, stl, gltf or glb)"
+            ))
         })
 }
 
-async fn store_mesh(st: &AppState, mesh: Mesh) -> Result<(StatusCode, Json<MeshInfo>), ApiError> {
+async fn store_mesh(
+    st: &AppState,
+    (mesh, asset): Parsed,
+) -> Result<(StatusCode, Json<MeshInfo>), ApiError> {
     check_vertices(st, mesh.num_vertices())?;
     if st.store_call(|s| s.mesh_count()).await? >= st.config.max_meshes {
         return Err(ApiError::TooManyMeshes(st.config.max_meshes));
     }
     let id = new_id();
-    let info = info_of(id.clone(), &mesh);
+    let info = info_of(id.clone(), &mesh, asset.as_ref().map(|(a, _)| a));
     let key = id.clone();
     let count = st
         .store_call(move |s| {
+            // the file before the mesh: a stored mesh always finds its asset
+            if let Some((_, stored)) = &asset {
+                s.put_asset(&key, stored)?;
+            }
             s.put_mesh(&key, Arc::new(mesh))?;
             s.mesh_count()
         })
@@ -145,10 +209,10 @@ pub async fn upload(
         e => e,
     })?;
     let max_v = st.config.max_vertices;
-    let mesh = tokio::task::spawn_blocking(move || parse_mesh(&format, &body, max_v))
+    let parsed = tokio::task::spawn_blocking(move || parse_mesh(&format, &body, max_v))
         .await
         .map_err(|e| ApiError::Internal(e.to_string()))??;
-    store_mesh(&st, mesh).await
+    store_mesh(&st, parsed).await
 }
 
 /// `POST /v1/meshes/generate`: a procedural test shape,
@@ -162,7 +226,46 @@ pub async fn generate(
         .await
         .map_err(|e| ApiError::Internal(e.to_string()))?
         .map_err(|e| ApiError::InvalidParams(e.to_string()))?;
-    store_mesh(&st, mesh).await
+    store_mesh(&st, (mesh, None)).await
+}
+
+/// `DELETE /v1/meshes/{id}`: 204; 409 `mesh_in_use` while live or stored
+/// sessions use the mesh, 404 when there is none. Frees a `max_meshes`
+/// slot, and evicts the mesh's rest operators and cached factors.
+pub async fn remove(
+    State(st): State<AppState>,
+    Path(id): Path<String>,
+) -> Result<StatusCode, ApiError> {
+    let live = st
+        .sessions
+        .read()
+        .values()
+        .filter(|s| s.info().mesh_id == id)
+        .count();
+    let key = id.clone();
+    let stored = st
+        .store_call(move |s| s.list_sessions())
+        .await?
+        .into_iter()
+        .filter(|r| r.mesh_id == key)
+        .count();
+    if live + stored > 0 {
+        return Err(ApiError::MeshInUse {
+            mesh: id,
+            sessions: live.max(stored),
+        });
+    }
+    let key = id.clone();
+    let (found, count) = st
+        .store_call(move |s| Ok((s.delete_mesh(&key)?, s.mesh_count()?)))
+        .await?;
+    if !found {
+        return Err(ApiError::MeshNotFound(id));
+    }
+    st.metrics.meshes.set(count as i64);
+    let evicted = crate::evict_mesh(&st, &id);
+    tracing::info!(mesh = %id, evicted, "mesh deleted");
+    Ok(StatusCode::NO_CONTENT)
 }
 
 /// `GET /v1/meshes/{id}`.
@@ -175,5 +278,6 @@ pub async fn info(
         .store_call(move |s| s.get_mesh(&key))
         .await?
         .ok_or_else(|| ApiError::MeshNotFound(id.clone()))?;
-    Ok(Json(info_of(id, &m)))
+    let asset = stored_asset(&st, &id).await?;
+    Ok(Json(info_of(id, &m, asset.as_ref())))
 }

@@ -23,6 +23,7 @@ use super::{rest_for, AppState};
 use crate::session::{Delta, HandleRef, PoseSnapshot, SessionHandle, SessionOptions};
 use crate::store::SessionRecord;
 use dend::deform::Params;
+use dend::mesh::io::Format;
 
 /// SHA-256 of a token.
 pub(crate) fn token_hash(token: &str) -> [u8; 32] {
@@ -401,26 +402,45 @@ pub async fn pose(Authed(s): Authed, headers: HeaderMap) -> Result<Response, Api
 #[derive(Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct ExportQuery {
-    /// `obj` (default), `off`, `ply` or `stl`.
+    /// `obj` (default), `off`, `ply`, `stl`, `gltf` or `glb`.
     pub format: Option<String>,
 }
 
-/// `GET /v1/sessions/{id}/export?format=obj|off|ply|stl`: the current
-/// pose as a mesh file (PLY and STL binary little-endian).
-pub async fn export(Authed(s): Authed, Query(q): Query<ExportQuery>) -> Result<Response, ApiError> {
+/// `GET /v1/sessions/{id}/export?format=obj|off|ply|stl|gltf|glb`: the
+/// current pose as a mesh file (PLY and STL binary little-endian). A mesh
+/// uploaded as glTF/GLB (OBJ, PLY) exported as glTF/GLB (OBJ, PLY) keeps the file's
+/// layout and attributes (`dend::mesh::asset::Asset::export`); otherwise the
+/// welded surface is written as a plain mesh.
+pub async fn export(
+    State(st): State<AppState>,
+    Authed(s): Authed,
+    Query(q): Query<ExportQuery>,
+) -> Result<Response, ApiError> {
     let p = s.pose().await?;
     let format = parse_format(
         &q.format
             .unwrap_or_else(|| "obj".into())
             .to_ascii_lowercase(),
     )?;
+    let asset = crate::meshes::stored_asset(&st, &s.info().mesh_id).await?;
     let rest = s.rest().clone();
-    let bytes = tokio::task::spawn_blocking(move || {
-        dend::mesh::io::to_bytes(&p.positions, rest.mesh().triangles(), format)
+    let bytes = tokio::task::spawn_blocking(move || match asset {
+        Some(a) => a
+            .export(&p.positions, format)
+            .map_err(|e| ApiError::Internal(e.to_string())),
+        None => Ok(dend::mesh::io::to_bytes(
+            &p.positions,
+            rest.mesh().triangles(),
+            format,
+        )),
     })
     .await
-    .map_err(|e| ApiError::Internal(e.to_string()))?;
-    let ct = format!("model/{}", format.extension());
+    .map_err(|e| ApiError::Internal(e.to_string()))??;
+    let ct = match format {
+        Format::Glb => "model/gltf-binary".to_owned(),
+        Format::Gltf => "model/gltf+json".to_owned(),
+        f => format!("model/{}", f.extension()),
+    };
     Ok(([(header::CONTENT_TYPE, ct)], bytes).into_response())
 }
 

@@ -12,6 +12,7 @@
 //! [`Mesh::unreferenced_vertices`]; the CLI prints a warning for them. They have
 //! an empty 1-ring, zero area, and the solver leaves them where they are.
 
+pub mod asset;
 pub mod gen;
 pub mod io;
 mod topology;
@@ -282,7 +283,7 @@ impl Mesh {
 }
 
 /// Whether a triangle is numerically degenerate: `|e1 × e2| ≤ 4ε · ℓ_max²`.
-fn is_zero_area(positions: &[Point], t: &[u32; 3]) -> bool {
+pub(crate) fn is_zero_area(positions: &[Point], t: &[u32; 3]) -> bool {
     let [a, b, c] = t.map(|i| positions[i as usize]);
     let (e0, e1, e2) = (sub(b, a), sub(c, a), sub(c, b));
     let lmax = dot(e0, e0).max(dot(e1, e1)).max(dot(e2, e2));

@@ -6,7 +6,7 @@ use std::sync::Arc;
 
 use parking_lot::Mutex;
 
-use super::{Checkpoint, JournalEntry, SessionRecord, Store, StoreError};
+use super::{Checkpoint, JournalEntry, SessionRecord, Store, StoreError, StoredAsset};
 use dend::mesh::Mesh;
 
 #[derive(Default)]
@@ -20,6 +20,7 @@ struct SessionData {
 #[derive(Default)]
 pub struct MemoryStore {
     meshes: Mutex<HashMap<String, Arc<Mesh>>>,
+    assets: Mutex<HashMap<String, StoredAsset>>,
     sessions: Mutex<HashMap<String, SessionData>>,
 }
 
@@ -46,6 +47,20 @@ impl Store for MemoryStore {
 
     fn mesh_count(&self) -> Result<usize, StoreError> {
         Ok(self.meshes.lock().len())
+    }
+
+    fn put_asset(&self, id: &str, asset: &StoredAsset) -> Result<(), StoreError> {
+        let _ = self.assets.lock().insert(id.to_owned(), asset.clone());
+        Ok(())
+    }
+
+    fn get_asset(&self, id: &str) -> Result<Option<StoredAsset>, StoreError> {
+        Ok(self.assets.lock().get(id).cloned())
+    }
+
+    fn delete_mesh(&self, id: &str) -> Result<bool, StoreError> {
+        let _ = self.assets.lock().remove(id);
+        Ok(self.meshes.lock().remove(id).is_some())
     }
 
     fn put_session(&self, record: &SessionRecord) -> Result<(), StoreError> {

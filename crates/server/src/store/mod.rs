@@ -23,6 +23,7 @@
 
 mod memory;
 mod sqlite;
+mod sqlite_assets;
 
 pub use memory::MemoryStore;
 pub use sqlite::{SqliteStore, DB_FILE, SCHEMA_VERSION};
@@ -48,6 +49,17 @@ pub enum StoreError {
         /// Why it could not be decoded.
         reason: String,
     },
+}
+
+/// The file a mesh was uploaded from, kept for the formats whose export
+/// writes the pose back into the file's own layout (glTF/GLB, OBJ and PLY
+/// assets, `dend::mesh::asset`): its bytes as received and its format name.
+#[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
+pub struct StoredAsset {
+    /// The format's name (`glb`, `gltf`, `obj`, `ply`).
+    pub format: String,
+    /// The uploaded bytes.
+    pub bytes: Vec<u8>,
 }
 
 /// A session as stored: everything needed to re-open it.
@@ -121,6 +133,14 @@ pub trait Store: Send + Sync + 'static {
     fn get_mesh(&self, id: &str) -> Result<Option<Arc<Mesh>>, StoreError>;
     /// Number of stored meshes.
     fn mesh_count(&self) -> Result<usize, StoreError>;
+    /// Stores the source file of mesh `id` (the server puts it before the
+    /// mesh, so a stored mesh whose upload kept its file always has it).
+    fn put_asset(&self, id: &str, asset: &StoredAsset) -> Result<(), StoreError>;
+    /// The source file of mesh `id`, if one was kept.
+    fn get_asset(&self, id: &str) -> Result<Option<StoredAsset>, StoreError>;
+    /// Deletes mesh `id` and its source file (atomically); false when there
+    /// was no such mesh. The server refuses while sessions use it.
+    fn delete_mesh(&self, id: &str) -> Result<bool, StoreError>;
     /// Stores or replaces a session record.
     fn put_session(&self, record: &SessionRecord) -> Result<(), StoreError>;
     /// The session record stored under `id`.

@@ -22,7 +22,10 @@ use std::sync::Arc;
 use parking_lot::Mutex;
 use rusqlite::{params, Connection, OptionalExtension, TransactionBehavior};
 
-use super::{Checkpoint, JournalEntry, SessionRecord, Store, StoreError, StoredTransform};
+use super::{
+    sqlite_assets, Checkpoint, JournalEntry, SessionRecord, Store, StoreError, StoredAsset,
+    StoredTransform,
+};
 use dend::mesh::Mesh;
 
 /// Version of the schema below (`PRAGMA user_version`).
@@ -37,6 +40,7 @@ CREATE TABLE IF NOT EXISTS meshes (
     positions BLOB NOT NULL,
     triangles BLOB NOT NULL
 );
+CREATE TABLE IF NOT EXISTS mesh_assets (id TEXT PRIMARY KEY, format TEXT NOT NULL, bytes BLOB NOT NULL);
 CREATE TABLE IF NOT EXISTS sessions (
     id TEXT PRIMARY KEY,
     mesh_id TEXT NOT NULL,
@@ -388,6 +392,18 @@ impl Store for SqliteStore {
             .query_row("SELECT COUNT(*) FROM meshes", [], |r| r.get(0))
             .map_err(backend)?;
         Ok(n as usize)
+    }
+
+    fn put_asset(&self, id: &str, asset: &StoredAsset) -> Result<(), StoreError> {
+        sqlite_assets::put(&self.conn.lock(), id, asset)
+    }
+
+    fn get_asset(&self, id: &str) -> Result<Option<StoredAsset>, StoreError> {
+        sqlite_assets::get(&self.conn.lock(), id)
+    }
+
+    fn delete_mesh(&self, id: &str) -> Result<bool, StoreError> {
+        sqlite_assets::delete_mesh(&mut self.conn.lock(), id)
     }
 
     fn put_session(&self, r: &SessionRecord) -> Result<(), StoreError> {

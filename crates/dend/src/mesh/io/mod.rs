@@ -1,5 +1,5 @@
 //! Mesh readers and writers: OBJ, OFF, PLY (ASCII, binary little- and
-//! big-endian), STL (ASCII and binary), plus a JSON form for the server and the
+//! big-endian), STL (ASCII and binary), glTF 2.0 (`.gltf`, `.glb`), plus a JSON form for the server and the
 //! Botsch–Sorkine survey `.sel`/`.def` files ([`survey`]).
 //!
 //! Reading has two stages: [`parse_bytes`] turns bytes into a [`RawMesh`]
@@ -15,7 +15,9 @@
 //!   become one vertex, numbered in order of first appearance. Nearly-equal
 //!   corners are not merged.
 //! - Normals, texture coordinates, colours and other per-vertex properties are
-//!   ignored; unreferenced vertices are kept (see [`crate::mesh`]).
+//!   ignored by these plain readers (a [`crate::mesh::asset::Asset`] keeps them
+//!   for glTF/GLB and OBJ); unreferenced vertices are kept (see [`crate::mesh`]).
+//! - glTF/GLB ([`gltf`]) read as the scene's welded surface, positions `f32`.
 //! - Header counts (OFF, PLY, STL) never drive allocation beyond what the
 //!   input's length can hold.
 //!
@@ -24,9 +26,10 @@
 //! header counts, which the error-position and bounded-allocation
 //! requirements rule out.
 
+pub mod gltf;
 mod obj;
 mod off;
-mod ply;
+pub(crate) mod ply;
 mod stl;
 pub mod survey;
 
@@ -50,11 +53,23 @@ pub enum Format {
     Ply,
     /// Stereolithography (`.stl`): ASCII or binary, triangle soup (welded).
     Stl,
+    /// glTF 2.0 JSON (`.gltf`), buffers embedded as data URIs or side-car
+    /// files ([`gltf`]).
+    Gltf,
+    /// glTF 2.0 binary (`.glb`) ([`gltf`]).
+    Glb,
 }
 
 impl Format {
     /// All formats, in a fixed order.
-    pub const ALL: [Format; 4] = [Format::Obj, Format::Off, Format::Ply, Format::Stl];
+    pub const ALL: [Format; 6] = [
+        Format::Obj,
+        Format::Off,
+        Format::Ply,
+        Format::Stl,
+        Format::Gltf,
+        Format::Glb,
+    ];
 
     /// The format named by `path`'s extension (case-insensitive).
     pub fn from_path(path: &Path) -> Result<Format, IoError> {
@@ -67,6 +82,8 @@ impl Format {
             Some("off") => Ok(Format::Off),
             Some("ply") => Ok(Format::Ply),
             Some("stl") => Ok(Format::Stl),
+            Some("gltf") => Ok(Format::Gltf),
+            Some("glb") => Ok(Format::Glb),
             _ => Err(IoError::UnknownFormat {
                 path: path.to_path_buf(),
             }),
@@ -80,6 +97,8 @@ impl Format {
             Format::Off => "off",
             Format::Ply => "ply",
             Format::Stl => "stl",
+            Format::Gltf => "gltf",
+            Format::Glb => "glb",
         }
     }
 }
@@ -91,6 +110,8 @@ impl fmt::Display for Format {
             Format::Off => "OFF",
             Format::Ply => "PLY",
             Format::Stl => "STL",
+            Format::Gltf => "glTF",
+            Format::Glb => "GLB",
         })
     }
 }
@@ -118,6 +139,9 @@ pub enum Position {
     Line(usize),
     /// 0-based byte offset (binary formats).
     Byte(usize),
+    /// A structural problem of a glTF document; the message names the element
+    /// (`accessor 3`, `mesh 0 primitive 1`, …).
+    Document,
 }
 
 impl fmt::Display for Position {
@@ -125,6 +149,7 @@ impl fmt::Display for Position {
         match self {
             Position::Line(l) => write!(f, "line {l}"),
             Position::Byte(b) => write!(f, "byte {b}"),
+            Position::Document => f.write_str("document"),
         }
     }
 }
@@ -166,8 +191,8 @@ pub enum IoError {
         /// chained reports would print it twice).
         error: std::io::Error,
     },
-    /// The extension names no supported format. Fix: use `.obj`, `.off`, `.ply` or `.stl`.
-    #[error("{path}: unknown mesh format (expected .obj, .off, .ply or .stl)")]
+    /// The extension names no supported format. Fix: use `.obj`, `.off`, `.ply`, `.stl`, `.gltf` or `.glb`.
+    #[error("{path}: unknown mesh format (expected .obj, .off, .ply, .stl, .gltf or .glb)")]
     UnknownFormat {
         /// The file.
         path: PathBuf,
@@ -224,12 +249,43 @@ impl RawMesh {
 }
 
 /// Parses `bytes` in `format` without validating the mesh (used by the fuzzers).
+///
+/// glTF/GLB give the scene's welded surface without its degenerate
+/// triangles (see [`crate::mesh::asset`]);
+/// side-car buffers are refused here ([`crate::mesh::asset::Asset::read_path`]
+/// reads them).
 pub fn parse_bytes(bytes: &[u8], format: Format) -> Result<RawMesh, ParseError> {
     match format {
         Format::Obj => obj::parse(bytes),
         Format::Off => off::parse(bytes),
         Format::Ply => ply::parse(bytes),
         Format::Stl => stl::parse(bytes),
+        Format::Gltf | Format::Glb => parse_gltf(bytes, gltf::Sidecars::Refuse),
+    }
+}
+
+fn parse_gltf(bytes: &[u8], sidecars: gltf::Sidecars<'_>) -> Result<RawMesh, ParseError> {
+    let g = gltf::GltfAsset::parse(bytes, sidecars).map_err(|e| gltf_parse_error(&e))?;
+    let w = crate::mesh::asset::weld::weld(g.positions(), g.triangles());
+    let positions = w.positions(g.positions());
+    let mut triangles = w.triangles(g.triangles());
+    crate::mesh::asset::drop_degenerate(&positions, &mut triangles);
+    Ok(RawMesh {
+        positions,
+        triangles,
+    })
+}
+
+/// A glTF error as a [`ParseError`] (GLB offsets and JSON lines kept).
+pub(crate) fn gltf_parse_error(e: &gltf::GltfError) -> ParseError {
+    let position = match e {
+        gltf::GltfError::Glb { offset, .. } => Position::Byte(*offset),
+        gltf::GltfError::Json { line, .. } => Position::Line(*line),
+        _ => Position::Document,
+    };
+    ParseError {
+        position,
+        message: e.to_string(),
     }
 }
 
@@ -246,7 +302,14 @@ pub fn parse_path(path: &Path) -> Result<RawMesh, IoError> {
         path: path.to_path_buf(),
         error,
     })?;
-    parse_bytes(&bytes, format).map_err(|e| IoError::parse(format, e))
+    match format {
+        Format::Gltf | Format::Glb => {
+            let dir = path.parent().unwrap_or(Path::new("."));
+            parse_gltf(&bytes, gltf::Sidecars::Folder(dir))
+        }
+        _ => parse_bytes(&bytes, format),
+    }
+    .map_err(|e| IoError::parse(format, e))
 }
 
 /// Reads and validates the mesh at `path` (format from its extension).
@@ -261,8 +324,8 @@ pub fn to_bytes(positions: &[Point], triangles: &[[u32; 3]], format: Format) -> 
 }
 
 /// Serialises `positions`/`triangles` in `format` with `encoding` (ignored by
-/// the text-only OBJ and OFF; STL has no big-endian form and writes
-/// little-endian).
+/// the text-only OBJ and OFF and by glTF/GLB, whose positions are `f32`; STL
+/// has no big-endian form and writes little-endian).
 pub fn to_bytes_with(
     positions: &[Point],
     triangles: &[[u32; 3]],
@@ -274,6 +337,8 @@ pub fn to_bytes_with(
         Format::Off => off::write(positions, triangles),
         Format::Ply => ply::write(positions, triangles, encoding),
         Format::Stl => stl::write(positions, triangles, encoding),
+        Format::Gltf => gltf::write_mesh(positions, triangles, gltf::Container::Json),
+        Format::Glb => gltf::write_mesh(positions, triangles, gltf::Container::Glb),
     }
 }
 

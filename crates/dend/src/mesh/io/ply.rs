@@ -12,8 +12,9 @@ use std::fmt::Write;
 use super::{bounded_capacity, fan, fmt_real, index_u32, Encoding, ParseError, Position, RawMesh};
 use crate::mesh::Point;
 
-#[derive(Debug, Clone, Copy, PartialEq)]
-enum Scalar {
+/// A PLY scalar type.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) enum Scalar {
     I8,
     U8,
     I16,
@@ -38,7 +39,7 @@ impl Scalar {
             _ => return None,
         })
     }
-    fn size(self) -> usize {
+    pub(crate) fn size(self) -> usize {
         match self {
             Scalar::I8 | Scalar::U8 => 1,
             Scalar::I16 | Scalar::U16 => 2,
@@ -61,8 +62,9 @@ struct Element {
     props: Vec<Prop>,
 }
 
-#[derive(Debug, Clone, Copy, PartialEq)]
-enum Body {
+/// A PLY body encoding.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) enum Body {
     Ascii,
     Le,
     Be,
@@ -231,9 +233,46 @@ fn parse_header(bytes: &[u8]) -> Result<(Body, Vec<Element>, usize, usize), Pars
     }
 }
 
+/// Where one vertex property value is stored in the file.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) enum Loc {
+    /// Binary: byte offset and type.
+    Byte(usize, Scalar),
+    /// ASCII: 0-based line index in the file, token index on that line, and
+    /// the declared type.
+    Token(usize, usize, Scalar),
+}
+
+/// Where a PLY file keeps each vertex's `x y z` and `nx ny nz` (for
+/// [`crate::mesh::asset`], which rewrites only those values).
+#[derive(Debug, Clone, Default)]
+pub(crate) struct Layout {
+    /// The body encoding (None before parsing).
+    pub body: Option<Body>,
+    /// `x y z` of each vertex.
+    pub xyz: Vec<[Loc; 3]>,
+    /// `nx ny nz` of each vertex, when the vertex element has all three.
+    pub normals: Vec<([Loc; 3], Point)>,
+    /// The names of the vertex element's other properties.
+    pub extra: Vec<String>,
+    /// Other elements than `vertex` and `face`.
+    pub other_elements: Vec<String>,
+}
+
 /// Parses PLY bytes.
 pub(super) fn parse(bytes: &[u8]) -> Result<RawMesh, ParseError> {
+    parse_located(bytes, None)
+}
+
+/// Parses PLY bytes, recording where vertex values are in `layout`.
+pub(crate) fn parse_located(
+    bytes: &[u8],
+    mut layout: Option<&mut Layout>,
+) -> Result<RawMesh, ParseError> {
     let (body, elements, start, header_lines) = parse_header(bytes)?;
+    if let Some(l) = layout.as_deref_mut() {
+        l.body = Some(body);
+    }
     let mut r = Reader {
         body,
         bytes,
@@ -267,6 +306,30 @@ pub(super) fn parse(bytes: &[u8]) -> Result<RawMesh, ParseError> {
             raw.positions
                 .reserve(bounded_capacity(el.count, bytes.len(), min_bytes));
         }
+        let named = |axis: &str| {
+            el.props
+                .iter()
+                .position(|p| matches!(p, Prop::Scalar(n, _) if n == axis))
+        };
+        let nxyz = match (named("nx"), named("ny"), named("nz")) {
+            (Some(a), Some(b), Some(c)) if is_vertex => [a, b, c],
+            _ => [usize::MAX; 3],
+        };
+        if let Some(l) = layout.as_deref_mut() {
+            if is_vertex {
+                l.extra = el
+                    .props
+                    .iter()
+                    .enumerate()
+                    .filter(|(j, _)| !xyz.contains(j) && !nxyz.contains(j))
+                    .map(|(_, p)| match p {
+                        Prop::Scalar(n, _) | Prop::List(n, ..) => n.clone(),
+                    })
+                    .collect();
+            } else if !is_face {
+                l.other_elements.push(el.name.clone());
+            }
+        }
         let face_list = if is_face {
             let i = el
                 .props
@@ -281,12 +344,24 @@ pub(super) fn parse(bytes: &[u8]) -> Result<RawMesh, ParseError> {
         };
         for k in 0..el.count {
             let mut p = [0.0; 3];
+            let mut locs = [Loc::Token(0, 0, Scalar::F64); 3];
+            let mut n = ([Loc::Token(0, 0, Scalar::F64); 3], [0.0; 3]);
             for (j, prop) in el.props.iter().enumerate() {
                 match prop {
                     Prop::Scalar(_, ty) => {
+                        let at = r.pos;
                         let v = r.read(*ty)?;
+                        let loc = match body {
+                            Body::Ascii => Loc::Token(r.line - 1, r.tok - 1, *ty),
+                            _ => Loc::Byte(at, *ty),
+                        };
                         if let Some(c) = xyz.iter().position(|&x| x == j) {
                             p[c] = v;
+                            locs[c] = loc;
+                        }
+                        if let Some(c) = nxyz.iter().position(|&x| x == j) {
+                            n.0[c] = loc;
+                            n.1[c] = v;
                         }
                     }
                     Prop::List(_, ct, it) => {
@@ -319,6 +394,12 @@ pub(super) fn parse(bytes: &[u8]) -> Result<RawMesh, ParseError> {
             }
             if is_vertex {
                 raw.positions.push(p);
+                if let Some(l) = layout.as_deref_mut() {
+                    l.xyz.push(locs);
+                    if nxyz[0] != usize::MAX {
+                        l.normals.push(n);
+                    }
+                }
             }
         }
     }

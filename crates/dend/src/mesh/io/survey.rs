@@ -142,6 +142,7 @@ pub fn parse_sel(bytes: &[u8]) -> Result<Selection, SurveyError> {
 fn e_line(e: &super::ParseError) -> usize {
     match e.position {
         super::Position::Line(l) | super::Position::Byte(l) => l,
+        super::Position::Document => 0,
     }
 }
 

@@ -1,0 +1,183 @@
+//! glTF/GLB through the server: uploads by Content-Type or `?format=`, the
+//! asset kept by the store (memory and SQLite, across a restart), exports
+//! in the asset's layout that pass the Khronos validator, typed 4xx errors.
+
+mod server_common;
+mod support;
+
+use std::sync::Arc;
+use std::time::Duration;
+
+use dend::mesh::asset::sample::{self, TubeOptions};
+use dend::mesh::io::gltf::{Container, GltfAsset, Sidecars};
+use dend_client::{Client, ClientError};
+use dend_server::store::SqliteStore;
+use dend_server::Config;
+use serde_json::json;
+use server_common::{start, start_with_store};
+
+fn twist() -> serde_json::Value {
+    json!({
+        "fixed": {"box": {"min": [-9, -9, -0.01], "max": [9, 9, 0.3]}},
+        "handles": [{"name": "top", "vertices": {"box": {"min": [-9, -9, 2.7], "max": [9, 9, 3.1]}}}]
+    })
+}
+
+async fn upload(base: &str, bytes: Vec<u8>, content_type: &str) -> reqwest::Response {
+    reqwest::Client::new()
+        .post(format!("{base}/v1/meshes"))
+        .header("content-type", content_type)
+        .body(bytes)
+        .send()
+        .await
+        .unwrap()
+}
+
+#[tokio::test]
+async fn a_glb_upload_exports_posed_in_its_own_layout() -> Result<(), ClientError> {
+    let (base, _state) = start(Config::default()).await;
+    let input = sample::tube(TubeOptions::default()).unwrap();
+    let r = upload(&base, input.clone(), "model/gltf-binary").await;
+    assert_eq!(r.status(), 201);
+    let info: serde_json::Value = r.json().await.unwrap();
+    assert_eq!(info["vertices"], 16 * 13 + 2, "the welded surface");
+    assert_eq!(info["asset"]["asset_vertices"], 17 * 15);
+    assert_eq!(info["asset"]["format"], "glb");
+    assert_eq!(info["asset"]["name"], "skinned tube");
+    let c = Client::new(&base);
+    let id = info["id"].as_str().unwrap();
+    let got: serde_json::Value = reqwest::get(format!("{base}/v1/meshes/{id}"))
+        .await
+        .unwrap()
+        .json()
+        .await
+        .unwrap();
+    assert_eq!(got, info, "GET /v1/meshes/{{id}} reports the same asset");
+
+    let s = c.create_session(id, json!({})).await?;
+    // at rest the export is the uploaded file, byte for byte
+    assert_eq!(s.export("glb").await?, input);
+    s.set_constraints(&twist()).await?;
+    s.wait_ready(Duration::from_secs(60)).await?;
+    let p = s
+        .drag(
+            json!("top"),
+            json!({"rotate": {"axis": [0, 0, 1], "degrees": 60}}),
+            Some(30),
+        )
+        .await?;
+    assert!(p.positions.len() == 16 * 13 + 2);
+    let rest = GltfAsset::parse(&input, Sidecars::Refuse).unwrap();
+    for format in ["glb", "gltf"] {
+        let out = s.export(format).await?;
+        let a = GltfAsset::parse(&out, Sidecars::Refuse).unwrap();
+        assert_eq!(a.positions().len(), rest.positions().len(), "{format}");
+        assert_eq!(a.triangles(), rest.triangles());
+        assert_eq!(a.summary(), rest.summary());
+        assert!(support::max_dist(a.positions(), rest.positions()) > 0.2);
+        if let Some(r) = support::gltf_validator::validate(&out, &format!("posed.{format}")) {
+            assert_eq!((r.errors, r.warnings), (0, 0), "{format}: {}", r.messages);
+        }
+    }
+    // other formats get the welded surface
+    let obj = s.export("obj").await?;
+    let m = dend::mesh::io::read_bytes(&obj, dend::mesh::io::Format::Obj).unwrap();
+    assert_eq!(m.num_vertices(), 16 * 13 + 2);
+    Ok(())
+}
+
+#[tokio::test]
+async fn gltf_json_by_query_and_typed_errors() {
+    let (base, _state) = start(Config::default()).await;
+    let o = TubeOptions {
+        container: Container::Json,
+        skinned: false,
+        ..TubeOptions::default()
+    };
+    let c = Client::new(&base);
+    let info = c
+        .upload_file(sample::tube(o).unwrap(), "gltf")
+        .await
+        .unwrap();
+    assert_eq!(info.vertices, 16 * 13 + 2);
+    assert_eq!(info.asset.unwrap().asset_vertices, 17 * 15);
+    let r = upload(&base, sample::tube(o).unwrap(), "model/gltf+json").await;
+    assert_eq!(r.status(), 201);
+    // malformed: truncated GLB, a side-car buffer, bad JSON
+    let mut glb = sample::tube(TubeOptions::default()).unwrap();
+    glb.truncate(100);
+    let (mut j, _) = (
+        serde_json::from_slice::<serde_json::Value>(&sample::tube(o).unwrap()).unwrap(),
+        (),
+    );
+    j["buffers"][0]["uri"] = json!("tube.bin");
+    for (body, ct) in [
+        (glb, "model/gltf-binary"),
+        (serde_json::to_vec(&j).unwrap(), "model/gltf+json"),
+        (b"{\"asset\":".to_vec(), "model/gltf+json"),
+    ] {
+        let r = upload(&base, body, ct).await;
+        assert_eq!(r.status(), 422, "{ct}");
+        let e: serde_json::Value = r.json().await.unwrap();
+        assert_eq!(e["code"], "invalid_mesh", "{e}");
+    }
+}
+
+#[tokio::test]
+async fn the_sqlite_store_keeps_the_asset_across_a_restart() -> Result<(), ClientError> {
+    let dir = tempfile::tempdir().unwrap();
+    let input = sample::tube(TubeOptions::default()).unwrap();
+    let id = {
+        let store = Arc::new(SqliteStore::open(dir.path()).unwrap());
+        let (base, _state) = start_with_store(Config::default(), store).await;
+        Client::new(&base)
+            .upload_file(input.clone(), "glb")
+            .await?
+            .id
+    };
+    let store = Arc::new(SqliteStore::open(dir.path()).unwrap());
+    let (base, _state) = start_with_store(Config::default(), store).await;
+    let c = Client::new(&base);
+    let s = c.create_session(&id, json!({})).await?;
+    assert_eq!(s.export("glb").await?, input);
+    Ok(())
+}
+
+#[tokio::test]
+async fn delete_mesh_is_refused_while_a_session_uses_it() -> Result<(), ClientError> {
+    let (base, state) = start(Config {
+        max_meshes: 1,
+        ..Config::default()
+    })
+    .await;
+    let c = Client::new(&base);
+    let input = sample::tube(TubeOptions::default()).unwrap();
+    let id = c.upload_file(input.clone(), "glb").await?.id;
+    // the one slot is taken
+    let r = upload(&base, input.clone(), "model/gltf-binary").await;
+    assert_eq!(r.status(), 503);
+    let s = c.create_session(&id, json!({})).await?;
+    s.set_constraints(&twist()).await?;
+    s.wait_ready(Duration::from_secs(60)).await?;
+    assert!(state.cache.bytes() > 0, "a factor is cached");
+    let http = reqwest::Client::new();
+    let del = || http.delete(format!("{base}/v1/meshes/{id}")).send();
+    let r = del().await.unwrap();
+    assert_eq!(r.status(), 409);
+    let e: serde_json::Value = r.json().await.unwrap();
+    assert_eq!(e["code"], "mesh_in_use");
+    s.delete().await?;
+    assert_eq!(del().await.unwrap().status(), 204);
+    assert_eq!(state.cache.bytes(), 0, "its factors are evicted");
+    assert_eq!(del().await.unwrap().status(), 404);
+    let r = reqwest::get(format!("{base}/v1/meshes/{id}"))
+        .await
+        .unwrap();
+    assert_eq!(r.status(), 404);
+    // the slot is free again
+    assert_eq!(
+        upload(&base, input, "model/gltf-binary").await.status(),
+        201
+    );
+    Ok(())
+}
