@@ -375,6 +375,18 @@ fn malformed_gltf_gives_typed_errors() {
         j.as_object_mut().unwrap().remove("skins");
     }));
     assert!(matches!(e, GltfError::SingularTransform { node: 0 }), "{e}");
+    // accessor indices out of range in a primitive: gltf-json's validation
+    // would index with them (a panic the no_panic proptest found)
+    for attr in ["POSITION", "NORMAL", "TEXCOORD_0"] {
+        let e = parse_err(&mutated(|j| {
+            j["meshes"][0]["primitives"][0]["attributes"][attr] = json!(999)
+        }));
+        assert!(matches!(e, GltfError::Invalid { .. }), "{attr}: {e}");
+    }
+    let e = parse_err(&mutated(|j| {
+        j["meshes"][0]["primitives"][0]["indices"] = json!(999)
+    }));
+    assert!(matches!(e, GltfError::Invalid { .. }), "{e}");
 }
 
 #[test]

@@ -67,6 +67,41 @@ fn roots(doc: &gltf::Document) -> Vec<gltf::Node<'_>> {
 }
 
 /// Parses `bytes` (GLB or glTF JSON) into an asset.
+/// Every accessor a primitive names (attributes, indices, morph targets)
+/// exists. gltf-json's validation indexes the accessor list with the
+/// POSITION attribute's index before it checks that index, so a file with
+/// a bad one would panic inside it: this check runs first.
+fn check_accessor_references(root: &gltf::json::Root) -> Result<(), GltfError> {
+    let n = root.accessors.len();
+    for (m, mesh) in root.meshes.iter().enumerate() {
+        for (p, prim) in mesh.primitives.iter().enumerate() {
+            let targets = prim.targets.iter().flatten().flat_map(|t| {
+                t.positions
+                    .iter()
+                    .chain(&t.normals)
+                    .chain(&t.tangents)
+                    .map(|i| i.value())
+            });
+            let refs = prim
+                .attributes
+                .values()
+                .map(|i| i.value())
+                .chain(prim.indices.iter().map(|i| i.value()))
+                .chain(targets);
+            for i in refs {
+                if i >= n {
+                    return Err(GltfError::Invalid {
+                        message: format!(
+                            "mesh {m}, primitive {p} names accessor {i}; the file has {n}"
+                        ),
+                    });
+                }
+            }
+        }
+    }
+    Ok(())
+}
+
 pub(crate) fn parse(bytes: &[u8], sidecars: Sidecars<'_>) -> Result<GltfAsset, GltfError> {
     let (json_bytes, bin, container) = if is_glb(bytes) {
         let glb = split_glb(bytes)?;
@@ -87,6 +122,7 @@ pub(crate) fn parse(bytes: &[u8], sidecars: Sidecars<'_>) -> Result<GltfAsset, G
     // other required extensions (materials, textures) do not touch the
     // geometry: they are passed through, so gltf's validation is not told
     root.extensions_required.clear();
+    check_accessor_references(&root)?;
     let doc = gltf::Document::from_json(root).map_err(|e| GltfError::Invalid {
         message: e.to_string(),
     })?;
