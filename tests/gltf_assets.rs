@@ -387,6 +387,15 @@ fn malformed_gltf_gives_typed_errors() {
         j["meshes"][0]["primitives"][0]["indices"] = json!(999)
     }));
     assert!(matches!(e, GltfError::Invalid { .. }), "{e}");
+    // a NORMAL accessor shorter than POSITION (the spec wants equal counts;
+    // the no_panic proptest found the panic it caused in the export)
+    let e = parse_err(&mutated(|j| {
+        let n = j["meshes"][0]["primitives"][0]["attributes"]["NORMAL"]
+            .as_u64()
+            .unwrap() as usize;
+        j["accessors"][n]["count"] = json!(2);
+    }));
+    assert!(matches!(e, GltfError::Invalid { .. }), "{e}");
 }
 
 #[test]

@@ -78,7 +78,19 @@ export function attachInteraction(app, canvas) {
     drag = { kind: 'orbit', x, y };
   });
 
+  /** The brush's circle follows the pointer while the brush tool is on. */
+  const brushCircle = (x, y) => {
+    const c = $('brushCircle');
+    const on = tool() === 'brush' && x !== null;
+    c.hidden = !on;
+    if (!on) return;
+    const r = +$('brushRadius').value;
+    Object.assign(c.style, { left: `${x - r}px`, top: `${y - r}px`, width: `${2 * r}px`, height: `${2 * r}px` });
+  };
+  canvas.addEventListener('pointerleave', () => brushCircle(null, null));
+
   canvas.addEventListener('pointermove', (e) => {
+    brushCircle(e.offsetX, e.offsetY);
     if (!drag) return;
     const x = e.offsetX, y = e.offsetY;
     if (drag.kind === 'orbit' || drag.kind === 'pan') {
@@ -99,11 +111,11 @@ export function attachInteraction(app, canvas) {
       drag.x1 = x;
       drag.y1 = y;
     } else if (drag.kind === 'handle') {
-      handleMove(drag, x, y, e.shiftKey);
+      handleMove(drag, x, y, e.shiftKey, e.altKey);
     }
   });
 
-  function handleMove(d, x, y, rotating) {
+  function handleMove(d, x, y, rotating, inDepth) {
     const { right, up, fwd } = app.camera.basis();
     if (rotating) {
       const axisName = $('rotAxis').value;
@@ -129,6 +141,12 @@ export function attachInteraction(app, canvas) {
     const dx = x - d.x, dy = y - d.y;
     d.x = x;
     d.y = y;
+    if (inDepth) {
+      // Alt: vertical motion moves the handle along the view direction
+      // (up on screen = away from the viewer)
+      sendDrag(d.k, scale(fwd, -dy * d.unit), null);
+      return;
+    }
     const t = add(scale(right, dx * d.unit), scale(up, -dy * d.unit));
     d.center = [d.center[0] + dx, d.center[1] + dy];
     sendDrag(d.k, t, null);

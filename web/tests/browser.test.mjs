@@ -368,6 +368,33 @@ async function main() {
     log('after one Undo, off the pre-gesture pose by', maxDiff(undone, edited, all).toExponential(2));
     assert.ok(maxDiff(undone, edited, all) < 1e-5, 'one Undo undoes the whole gesture');
 
+    // Alt+drag moves the handle in depth: along the view direction.
+    const [ax, ay] = (await page.evaluate((i) => window.dend.project([i]), handle[0]))[0];
+    const fwd = await page.evaluate(() => window.dend.app.camera.basis().fwd);
+    await page.keyboard.down('Alt');
+    await page.mouse.move(cb.x + ax, cb.y + ay);
+    await page.mouse.down();
+    await page.mouse.move(cb.x + ax, cb.y + ay - 60, { steps: 6 });
+    await page.mouse.up();
+    await page.keyboard.up('Alt');
+    const seq4 = await page.evaluate(() => window.dend.app.seq);
+    await waitFor(page, (q) => window.dend.app.last.ackSeq >= q && window.dend.app.last.settled, seq4, 'the depth move to settle', 60000);
+    const deep = await serverPose(base, session);
+    const mean = (p) => [0, 1, 2].map((k) => handle.reduce((a, i) => a + p[3 * i + k], 0) / handle.length);
+    const [m0, m1] = [mean(undone), mean(deep)];
+    const dv = [0, 1, 2].map((k) => m1[k] - m0[k]);
+    const along = dv[0] * fwd[0] + dv[1] * fwd[1] + dv[2] * fwd[2];
+    const len = Math.hypot(...dv);
+    log('depth move: handle moved', len.toFixed(3), 'of which along the view', along.toFixed(3));
+    assert.ok(len > 0.05 * zmax && along > 0.95 * len, `Alt+drag moves the handle away along the view (${along} of ${len})`);
+    await page.click('#undo');
+    await waitFor(page, (e) => {
+      const p = window.dend.positions();
+      let m = 0;
+      for (let i = 0; i < p.length; i++) m = Math.max(m, Math.abs(p[i] - e[i]));
+      return m < 1e-5;
+    }, Array.from(undone), 'Undo of the depth move', 30000);
+
     // Reload: the URL carries the session; the regions and pose come back.
     assert.match(page2.url(), /#session=[0-9a-f]+&token=[0-9a-f]+/);
     await page2.reload();

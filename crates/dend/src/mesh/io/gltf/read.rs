@@ -218,6 +218,15 @@ fn add_mesh(
                 asset.summary.attributes.push(name);
             }
         }
+        // (after the bounds, so an accessor past its buffer says so)
+        // the spec: every attribute accessor of a primitive has the same
+        // count (the vertex count); the layout code relies on it
+        let counts: Vec<usize> = prim.attributes().map(|(_, a)| a.count()).collect();
+        if counts.windows(2).any(|w| w[0] != w[1]) {
+            return Err(GltfError::Invalid {
+                message: format!("{at}: its attributes have different counts {counts:?}"),
+            });
+        }
         let pos = prim
             .get(&gltf::Semantic::Positions)
             .ok_or_else(|| GltfError::Invalid {
