@@ -380,8 +380,8 @@ async function main() {
     const seq4 = await page.evaluate(() => window.dend.app.seq);
     await waitFor(page, (q) => window.dend.app.last.ackSeq >= q && window.dend.app.last.settled, seq4, 'the depth move to settle', 60000);
     const deep = await serverPose(base, session);
-    const mean = (p) => [0, 1, 2].map((k) => handle.reduce((a, i) => a + p[3 * i + k], 0) / handle.length);
-    const [m0, m1] = [mean(undone), mean(deep)];
+    const centroidOf = (p) => [0, 1, 2].map((k) => handle.reduce((a, i) => a + p[3 * i + k], 0) / handle.length);
+    const [m0, m1] = [centroidOf(undone), centroidOf(deep)];
     const dv = [0, 1, 2].map((k) => m1[k] - m0[k]);
     const along = dv[0] * fwd[0] + dv[1] * fwd[1] + dv[2] * fwd[2];
     const len = Math.hypot(...dv);
