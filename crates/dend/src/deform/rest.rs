@@ -6,8 +6,8 @@ use std::sync::{Arc, Mutex};
 
 use sprs::CsMat;
 
-use super::detail::{Mu, RingWeights};
 use super::coarse::CoarseLevel;
+use super::detail::{Mu, RingWeights};
 use super::elastic::ElasticOps;
 use super::params::{Energy, Mode, Params};
 use super::DeformError;
