@@ -20,6 +20,11 @@
 //! one-iteration frames is one iteration sequence), and restart when the
 //! targets or the pose change.
 //!
+//! A sequence from the rest pose starts from the rotations of the same
+//! problem solved on a coarse mesh (`solver/coarse.rs`, `deform::coarse`)
+//! where the mesh has one and the constraint set survives on it, else from
+//! the handles' rotations spread by harmonic weights.
+//!
 //! [`Formulation::Elastic`]: crate::deform::Formulation::Elastic
 
 use faer::dyn_stack::{MemBuffer, MemStack};
