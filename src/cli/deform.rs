@@ -7,8 +7,8 @@ use std::time::{Duration, Instant};
 
 use anyhow::{bail, Context};
 use dend::deform::{
-    Constraints, ConstraintsSpec, Deformer, DetailTerm, Energy, Factor, Formulation, Mode, Params,
-    Rest, RigidTransform,
+    Constraints, ConstraintsSpec, Deformer, DetailTerm, Energy, Factor, Formulation, Levels, Mode,
+    Params, Rest, RigidTransform,
 };
 use dend::mesh::io::{self, survey};
 
@@ -83,6 +83,12 @@ pub struct Args {
     /// elastic formulation does not have (membrane, combined, total-paper).
     #[arg(long)]
     formulation: Option<String>,
+    /// Levels of an elastic edit from the rest pose: 2 solves it first on a
+    /// coarse mesh of about 1/8 of the vertices (meshes of 4000 vertices or
+    /// more whose constraint groups survive) and starts from its rotations;
+    /// 1 starts from the handles' rotations spread by harmonic weights.
+    #[arg(long, default_value_t = 2, value_parser = clap::value_parser!(u8).range(1..=2))]
+    levels: u8,
     /// Print the objective after every iteration.
     #[arg(short, long)]
     verbose: bool,
@@ -187,6 +193,12 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     );
     let full: Vec<RigidTransform> = constraints.handles.iter().map(|h| h.target).collect();
     let mut deformer = Deformer::new(rest, params);
+    deformer.set_levels(if args.levels == 1 {
+        Levels::One
+    } else {
+        Levels::Two
+    });
+    let (mut coarse_iterations, mut coarse_ms) = (0, 0.0);
     let mut iterations = 0;
     let mut objectives = Vec::new();
     let mut iteration_ms = Vec::new();
@@ -211,6 +223,14 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                 objective_first = Some(r.initial_objective);
             }
             step_iterations += r.iterations;
+            coarse_iterations += r.coarse_iterations;
+            coarse_ms += r.coarse_ms;
+            if r.coarse_iterations > 0 {
+                eprintln!(
+                    "  coarse start: {} coarse iterations in {:.1} ms",
+                    r.coarse_iterations, r.coarse_ms
+                );
+            }
             objectives.push(r.objective);
             if args.verbose {
                 eprintln!(
@@ -266,6 +286,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             "vertices": mesh.num_vertices(),
             "unknowns": factor.num_unknowns(),
             "iterations": iterations,
+            "coarse_iterations": coarse_iterations,
+            "coarse_ms": coarse_ms,
             "converged": converged,
             "diverged": diverged,
             "objective_first": objective_first,

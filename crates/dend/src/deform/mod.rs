@@ -17,6 +17,7 @@
 //! it is the unrotated `A X` (the paper's `A (X' - X)`).
 
 mod anderson;
+mod coarse;
 mod constraints;
 mod detail;
 mod elastic;
@@ -42,7 +43,7 @@ pub use factor::{Factor, FactorKey, FactorPrecision, FactorTimings, SolveOptions
 pub use params::{DetailTerm, Energy, Formulation, Mode, Params, DEFAULT_AREA, DEFAULT_BENDING};
 pub use rest::Rest;
 pub use rotation::{best_rotation, fit_rotation, fit_rotation_quat, rotation_from_covariance};
-pub use solver::{Deformer, StepReport};
+pub use solver::{Deformer, Levels, StepReport, COARSE_MAX_ITERS};
 pub use system::energy_matrix;
 pub use warnings::{ConstraintWarning, STRAY_LISTED};
 

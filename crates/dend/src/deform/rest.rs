@@ -6,6 +6,7 @@ use std::sync::{Arc, Mutex};
 
 use sprs::CsMat;
 
+use super::coarse::CoarseLevel;
 use super::detail::{Mu, RingWeights};
 use super::elastic::ElasticOps;
 use super::params::{Energy, Mode, Params};
@@ -35,6 +36,9 @@ pub struct Rest {
     /// The elastic formulation's operators built so far, by weights (most
     /// recent last), at most [`ENERGY_CACHE`].
     elastics: Mutex<Vec<(ElasticKey, Arc<ElasticOps>)>>,
+    /// The coarse level of the elastic solver's start (`deform::coarse`),
+    /// built on first use; set to `None` on a coarse level itself.
+    coarse: std::sync::OnceLock<Option<Arc<CoarseLevel>>>,
 }
 
 /// What an [`ElasticOps`] depends on besides the rest mesh.
@@ -77,7 +81,26 @@ impl Rest {
             active,
             energies: Mutex::new(Vec::new()),
             elastics: Mutex::new(Vec::new()),
+            coarse: std::sync::OnceLock::new(),
         })
+    }
+
+    /// [`Rest::new`] without a coarse level (the coarse level's own rest
+    /// state: two levels, not more).
+    pub(super) fn single_level(mesh: Mesh) -> Result<Rest, DeformError> {
+        let rest = Rest::new(mesh)?;
+        let _ = rest.coarse.set(None);
+        Ok(rest)
+    }
+
+    /// The coarse level of this mesh (`deform::coarse`), built on first
+    /// call (about the cost of one `Rest::new` of the fine mesh and a
+    /// simplification) and kept; `None` for meshes under
+    /// `coarse::MIN_VERTICES` vertices or whose simplification failed.
+    pub(crate) fn coarse(&self) -> Option<&Arc<CoarseLevel>> {
+        self.coarse
+            .get_or_init(|| CoarseLevel::new(self).map(Arc::new))
+            .as_ref()
     }
 
     /// A process-unique id (factor cache keys refer to it).

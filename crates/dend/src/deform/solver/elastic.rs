@@ -20,6 +20,11 @@
 //! one-iteration frames is one iteration sequence), and restart when the
 //! targets or the pose change.
 //!
+//! A sequence from the rest pose starts from the rotations of the same
+//! problem solved on a coarse mesh (`solver/coarse.rs`, `deform::coarse`)
+//! where the mesh has one and the constraint set survives on it, else from
+//! the handles' rotations spread by harmonic weights.
+//!
 //! [`Formulation::Elastic`]: crate::deform::Formulation::Elastic
 
 use faer::dyn_stack::{MemBuffer, MemStack};
@@ -40,10 +45,10 @@ use crate::mesh::{Point, Real};
 #[derive(Default)]
 pub(super) struct State {
     /// `R(Y)` of the current pose (and the candidate's, while tried).
-    rot: Vec<UnitQuaternion<Real>>,
+    pub(super) rot: Vec<UnitQuaternion<Real>>,
     rot_try: Vec<UnitQuaternion<Real>>,
     /// The area projections `P_t` (and the candidate's).
-    proj: Vec<[Real; 6]>,
+    pub(super) proj: Vec<[Real; 6]>,
     proj_try: Vec<[Real; 6]>,
     /// `L Y`.
     ly: Vec<Point>,
@@ -71,8 +76,9 @@ pub(super) struct State {
 /// How a new iteration sequence gets its first rotations.
 #[derive(Default, Clone, Copy, PartialEq, Eq)]
 enum Start {
-    /// The pose is the rest pose: rotations propagated from the handles'
-    /// rotations ([`Deformer::propagate_rotations`]).
+    /// The pose is the rest pose: rotations from a coarse solve
+    /// ([`Deformer::coarse_start`]) or, without one, propagated from the
+    /// handles' rotations ([`Deformer::propagate_rotations`]).
     #[default]
     Rest,
     /// The pose or the weights were replaced: fit the rotations to it.
@@ -143,6 +149,7 @@ impl Deformer {
             .chain
             .take()
             .filter(|&(id, _)| id == factor.id() && !moved);
+        let mut coarse = None;
         let mut e = match chain {
             Some((_, e)) => e,
             None => {
@@ -170,7 +177,10 @@ impl Deformer {
                 }
                 match start {
                     Start::Rest if fit => {
-                        self.propagate_rotations(factor, (el, set), constraints);
+                        coarse = self.coarse_start(factor, (el, set), constraints);
+                        if coarse.is_none() {
+                            self.propagate_rotations(factor, (el, set), constraints);
+                        }
                         self.local_step(factor, (el, set), false, false)
                     }
                     Start::Refit if fit => self.local_step(factor, (el, set), true, false),
@@ -185,6 +195,8 @@ impl Deformer {
             diverged: false,
             objective: e,
             initial_objective: e,
+            coarse_iterations: coarse.map_or(0, |c| c.iterations),
+            coarse_ms: coarse.map_or(0.0, |c| c.ms),
         };
         if nu == 0 {
             report.converged = true;

@@ -141,6 +141,8 @@ impl Deformer {
             diverged: false,
             objective: f,
             initial_objective: f,
+            coarse_iterations: 0,
+            coarse_ms: 0.0,
         };
         let (mut growing, mut best_f, f_start) = match chain {
             Some(c) => (c.growing, c.best_f, c.f_start),

@@ -9,8 +9,11 @@ use super::rest::Rest;
 use super::DeformError;
 use crate::mesh::{Point, Real};
 
+mod coarse;
 mod elastic;
 mod least_squares;
+
+pub use coarse::{Levels, COARSE_MAX_ITERS};
 
 use least_squares::Scratch;
 
@@ -32,6 +35,13 @@ pub struct StepReport {
     /// iteration). A step that does not converge ends within 5 % of the best
     /// objective it saw, so then `objective <= 1.05 · initial_objective`.
     pub initial_objective: Real,
+    /// Iterations of the coarse solve this step started from (elastic
+    /// sequences from the rest pose with [`Levels::Two`]; each costs about
+    /// `#Vc / #V` of a fine one), not counted in `iterations`.
+    pub coarse_iterations: usize,
+    /// Wall time of that coarse start (level and coarse factor when first
+    /// needed, coarse solve, prolongation), ms; 0 without one.
+    pub coarse_ms: Real,
 }
 
 /// One editing state: the current pose, warm-started across drags, and the
@@ -46,6 +56,10 @@ pub struct Deformer {
     scratch: Scratch,
     /// The elastic formulation's state (rotations, projections, Anderson).
     elastic: elastic::State,
+    /// Whether sequences from rest start on the coarse level.
+    levels: Levels,
+    /// The coarse factor of the last fine factor a coarse start used.
+    coarse_factor: Option<coarse::CoarseFactor>,
 }
 
 impl Deformer {
@@ -60,7 +74,15 @@ impl Deformer {
             pose,
             scratch: Scratch::default(),
             elastic: elastic::State::default(),
+            levels: Levels::default(),
+            coarse_factor: None,
         }
+    }
+
+    /// Chooses how sequences from the rest pose start ([`Levels`]; default
+    /// two levels where the mesh has a coarse level).
+    pub fn set_levels(&mut self, levels: Levels) {
+        self.levels = levels;
     }
 
     /// The rest state.

@@ -1,0 +1,185 @@
+//! The coarse level of the elastic solver's two-level start (issue #18):
+//! a coarse mesh whose vertices are a subset of the fine ones, the
+//! restriction of a constraint set to it and the prolongation of its
+//! rotations back to the fine mesh.
+//!
+//! The slow mode of the elastic iteration on a character mesh is a far
+//! free part swinging as a whole (a leg about its hip): the local/global
+//! iteration moves it by a little each step, at every resolution. A
+//! *cascadic* start (Bornemann & Deuflhard 1996) solves the same problem
+//! on a mesh with about `#V / 8` vertices first — each of its iterations
+//! costs about 1/8 of a fine one — and starts the fine iteration from its
+//! rotations. The energy's weights are dimensionless (elastic/mod.rs), so
+//! the coarse [`Rest`] normalises itself and the same [`Params`] apply; the
+//! coarse tolerance is the fine one in fine mean edge lengths (a looser
+//! coarse solve gives a worse start: prototype FINDINGS2, 22:58).
+//!
+//! Only the rest mesh decides the level ([`CoarseLevel::new`], cached by
+//! [`Rest::coarse`]); the constraint set decides whether it is usable
+//! ([`CoarseLevel::restrict`]). A mesh under [`MIN_VERTICES`] has no
+//! coarse level: there the fine iteration is already short and a too
+//! coarse mesh (a few hundred vertices) starts it worse.
+//!
+//! [`Params`]: crate::deform::Params
+
+mod nearest;
+mod simplify;
+
+use nalgebra::UnitQuaternion;
+
+pub use simplify::coarse_mesh;
+
+use super::constraints::{Constraints, HandleGroup};
+use super::rest::Rest;
+use crate::mesh::Real;
+
+/// Fine vertex count from which a mesh gets a coarse level.
+pub const MIN_VERTICES: usize = 4000;
+
+/// Fine vertices per coarse vertex.
+pub const RATIO: usize = 8;
+
+/// Smallest number of coarse vertices a constraint group (each handle,
+/// the fixed set) must keep for the coarse problem to stand for the fine
+/// one.
+pub const MIN_GROUP: usize = 3;
+
+/// Passes of 1-ring averaging of the prolongated rotations (the nearest
+/// coarse vertex's rotation alone is piecewise constant, a high-frequency
+/// error the fine iteration then spends iterations on).
+pub const SMOOTHING_PASSES: usize = 3;
+
+/// A rest mesh's coarse level: the coarse rest state and the maps between
+/// the levels.
+#[derive(Debug)]
+pub struct CoarseLevel {
+    /// The coarse rest state (it has no coarse level itself).
+    pub rest: std::sync::Arc<Rest>,
+    /// Fine index of each coarse vertex, increasing, `#Vc`.
+    pub fine_of: Vec<u32>,
+    /// Coarse index of each fine vertex, `u32::MAX` if it is not one, `#V`.
+    pub coarse_of: Vec<u32>,
+    /// The coarse vertex nearest to each fine vertex along the fine edges
+    /// (`u32::MAX` for unreferenced vertices), `#V`.
+    pub near: Vec<u32>,
+}
+
+impl CoarseLevel {
+    /// The coarse level of `rest`, or `None` when the mesh is small
+    /// (< [`MIN_VERTICES`]) or its simplification is not a valid mesh.
+    pub fn new(rest: &Rest) -> Option<CoarseLevel> {
+        let mesh = rest.mesh();
+        let n = mesh.num_vertices();
+        if n < MIN_VERTICES {
+            return None;
+        }
+        let (coarse, fine_of) = coarse_mesh(mesh, RATIO)?;
+        let rest_c = Rest::single_level(coarse).ok()?;
+        let mut coarse_of = vec![u32::MAX; n];
+        for (c, &v) in fine_of.iter().enumerate() {
+            coarse_of[v as usize] = c as u32;
+        }
+        let near = nearest::nearest_sources(mesh.topology(), &rest.ops.positions, &fine_of);
+        Some(CoarseLevel {
+            rest: std::sync::Arc::new(rest_c),
+            fine_of,
+            coarse_of,
+            near,
+        })
+    }
+
+    /// Coarse vertex count.
+    pub fn num_vertices(&self) -> usize {
+        self.fine_of.len()
+    }
+
+    /// `constraints` restricted to the coarse vertices: the same groups
+    /// with their coarse members, positions (`fixed_at`, handle bases) and
+    /// targets carried over. `None` when a group keeps fewer than
+    /// [`MIN_GROUP`] coarse vertices (then there is no coarse problem).
+    pub fn restrict(&self, constraints: &Constraints) -> Option<Constraints> {
+        let mut fixed = Vec::new();
+        let mut fixed_at = Vec::new();
+        for (&v, &p) in constraints.fixed.iter().zip(&constraints.fixed_at) {
+            let c = self.coarse_of[v as usize];
+            if c != u32::MAX {
+                fixed.push(c);
+                fixed_at.push(p);
+            }
+        }
+        if !constraints.fixed.is_empty() && fixed.len() < MIN_GROUP {
+            return None;
+        }
+        let mut handles = Vec::with_capacity(constraints.handles.len());
+        for h in &constraints.handles {
+            let mut vertices = Vec::new();
+            let mut base = Vec::new();
+            for (&v, &p) in h.vertices.iter().zip(&h.base) {
+                let c = self.coarse_of[v as usize];
+                if c != u32::MAX {
+                    vertices.push(c);
+                    base.push(p);
+                }
+            }
+            if vertices.len() < MIN_GROUP {
+                return None;
+            }
+            handles.push(HandleGroup {
+                name: h.name.clone(),
+                vertices,
+                base,
+                rest_centroid: h.rest_centroid,
+                target: h.target,
+            });
+        }
+        // fine_of is increasing, so the coarse lists stay sorted
+        Some(Constraints {
+            fixed,
+            fixed_at,
+            handles,
+        })
+    }
+
+    /// The fine rotations of the vertices where `fit` is set, from the
+    /// coarse rotations `coarse`: each takes its nearest coarse vertex's
+    /// (`R_i = R^c_{near(i)}`), then [`SMOOTHING_PASSES`] passes of
+    /// 1-ring averaging over the fine mesh (`q_i ← normalise(q_i + Σ_j
+    /// ±q_j)`, each `q_j` sign-aligned to `q_i`; a chordal mean of nearby
+    /// rotations) smooth the piecewise-constant field. Vertices without
+    /// `fit` keep their rotation and take part in the averages.
+    pub fn prolongate_rotations(
+        &self,
+        fine: &Rest,
+        coarse: &[UnitQuaternion<Real>],
+        fit: &[bool],
+        rot: &mut [UnitQuaternion<Real>],
+    ) {
+        for (i, q) in rot.iter_mut().enumerate() {
+            let c = self.near[i];
+            if fit[i] && c != u32::MAX {
+                *q = coarse[c as usize];
+            }
+        }
+        let topo = fine.mesh().topology();
+        let mut next = rot.to_vec();
+        for _ in 0..SMOOTHING_PASSES {
+            for (i, out) in next.iter_mut().enumerate() {
+                if !fit[i] || self.near[i] == u32::MAX {
+                    *out = rot[i];
+                    continue;
+                }
+                let qi = rot[i].into_inner().coords;
+                let mut acc = qi;
+                for &j in topo.ring(i) {
+                    let qj = rot[j as usize].into_inner().coords;
+                    acc += if qj.dot(&qi) < 0.0 { -qj } else { qj };
+                }
+                *out = UnitQuaternion::from_quaternion(nalgebra::Quaternion::from(acc));
+            }
+            rot.copy_from_slice(&next);
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests;
