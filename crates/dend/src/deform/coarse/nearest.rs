@@ -78,12 +78,11 @@ mod tests {
         }
         let mesh = Mesh::new(p, t).unwrap();
         let near = nearest_sources(mesh.topology(), mesh.positions(), &[0, 11]);
-        for v in 0..12 {
-            let x = mesh.positions()[v][0];
-            if x < 2.5 {
-                assert_eq!(near[v], 0, "vertex {v}");
-            } else if x > 2.5 {
-                assert_eq!(near[v], 1, "vertex {v}");
+        for (v, (&n, p)) in near.iter().zip(mesh.positions()).enumerate() {
+            if p[0] < 2.5 {
+                assert_eq!(n, 0, "vertex {v}");
+            } else if p[0] > 2.5 {
+                assert_eq!(n, 1, "vertex {v}");
             }
         }
     }
