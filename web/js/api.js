@@ -83,6 +83,8 @@ export class Api {
     return this.json('PUT', `/v1/sessions/${id}/constraints`, c, token, extra);
   }
 
+  curvature(id, token) { return this.json('GET', `/v1/sessions/${id}/curvature`, undefined, token); }
+
   undo(id, token) { return this.json('POST', `/v1/sessions/${id}/undo`, undefined, token); }
 
   redo(id, token) { return this.json('POST', `/v1/sessions/${id}/redo`, undefined, token); }

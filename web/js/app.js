@@ -39,7 +39,23 @@ export const app = {
   needsDraw: true,
   eventLog: [],
   warnings: [],
+  colorMode: 'regions', // or a field of GET …/curvature: mean, gaussian, g
+  curvature: null,
 };
+
+let curvatureTimer = null;
+
+/** Fetches the pose's curvatures (GET …/curvature) for the colour map,
+ * at most once per settled pose. */
+function refreshCurvature() {
+  if (app.colorMode === 'regions' || !app.session) return;
+  clearTimeout(curvatureTimer);
+  curvatureTimer = setTimeout(guarded(async () => {
+    const s = app.session;
+    app.curvature = await app.api.curvature(s.id, s.token);
+    recolor();
+  }), 100);
+}
 
 // ---------- errors and status ----------
 
@@ -103,12 +119,26 @@ function showWarnings(list) {
 
 const HANDLE_COLORS = [[0.15, 0.35, 0.95], [0.2, 0.6, 1.0], [0.45, 0.25, 0.95], [0.1, 0.75, 0.85]];
 
+/** Diverging colour of `t` in [-1, 1]: blue, white, red. */
+function diverging(t) {
+  const s = Math.max(-1, Math.min(1, t));
+  return s < 0 ? [1 + 0.8 * s, 1 + 0.6 * s, 1] : [1, 1 - 0.6 * s, 1 - 0.8 * s];
+}
+
 function recolor() {
   const c = app.colors;
-  for (let i = 0; i < app.labels.length; i++) {
-    const l = app.labels[i];
-    const rgb = l === FIXED ? [0.9, 0.15, 0.12] : l > 0 ? HANDLE_COLORS[(l - 1) % HANDLE_COLORS.length] : [0.55, 0.8, 0.5];
-    c.set(rgb, 3 * i);
+  const field = app.colorMode !== 'regions' && app.curvature ? app.curvature[app.colorMode] : null;
+  if (field && field.length === app.labels.length) {
+    // symmetric range: the 95th percentile of |value| (outliers saturate)
+    const mags = field.map(Math.abs).sort((a, b) => a - b);
+    const range = Math.max(mags[Math.floor(0.95 * (mags.length - 1))], 1e-12);
+    for (let i = 0; i < field.length; i++) c.set(diverging(field[i] / range), 3 * i);
+  } else {
+    for (let i = 0; i < app.labels.length; i++) {
+      const l = app.labels[i];
+      const rgb = l === FIXED ? [0.9, 0.15, 0.12] : l > 0 ? HANDLE_COLORS[(l - 1) % HANDLE_COLORS.length] : [0.55, 0.8, 0.5];
+      c.set(rgb, 3 * i);
+    }
   }
   app.renderer.setColors(c);
   app.needsDraw = true;
@@ -389,6 +419,7 @@ function onFrame(f) {
   app.last = f;
   uploadPose();
   updateStats();
+  if (f.settled) refreshCurvature();
 }
 
 function onEvent(e) {
@@ -492,6 +523,12 @@ $('addHandle').onclick = addHandle;
 $('apply').onclick = applyConstraints;
 $('clearSel').onclick = () => { app.labels.fill(FREE); app.dirtyLabels = true; recolor(); };
 $('growSel').onclick = () => growShrink(true);
+$('colorMode').onchange = (e) => {
+  app.colorMode = e.target.value;
+  app.curvature = null;
+  recolor();
+  refreshCurvature();
+};
 $('shrinkSel').onclick = () => growShrink(false);
 $('saveCons').onclick = guarded(async () => {
   if (!app.applied) throw new ApiError('no_constraints', 'apply a constraint set first');

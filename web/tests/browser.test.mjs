@@ -427,6 +427,20 @@ async function main() {
     await page.keyboard.press('Control+z');
     await waitFor(page, (v) => window.dend.labels()[v] !== -1 && document.getElementById('warnings').hidden, stray, 'Ctrl+Z back to the set without the stray pick', 30000);
 
+    // Curvature colour map: the bent bar's mean curvature from the server.
+    await page.selectOption('#colorMode', 'mean');
+    await waitFor(page, (k) => window.dend.app.curvature && window.dend.app.curvature.mean.length === k, n, 'the curvature of the pose');
+    const mapColours = await page.evaluate(() => {
+      const c = window.dend.app.colors;
+      const s = new Set();
+      for (let i = 0; i < c.length; i += 3) s.add(`${c[i].toFixed(2)},${c[i + 1].toFixed(2)},${c[i + 2].toFixed(2)}`);
+      return s.size;
+    });
+    log('curvature colour map:', mapColours, 'distinct vertex colours');
+    assert.ok(mapColours > 20, `the colour map varies over the bar (${mapColours} colours)`);
+    await page.screenshot({ path: join(artifacts, '8-mean-curvature.png') });
+    await page.selectOption('#colorMode', 'regions');
+
     // Grow and shrink the fixed region by one ring: a round trip.
     const before2 = await page.evaluate(() => window.dend.labels());
     await page.selectOption('#target', 'fixed');
