@@ -22,6 +22,8 @@ struct SlowStore {
     inner: MemoryStore,
     slow: Mutex<Option<String>>,
     delay: Duration,
+    /// How long `mesh_count` takes (a slow store widens upload races).
+    count_delay: Duration,
 }
 
 impl SlowStore {
@@ -40,6 +42,7 @@ impl Store for SlowStore {
         self.inner.get_mesh(id)
     }
     fn mesh_count(&self) -> Result<usize, StoreError> {
+        std::thread::sleep(self.count_delay);
         self.inner.mesh_count()
     }
     fn put_asset(&self, id: &str, asset: &StoredAsset) -> Result<(), StoreError> {
@@ -91,6 +94,7 @@ async fn a_slow_store_for_one_session_does_not_stall_another() -> Result<(), Cli
         inner: MemoryStore::new(),
         slow: Mutex::new(None),
         delay: Duration::from_millis(1500),
+        count_delay: Duration::ZERO,
     });
     let (base, _state) = start_with_store(Config::default(), store.clone()).await;
 
@@ -140,4 +144,45 @@ async fn a_slow_store_for_one_session_does_not_stall_another() -> Result<(), Cli
         "B waited {worst:?} for a frame while A's store was slow (1.5 s writes)"
     );
     Ok(())
+}
+
+/// Uploads racing for the last `max_meshes` slots on a store whose count
+/// takes 50 ms: exactly the limit is stored, every other upload gets 503
+/// (the check and the insert are one admission step; with them apart all
+/// twelve uploads read the same count and pass).
+#[tokio::test(flavor = "multi_thread", worker_threads = 4)]
+async fn concurrent_uploads_never_exceed_max_meshes() {
+    let store = Arc::new(SlowStore {
+        inner: MemoryStore::new(),
+        slow: Mutex::new(None),
+        delay: Duration::ZERO,
+        count_delay: Duration::from_millis(50),
+    });
+    let config = Config {
+        max_meshes: 3,
+        ..Config::default()
+    };
+    let (base, _state) = start_with_store(config, store).await;
+    let (p, t) = grid(4);
+    let body = json!({"positions": p, "triangles": t});
+    let http = reqwest::Client::new();
+    let uploads: Vec<_> = (0..12)
+        .map(|_| {
+            let (http, url, body) = (http.clone(), format!("{base}/v1/meshes"), body.clone());
+            tokio::spawn(async move {
+                http.post(url)
+                    .json(&body)
+                    .send()
+                    .await
+                    .map(|r| r.status().as_u16())
+            })
+        })
+        .collect();
+    let mut statuses = Vec::new();
+    for u in uploads {
+        statuses.push(u.await.expect("task").expect("request"));
+    }
+    let created = statuses.iter().filter(|&&s| s == 201).count();
+    let refused = statuses.iter().filter(|&&s| s == 503).count();
+    assert_eq!((created, refused), (3, 9), "{statuses:?}");
 }

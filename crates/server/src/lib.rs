@@ -59,6 +59,9 @@ pub struct AppState {
     /// Ids of every rest built per mesh id (factors are cached by rest id):
     /// deleting a mesh evicts their factors.
     rest_ids: Arc<Mutex<HashMap<String, Vec<u64>>>>,
+    /// Held across an upload's `max_meshes` check and its insert, so that
+    /// concurrent uploads cannot both pass the check for the last slot.
+    mesh_admission: Arc<Mutex<()>>,
 }
 
 impl AppState {
@@ -98,6 +101,7 @@ impl AppState {
             sessions: Arc::new(RwLock::new(HashMap::new())),
             rests: Arc::new(Mutex::new(HashMap::new())),
             rest_ids: Arc::new(Mutex::new(HashMap::new())),
+            mesh_admission: Arc::new(Mutex::new(())),
         })
     }
 }

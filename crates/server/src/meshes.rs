@@ -176,22 +176,27 @@ async fn store_mesh(
     (mesh, asset): Parsed,
 ) -> Result<(StatusCode, Json<MeshInfo>), ApiError> {
     check_vertices(st, mesh.num_vertices())?;
-    if st.store_call(|s| s.mesh_count()).await? >= st.config.max_meshes {
-        return Err(ApiError::TooManyMeshes(st.config.max_meshes));
-    }
     let id = new_id();
     let info = info_of(id.clone(), &mesh, asset.as_ref().map(|(a, _)| a));
     let key = id.clone();
+    let (admission, max) = (st.mesh_admission.clone(), st.config.max_meshes);
+    // the limit check and the insert in one blocking call, under one lock:
+    // two uploads racing for the last slot cannot both pass
     let count = st
         .store_call(move |s| {
+            let _admitted = admission.lock();
+            if s.mesh_count()? >= max {
+                return Ok(None);
+            }
             // the file before the mesh: a stored mesh always finds its asset
             if let Some((_, stored)) = &asset {
                 s.put_asset(&key, stored)?;
             }
             s.put_mesh(&key, Arc::new(mesh))?;
-            s.mesh_count()
+            s.mesh_count().map(Some)
         })
-        .await?;
+        .await?
+        .ok_or(ApiError::TooManyMeshes(max))?;
     st.metrics.meshes.set(count as i64);
     Ok((StatusCode::CREATED, Json(info)))
 }
