@@ -3,6 +3,7 @@
 //! redo span constraint edits, and a revived session gets the anchored set
 //! back from the store.
 
+mod common;
 mod server_common;
 
 use std::sync::Arc;
@@ -246,40 +247,6 @@ async fn the_session_reports_the_warnings_of_its_constraint_set() -> Result<(), 
     Ok(())
 }
 
-/// A UV sphere of radius `r`: `k` rings × `2k` segments plus the poles,
-/// outward-facing triangles.
-fn uv_sphere(r: f64, k: usize) -> (Vec<[f64; 3]>, Vec<[u32; 3]>) {
-    let seg = 2 * k;
-    let mut p = vec![[0.0, 0.0, r]];
-    for i in 1..k {
-        let th = std::f64::consts::PI * i as f64 / k as f64;
-        for j in 0..seg {
-            let ph = 2.0 * std::f64::consts::PI * j as f64 / seg as f64;
-            p.push([
-                r * th.sin() * ph.cos(),
-                r * th.sin() * ph.sin(),
-                r * th.cos(),
-            ]);
-        }
-    }
-    p.push([0.0, 0.0, -r]);
-    let south = (p.len() - 1) as u32;
-    let at = |i: usize, j: usize| (1 + (i - 1) * seg + j % seg) as u32;
-    let mut t = vec![];
-    for j in 0..seg {
-        t.push([0, at(1, j), at(1, j + 1)]);
-        t.push([south, at(k - 1, j + 1), at(k - 1, j)]);
-    }
-    for i in 1..k - 1 {
-        for j in 0..seg {
-            let (a, b, c, d) = (at(i, j), at(i, j + 1), at(i + 1, j), at(i + 1, j + 1));
-            t.push([a, c, d]);
-            t.push([a, d, b]);
-        }
-    }
-    (p, t)
-}
-
 fn median(mut v: Vec<f64>) -> f64 {
     v.sort_by(f64::total_cmp);
     v[v.len() / 2]
@@ -289,7 +256,8 @@ fn median(mut v: Vec<f64>) -> f64 {
 async fn curvature_of_the_pose_matches_a_sphere() -> Result<(), ClientError> {
     let (base, _state) = start_with_store(Config::default(), Arc::new(MemoryStore::new())).await;
     let c = Client::new(&base);
-    let (p, t) = uv_sphere(2.0, 24);
+    let sphere = common::uv_sphere(23, 48, 2.0);
+    let (p, t) = (sphere.positions().to_vec(), sphere.triangles().to_vec());
     let mesh = c.upload_json(&p, &t).await?;
     let s = c.create_session(&mesh.id, json!({})).await?;
     let http = reqwest::Client::new();

@@ -60,6 +60,16 @@ async function waitFor(page, fn, arg, what, timeout = 30000) {
   }
 }
 
+/** Waits until the page draws `expected` (every coordinate within 1e-5). */
+async function waitForPose(page, expected, what) {
+  await waitFor(page, (e) => {
+    const p = window.dend.positions();
+    let m = 0;
+    for (let i = 0; i < p.length; i++) m = Math.max(m, Math.abs(p[i] - e[i]));
+    return m < 1e-5;
+  }, Array.from(expected), what, 30000);
+}
+
 async function serverPose(base, s) {
   const r = await fetch(`${base}/v1/sessions/${s.id}/pose`, {
     headers: { Authorization: `Bearer ${s.token}`, Accept: 'application/octet-stream' },
@@ -358,12 +368,7 @@ async function main() {
     assert.ok(maxDiff(edited, gestured, handle) > 0.05 * zmax, 'the gesture moved the handle');
     await waitFor(page, () => !document.getElementById('undo').disabled, null, 'Undo enabled');
     await page.click('#undo');
-    await waitFor(page, (e) => {
-      const p = window.dend.positions();
-      let m = 0;
-      for (let i = 0; i < p.length; i++) m = Math.max(m, Math.abs(p[i] - e[i]));
-      return m < 1e-5;
-    }, Array.from(edited), 'one Undo to return to the pose before the gesture', 30000);
+    await waitForPose(page, edited, 'one Undo to return to the pose before the gesture');
     const undone = await serverPose(base, session);
     log('after one Undo, off the pre-gesture pose by', maxDiff(undone, edited, all).toExponential(2));
     assert.ok(maxDiff(undone, edited, all) < 1e-5, 'one Undo undoes the whole gesture');
@@ -388,12 +393,7 @@ async function main() {
     log('depth move: handle moved', len.toFixed(3), 'of which along the view', along.toFixed(3));
     assert.ok(len > 0.05 * zmax && along > 0.95 * len, `Alt+drag moves the handle away along the view (${along} of ${len})`);
     await page.click('#undo');
-    await waitFor(page, (e) => {
-      const p = window.dend.positions();
-      let m = 0;
-      for (let i = 0; i < p.length; i++) m = Math.max(m, Math.abs(p[i] - e[i]));
-      return m < 1e-5;
-    }, Array.from(undone), 'Undo of the depth move', 30000);
+    await waitForPose(page, undone, 'Undo of the depth move');
 
     // Reload: the URL carries the session; the regions and pose come back.
     assert.match(page2.url(), /#session=[0-9a-f]+&token=[0-9a-f]+/);
