@@ -87,15 +87,19 @@ pub fn bar_slabs(rest: &[Point], pose: &[Point], z0: f64, z1: f64, slabs: usize)
         // twist: rotate the pose's frame so that its axis matches the rest axis
         let (u0, v0) = frame(ra);
         let (u1, v1) = frame(pa);
-        let mut sum = 0.0;
+        // the circular mean of the vertices' turns (a plain mean of angles
+        // wrapped to (−π, π] averages +179° and −179° to 0)
+        let (mut sin, mut cos) = (0.0, 0.0);
         for &i in m {
             let a = sub(rest[i], rest_c[s]);
             let b = sub(pose[i], pose_c[s]);
             let ang0 = dot(a, v0).atan2(dot(a, u0));
             let ang1 = dot(b, v1).atan2(dot(b, u1));
-            sum += wrap(ang1 - ang0);
+            let d = ang1 - ang0;
+            sin += d.sin();
+            cos += d.cos();
         }
-        let mut t = (sum / m.len() as f64).to_degrees();
+        let mut t = sin.atan2(cos).to_degrees();
         // unwrap along the bar
         while t - prev > 180.0 {
             t -= 360.0;
@@ -120,17 +124,6 @@ pub fn bar_slabs(rest: &[Point], pose: &[Point], z0: f64, z1: f64, slabs: usize)
 
 fn dot(a: Point, b: Point) -> f64 {
     a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
-}
-
-fn wrap(a: f64) -> f64 {
-    let mut a = a;
-    while a > std::f64::consts::PI {
-        a -= 2.0 * std::f64::consts::PI;
-    }
-    while a < -std::f64::consts::PI {
-        a += 2.0 * std::f64::consts::PI;
-    }
-    a
 }
 
 /// An orthonormal frame `(u, v)` of the plane orthogonal to `n`, continuous
@@ -242,4 +235,66 @@ pub fn bend_angles(
     let var = angles.iter().map(|a| (a - mean).powi(2)).sum::<f64>() / angles.len().max(1) as f64;
     let cv = if mean > 0.0 { var.sqrt() / mean } else { 0.0 };
     (angles, cv)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::mesh::gen::{generate, Shape, ShapeSpec};
+
+    /// The generated bar (z from 0 to 7), each vertex turned about the z axis
+    /// by `total_deg × z / 7`.
+    fn twisted_bar(total_deg: f64) -> (Vec<Point>, Vec<Point>) {
+        let m = generate(&ShapeSpec::default_for(Shape::Bar)).unwrap();
+        let rest = m.positions().to_vec();
+        let z1 = rest.iter().map(|p| p[2]).fold(f64::MIN, f64::max);
+        let pose = rest
+            .iter()
+            .map(|p| {
+                let a = (total_deg * p[2] / z1).to_radians();
+                let (s, c) = a.sin_cos();
+                [c * p[0] - s * p[1], s * p[0] + c * p[1], p[2]]
+            })
+            .collect();
+        (rest, pose)
+    }
+
+    #[test]
+    fn a_linear_twist_measures_as_its_ramp_past_half_a_turn() {
+        // 300° takes slabs through ±180°, where the vertices' turns wrap
+        for total in [135.0, -135.0, 300.0, 420.0] {
+            let (rest, pose) = twisted_bar(total);
+            let z1 = rest.iter().map(|p| p[2]).fold(f64::MIN, f64::max);
+            let fig = bar_slabs(&rest, &pose, 0.0, z1, 20);
+            assert_eq!(fig.twist_deg.len(), 20);
+            // each slab's turn is the mean of its vertices' turns
+            for (s, &t) in fig.twist_deg.iter().enumerate() {
+                let (a, b) = (z1 * s as f64 / 20.0, z1 * (s + 1) as f64 / 20.0);
+                let zs: Vec<f64> = rest
+                    .iter()
+                    .map(|p| p[2])
+                    .filter(|&z| z >= a && z < b)
+                    .collect();
+                let want = total * zs.iter().sum::<f64>() / zs.len() as f64 / z1;
+                // the circular and the plain mean of turns within 1/20 of
+                // the twist differ by far less than a degree
+                assert!((t - want).abs() < 0.05, "{total}: slab {s}: {t} vs {want}");
+            }
+            let dev = fig.twist_deviation(0.0, z1, total);
+            assert!(dev < total.abs() / 20.0, "{total}: dev {dev}");
+            assert!(
+                (fig.min_area() - 1.0).abs() < 1e-9,
+                "{total}: area {}",
+                fig.min_area()
+            );
+        }
+    }
+
+    #[test]
+    fn an_untwisted_bar_measures_zero_twist_and_full_area() {
+        let (rest, _) = twisted_bar(0.0);
+        let fig = bar_slabs(&rest, &rest, 0.0, 7.0, 10);
+        assert!(fig.twist_deg.iter().all(|t| t.abs() < 1e-12));
+        assert!(fig.area_ratio.iter().all(|a| (a - 1.0).abs() < 1e-12));
+    }
 }

@@ -461,6 +461,12 @@ impl ElasticOps {
         }
     }
 
+    /// The first vertex of each area element (the vertex whose rotation
+    /// turns its target), in the order of the projections.
+    pub fn area_first_vertices(&self) -> impl Iterator<Item = usize> + '_ {
+        self.area.iter().map(|el| el.v[0] as usize)
+    }
+
     /// The area targets of the rest state rotated per triangle by its first
     /// vertex's rotation (`P_t = R_{t0} F_t(X)`): the projections consistent
     /// with rotations `rot` before any local step.
