@@ -83,10 +83,11 @@ pub struct Args {
     /// elastic formulation does not have (membrane, combined, total-paper).
     #[arg(long)]
     formulation: Option<String>,
-    /// Levels of an elastic edit from the rest pose: 2 solves it first on a
-    /// coarse mesh of about 1/8 of the vertices (meshes of 4000 vertices or
-    /// more whose constraint groups survive) and starts from its rotations;
-    /// 1 starts from the handles' rotations spread by harmonic weights.
+    /// Levels of the elastic iteration: 2 uses a coarse mesh of about 1/8
+    /// of the vertices (meshes of 4000 vertices or more whose constraint
+    /// groups survive) to start an edit from the rest pose and to correct
+    /// the pose every 10 iterations; 1 starts from the handles' rotations
+    /// spread by harmonic weights, without corrections.
     #[arg(long, default_value_t = 2, value_parser = clap::value_parser!(u8).range(1..=2))]
     levels: u8,
     /// Print the objective after every iteration.
@@ -227,7 +228,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             coarse_ms += r.coarse_ms;
             if r.coarse_iterations > 0 {
                 eprintln!(
-                    "  coarse start: {} coarse iterations in {:.1} ms",
+                    "  coarse level: {} coarse iterations in {:.1} ms",
                     r.coarse_iterations, r.coarse_ms
                 );
             }

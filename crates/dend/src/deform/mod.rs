@@ -43,7 +43,9 @@ pub use factor::{Factor, FactorKey, FactorPrecision, FactorTimings, SolveOptions
 pub use params::{DetailTerm, Energy, Formulation, Mode, Params, DEFAULT_AREA, DEFAULT_BENDING};
 pub use rest::Rest;
 pub use rotation::{best_rotation, fit_rotation, fit_rotation_quat, rotation_from_covariance};
-pub use solver::{Deformer, Levels, StepReport, COARSE_MAX_ITERS};
+pub use solver::{
+    Deformer, Levels, StepReport, COARSE_MAX_ITERS, CORRECTION_EVERY, CORRECTION_MAX_ITERS,
+};
 pub use system::energy_matrix;
 pub use warnings::{ConstraintWarning, STRAY_LISTED};
 

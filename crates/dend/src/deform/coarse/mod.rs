@@ -24,10 +24,12 @@
 
 mod nearest;
 mod simplify;
+mod transfer;
 
 use nalgebra::UnitQuaternion;
 
 pub use simplify::coarse_mesh;
+pub use transfer::{PROLONGATION_PASSES, RESTRICTION_PASSES};
 
 use super::constraints::{Constraints, HandleGroup};
 use super::rest::Rest;

@@ -166,7 +166,8 @@ fn a_swung_limb_reaches_the_same_pose() {
 }
 
 #[test]
-fn the_fine_objective_never_grows_after_a_coarse_start() {
+fn the_fine_objective_never_grows_through_the_coarse_start_and_corrections() {
+    use crate::deform::CORRECTION_EVERY;
     let mesh = limb();
     let rest = Arc::new(Rest::new(mesh.clone()).unwrap());
     let c = limb_constraints(&mesh, swing);
@@ -178,19 +179,29 @@ fn the_fine_objective_never_grows_after_a_coarse_start() {
     let mut prev = first.initial_objective;
     assert!(first.objective <= prev * (1.0 + 1e-12));
     prev = first.objective;
-    for _ in 0..40 {
+    let mut corrections = 0;
+    for k in 2..=200 {
         let r = d.step(&factor, &c, 1).unwrap();
-        assert_eq!(r.coarse_iterations, 0, "one coarse start per sequence");
+        if r.coarse_iterations > 0 {
+            // a correction follows every CORRECTION_EVERY-th fine iteration
+            assert_eq!(k % CORRECTION_EVERY, 0, "correction after iteration {k}");
+            corrections += 1;
+        }
         assert!(
             r.objective <= prev * (1.0 + 1e-12),
-            "{} > {prev}",
+            "iteration {k}: {} > {prev}",
             r.objective
         );
         prev = r.objective;
         if r.converged {
+            assert!(
+                k > CORRECTION_EVERY,
+                "converged in {k}: no correction tried"
+            );
             break;
         }
     }
+    assert!(corrections > 0, "no coarse correction ran");
 }
 
 #[test]
@@ -243,4 +254,98 @@ fn patch_pull(mesh: &Mesh, shift: Point) -> Constraints {
     let mut c = Constraints::new(mesh, fixed, vec![("tip".into(), handle, None)]).unwrap();
     c.handles[0].target.translation = shift;
     c
+}
+
+/// The limb's rest state, its coarse level and fixed masks for the lower
+/// quarter (fine and coarse).
+fn limb_level() -> (Arc<Rest>, Arc<CoarseLevel>, Vec<bool>, Vec<bool>) {
+    let mesh = limb();
+    let rest = Arc::new(Rest::new(mesh.clone()).unwrap());
+    let level = rest
+        .coarse()
+        .expect("a 4160-vertex tube has a coarse level")
+        .clone();
+    let (lo, hi) = mesh.bounding_box();
+    let cut = lo[2] + 0.25 * (hi[2] - lo[2]);
+    let fine_fixed: Vec<bool> = mesh.positions().iter().map(|p| p[2] < cut).collect();
+    let coarse_fixed: Vec<bool> = level
+        .fine_of
+        .iter()
+        .map(|&v| fine_fixed[v as usize])
+        .collect();
+    (rest, level, fine_fixed, coarse_fixed)
+}
+
+/// A deterministic pseudo-random vector per index.
+fn noise(i: usize, salt: u64) -> Vector3<Real> {
+    let mut h = (i as u64 ^ salt).wrapping_mul(0x9E37_79B9_7F4A_7C15);
+    let mut next = || {
+        h ^= h >> 29;
+        h = h.wrapping_mul(0xBF58_476D_1CE4_E5B9);
+        (h >> 11) as Real / (1u64 << 53) as Real - 0.5
+    };
+    Vector3::new(next(), next(), next())
+}
+
+#[test]
+fn restriction_is_the_transpose_of_prolongation() {
+    // <P w_c, f> = <w_c, Pᵀ f> for the same smoothing: the restriction is
+    // computed by another loop (Sᵀ = (A + I) D⁻¹), so this checks both
+    let (rest, level, fine_fixed, coarse_fixed) = limb_level();
+    let n = fine_fixed.len();
+    let nc = level.num_vertices();
+    let wc: Vec<Vector3<Real>> = (0..nc).map(|c| noise(c, 1)).collect();
+    let f: Vec<Point> = (0..n).map(|i| noise(i, 2).into()).collect();
+    for passes in [0, 1, 3, 10] {
+        let pw = level.prolongate_vectors(&rest, &wc, &fine_fixed, &coarse_fixed, passes);
+        let rf = level.restrict_forces(&rest, &f, &fine_fixed, &coarse_fixed, passes);
+        let lhs: Real = pw
+            .iter()
+            .zip(&f)
+            .map(|(a, b)| a.dot(&Vector3::from(*b)))
+            .sum();
+        let rhs: Real = wc
+            .iter()
+            .zip(&rf)
+            .map(|(a, b)| a.dot(&Vector3::from(*b)))
+            .sum();
+        assert!(
+            (lhs - rhs).abs() <= 1e-10 * lhs.abs().max(1.0),
+            "{passes} passes: {lhs} vs {rhs}"
+        );
+        // the masks: nothing reaches a fixed vertex on either level
+        assert!(pw
+            .iter()
+            .zip(&fine_fixed)
+            .all(|(v, &x)| !x || v.norm() == 0.0));
+        assert!(rf
+            .iter()
+            .zip(&coarse_fixed)
+            .all(|(v, &x)| !x || *v == [0.0; 3]));
+    }
+}
+
+#[test]
+fn prolongation_keeps_a_constant_field_away_from_the_fixed_part() {
+    // rows of S and P₀ sum to 1: a constant coarse field stays constant
+    // where no fixed vertex is within reach of the smoothing
+    let (rest, level, _, _) = limb_level();
+    let n = level.near.len();
+    let nc = level.num_vertices();
+    let w = Vector3::new(0.3, -0.2, 0.1);
+    let none = vec![false; n];
+    let pw = level.prolongate_vectors(&rest, &vec![w; nc], &none, &vec![false; nc], 10);
+    for v in &pw {
+        assert!((v - w).norm() < 1e-12, "{v:?}");
+    }
+    // and the restriction of unit forces conserves their sum
+    let ones: Vec<Point> = vec![[1.0, 2.0, -1.0]; n];
+    let r = level.restrict_forces(&rest, &ones, &none, &vec![false; nc], 3);
+    let total = r
+        .iter()
+        .fold([0.0; 3], |a, b| [a[0] + b[0], a[1] + b[1], a[2] + b[2]]);
+    let want = [n as Real, 2.0 * n as Real, -(n as Real)];
+    for k in 0..3 {
+        assert!((total[k] - want[k]).abs() < 1e-8 * n as Real, "{total:?}");
+    }
 }

@@ -1,49 +1,108 @@
-//! The two-level start of an elastic sequence from the rest pose
-//! (`deform::coarse`): solve the restricted problem on the coarse mesh,
-//! take its rotations to the fine mesh, then iterate on the fine mesh as
-//! after [`Deformer::propagate_rotations`].
+//! The coarse level of the elastic iteration (`deform::coarse`): the start
+//! of a sequence from the rest pose and the corrections during any
+//! sequence.
+//!
+//! - **Start** (cascadic): solve the restricted problem on the coarse mesh,
+//!   take its rotations to the fine mesh, then iterate on the fine mesh as
+//!   after [`Deformer::propagate_rotations`].
+//! - **Corrections** (a full approximation scheme, Brandt 1977, in rotation
+//!   space; prototype FINDINGS2): every [`CORRECTION_EVERY`] fine
+//!   iterations, with `r_f = g_f − Q_f Y` the fine residual (`−½ ∇E_f`),
+//!   the fine pose is injected into the coarse mesh (its vertices are fine
+//!   vertices), `Y_c⁰`, with fitted rotations `R_c⁰` and residual `r_c⁰`,
+//!   and the coarse problem is solved with the linear term that makes
+//!   `Y_c⁰` stand for the fine state:
+//!
+//!   ```text
+//!   min E_c(Y_c) − 2⟨s, Y_c⟩,   s = (h_f / h_c) Pᵀ r_f − r_c⁰   (0 on constrained)
+//!   ```
+//!
+//!   (`h` the mean edge lengths of the levels' normalised units, `P` the
+//!   smoothed aggregation of `coarse/transfer.rs`; at a fine minimum
+//!   `r_f = 0` and `Y_c⁰` solves it, so a converged pose is a fixed point).
+//!   The change of the coarse rotations `ΔR_c = R_c R_c⁰ᵀ` goes back as a
+//!   smooth field of rotation vectors, `R_i ← exp((P log ΔR_c)_i) R_i`,
+//!   the area targets turn with their first vertex, and one fine global
+//!   step from those rotations gives the correction `D`. It is kept at the
+//!   first `α ∈ {1, ½, ¼}` where `E_f(Y + αD)` is below the current energy
+//!   (so the objective still never grows), else dropped. Corrections stop
+//!   for the sequence once one gains less than the fine iterations before
+//!   it did, or when the coarse solve does not converge within
+//!   [`CORRECTION_MAX_ITERS`].
 
 use std::sync::Arc;
 use std::time::Instant;
 
-use nalgebra::UnitQuaternion;
+use nalgebra::{UnitQuaternion, Vector3};
 
 use super::Deformer;
-use crate::deform::coarse::CoarseLevel;
+use crate::deform::coarse::{CoarseLevel, PROLONGATION_PASSES, RESTRICTION_PASSES};
 use crate::deform::constraints::Constraints;
 use crate::deform::elastic::{ElasticOps, ElasticSet};
 use crate::deform::factor::Factor;
-use crate::mesh::Real;
+use crate::mesh::{Point, Real};
 
-/// Iteration cap of the coarse solve (the prototype's camel limb needed
-/// 135; a coarse solve that hits the cap still gives its rotations).
+/// Iteration cap of the coarse solve of a start (the prototype's camel
+/// limb needed 135; a coarse solve that hits the cap still gives its
+/// rotations).
 pub const COARSE_MAX_ITERS: usize = 300;
 
-/// How many levels a sequence from the rest pose uses.
+/// Fine iterations between two coarse corrections (prototype: 5 let
+/// corrections be rejected on the camel, 15 needed more iterations; 10
+/// was best).
+pub const CORRECTION_EVERY: usize = 10;
+
+/// Iteration cap of a correction's coarse solve: one that needs more is
+/// skipped and ends the corrections (the armadillo's standard edit, whose
+/// slow mode is local, spent 400 coarse iterations on a rejected one).
+pub const CORRECTION_MAX_ITERS: usize = 100;
+
+/// How many levels an elastic sequence uses.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
 pub enum Levels {
     /// The fine mesh only: first rotations from the handles' rotations
-    /// spread by harmonic weights.
+    /// spread by harmonic weights, no corrections.
     One,
-    /// A coarse solve first where the mesh has a coarse level and the
-    /// constraint set survives on it (`deform::coarse`); else as `One`.
+    /// The coarse level where the mesh has one and the constraint set
+    /// survives on it (`deform::coarse`): a coarse start from the rest pose
+    /// and coarse corrections (module docs); else as `One`.
     #[default]
     Two,
 }
 
-/// The coarse factor of the fine factor `factor_id` (`None`: the set does
-/// not survive restriction or the coarse factorisation failed; then there
-/// is no coarse start for that set).
-pub(super) type CoarseFactor = (u64, Option<Arc<Factor>>);
+/// The coarse problem of one fine constraint set.
+pub(super) struct CoarseProblem {
+    level: Arc<CoarseLevel>,
+    factor: Arc<Factor>,
+    deformer: Box<Deformer>,
+    /// Constrained vertices of the fine and of the coarse mesh.
+    fine_fixed: Vec<bool>,
+    coarse_fixed: Vec<bool>,
+}
 
-/// What the coarse start did.
-#[derive(Debug, Clone, Copy)]
+/// The coarse problem of the fine factor with id `.0`, `None` when the set
+/// does not survive restriction or the coarse factorisation failed.
+pub(super) type CoarseSlot = (u64, Option<Box<CoarseProblem>>);
+
+/// What a coarse start or correction did.
+#[derive(Debug, Clone, Copy, Default)]
 pub(super) struct CoarseRun {
     /// Coarse iterations.
     pub iterations: usize,
-    /// Wall time of the level (on first use), the factor (on a new
-    /// constraint set), the coarse solve and the prolongation, ms.
+    /// Wall time (level and coarse factor when first needed, coarse solve,
+    /// transfers and the fine steps of a correction), ms.
     pub ms: Real,
+}
+
+/// The outcome of a coarse correction.
+pub(super) enum Correction {
+    /// The fine energy fell to this value.
+    Kept(Real, CoarseRun),
+    /// No step along the correction lowered the fine energy.
+    Dropped(CoarseRun),
+    /// No correction is possible (no coarse problem, or its solve did not
+    /// converge within the cap).
+    Unavailable(CoarseRun),
 }
 
 impl Deformer {
@@ -53,48 +112,174 @@ impl Deformer {
         &self.elastic.rot
     }
 
+    /// Runs `f` with the coarse problem of `constraints`' set (built on
+    /// first use for the fine `factor`), or returns `None` when there is
+    /// none ([`Levels::One`], a small mesh, a set that does not survive).
+    fn with_coarse<R>(
+        &mut self,
+        factor: &Factor,
+        constraints: &Constraints,
+        f: impl FnOnce(&mut Deformer, &mut CoarseProblem, &Constraints) -> Option<R>,
+    ) -> Option<R> {
+        if self.levels == Levels::One {
+            return None;
+        }
+        let mut problem = match self.coarse.take() {
+            Some((id, p)) if id == factor.id() => p,
+            _ => self.coarse_problem(constraints).map(Box::new),
+        };
+        let out = match problem.as_deref_mut() {
+            Some(p) => match p.level.restrict(constraints) {
+                Some(cc) => {
+                    // the fine parameters, the fine tolerance in coarse
+                    // mean edge lengths
+                    let mut params = self.params;
+                    params.tol = params.tol * self.rest.ops.scale / p.level.rest.ops.scale;
+                    p.deformer.params = params;
+                    f(self, p, &cc)
+                }
+                None => None,
+            },
+            None => None,
+        };
+        self.coarse = Some((factor.id(), problem));
+        out
+    }
+
+    /// Builds the coarse problem of `constraints`' set (module docs).
+    fn coarse_problem(&self, constraints: &Constraints) -> Option<CoarseProblem> {
+        let level: Arc<CoarseLevel> = self.rest.coarse()?.clone();
+        let cc = level.restrict(constraints)?;
+        let factor = Arc::new(Factor::build(&level.rest, &self.params, &cc).ok()?);
+        let mut fine_fixed = vec![false; self.y.len()];
+        for v in constraints.constrained() {
+            fine_fixed[v as usize] = true;
+        }
+        let mut coarse_fixed = vec![false; level.num_vertices()];
+        for v in cc.constrained() {
+            coarse_fixed[v as usize] = true;
+        }
+        let mut deformer = Box::new(Deformer::new(level.rest.clone(), self.params));
+        deformer.set_levels(Levels::One);
+        Some(CoarseProblem {
+            level,
+            factor,
+            deformer,
+            fine_fixed,
+            coarse_fixed,
+        })
+    }
+
     /// Sets the rotations of the vertices with `set.fit` (and the area
-    /// targets) from a coarse solve (module docs). Returns `None`, with
-    /// nothing changed, when there is no coarse start for this mesh or set.
+    /// targets) from a coarse solve from the rest pose (module docs).
+    /// Returns `None`, with nothing changed, when there is no coarse level
+    /// for this mesh or set.
     pub(super) fn coarse_start(
         &mut self,
         factor: &Factor,
         (el, set): (&ElasticOps, &ElasticSet),
         constraints: &Constraints,
     ) -> Option<CoarseRun> {
-        if self.levels == Levels::One {
-            return None;
-        }
         let t0 = Instant::now();
-        let level: Arc<CoarseLevel> = self.rest.coarse()?.clone();
-        let coarse_constraints = level.restrict(constraints)?;
-        let params = self.params;
-        let coarse_factor = match &self.coarse_factor {
-            Some((id, f)) if *id == factor.id() => f.clone(),
-            _ => {
-                let f = Factor::build(&level.rest, &params, &coarse_constraints)
-                    .ok()
-                    .map(Arc::new);
-                self.coarse_factor = Some((factor.id(), f.clone()));
-                f
+        self.with_coarse(factor, constraints, |fine, p, cc| {
+            let coarse = &mut p.deformer;
+            coarse.reset();
+            coarse.elastic.linear.clear();
+            let report = coarse.step(&p.factor, cc, COARSE_MAX_ITERS).ok()?;
+            if !report.objective.is_finite() || coarse.rotations().len() != p.level.num_vertices() {
+                return None;
             }
-        }?;
-        // the fine tolerance in coarse mean edge lengths
-        let mut coarse_params = params;
-        coarse_params.tol = params.tol * self.rest.ops.scale / level.rest.ops.scale;
-        let mut coarse = Deformer::new(level.rest.clone(), coarse_params);
-        let report = coarse
-            .step(&coarse_factor, &coarse_constraints, COARSE_MAX_ITERS)
-            .ok()?;
-        if !report.objective.is_finite() || coarse.rotations().len() != level.num_vertices() {
-            return None;
-        }
-        let st = &mut self.elastic;
-        level.prolongate_rotations(&self.rest, coarse.rotations(), &set.fit, &mut st.rot);
-        el.rotated_rest_projections(&self.rest.ops.positions, &st.rot, &mut st.proj);
-        Some(CoarseRun {
-            iterations: report.iterations,
-            ms: t0.elapsed().as_secs_f64() * 1e3,
+            let st = &mut fine.elastic;
+            p.level
+                .prolongate_rotations(&fine.rest, coarse.rotations(), &set.fit, &mut st.rot);
+            el.rotated_rest_projections(&fine.rest.ops.positions, &st.rot, &mut st.proj);
+            Some(CoarseRun {
+                iterations: report.iterations,
+                ms: t0.elapsed().as_secs_f64() * 1e3,
+            })
         })
+    }
+
+    /// One coarse correction of the current pose, whose energy is `e`
+    /// (module docs).
+    pub(super) fn coarse_correction(
+        &mut self,
+        factor: &Factor,
+        (el, set): (&ElasticOps, &ElasticSet),
+        constraints: &Constraints,
+        e: Real,
+    ) -> Correction {
+        let t0 = Instant::now();
+        let ms = |t0: Instant| t0.elapsed().as_secs_f64() * 1e3;
+        let run = |iterations| CoarseRun {
+            iterations,
+            ms: ms(t0),
+        };
+        let field = self.with_coarse(factor, constraints, |fine, p, cc| {
+            // r_f = g_f − Q_f Y at the current rotations
+            let r_f = fine.residual_now(el, set).to_vec();
+            // the fine pose injected, its rotations and residual there
+            let ops = &fine.rest.ops;
+            let injected: Vec<Point> = p
+                .level
+                .fine_of
+                .iter()
+                .map(|&v| ops.denormalise(fine.y[v as usize]))
+                .collect();
+            let coarse = &mut p.deformer;
+            coarse.set_pose(injected).ok()?;
+            coarse.elastic.linear.clear();
+            coarse.step(&p.factor, cc, 0).ok()?;
+            let (el_c, set_c) = p.factor.elastic.as_ref()?;
+            let r_c0 = coarse.residual_now(el_c, set_c).to_vec();
+            let rot_c0 = coarse.elastic.rot.clone();
+            // s = (h_f / h_c) Pᵀ r_f − r_c⁰, zero on the constrained vertices
+            let ratio = fine.rest.ops.scale / p.level.rest.ops.scale;
+            let mut s = p.level.restrict_forces(
+                &fine.rest,
+                &r_f,
+                &p.fine_fixed,
+                &p.coarse_fixed,
+                RESTRICTION_PASSES,
+            );
+            for ((s, r0), &fixed) in s.iter_mut().zip(&r_c0).zip(&p.coarse_fixed) {
+                for k in 0..3 {
+                    s[k] = if fixed { 0.0 } else { ratio * s[k] - r0[k] };
+                }
+            }
+            coarse.set_linear_term(s);
+            let report = coarse.step(&p.factor, cc, CORRECTION_MAX_ITERS).ok();
+            coarse.set_linear_term(Vec::new());
+            let report = report?;
+            if !report.converged {
+                return Some((report.iterations, None));
+            }
+            // ΔR_c = R_c R_c⁰ᵀ as rotation vectors, prolongated
+            let w_c: Vec<Vector3<Real>> = coarse
+                .elastic
+                .rot
+                .iter()
+                .zip(&rot_c0)
+                .map(|(r1, r0)| (r1 * r0.inverse()).scaled_axis())
+                .collect();
+            let w_f = p.level.prolongate_vectors(
+                &fine.rest,
+                &w_c,
+                &p.fine_fixed,
+                &p.coarse_fixed,
+                PROLONGATION_PASSES,
+            );
+            Some((report.iterations, Some(w_f)))
+        });
+        match field {
+            None => Correction::Unavailable(run(0)),
+            Some((its, None)) => Correction::Unavailable(run(its)),
+            Some((its, Some(w_f))) => {
+                match self.apply_rotation_correction(factor, (el, set), &w_f, e) {
+                    Some(e_new) => Correction::Kept(e_new, run(its)),
+                    None => Correction::Dropped(run(its)),
+                }
+            }
+        }
     }
 }

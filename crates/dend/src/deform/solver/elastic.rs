@@ -31,6 +31,7 @@ use faer::dyn_stack::{MemBuffer, MemStack};
 use faer::MatMut;
 use nalgebra::{Matrix3, UnitQuaternion, Vector3};
 
+use super::coarse::{Correction, Levels, CORRECTION_EVERY};
 use super::{Deformer, StepReport};
 use crate::deform::anderson::Anderson;
 use crate::deform::constraints::Constraints;
@@ -78,6 +79,14 @@ pub(super) struct State {
     /// Each handle's harmonic weight `φ_h` over the vertices (`#V` per
     /// handle, 0 off the free vertices), for the factor with this id.
     harmonic: Option<(u64, Vec<Vec<Real>>)>,
+    /// A linear term `−2⟨s, Y⟩` added to the objective (`#V`, empty for
+    /// none): the coarse problem of a correction (`solver/coarse.rs`).
+    pub(super) linear: Vec<Point>,
+    /// Whether this sequence still tries coarse corrections, the fine
+    /// iterations since the last one, and the energy after it.
+    corrections: bool,
+    since_correction: usize,
+    e_mark: Real,
 }
 
 /// How a new iteration sequence gets its first rotations.
@@ -204,6 +213,11 @@ impl Deformer {
         st.handle_rot.clear();
         st.handle_rot
             .extend(constraints.handles.iter().map(|h| h.target.rotation));
+        if chain.is_none() {
+            st.corrections = fit && self.levels == Levels::Two;
+            st.since_correction = 0;
+            st.e_mark = e;
+        }
         let mut report = StepReport {
             iterations: 0,
             last_update: 0.0,
@@ -278,11 +292,146 @@ impl Deformer {
                 report.converged = true;
                 break;
             }
+            let st = &mut self.elastic;
+            if st.corrections {
+                st.since_correction += 1;
+                if st.since_correction >= CORRECTION_EVERY {
+                    e = self.correct(factor, (el, set), constraints, e, &mut report);
+                }
+            }
         }
         report.objective = e;
         self.elastic.chain = Some((factor.id(), e));
         self.sync_pose();
         Ok(report)
+    }
+
+    /// A coarse correction (`solver/coarse.rs`) of the pose with energy
+    /// `e`; returns the energy after it. Corrections stop for the sequence
+    /// once one gains less than the fine iterations since the last one.
+    fn correct(
+        &mut self,
+        factor: &Factor,
+        (el, set): (&ElasticOps, &ElasticSet),
+        constraints: &Constraints,
+        mut e: Real,
+        report: &mut StepReport,
+    ) -> Real {
+        let gain_before = self.elastic.e_mark - e;
+        let (gain, run) = match self.coarse_correction(factor, (el, set), constraints, e) {
+            Correction::Kept(e_new, run) => {
+                let gain = e - e_new;
+                e = e_new;
+                self.elastic.anderson.reset();
+                (gain, run)
+            }
+            Correction::Dropped(run) => (0.0, run),
+            Correction::Unavailable(run) => (Real::NEG_INFINITY, run),
+        };
+        report.coarse_iterations += run.iterations;
+        report.coarse_ms += run.ms;
+        let st = &mut self.elastic;
+        st.since_correction = 0;
+        st.corrections = gain >= gain_before;
+        st.e_mark = e;
+        e
+    }
+
+    /// `r = g(R, P) − Q Y` (plus the linear term) at the current pose,
+    /// rotations and area targets, `#V`.
+    pub(super) fn residual_now(&mut self, el: &ElasticOps, set: &ElasticSet) -> &[Point] {
+        let st = &mut self.elastic;
+        el.residual(
+            set,
+            &self.rest.ops,
+            &self.y,
+            &st.rot,
+            &st.proj,
+            (&mut st.t, &mut st.rm),
+            &mut st.res,
+        );
+        if !st.linear.is_empty() {
+            for (r, s) in st.res.iter_mut().zip(&st.linear) {
+                for k in 0..3 {
+                    r[k] += s[k];
+                }
+            }
+        }
+        &st.res
+    }
+
+    /// Adds the linear term `−2⟨s, Y⟩` to the objective (empty `s`: none);
+    /// the next step continues from the current pose and rotations.
+    pub(super) fn set_linear_term(&mut self, s: Vec<Point>) {
+        let st = &mut self.elastic;
+        st.linear = s;
+        st.chain = None;
+    }
+
+    /// The fine half of a coarse correction: turns the rotations by the
+    /// rotation vectors `w` (`R_i ← exp(w_i) R_i`, area targets with their
+    /// first vertex), takes one global step `D` from them and keeps
+    /// `Y + αD` for the first `α ∈ {1, ½, ¼}` whose energy (rotations
+    /// refitted) is below `e`. Returns that energy, or `None` with the pose
+    /// and rotations unchanged.
+    pub(super) fn apply_rotation_correction(
+        &mut self,
+        factor: &Factor,
+        (el, set): (&ElasticOps, &ElasticSet),
+        w: &[Vector3<Real>],
+        e: Real,
+    ) -> Option<Real> {
+        let nu = factor.sys.unknowns.len();
+        let st = &mut self.elastic;
+        st.rot_try.copy_from_slice(&st.rot);
+        st.proj_try.copy_from_slice(&st.proj);
+        for (i, q) in st.rot.iter_mut().enumerate() {
+            if set.fit[i] {
+                *q = UnitQuaternion::from_scaled_axis(w[i]) * *q;
+            }
+        }
+        for (v0, p) in el.area_first_vertices().zip(st.proj.iter_mut()) {
+            let turn = UnitQuaternion::from_scaled_axis(w[v0]);
+            let c0 = turn * Vector3::new(p[0], p[1], p[2]);
+            let c1 = turn * Vector3::new(p[3], p[4], p[5]);
+            *p = [c0[0], c0[1], c0[2], c1[0], c1[1], c1[2]];
+        }
+        self.global_rhs(factor, (el, set));
+        let st = &mut self.elastic;
+        {
+            let b = MatMut::from_column_major_slice_mut(&mut st.rhs, nu, 3);
+            let mem = st.mem.as_mut().expect("sized before");
+            factor.solve_in_place(b, MemStack::new(mem));
+        }
+        std::mem::swap(&mut st.rot, &mut st.rot_try);
+        std::mem::swap(&mut st.proj, &mut st.proj_try);
+        if st.rhs.iter().any(|v| !v.is_finite()) {
+            return None;
+        }
+        for (k, &u) in factor.sys.unknowns.iter().enumerate() {
+            let p = self.y[u as usize];
+            st.x_flat[k] = p[0];
+            st.x_flat[nu + k] = p[1];
+            st.x_flat[2 * nu + k] = p[2];
+        }
+        for alpha in [1.0, 0.5, 0.25] {
+            let st = &mut self.elastic;
+            for (c, (x, d)) in st.cand.iter_mut().zip(st.x_flat.iter().zip(&st.rhs)) {
+                *c = x + alpha * d;
+            }
+            self.set_unknowns(factor, Flat::Candidate);
+            let e_try = self.local_step(factor, (el, set), true, true);
+            if e_try.is_finite() && e_try < e {
+                let st = &mut self.elastic;
+                std::mem::swap(&mut st.rot, &mut st.rot_try);
+                std::mem::swap(&mut st.proj, &mut st.proj_try);
+                return Some(e_try);
+            }
+        }
+        let st = &mut self.elastic;
+        st.cand.copy_from_slice(&st.x_flat);
+        self.set_unknowns(factor, Flat::Candidate);
+        None
     }
 
     /// The local step on the current pose (`L Y`, then the rotations; into
@@ -307,7 +456,13 @@ impl Deformer {
             (&mut st.rot, &mut st.proj)
         };
         let e = el.local_step(set, ops, &self.y, &st.ly, rot, proj, fit);
-        e + factor.sys.soft_energy(&self.scratch.targets, &self.y)
+        let linear: Real = st
+            .linear
+            .iter()
+            .zip(&self.y)
+            .map(|(s, y)| s[0] * y[0] + s[1] * y[1] + s[2] * y[2])
+            .sum();
+        e - 2.0 * linear + factor.sys.soft_energy(&self.scratch.targets, &self.y)
     }
 
     /// `rhs = (g(R) − Q Y)_U` (+ `λ1 (C − Y)` on constrained unknowns).
@@ -325,6 +480,13 @@ impl Deformer {
         );
         let sys = &factor.sys;
         let nu = sys.unknowns.len();
+        if !st.linear.is_empty() {
+            for (r, s) in st.res.iter_mut().zip(&st.linear) {
+                for k in 0..3 {
+                    r[k] += s[k];
+                }
+            }
+        }
         for (k, &u) in sys.unknowns.iter().enumerate() {
             let r = st.res[u as usize];
             st.rhs[k] = r[0];

@@ -13,7 +13,7 @@ mod coarse;
 mod elastic;
 mod least_squares;
 
-pub use coarse::{Levels, COARSE_MAX_ITERS};
+pub use coarse::{Levels, COARSE_MAX_ITERS, CORRECTION_EVERY, CORRECTION_MAX_ITERS};
 
 use least_squares::Scratch;
 
@@ -35,12 +35,14 @@ pub struct StepReport {
     /// iteration). A step that does not converge ends within 5 % of the best
     /// objective it saw, so then `objective <= 1.05 · initial_objective`.
     pub initial_objective: Real,
-    /// Iterations of the coarse solve this step started from (elastic
-    /// sequences from the rest pose with [`Levels::Two`]; each costs about
-    /// `#Vc / #V` of a fine one), not counted in `iterations`.
+    /// Coarse iterations this step ran (elastic sequences with
+    /// [`Levels::Two`]: the coarse start of a sequence from the rest pose
+    /// and the coarse corrections, `solver/coarse.rs`; each costs about
+    /// `#Vc / #V` of a fine iteration), not counted in `iterations`.
     pub coarse_iterations: usize,
-    /// Wall time of that coarse start (level and coarse factor when first
-    /// needed, coarse solve, prolongation), ms; 0 without one.
+    /// Wall time of that coarse work (level and coarse factor when first
+    /// needed, coarse solves, transfers, the fine steps of corrections),
+    /// ms; 0 without any.
     pub coarse_ms: Real,
 }
 
@@ -58,8 +60,9 @@ pub struct Deformer {
     elastic: elastic::State,
     /// Whether sequences from rest start on the coarse level.
     levels: Levels,
-    /// The coarse factor of the last fine factor a coarse start used.
-    coarse_factor: Option<coarse::CoarseFactor>,
+    /// The coarse problem of the last fine factor a coarse start or
+    /// correction used.
+    coarse: Option<coarse::CoarseSlot>,
 }
 
 impl Deformer {
@@ -75,7 +78,7 @@ impl Deformer {
             scratch: Scratch::default(),
             elastic: elastic::State::default(),
             levels: Levels::default(),
-            coarse_factor: None,
+            coarse: None,
         }
     }
 
