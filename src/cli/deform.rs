@@ -84,8 +84,8 @@ pub struct Args {
     #[arg(long)]
     formulation: Option<String>,
     /// Levels of the elastic iteration: 2 uses a coarse mesh of about 1/8
-    /// of the vertices (meshes of 4000 vertices or more whose constraint
-    /// groups survive) to start an edit from the rest pose and to correct
+    /// of the vertices, at least 500 (meshes of 1000 vertices or more
+    /// whose constraint groups survive) to start an edit from the rest pose and to correct
     /// the pose every 10 iterations; 1 starts from the handles' rotations
     /// spread by harmonic weights, without corrections.
     #[arg(long, default_value_t = 2, value_parser = clap::value_parser!(u8).range(1..=2))]

@@ -90,7 +90,37 @@ fn the_level_of_a_limb_is_a_valid_vertex_subset() {
     assert!(level.rest.coarse().is_none());
     // a small mesh has none
     let small = generate(&ShapeSpec::default_for(Shape::Bar)).unwrap();
+    assert!(small.num_vertices() < MIN_VERTICES);
     assert!(Rest::new(small).unwrap().coarse().is_none());
+}
+
+#[test]
+fn smaller_meshes_keep_at_least_500_coarse_vertices() {
+    assert_eq!(ratio_for(MIN_VERTICES), 2);
+    assert_eq!(ratio_for(1502), 3);
+    assert_eq!(ratio_for(3999), 7);
+    assert_eq!(ratio_for(4000), RATIO);
+    assert_eq!(ratio_for(50_000), RATIO);
+    // a 24 × 64 = 1536-vertex tube: ratio 3, about 512 coarse vertices
+    let mesh = generate(&ShapeSpec {
+        shape: Shape::Cylinder,
+        params: ShapeParams {
+            nu: Some(24),
+            nv: Some(64),
+            size: Some(1.0),
+            size2: Some(6.0),
+            ..Default::default()
+        },
+    })
+    .unwrap();
+    let n = mesh.num_vertices();
+    let rest = Rest::new(mesh).unwrap();
+    let level = rest.coarse().expect("a coarse level from 1000 vertices");
+    let nc = level.num_vertices();
+    assert!(
+        nc >= MIN_COARSE_VERTICES * 9 / 10 && nc <= n / 2,
+        "{n} -> {nc} coarse vertices"
+    );
 }
 
 #[test]
