@@ -167,6 +167,7 @@ impl Deformer {
             .take()
             .filter(|&(id, _)| id == factor.id() && !moved);
         let mut coarse = None;
+        let mut drag = false;
         let mut e = match chain {
             Some((_, e)) => e,
             None => {
@@ -178,6 +179,7 @@ impl Deformer {
                 // iteration)
                 st.anderson.reset();
                 let start = std::mem::replace(&mut st.start, Start::Warm);
+                drag = start == Start::Warm && moved;
                 // constrained vertices whose rotation is not fitted carry
                 // their handle's rotation (the fixed ones the identity)
                 for &v in &constraints.fixed {
@@ -215,8 +217,10 @@ impl Deformer {
             .extend(constraints.handles.iter().map(|h| h.target.rotation));
         if chain.is_none() {
             st.corrections = fit && self.levels == Levels::Two;
-            st.since_correction = 0;
-            st.e_mark = e;
+            // a new target on a solved pose (a drag, a step of an edit):
+            // the first correction follows the first fine iteration
+            st.since_correction = if drag { CORRECTION_EVERY - 1 } else { 0 };
+            st.e_mark = Real::NAN;
         }
         let mut report = StepReport {
             iterations: 0,
@@ -293,6 +297,12 @@ impl Deformer {
                 break;
             }
             let st = &mut self.elastic;
+            if st.e_mark.is_nan() {
+                // the first global step moves the constrained vertices'
+                // neighbours: the gains of corrections are compared with
+                // the fine iterations after it
+                st.e_mark = e;
+            }
             if st.corrections {
                 st.since_correction += 1;
                 if st.since_correction >= CORRECTION_EVERY {
