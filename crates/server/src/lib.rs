@@ -291,6 +291,11 @@ pub(crate) async fn rest_for(st: &AppState, mesh_id: &str) -> Result<Arc<Rest>, 
         .await
         .map_err(|e| ApiError::Internal(e.to_string()))??;
     let rest = Arc::new(rest);
+    {
+        // the elastic solver's coarse level, off the first settle's path
+        let rest = rest.clone();
+        tokio::task::spawn_blocking(move || rest.prepare_coarse_level());
+    }
     let mut rests = st.rests.lock();
     // Sessions created together may have built it concurrently: keep the
     // first one, so that they share its id and hence their factors.

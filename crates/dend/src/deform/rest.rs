@@ -103,6 +103,14 @@ impl Rest {
             .as_ref()
     }
 
+    /// Builds the coarse level now if the mesh has one (it is otherwise
+    /// built by the first elastic step that needs it), returning whether
+    /// it has one. A server calls this in the background when a mesh is
+    /// opened, so that the first settle of a session does not pay for it.
+    pub fn prepare_coarse_level(&self) -> bool {
+        self.coarse().is_some()
+    }
+
     /// A process-unique id (factor cache keys refer to it).
     pub fn id(&self) -> u64 {
         self.id
