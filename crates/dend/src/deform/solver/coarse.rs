@@ -7,8 +7,8 @@
 //!   after [`Deformer::propagate_rotations`].
 //! - **Corrections** (a full approximation scheme, Brandt 1977, in rotation
 //!   space; prototype FINDINGS2): every [`CORRECTION_EVERY`] fine
-//!   iterations (after the first one when the sequence starts from a
-//!   solved pose with new targets: a drag), with `r_f = g_f − Q_f Y` the fine residual (`−½ ∇E_f`),
+//!   iterations of a sequence (a drag's too, never in the frame that
+//!   answers it), with `r_f = g_f − Q_f Y` the fine residual (`−½ ∇E_f`),
 //!   the fine pose is injected into the coarse mesh (its vertices are fine
 //!   vertices), `Y_c⁰`, with fitted rotations `R_c⁰` and residual `r_c⁰`,
 //!   and the coarse problem is solved with the linear term that makes
