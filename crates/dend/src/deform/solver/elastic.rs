@@ -31,7 +31,7 @@ use faer::dyn_stack::{MemBuffer, MemStack};
 use faer::MatMut;
 use nalgebra::{Matrix3, UnitQuaternion, Vector3};
 
-use super::coarse::{Correction, Levels, CORRECTION_EVERY};
+use super::coarse::{CoarseRun, Correction, Levels, CORRECTION_EVERY};
 use super::{Deformer, StepReport};
 use crate::deform::anderson::Anderson;
 use crate::deform::constraints::Constraints;
@@ -47,19 +47,19 @@ use crate::mesh::{Point, Real};
 pub(super) struct State {
     /// `R(Y)` of the current pose (and the candidate's, while tried).
     pub(super) rot: Vec<UnitQuaternion<Real>>,
-    rot_try: Vec<UnitQuaternion<Real>>,
+    pub(super) rot_try: Vec<UnitQuaternion<Real>>,
     /// The area projections `P_t` (and the candidate's).
     pub(super) proj: Vec<[Real; 6]>,
-    proj_try: Vec<[Real; 6]>,
+    pub(super) proj_try: Vec<[Real; 6]>,
     /// `L Y`.
-    ly: Vec<Point>,
+    pub(super) ly: Vec<Point>,
     /// `R_i δ_i` and `R_i` as matrices (scratch), and the residual
     /// `g(R) − Q Y`, `#V`.
     t: Vec<Point>,
     rm: Vec<Matrix3<Real>>,
     res: Vec<Point>,
     /// Right-hand side / update, column-major `|U| × 3`.
-    rhs: Vec<Real>,
+    pub(super) rhs: Vec<Real>,
     /// Flat `3|U|` current iterate, Anderson candidate and `Q_UU Δ`.
     x_flat: Vec<Real>,
     cand: Vec<Real>,
@@ -67,7 +67,7 @@ pub(super) struct State {
     /// How the next sequence starts.
     start: Start,
     anderson: Anderson,
-    mem: Option<MemBuffer>,
+    pub(super) mem: Option<MemBuffer>,
     sized_for: (u64, usize),
     /// The energy of the current pose and the factor it was computed with,
     /// when the next call may continue the sequence.
@@ -75,10 +75,10 @@ pub(super) struct State {
     /// The handles' target rotations the current pose was solved for
     /// (empty from the rest pose): a new target turns the rotations by
     /// the change ([`Deformer::propagate_rotation_change`]).
-    handle_rot: Vec<UnitQuaternion<Real>>,
+    pub(super) handle_rot: Vec<UnitQuaternion<Real>>,
     /// Each handle's harmonic weight `φ_h` over the vertices (`#V` per
     /// handle, 0 off the free vertices), for the factor with this id.
-    harmonic: Option<(u64, Vec<Vec<Real>>)>,
+    pub(super) harmonic: Option<(u64, Vec<Vec<Real>>)>,
     /// A linear term `−2⟨s, Y⟩` added to the objective (`#V`, empty for
     /// none): the coarse problem of a correction (`solver/coarse.rs`).
     pub(super) linear: Vec<Point>,
@@ -132,100 +132,22 @@ impl Deformer {
         max_iters: usize,
     ) -> Result<StepReport, DeformError> {
         let moved = self.load_targets(factor, constraints)?;
-        let n = self.y.len();
         let nu = factor.sys.unknowns.len();
-        let window = self.params.anderson;
-        let st = &mut self.elastic;
-        if st.rot.len() != n {
-            st.rot = vec![UnitQuaternion::identity(); n];
-            st.rot_try = vec![UnitQuaternion::identity(); n];
-            st.ly = vec![[0.0; 3]; n];
-            st.t = vec![[0.0; 3]; n];
-            st.rm = vec![Matrix3::zeros(); n];
-            st.res = vec![[0.0; 3]; n];
-            st.proj = Vec::new();
-        }
-        if st.proj.len() != el.num_area_elements() {
-            st.proj = vec![[0.0; 6]; el.num_area_elements()];
-            st.proj_try = st.proj.clone();
-            // consistent with the rotations before any local step
-            el.rotated_rest_projections(&self.rest.ops.positions, &st.rot, &mut st.proj);
-        }
-        if st.sized_for != (factor.id(), window) || st.mem.is_none() {
-            st.rhs = vec![0.0; 3 * nu];
-            st.x_flat = vec![0.0; 3 * nu];
-            st.cand = vec![0.0; 3 * nu];
-            st.mf = vec![0.0; 3 * nu];
-            st.anderson = Anderson::new(window, 3 * nu);
-            st.mem = Some(MemBuffer::new(factor.solve_scratch(3)));
-            st.sized_for = (factor.id(), window);
-            st.chain = None;
-        }
+        self.size_state(factor, el);
         let fit = self.params.detail == DetailTerm::Nonlinear;
-        let chain = st
+        let chain = self
+            .elastic
             .chain
             .take()
             .filter(|&(id, _)| id == factor.id() && !moved);
-        let mut coarse = None;
-        let mut drag = false;
-        let mut e = match chain {
-            Some((_, e)) => e,
-            None => {
-                // a new sequence starts from the rotations of the last pose;
-                // from the rest pose, from the handles' rotations spread
-                // over the free vertices (the first global step then moves
-                // every vertex with its constraints: a translation or a
-                // common rotation of all of them is exact after one
-                // iteration)
-                st.anderson.reset();
-                let start = std::mem::replace(&mut st.start, Start::Warm);
-                drag = start == Start::Warm && moved;
-                // constrained vertices whose rotation is not fitted carry
-                // their handle's rotation (the fixed ones the identity)
-                for &v in &constraints.fixed {
-                    if !set.fit[v as usize] {
-                        st.rot[v as usize] = UnitQuaternion::identity();
-                    }
-                }
-                for h in &constraints.handles {
-                    for &v in &h.vertices {
-                        if !set.fit[v as usize] {
-                            st.rot[v as usize] = h.target.rotation;
-                        }
-                    }
-                }
-                match start {
-                    Start::Rest if fit => {
-                        coarse = self.coarse_start(factor, (el, set), constraints);
-                        if coarse.is_none() {
-                            self.propagate_rotations(factor, (el, set), constraints);
-                        }
-                        self.local_step(factor, (el, set), false, false)
-                    }
-                    Start::Refit if fit => self.local_step(factor, (el, set), true, false),
-                    Start::Warm if fit && moved => {
-                        self.propagate_rotation_change(factor, (el, set), constraints);
-                        self.local_step(factor, (el, set), false, false)
-                    }
-                    _ => self.local_step(factor, (el, set), false, false),
-                }
-            }
+        let (mut e, coarse) = match chain {
+            Some((_, e)) => (e, None),
+            None => self.start_sequence(factor, (el, set), constraints, moved),
         };
         let st = &mut self.elastic;
         st.handle_rot.clear();
         st.handle_rot
             .extend(constraints.handles.iter().map(|h| h.target.rotation));
-        if chain.is_none() {
-            st.corrections = fit && self.levels == Levels::Two;
-            // a drag (a new target on a solved pose) could take its first
-            // correction after its first fine iteration (fewer fine
-            // iterations, the same time), but then every frame that follows
-            // a drag in a server session carries a coarse solve: the camel's
-            // drag→frame p50 rose from 7.5 to 65 ms
-            let _ = drag;
-            st.since_correction = 0;
-            st.e_mark = Real::NAN;
-        }
         let mut report = StepReport {
             iterations: 0,
             last_update: 0.0,
@@ -241,7 +163,7 @@ impl Deformer {
             self.sync_pose();
             return Ok(report);
         }
-        let accelerate = fit && window > 0;
+        let accelerate = fit && self.params.anderson > 0;
         for _ in 0..max_iters {
             // 1. global step: Δ = Q_UU⁻¹ (g(R) − Q Y)_U
             self.global_rhs(factor, (el, set));
@@ -318,6 +240,96 @@ impl Deformer {
         self.elastic.chain = Some((factor.id(), e));
         self.sync_pose();
         Ok(report)
+    }
+
+    /// Sizes the iteration's memory for this mesh, its area elements and
+    /// `factor`'s unknowns and Anderson window (a new factor forgets the
+    /// continued sequence).
+    fn size_state(&mut self, factor: &Factor, el: &ElasticOps) {
+        let n = self.y.len();
+        let nu = factor.sys.unknowns.len();
+        let window = self.params.anderson;
+        let st = &mut self.elastic;
+        if st.rot.len() != n {
+            st.rot = vec![UnitQuaternion::identity(); n];
+            st.rot_try = vec![UnitQuaternion::identity(); n];
+            st.ly = vec![[0.0; 3]; n];
+            st.t = vec![[0.0; 3]; n];
+            st.rm = vec![Matrix3::zeros(); n];
+            st.res = vec![[0.0; 3]; n];
+            st.proj = Vec::new();
+        }
+        if st.proj.len() != el.num_area_elements() {
+            st.proj = vec![[0.0; 6]; el.num_area_elements()];
+            st.proj_try = st.proj.clone();
+            // consistent with the rotations before any local step
+            el.rotated_rest_projections(&self.rest.ops.positions, &st.rot, &mut st.proj);
+        }
+        if st.sized_for != (factor.id(), window) || st.mem.is_none() {
+            st.rhs = vec![0.0; 3 * nu];
+            st.x_flat = vec![0.0; 3 * nu];
+            st.cand = vec![0.0; 3 * nu];
+            st.mf = vec![0.0; 3 * nu];
+            st.anderson = Anderson::new(window, 3 * nu);
+            st.mem = Some(MemBuffer::new(factor.solve_scratch(3)));
+            st.sized_for = (factor.id(), window);
+            st.chain = None;
+        }
+    }
+
+    /// The first rotations and energy of a new iteration sequence
+    /// ([`Start`]): from the rest pose the coarse start or the handles'
+    /// rotations spread over the free vertices (the first global step then
+    /// moves every vertex with its constraints: a translation or a common
+    /// rotation of all of them is exact after one iteration); a replaced
+    /// pose refits; a solved pose with new targets turns by the handles'
+    /// change of rotation. Resets the acceleration and the corrections'
+    /// schedule (drags count to their first correction like any sequence:
+    /// taking it in the frame that answers a drag put a coarse solve into
+    /// every such frame, camel drag→frame p50 7.5 → 65 ms).
+    fn start_sequence(
+        &mut self,
+        factor: &Factor,
+        (el, set): (&ElasticOps, &ElasticSet),
+        constraints: &Constraints,
+        moved: bool,
+    ) -> (Real, Option<CoarseRun>) {
+        let fit = self.params.detail == DetailTerm::Nonlinear;
+        let st = &mut self.elastic;
+        st.anderson.reset();
+        st.corrections = fit && self.levels == Levels::Two;
+        st.since_correction = 0;
+        st.e_mark = Real::NAN;
+        let start = std::mem::replace(&mut st.start, Start::Warm);
+        // constrained vertices whose rotation is not fitted carry their
+        // handle's rotation (the fixed ones the identity)
+        for &v in &constraints.fixed {
+            if !set.fit[v as usize] {
+                st.rot[v as usize] = UnitQuaternion::identity();
+            }
+        }
+        for h in &constraints.handles {
+            for &v in &h.vertices {
+                if !set.fit[v as usize] {
+                    st.rot[v as usize] = h.target.rotation;
+                }
+            }
+        }
+        match start {
+            Start::Rest if fit => {
+                let coarse = self.coarse_start(factor, (el, set), constraints);
+                if coarse.is_none() {
+                    self.propagate_rotations(factor, (el, set), constraints);
+                }
+                (self.local_step(factor, (el, set), false, false), coarse)
+            }
+            Start::Refit if fit => (self.local_step(factor, (el, set), true, false), None),
+            Start::Warm if fit && moved => {
+                self.propagate_rotation_change(factor, (el, set), constraints);
+                (self.local_step(factor, (el, set), false, false), None)
+            }
+            _ => (self.local_step(factor, (el, set), false, false), None),
+        }
     }
 
     /// A coarse correction (`solver/coarse.rs`) of the pose with energy
@@ -508,160 +520,6 @@ impl Deformer {
             st.rhs[2 * nu + k] = r[2];
         }
         sys.add_soft_rhs(&self.scratch.targets, &self.y, &mut st.rhs);
-    }
-
-    /// The rotations of a sequence that starts at the rest pose: with `w_h`
-    /// the rotation vector (axis × angle) of handle `h`'s target and `φ_h`
-    /// its harmonic weight ([`Deformer::harmonic_weights`]),
-    /// `R_i = exp(Σ_h φ_h(i) w_h)`; the area targets follow
-    /// (`P_t = R_{t0} F_t(X)`). Handles that do not rotate add nothing, so a
-    /// pure translation keeps the identity.
-    fn propagate_rotations(
-        &mut self,
-        factor: &Factor,
-        (el, set): (&ElasticOps, &ElasticSet),
-        constraints: &Constraints,
-    ) {
-        for (i, q) in self.elastic.rot.iter_mut().enumerate() {
-            if set.fit[i] {
-                *q = UnitQuaternion::identity();
-            }
-        }
-        let turns: Vec<(usize, Vector3<Real>)> = constraints
-            .handles
-            .iter()
-            .enumerate()
-            .map(|(k, h)| (k, h.target.rotation.scaled_axis()))
-            .filter(|(_, w)| w.norm() > 1e-12)
-            .collect();
-        if !turns.is_empty() {
-            let w = self.spread(factor, set, constraints, &turns);
-            let st = &mut self.elastic;
-            for (i, (q, w)) in st.rot.iter_mut().zip(&w).enumerate() {
-                if set.fit[i] {
-                    *q = UnitQuaternion::from_scaled_axis(*w);
-                }
-            }
-        }
-        let st = &mut self.elastic;
-        el.rotated_rest_projections(&self.rest.ops.positions, &st.rot, &mut st.proj);
-    }
-
-    /// A sequence from a solved pose whose handle targets moved: each
-    /// handle's change of rotation `ΔR_h = R_h^new (R_h^old)ᵀ` is spread
-    /// like the first rotations of an edit ([`Deformer::propagate_rotations`]),
-    /// `R_i ← exp(Σ_h φ_h(i) log ΔR_h) R_i`, and each area target turns
-    /// with its triangle's first vertex (`P_t ← ΔR_{t0} P_t`). A twist
-    /// applied in steps then starts each step from the turned pose instead
-    /// of untwisting it from the old rotations; a pure translation changes
-    /// nothing.
-    fn propagate_rotation_change(
-        &mut self,
-        factor: &Factor,
-        (el, set): (&ElasticOps, &ElasticSet),
-        constraints: &Constraints,
-    ) {
-        if self.elastic.handle_rot.len() != constraints.handles.len() {
-            return;
-        }
-        let turns: Vec<(usize, Vector3<Real>)> = constraints
-            .handles
-            .iter()
-            .zip(&self.elastic.handle_rot)
-            .enumerate()
-            .map(|(k, (h, old))| (k, (h.target.rotation * old.inverse()).scaled_axis()))
-            .filter(|(_, w)| w.norm() > 1e-12)
-            .collect();
-        if turns.is_empty() {
-            return;
-        }
-        let w = self.spread(factor, set, constraints, &turns);
-        let st = &mut self.elastic;
-        for (i, (q, w)) in st.rot.iter_mut().zip(&w).enumerate() {
-            if set.fit[i] {
-                *q = UnitQuaternion::from_scaled_axis(*w) * *q;
-            }
-        }
-        for (e, p) in el.area_first_vertices().zip(st.proj.iter_mut()) {
-            let turn = UnitQuaternion::from_scaled_axis(w[e]);
-            let c0 = turn * Vector3::new(p[0], p[1], p[2]);
-            let c1 = turn * Vector3::new(p[3], p[4], p[5]);
-            *p = [c0[0], c0[1], c0[2], c1[0], c1[1], c1[2]];
-        }
-    }
-
-    /// `Σ_h φ_h(i) w_h` per vertex for the handle rotation vectors `turns`
-    /// (`(handle index, w_h)`), `φ_h` clamped to `[0, 1]`.
-    fn spread(
-        &mut self,
-        factor: &Factor,
-        set: &ElasticSet,
-        constraints: &Constraints,
-        turns: &[(usize, Vector3<Real>)],
-    ) -> Vec<Vector3<Real>> {
-        let n = self.y.len();
-        self.harmonic_weights(factor, set, constraints);
-        let phi = &self.elastic.harmonic.as_ref().expect("computed above").1;
-        let mut w = vec![Vector3::<Real>::zeros(); n];
-        for &(k, wh) in turns {
-            for (wi, &p) in w.iter_mut().zip(&phi[k]) {
-                *wi += wh * p;
-            }
-        }
-        w
-    }
-
-    /// Computes (once per factor) each handle's harmonic weight `φ_h`:
-    /// `Q_UU φ_h = −Q_UC 1_h` (1 on the handle, 0 on the other constrained
-    /// vertices), solved with the factor three handles at a time, clamped
-    /// to `[0, 1]`; 1 on the handle's own vertices.
-    fn harmonic_weights(&mut self, factor: &Factor, set: &ElasticSet, constraints: &Constraints) {
-        let n = self.y.len();
-        let st = &mut self.elastic;
-        if matches!(&st.harmonic, Some((id, phi)) if *id == factor.id() && phi.len() == constraints.handles.len())
-        {
-            return;
-        }
-        let mut group = vec![u32::MAX; n];
-        for (k, h) in constraints.handles.iter().enumerate() {
-            for &v in &h.vertices {
-                group[v as usize] = k as u32;
-            }
-        }
-        let sys = &factor.sys;
-        let nu = sys.unknowns.len();
-        let mut phi = vec![vec![0.0; n]; constraints.handles.len()];
-        let handles: Vec<usize> = (0..constraints.handles.len()).collect();
-        for chunk in handles.chunks(3) {
-            st.rhs.fill(0.0);
-            for (col, &k) in chunk.iter().enumerate() {
-                for (r, &u) in sys.unknowns.iter().enumerate() {
-                    if let Some(row) = set.q.outer_view(u as usize) {
-                        let s: Real = row
-                            .iter()
-                            .filter(|&(j, _)| group[j] == k as u32)
-                            .map(|(_, &v)| v)
-                            .sum();
-                        st.rhs[col * nu + r] = -s;
-                    }
-                }
-            }
-            let b = MatMut::from_column_major_slice_mut(&mut st.rhs, nu, 3);
-            let mem = st.mem.as_mut().expect("sized before");
-            factor.solve_in_place(b, MemStack::new(mem));
-            for (col, &k) in chunk.iter().enumerate() {
-                for (r, &u) in sys.unknowns.iter().enumerate() {
-                    let p = st.rhs[col * nu + r];
-                    if p.is_finite() {
-                        phi[k][u as usize] = p.clamp(0.0, 1.0);
-                    }
-                }
-                for &v in &constraints.handles[k].vertices {
-                    phi[k][v as usize] = 1.0;
-                }
-            }
-        }
-        st.harmonic = Some((factor.id(), phi));
     }
 
     /// Writes the unknowns of `Y` from the Anderson candidate or from the

@@ -12,6 +12,7 @@ use crate::mesh::{Point, Real};
 mod coarse;
 mod elastic;
 mod least_squares;
+mod propagate;
 
 pub use coarse::{Levels, COARSE_MAX_ITERS, CORRECTION_EVERY, CORRECTION_MAX_ITERS};
 
