@@ -3,7 +3,7 @@
 // handle's centroid).
 
 import { Renderer } from './renderer.js';
-import { project, brush, box, frontFacing, pick } from './select.js';
+import { project, brush, box, frontFacing, pick, adjacency, fillRegion } from './select.js';
 import { sub, dot, add, scale } from './camera.js';
 import { paint, strokeEnded, sendDrag, send, serverHandle } from './app.js';
 
@@ -62,6 +62,19 @@ export function attachInteraction(app, canvas) {
     }
     if (t === 'box') {
       drag = { kind: 'box', x0: x, y0: y, erase: e.altKey };
+      return;
+    }
+    if (t === 'fill') {
+      // the nearest visible vertex under the cursor seeds a bucket fill of
+      // its label's connected region (Alt: erase that region)
+      const seed = pick(screen(), x, y, 14, visible());
+      if (seed >= 0) {
+        if (!app.adjacency || app.adjacency.mesh !== app.mesh) {
+          app.adjacency = { mesh: app.mesh, ...adjacency(app.mesh.edges, app.labels.length) };
+        }
+        paint(fillRegion(app.adjacency, app.labels, seed), e.altKey);
+        strokeEnded();
+      }
       return;
     }
     const v = pick(screen(), x, y, 14, (i) => app.labels[i] > 0);

@@ -73,3 +73,41 @@ export function pick(screen, x, y, radius, accept) {
   }
   return best;
 }
+
+/** Vertex adjacency (CSR: `start`, `next`) from a flat edge list
+ * `[a, b, a, b, ...]` over `n` vertices. */
+export function adjacency(edges, n) {
+  const start = new Uint32Array(n + 1);
+  for (let k = 0; k < edges.length; k++) start[edges[k] + 1]++;
+  for (let i = 0; i < n; i++) start[i + 1] += start[i];
+  const fill = start.slice(0, n);
+  const next = new Uint32Array(edges.length);
+  for (let k = 0; k < edges.length; k += 2) {
+    const [a, b] = [edges[k], edges[k + 1]];
+    next[fill[a]++] = b;
+    next[fill[b]++] = a;
+  }
+  return { start, next };
+}
+
+/** The vertices reachable from `seed` over edges through vertices whose
+ * label equals the seed's (a bucket fill: a region painted around a limb
+ * bounds the fill of the part beyond it; on an unpainted mesh it is the
+ * seed's connected component). */
+export function fillRegion(adj, labels, seed) {
+  const want = labels[seed];
+  const seen = new Uint8Array(labels.length);
+  const out = [seed];
+  seen[seed] = 1;
+  for (let q = 0; q < out.length; q++) {
+    const v = out[q];
+    for (let k = adj.start[v]; k < adj.start[v + 1]; k++) {
+      const w = adj.next[k];
+      if (!seen[w] && labels[w] === want) {
+        seen[w] = 1;
+        out.push(w);
+      }
+    }
+  }
+  return out;
+}

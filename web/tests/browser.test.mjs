@@ -451,6 +451,52 @@ async function main() {
     await page.click('#shrinkSel');
     assert.ok(count(await page.evaluate(() => window.dend.labels())) < count(grown), 'Shrink removes a ring');
 
+    // Fill: a click gives the clicked vertex's connected region (same
+    // label) the target; Alt+click erases it again. Checked against a
+    // breadth-first search over the triangles, here in the test.
+    await page.uncheck('#autoApply');
+    const beforeFill = await page.evaluate(() => window.dend.labels());
+    const tris = await page.evaluate(() => Array.from(window.dend.app.mesh.triangles));
+    const nbr = Array.from({ length: n }, () => []);
+    for (let t = 0; t < tris.length; t += 3) {
+      for (const [a, b] of [[0, 1], [1, 2], [2, 0]]) {
+        nbr[tris[t + a]].push(tris[t + b]);
+        nbr[tris[t + b]].push(tris[t + a]);
+      }
+    }
+    // a free vertex inside the free region (its ring free too), facing +x
+    const seed = [...Array(n).keys()]
+      .filter((i) => beforeFill[i] === 0 && nbr[i].every((j) => beforeFill[j] === 0))
+      .sort((a, b) => rest[3 * b] - rest[3 * a] || Math.abs(z(a) - zmax / 2) - Math.abs(z(b) - zmax / 2))[0];
+    await page.check('input[name=tool][value=fill]');
+    await page.click('#addHandle');
+    const fillLabel = Number((await page.inputValue('#target')).slice(1)) + 1;
+    const [fx, fy] = (await page.evaluate((i) => window.dend.project([i]), seed))[0];
+    await page.mouse.click(cb.x + fx, cb.y + fy);
+    const filled = await page.evaluate(() => window.dend.labels());
+    const fillSet = filled.flatMap((l, i) => (l !== beforeFill[i] ? [i] : []));
+    log('fill changed', fillSet.length, 'vertices');
+    assert.ok(fillSet.length > 0 && fillSet.every((i) => beforeFill[i] === 0 && filled[i] === fillLabel),
+      'the fill turns free vertices into the target handle only');
+    const reach = new Set([fillSet[0]]);
+    const queue = [fillSet[0]];
+    while (queue.length) {
+      for (const w of nbr[queue.pop()]) {
+        if (!reach.has(w) && beforeFill[w] === 0) {
+          reach.add(w);
+          queue.push(w);
+        }
+      }
+    }
+    assert.equal(reach.size, fillSet.length, 'the fill is exactly the free region connected to the click');
+    assert.ok(fillSet.every((i) => reach.has(i)));
+    await page.keyboard.down('Alt');
+    await page.mouse.click(cb.x + fx, cb.y + fy);
+    await page.keyboard.up('Alt');
+    assert.deepEqual(await page.evaluate(() => window.dend.labels()), beforeFill, 'Alt+fill erases the filled region');
+    await page.check('input[name=tool][value=navigate]');
+    await page.check('#autoApply');
+
     // Phone width: the canvas keeps most of the screen, the panel folds.
     const phone = await ctx.newPage();
     await phone.setViewportSize({ width: 390, height: 844 });
