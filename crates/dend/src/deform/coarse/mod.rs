@@ -36,7 +36,7 @@ pub use transfer::{PROLONGATION_PASSES, RESTRICTION_PASSES};
 
 use super::constraints::{Constraints, HandleGroup};
 use super::rest::Rest;
-use crate::mesh::Real;
+use crate::mesh::{Point, Real};
 
 /// Fine vertex count from which a mesh gets a coarse level
 /// (`2 ×` [`MIN_COARSE_VERTICES`]).
@@ -114,29 +114,13 @@ impl CoarseLevel {
     /// targets carried over. `None` when a group keeps fewer than
     /// [`MIN_GROUP`] coarse vertices (then there is no coarse problem).
     pub fn restrict(&self, constraints: &Constraints) -> Option<Constraints> {
-        let mut fixed = Vec::new();
-        let mut fixed_at = Vec::new();
-        for (&v, &p) in constraints.fixed.iter().zip(&constraints.fixed_at) {
-            let c = self.coarse_of[v as usize];
-            if c != u32::MAX {
-                fixed.push(c);
-                fixed_at.push(p);
-            }
-        }
+        let (fixed, fixed_at) = self.keep_coarse(&constraints.fixed, &constraints.fixed_at);
         if !constraints.fixed.is_empty() && fixed.len() < MIN_GROUP {
             return None;
         }
         let mut handles = Vec::with_capacity(constraints.handles.len());
         for h in &constraints.handles {
-            let mut vertices = Vec::new();
-            let mut base = Vec::new();
-            for (&v, &p) in h.vertices.iter().zip(&h.base) {
-                let c = self.coarse_of[v as usize];
-                if c != u32::MAX {
-                    vertices.push(c);
-                    base.push(p);
-                }
-            }
+            let (vertices, base) = self.keep_coarse(&h.vertices, &h.base);
             if vertices.len() < MIN_GROUP {
                 return None;
             }
@@ -154,6 +138,19 @@ impl CoarseLevel {
             fixed_at,
             handles,
         })
+    }
+
+    /// The fine `vertices` that are coarse vertices, as coarse indices,
+    /// with their `positions`.
+    fn keep_coarse(&self, vertices: &[u32], positions: &[Point]) -> (Vec<u32>, Vec<Point>) {
+        vertices
+            .iter()
+            .zip(positions)
+            .filter_map(|(&v, &p)| {
+                let c = self.coarse_of[v as usize];
+                (c != u32::MAX).then_some((c, p))
+            })
+            .unzip()
     }
 
     /// The fine rotations of the vertices where `fit` is set, from the
