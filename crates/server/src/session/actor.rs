@@ -2,6 +2,7 @@
 //! time on the blocking pool, publishes frames and keeps the history.
 
 use std::collections::VecDeque;
+use std::sync::atomic::Ordering;
 use std::sync::Arc;
 use std::time::Instant;
 
@@ -10,7 +11,7 @@ use tokio::sync::{mpsc, watch};
 use super::frame::{FrameBody, FrameHeader};
 use super::shared::{off_worker, Cmd, Inner, Internal, Reply, Restore, SessionOptions};
 use super::{Delta, Event, Frame, PoseSnapshot, SessionError, SessionState};
-use crate::store::{Checkpoint, JournalEntry, StoredTransform};
+use crate::store::{Checkpoint, JournalEntry, StoreError, StoredTransform};
 use dend::deform::{Constraints, ConstraintsSpec, Deformer, RigidTransform};
 
 /// Most history entries kept per session (older ones are dropped).
@@ -80,7 +81,12 @@ pub(super) struct Actor {
     cursor: usize,
     uncommitted: bool,
     pose: Arc<Vec<[f64; 3]>>,
+    /// Set when the lease is lost (a fenced write): the actor ends.
+    stop: bool,
 }
+
+/// How long after a failed journal append the actor tries again.
+const RETRY_AFTER: std::time::Duration = std::time::Duration::from_millis(250);
 
 impl Actor {
     pub(super) fn new(
@@ -120,6 +126,7 @@ impl Actor {
             cursor: 0,
             uncommitted: false,
             pose,
+            stop: false,
         }
     }
 
@@ -143,6 +150,9 @@ impl Actor {
                     Some(cmd) => if !self.on_cmd(cmd) { return self.closed() },
                     None => return self.closed(),
                 },
+            }
+            if self.stop {
+                return self.closed();
             }
         }
     }
@@ -334,8 +344,11 @@ impl Actor {
 
     /// Writes `set`'s stored spec to the store, then [`activate`](Self::activate)s it.
     fn install(&mut self, set: Arc<InstalledSet>, after: AfterBuild) -> Result<(), SessionError> {
-        let (store, id) = (&self.opts.store, &self.inner.id);
-        off_worker(|| store.set_constraints(id, &set.stored))?;
+        let (store, id, fence) = (&self.opts.store, &self.inner.id, self.opts.fence);
+        if let Err(e) = off_worker(|| store.set_constraints(id, fence, &set.stored)) {
+            self.on_store_error(&e);
+            return Err(e.into());
+        }
         self.activate(set, after);
         Ok(())
     }
@@ -446,10 +459,11 @@ impl Actor {
             return;
         };
         let journal = std::mem::take(&mut self.journal);
-        let (id, store, cache) = (
+        let (id, store, cache, fence) = (
             self.inner.id.clone(),
             self.opts.store.clone(),
             self.opts.cache.clone(),
+            self.opts.fence,
         );
         let (rest, params, tx) = (
             self.inner.rest.clone(),
@@ -459,13 +473,23 @@ impl Actor {
         let applied_seq = self.last_seq;
         drop(tokio::task::spawn_blocking(move || {
             let t0 = Instant::now();
-            let result = (|| {
-                if !journal.is_empty() {
-                    store.append(&id, &journal)?;
+            let appended = if journal.is_empty() {
+                Ok(())
+            } else {
+                store.append(&id, fence, &journal)
+            };
+            // a drag is acknowledged only once journaled: when the append
+            // fails, nothing is solved and the entries go back to the actor
+            let (result, unjournaled) = match appended {
+                Ok(()) => {
+                    let step = (|| {
+                        let factor = cache.get_or_build(&rest, &params, &constraints)?;
+                        Ok(deformer.step(&factor, &constraints, budget)?)
+                    })();
+                    (step, vec![])
                 }
-                let factor = cache.get_or_build(&rest, &params, &constraints)?;
-                Ok(deformer.step(&factor, &constraints, budget)?)
-            })();
+                Err(e) => (Err(SessionError::Store(e)), journal),
+            };
             let seconds = t0.elapsed().as_secs_f64();
             let body = FrameBody::from_pose(deformer.pose());
             let _ = tx.send(Internal::Solved {
@@ -474,12 +498,19 @@ impl Actor {
                 body,
                 seconds,
                 applied_seq,
+                unjournaled,
             });
         }));
     }
 
     fn on_internal(&mut self, msg: Internal) {
         match msg {
+            Internal::Retry => {
+                if !self.journal.is_empty() && self.state == SessionState::Ready {
+                    self.dirty = true;
+                    self.settled = false;
+                }
+            }
             Internal::Built {
                 generation,
                 result,
@@ -521,10 +552,15 @@ impl Actor {
                 body,
                 seconds,
                 applied_seq,
+                unjournaled,
             } => {
                 self.pose = Arc::new(deformer.pose().to_vec());
                 self.deformer = Some(deformer);
-                self.applied_seq = applied_seq;
+                if unjournaled.is_empty() {
+                    self.applied_seq = applied_seq;
+                } else {
+                    self.requeue(unjournaled, &result);
+                }
                 let error = match result {
                     Ok(report) => {
                         self.iters_since_change += report.iterations;
@@ -546,7 +582,7 @@ impl Actor {
                 self.revision += 1;
                 let header = FrameHeader {
                     revision: self.revision,
-                    ack_seq: applied_seq,
+                    ack_seq: self.applied_seq,
                     iteration: self.iters_since_change as u32,
                     converged: self.converged,
                     settled: self.settled,
@@ -564,12 +600,33 @@ impl Actor {
                 if let Some(e) = error {
                     let _ = self.inner.events.send(Event::Error(e));
                 }
-                if self.settled {
+                // unjournaled drags are in the targets: no checkpoint of them
+                if self.settled && self.journal.is_empty() {
                     self.commit_gesture();
                 }
                 self.sync_shared();
             }
         }
+    }
+
+    /// Drags whose journal append failed: kept (first) for the next
+    /// append, not acknowledged; retried after [`RETRY_AFTER`] unless a
+    /// new drag comes first. A fenced append stops the session instead.
+    fn requeue(
+        &mut self,
+        mut unjournaled: Vec<JournalEntry>,
+        result: &Result<dend::deform::StepReport, SessionError>,
+    ) {
+        if let Err(SessionError::Store(e)) = result {
+            self.on_store_error(e);
+        }
+        unjournaled.append(&mut self.journal);
+        self.journal = unjournaled;
+        let tx = self.internal_tx.clone();
+        drop(tokio::spawn(async move {
+            tokio::time::sleep(RETRY_AFTER).await;
+            let _ = tx.send(Internal::Retry);
+        }));
     }
 
     fn snapshot_for(&self, h: &FrameHeader) -> PoseSnapshot {
@@ -634,9 +691,23 @@ impl Actor {
             pose: self.pose.to_vec(),
             targets: self.targets().iter().map(StoredTransform::from).collect(),
         };
-        let (store, id) = (&self.opts.store, &self.inner.id);
-        if let Err(e) = off_worker(|| store.checkpoint(id, &cp)) {
+        let (store, id, fence) = (&self.opts.store, &self.inner.id, self.opts.fence);
+        if let Err(e) = off_worker(|| store.checkpoint(id, fence, &cp)) {
+            // the journal stays as it was: a recovery still replays every
+            // acknowledged drag onto the previous checkpoint
             tracing::error!(session = %self.inner.id, error = %e, "checkpoint failed");
+            self.on_store_error(&e);
+        }
+    }
+
+    /// A store write failed: a fenced one means another instance owns the
+    /// session now, so this one stops driving it (its clients are told the
+    /// session closed and reconnect, reaching the owner).
+    fn on_store_error(&mut self, e: &StoreError) {
+        if matches!(e, StoreError::Fenced { .. }) {
+            tracing::warn!(session = %self.inner.id, error = %e, "lease lost: closing the session here");
+            self.inner.fenced.store(true, Ordering::Relaxed);
+            self.stop = true;
         }
     }
 

@@ -1,0 +1,401 @@
+//! Multi-instance failover, for real: PostgreSQL (Debian's server, its own
+//! data directory, an unprivileged user), three `dend serve` instances
+//! sharing it, HAProxy in front hashing the session id. Clients drag over
+//! WebSocket through HAProxy; the instance owning a session is killed with
+//! SIGKILL in the middle of the drags (twice: the second time the new
+//! owner); clients reconnect through HAProxy and every drag acknowledged
+//! before the kill must be in the pose the surviving instance serves (the
+//! final pose is checked against the sum of every acknowledged drag).
+//! Then PostgreSQL is restarted under load: the instances report not
+//! ready, refuse writes with 503 `store_unavailable`, and recover without
+//! losing an acknowledged drag.
+//!
+//! Prints the figures (docs/reliability.md) and writes them as JSON to
+//! `$DEND_FAILOVER_REPORT` when set. Needs `haproxy` and PostgreSQL's
+//! server binaries: skipped (logged to `$DEND_SKIP_LOG`) when they are
+//! missing, a failure under `CI=true`.
+
+mod failover_support;
+mod server_common;
+mod support;
+
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::Arc;
+use std::time::{Duration, Instant};
+
+use dend_client::{Client, ClientError, SessionClient, WsEvent};
+use failover_support::{http_status, prerequisites, Haproxy, Instance, Postgres};
+use parking_lot::Mutex;
+use serde_json::json;
+use server_common::{grid, grid_constraints};
+
+const N: usize = 8; // grid side: the handle is the top row
+const SESSIONS: usize = 6;
+const LEASE_TTL_MS: u64 = 2000;
+
+/// The x translation of drag `seq` (distinct per seq, so the final pose
+/// tells which drags it holds).
+fn dx(seq: u64) -> f64 {
+    0.001 * (1 + seq % 5) as f64
+}
+
+/// What one client saw.
+#[derive(Default, Debug)]
+struct Tally {
+    /// Highest sequence number acknowledged by a frame.
+    acked: u64,
+    /// Drags acknowledged (each seq once).
+    drags: u64,
+    /// Acknowledged before a failure but missing after it (must stay 0).
+    lost: u64,
+    /// Each outage: time from the kill (or PG stop) to the first frame.
+    recoveries: Vec<Duration>,
+    /// Store errors seen as events while PostgreSQL was down.
+    store_errors: u64,
+}
+
+struct Shared {
+    stop: AtomicBool,
+    /// When the last kill happened (for recovery times).
+    killed_at: Mutex<Option<Instant>>,
+}
+
+/// One client: drags one at a time, each acknowledged by a frame before
+/// the next; on any failure reconnects through HAProxy and resumes after
+/// the acknowledged sequence number the server reports.
+async fn drive(
+    s: SessionClient,
+    shared: Arc<Shared>,
+    tally: Arc<Mutex<Tally>>,
+) -> Result<(), String> {
+    let mut seq_next;
+    let mut down_since: Option<Instant> = None;
+    'connect: while !shared.stop.load(Ordering::Relaxed) {
+        let mut ws = match s.connect().await {
+            Ok(ws) => ws,
+            Err(_) => {
+                down_since.get_or_insert_with(Instant::now);
+                tokio::time::sleep(Duration::from_millis(50)).await;
+                continue;
+            }
+        };
+        // the first frame says what the (possibly new) owner holds
+        let first = tokio::time::timeout(Duration::from_secs(30), async {
+            loop {
+                match ws.next().await {
+                    Ok(WsEvent::Frame(h, _)) => return Some(h),
+                    Ok(WsEvent::Closed(_)) | Err(_) => return None,
+                    Ok(WsEvent::Event(_)) => {}
+                }
+            }
+        })
+        .await;
+        let Ok(Some(h)) = first else {
+            down_since.get_or_insert_with(Instant::now);
+            continue 'connect;
+        };
+        {
+            let mut t = tally.lock();
+            if h.ack_seq < t.acked {
+                t.lost += t.acked - h.ack_seq;
+            }
+            if let Some(since) = down_since.take() {
+                let from = shared.killed_at.lock().unwrap_or(since).min(since);
+                t.recoveries.push(from.elapsed());
+            }
+            t.acked = t.acked.max(h.ack_seq);
+            seq_next = t.acked + 1;
+        }
+        while !shared.stop.load(Ordering::Relaxed) {
+            let seq = seq_next;
+            if ws.drag(0, [dx(seq), 0.0, 0.0], None, seq).await.is_err() {
+                down_since.get_or_insert_with(Instant::now);
+                continue 'connect;
+            }
+            let acked = tokio::time::timeout(Duration::from_secs(10), async {
+                loop {
+                    match ws.next().await {
+                        Ok(WsEvent::Frame(h, _)) if h.ack_seq >= seq => return Ok(h.ack_seq),
+                        Ok(WsEvent::Event(v))
+                            if v["type"] == "error" && v["code"] == "store_unavailable" =>
+                        {
+                            tally.lock().store_errors += 1;
+                        }
+                        Ok(WsEvent::Closed(_)) | Err(_) => return Err(()),
+                        _ => {}
+                    }
+                }
+            })
+            .await;
+            match acked {
+                Ok(Ok(a)) => {
+                    let mut t = tally.lock();
+                    t.drags += a.saturating_sub(t.acked);
+                    t.acked = t.acked.max(a);
+                    seq_next = t.acked + 1;
+                }
+                _ => {
+                    down_since.get_or_insert_with(Instant::now);
+                    continue 'connect;
+                }
+            }
+            tokio::time::sleep(Duration::from_millis(15)).await;
+        }
+        let _ = ws.close().await;
+    }
+    Ok(())
+}
+
+/// The instance owning session `s`: the one that answers its info with
+/// 200 (the others say `session_owned_elsewhere`, naming it).
+async fn owner(instances: &[Instance], s: &SessionClient) -> Option<usize> {
+    for (i, inst) in instances.iter().enumerate().filter(|(_, i)| i.alive()) {
+        let direct = Client::new(&inst.base).session(&s.id, &s.token);
+        match direct.info().await {
+            Ok(_) => return Some(i),
+            Err(ClientError::Api { code, message, .. }) if code == "session_owned_elsewhere" => {
+                return instances
+                    .iter()
+                    .position(|x| message.contains(&format!("`{}`", x.id)));
+            }
+            Err(_) => {}
+        }
+    }
+    None
+}
+
+fn median(mut v: Vec<Duration>) -> Duration {
+    v.sort();
+    v.get(v.len() / 2).copied().unwrap_or_default()
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 4)]
+async fn sigkill_the_owner_and_restart_postgres_under_load() -> Result<(), String> {
+    let haproxy_bin = match prerequisites() {
+        Ok(b) => b,
+        Err(why) => {
+            assert!(
+                std::env::var("CI").map_or(true, |v| v != "true"),
+                "{why}: CI installs them (.ci/run)"
+            );
+            support::record_skip(&why);
+            return Ok(());
+        }
+    };
+    let tmp = tempfile::tempdir().map_err(|e| e.to_string())?;
+    let dir = tmp.path().to_owned();
+    let pg = Postgres::start(&dir.join("pg"), failover_support::free_port()?)?;
+    let mut instances = Vec::new();
+    for k in 1..=3 {
+        instances.push(Instance::start(
+            &dir,
+            &format!("dend{k}"),
+            &pg.url,
+            LEASE_TTL_MS,
+        )?);
+    }
+    let servers: Vec<(String, u16)> = instances.iter().map(|i| (i.id.clone(), i.port)).collect();
+    let lb = Haproxy::start(&dir, &haproxy_bin, &servers)?;
+    let report = run(&lb, &pg, &mut instances).await;
+    if report.is_err() {
+        for i in &instances {
+            let log =
+                std::fs::read_to_string(dir.join(format!("{}.log", i.id))).unwrap_or_default();
+            let tail: Vec<&str> = log.lines().rev().take(15).collect();
+            eprintln!(
+                "--- {} log tail:\n{}",
+                i.id,
+                tail.into_iter().rev().collect::<Vec<_>>().join("\n")
+            );
+        }
+    }
+    report
+}
+
+async fn run(lb: &Haproxy, pg: &Postgres, instances: &mut [Instance]) -> Result<(), String> {
+    let e = |e: ClientError| e.to_string();
+    let api = Client::new(&lb.base);
+    let (p, t) = grid(N);
+    let mesh = api.upload_json(&p, &t).await.map_err(e)?;
+    let mut sessions = vec![];
+    for _ in 0..SESSIONS {
+        let s = api.create_session(&mesh.id, json!({})).await.map_err(e)?;
+        s.set_constraints(&grid_constraints(N)).await.map_err(e)?;
+        s.wait_ready(Duration::from_secs(30)).await.map_err(e)?;
+        sessions.push(s);
+    }
+    let shared = Arc::new(Shared {
+        stop: AtomicBool::new(false),
+        killed_at: Mutex::new(None),
+    });
+    let tallies: Vec<Arc<Mutex<Tally>>> = (0..SESSIONS).map(|_| Arc::default()).collect();
+    let tasks: Vec<_> = sessions
+        .iter()
+        .zip(&tallies)
+        .map(|(s, t)| tokio::spawn(drive(s.clone(), shared.clone(), t.clone())))
+        .collect();
+    let progress = |min: u64| {
+        let tallies = tallies.clone();
+        async move {
+            let end = Instant::now() + Duration::from_secs(45);
+            let start: Vec<u64> = tallies.iter().map(|t| t.lock().drags).collect();
+            while tallies
+                .iter()
+                .zip(&start)
+                .any(|(t, s)| t.lock().drags < s + min)
+            {
+                if Instant::now() > end {
+                    return Err(format!(
+                        "no progress: {:?}",
+                        tallies.iter().map(|t| t.lock().drags).collect::<Vec<_>>()
+                    ));
+                }
+                tokio::time::sleep(Duration::from_millis(50)).await;
+            }
+            Ok(())
+        }
+    };
+    progress(20).await?;
+    // two kills: the owner of session 0, then its new owner
+    let mut killed = vec![];
+    for _ in 0..2 {
+        let victim = owner(instances, &sessions[0])
+            .await
+            .ok_or("no owner of session 0")?;
+        *shared.killed_at.lock() = Some(Instant::now());
+        instances[victim].kill();
+        killed.push(instances[victim].id.clone());
+        eprintln!("killed {} (SIGKILL) mid-drags", instances[victim].id);
+        progress(20).await?;
+    }
+    // PostgreSQL restart under load
+    let pg_outcome = restart_postgres(pg, instances, &sessions[0], &tallies).await?;
+    progress(20).await?;
+    shared.stop.store(true, Ordering::Relaxed);
+    for t in tasks {
+        t.await.map_err(|e| e.to_string())??;
+    }
+    // every acknowledged drag is in the pose served now
+    for (s, t) in sessions.iter().zip(&tallies) {
+        let pose = s.pose().await.map_err(e)?;
+        let t = t.lock();
+        assert!(
+            pose.ack_seq >= t.acked,
+            "served ack {} < acknowledged {}",
+            pose.ack_seq,
+            t.acked
+        );
+        let sum: f64 = (1..=pose.ack_seq).map(dx).sum();
+        for i in 0..N {
+            let x = pose.positions[N * (N - 1) + i][0];
+            assert!(
+                (x - (i as f64 + sum)).abs() < 1e-6,
+                "session {}: handle vertex {i} at x = {x}, the {} acknowledged drags put it at {}",
+                s.id,
+                pose.ack_seq,
+                i as f64 + sum
+            );
+        }
+        assert_eq!(t.lost, 0, "acknowledged drags lost in session {}", s.id);
+    }
+    let recoveries: Vec<Duration> = tallies
+        .iter()
+        .flat_map(|t| t.lock().recoveries.clone())
+        .collect();
+    let drags: u64 = tallies.iter().map(|t| t.lock().drags).sum();
+    let figures = json!({
+        "instances": 3,
+        "sessions": SESSIONS,
+        "drags_acknowledged": drags,
+        "instances_killed": killed,
+        "acknowledged_drags_lost": 0,
+        "lease_ttl_ms": LEASE_TTL_MS,
+        "reconnections": recoveries.len(),
+        "recovery_ms_median": median(recoveries.clone()).as_millis() as u64,
+        "recovery_ms_max": recoveries.iter().max().copied().unwrap_or_default().as_millis() as u64,
+        "postgres_restart": pg_outcome,
+    });
+    eprintln!("failover figures: {figures:#}");
+    if let Ok(path) = std::env::var("DEND_FAILOVER_REPORT") {
+        let _ = std::fs::write(path, format!("{figures:#}\n"));
+    }
+    assert!(!recoveries.is_empty(), "the kills cut some client off");
+    Ok(())
+}
+
+/// Stops PostgreSQL while clients drag, checks not-ready and typed 503s on
+/// every live instance, starts it again; the clients carry on.
+async fn restart_postgres(
+    pg: &Postgres,
+    instances: &[Instance],
+    s: &SessionClient,
+    tallies: &[Arc<Mutex<Tally>>],
+) -> Result<serde_json::Value, String> {
+    let acked_before: Vec<u64> = tallies.iter().map(|t| t.lock().acked).collect();
+    let t0 = Instant::now();
+    pg.stop()?;
+    let live: Vec<&Instance> = instances.iter().filter(|i| i.alive()).collect();
+    // not ready (the store ping fails) on every live instance
+    for i in &live {
+        let url = format!("{}/healthz/ready", i.base);
+        let end = Instant::now() + Duration::from_secs(10);
+        while http_status(&url) != Some(503) {
+            if Instant::now() > end {
+                return Err(format!("{} still ready with PostgreSQL down", i.id));
+            }
+            tokio::time::sleep(Duration::from_millis(50)).await;
+        }
+        assert_eq!(
+            http_status(&format!("{}/healthz", i.base)),
+            Some(200),
+            "live"
+        );
+    }
+    // writes are refused with the typed 503
+    let direct = Client::new(&live[0].base);
+    let (p, t) = grid(3);
+    match direct.upload_json(&p, &t).await {
+        Err(ClientError::Api {
+            status: 503, code, ..
+        }) if code == "store_unavailable" => {}
+        other => return Err(format!("upload with PostgreSQL down: {other:?}")),
+    }
+    let owner_base = match owner(instances, s).await {
+        Some(i) => instances[i].base.clone(),
+        None => live[0].base.clone(),
+    };
+    let put = Client::new(&owner_base)
+        .session(&s.id, &s.token)
+        .set_constraints(&grid_constraints(N))
+        .await;
+    let put_refused = matches!(&put, Err(ClientError::Api { status: 503, code, .. }) if code == "store_unavailable");
+    assert!(
+        put_refused,
+        "a constraint edit with PostgreSQL down: {put:?}"
+    );
+    tokio::time::sleep(Duration::from_millis(500)).await;
+    let down_for = t0.elapsed();
+    pg.restart()?;
+    for i in &live {
+        failover_support::wait_http(
+            &format!("{}/healthz/ready", i.base),
+            Duration::from_secs(30),
+        )?;
+    }
+    let ready_after = t0.elapsed();
+    let lost: u64 = tallies
+        .iter()
+        .zip(&acked_before)
+        .map(|(t, b)| b.saturating_sub(t.lock().acked))
+        .sum();
+    assert_eq!(lost, 0);
+    let store_errors: u64 = tallies.iter().map(|t| t.lock().store_errors).sum();
+    Ok(json!({
+        "down_ms": down_for.as_millis() as u64,
+        "ready_again_ms": ready_after.as_millis() as u64,
+        "not_ready_on_every_instance": true,
+        "writes_refused_503_store_unavailable": true,
+        "drag_store_errors_seen_by_clients": store_errors,
+        "acknowledged_drags_lost": lost,
+    }))
+}
