@@ -5,10 +5,13 @@
 //! SIGKILL in the middle of the drags (twice: the second time the new
 //! owner); clients reconnect through HAProxy and every drag acknowledged
 //! before the kill must be in the pose the surviving instance serves (the
-//! final pose is checked against the sum of every acknowledged drag).
+//! final pose is checked against the sum of every acknowledged drag). The
+//! first victim then comes back: HAProxy routes its share of the sessions
+//! to it again and their owners hand them over.
 //! Then PostgreSQL is restarted under load: the instances report not
-//! ready, refuse writes with 503 `store_unavailable`, and recover without
-//! losing an acknowledged drag.
+//! ready, refuse writes with 503 `store_unavailable` (drags get an `error`
+//! event `store_unavailable` and are not applied; the clients send them
+//! again), and recover without losing an acknowledged drag.
 //!
 //! Prints the figures (docs/reliability.md) and writes them as JSON to
 //! `$DEND_FAILOVER_REPORT` when set. Needs `haproxy` and PostgreSQL's
@@ -58,6 +61,16 @@ struct Shared {
     stop: AtomicBool,
     /// When the last kill happened (for recovery times).
     killed_at: Mutex<Option<Instant>>,
+}
+
+/// How the server answered one drag.
+enum Answer {
+    /// A frame acknowledged it (and everything before): the acked seq.
+    Acked(u64),
+    /// An `error` event `store_unavailable`: not applied.
+    Refused,
+    /// The connection failed or went silent.
+    Broken,
 }
 
 /// One client: drags one at a time, each acknowledged by a frame before
@@ -112,29 +125,37 @@ async fn drive(
                 down_since.get_or_insert_with(Instant::now);
                 continue 'connect;
             }
-            let acked = tokio::time::timeout(Duration::from_secs(10), async {
+            let answer = tokio::time::timeout(Duration::from_secs(10), async {
                 loop {
                     match ws.next().await {
-                        Ok(WsEvent::Frame(h, _)) if h.ack_seq >= seq => return Ok(h.ack_seq),
+                        Ok(WsEvent::Frame(h, _)) if h.ack_seq >= seq => {
+                            return Answer::Acked(h.ack_seq)
+                        }
+                        // refused, not applied (the store is down): send it again
                         Ok(WsEvent::Event(v))
                             if v["type"] == "error" && v["code"] == "store_unavailable" =>
                         {
-                            tally.lock().store_errors += 1;
+                            return Answer::Refused;
                         }
-                        Ok(WsEvent::Closed(_)) | Err(_) => return Err(()),
+                        Ok(WsEvent::Closed(_)) | Err(_) => return Answer::Broken,
                         _ => {}
                     }
                 }
             })
-            .await;
-            match acked {
-                Ok(Ok(a)) => {
+            .await
+            .unwrap_or(Answer::Broken);
+            match answer {
+                Answer::Acked(a) => {
                     let mut t = tally.lock();
                     t.drags += a.saturating_sub(t.acked);
                     t.acked = t.acked.max(a);
                     seq_next = t.acked + 1;
                 }
-                _ => {
+                Answer::Refused => {
+                    tally.lock().store_errors += 1;
+                    tokio::time::sleep(Duration::from_millis(100)).await;
+                }
+                Answer::Broken => {
                     down_since.get_or_insert_with(Instant::now);
                     continue 'connect;
                 }
@@ -196,7 +217,7 @@ async fn sigkill_the_owner_and_restart_postgres_under_load() -> Result<(), Strin
     }
     let servers: Vec<(String, u16)> = instances.iter().map(|i| (i.id.clone(), i.port)).collect();
     let lb = Haproxy::start(&dir, &haproxy_bin, &servers)?;
-    let report = run(&lb, &pg, &mut instances).await;
+    let report = run(&lb, &pg, &mut instances, &dir).await;
     if report.is_err() {
         for i in &instances {
             let log =
@@ -212,7 +233,46 @@ async fn sigkill_the_owner_and_restart_postgres_under_load() -> Result<(), Strin
     report
 }
 
-async fn run(lb: &Haproxy, pg: &Postgres, instances: &mut [Instance]) -> Result<(), String> {
+/// `GET pose` through HAProxy, retried while the answer is 409
+/// `session_owned_elsewhere`: the session's WebSocket client may have kept
+/// it on its old owner while HAProxy routes new requests to the instance
+/// that came back, which asks the owner to hand it over (a third of the
+/// lease lifetime at most).
+async fn pose_retrying(s: &SessionClient) -> Result<dend_client::Pose, String> {
+    let t0 = Instant::now();
+    loop {
+        match s.pose().await {
+            Ok(p) => return Ok(p),
+            Err(ClientError::Api { code, .. })
+                if code == "session_owned_elsewhere" && t0.elapsed() < Duration::from_secs(10) =>
+            {
+                tokio::time::sleep(Duration::from_millis(50)).await;
+            }
+            Err(e) => return Err(e.to_string()),
+        }
+    }
+}
+
+/// The sum of a metric over the live instances.
+async fn metric_sum(instances: &[Instance], name: &str) -> f64 {
+    let mut sum = 0.0;
+    for i in instances.iter().filter(|i| i.alive()) {
+        sum += Client::new(&i.base)
+            .metric(name)
+            .await
+            .ok()
+            .flatten()
+            .unwrap_or(0.0);
+    }
+    sum
+}
+
+async fn run(
+    lb: &Haproxy,
+    pg: &Postgres,
+    instances: &mut [Instance],
+    dir: &std::path::Path,
+) -> Result<(), String> {
     let e = |e: ClientError| e.to_string();
     let api = Client::new(&lb.base);
     let (p, t) = grid(N);
@@ -268,6 +328,16 @@ async fn run(lb: &Haproxy, pg: &Postgres, instances: &mut [Instance]) -> Result<
         eprintln!("killed {} (SIGKILL) mid-drags", instances[victim].id);
         progress(20).await?;
     }
+    // the first victim comes back on its port: HAProxy routes its share of
+    // the sessions to it again and their owners hand them over
+    let back = instances
+        .iter()
+        .position(|i| i.id == killed[0])
+        .ok_or("victim")?;
+    let (id, port) = (instances[back].id.clone(), instances[back].port);
+    instances[back] = Instance::start_on(dir, &id, &pg.url, LEASE_TTL_MS, port)?;
+    eprintln!("{id} restarted");
+    progress(20).await?;
     // PostgreSQL restart under load
     let pg_outcome = restart_postgres(pg, instances, &sessions[0], &tallies).await?;
     progress(20).await?;
@@ -275,9 +345,10 @@ async fn run(lb: &Haproxy, pg: &Postgres, instances: &mut [Instance]) -> Result<
     for t in tasks {
         t.await.map_err(|e| e.to_string())??;
     }
+    let handed_over_before = metric_sum(instances, "dend_leases_handed_over_total").await;
     // every acknowledged drag is in the pose served now
     for (s, t) in sessions.iter().zip(&tallies) {
-        let pose = s.pose().await.map_err(e)?;
+        let pose = pose_retrying(s).await?;
         let t = t.lock();
         assert!(
             pose.ack_seq >= t.acked,
@@ -298,6 +369,7 @@ async fn run(lb: &Haproxy, pg: &Postgres, instances: &mut [Instance]) -> Result<
         }
         assert_eq!(t.lost, 0, "acknowledged drags lost in session {}", s.id);
     }
+    let handed_over = metric_sum(instances, "dend_leases_handed_over_total").await;
     let recoveries: Vec<Duration> = tallies
         .iter()
         .flat_map(|t| t.lock().recoveries.clone())
@@ -308,6 +380,9 @@ async fn run(lb: &Haproxy, pg: &Postgres, instances: &mut [Instance]) -> Result<
         "sessions": SESSIONS,
         "drags_acknowledged": drags,
         "instances_killed": killed,
+        "instance_restarted": killed[0],
+        "sessions_handed_over": handed_over,
+        "sessions_handed_over_on_the_final_reads": handed_over - handed_over_before,
         "acknowledged_drags_lost": 0,
         "lease_ttl_ms": LEASE_TTL_MS,
         "reconnections": recoveries.len(),

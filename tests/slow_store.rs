@@ -110,6 +110,9 @@ impl Store for SlowStore {
     fn release_lease(&self, id: &str, owner: &str, revision: Fence) -> Result<(), StoreError> {
         self.inner.release_lease(id, owner, revision)
     }
+    fn handoffs_wanted(&self, owner: &str) -> Result<Vec<String>, StoreError> {
+        self.inner.handoffs_wanted(owner)
+    }
     fn get_checkpoint(&self, id: &str) -> Result<Option<Checkpoint>, StoreError> {
         self.inner.get_checkpoint(id)
     }

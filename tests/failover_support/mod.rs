@@ -111,8 +111,21 @@ pub struct Instance {
 impl Instance {
     /// Starts `dend serve` on the shared store; waits until ready.
     pub fn start(dir: &Path, id: &str, store: &str, lease_ttl_ms: u64) -> Result<Instance> {
-        let port = free_port()?;
-        let log = std::fs::File::create(dir.join(format!("{id}.log")))
+        Self::start_on(dir, id, store, lease_ttl_ms, free_port()?)
+    }
+
+    /// [`start`](Self::start) on a given port (an instance coming back).
+    pub fn start_on(
+        dir: &Path,
+        id: &str,
+        store: &str,
+        lease_ttl_ms: u64,
+        port: u16,
+    ) -> Result<Instance> {
+        let log = std::fs::OpenOptions::new()
+            .create(true)
+            .append(true)
+            .open(dir.join(format!("{id}.log")))
             .map_err(|e| format!("log file: {e}"))?;
         let err = log.try_clone().map_err(|e| e.to_string())?;
         let child = Command::new(env!("CARGO_BIN_EXE_dend"))

@@ -15,7 +15,13 @@
 //!   over once its lease expires and revive it from the store;
 //! - [`spawn_renewer`] renews the leases of the live sessions every third
 //!   of the lease lifetime; a session whose lease was lost (taken over
-//!   while this instance could not renew) is closed here, not deleted.
+//!   while this instance could not renew) is closed here, not deleted;
+//! - an instance refused a session records the request in the lease; the
+//!   owner hands such sessions over at its next renewal (closes them and
+//!   releases their leases). This is how sessions follow the load
+//!   balancer's hash when an instance comes back or is added: without it,
+//!   requests hashed to the newcomer would be refused as long as the old
+//!   owner lives.
 //!
 //! Without a shared store there is one instance: no leases ([`NO_FENCE`]).
 
@@ -133,6 +139,36 @@ pub(crate) async fn drop_local(st: &AppState, s: &SessionHandle) {
     }
 }
 
+/// Hands over the sessions another instance asked for (the load balancer
+/// routes them there now): closes each here, then releases its lease, so
+/// that the asking instance takes it at its clients' next attempt. The
+/// clients of a closed session see it close and reconnect.
+async fn hand_off(st: &AppState, cluster: &Arc<Cluster>) {
+    let c = cluster.clone();
+    let wanted = match st.store_call(move |s| s.handoffs_wanted(&c.instance)).await {
+        Ok(w) => w,
+        Err(e) => {
+            tracing::warn!(error = %e, "reading hand-off requests failed");
+            return;
+        }
+    };
+    for id in wanted {
+        let Some(h) = st.sessions.read().get(&id).cloned() else {
+            continue;
+        };
+        tracing::info!(session = %id, "handing a session over to the instance that asked for it");
+        drop_local(st, &h).await;
+        let (c, fence) = (cluster.clone(), h.fence());
+        if let Err(e) = st
+            .store_call(move |s| s.release_lease(&id, &c.instance, fence))
+            .await
+        {
+            tracing::warn!(error = %e, "releasing a handed-over lease failed");
+        }
+        st.metrics.leases_handed_over.inc();
+    }
+}
+
 /// Renews the live sessions' leases every third of their lifetime until
 /// the process ends; closes here the sessions whose lease was lost.
 pub fn spawn_renewer(st: AppState) -> Option<tokio::task::JoinHandle<()>> {
@@ -164,6 +200,7 @@ pub fn spawn_renewer(st: AppState) -> Option<tokio::task::JoinHandle<()>> {
                 // writes keep being fenced there
                 Err(e) => tracing::warn!(error = %e, "renewing session leases failed"),
             }
+            hand_off(&st, &cluster).await;
             st.metrics
                 .sessions_owned
                 .set(st.sessions.read().len() as i64);

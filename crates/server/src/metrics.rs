@@ -48,6 +48,8 @@ pub struct Metrics {
     pub sessions_owned: IntGauge,
     /// Sessions this instance took over from an instance whose lease expired.
     pub leases_taken_over: IntCounter,
+    /// Sessions this instance handed over to an instance that asked for them.
+    pub leases_handed_over: IntCounter,
     /// Wall time of each store call, seconds, by operation (`op`).
     pub store_seconds: HistogramVec,
 }
@@ -120,6 +122,13 @@ impl Metrics {
                 IntCounter::new(
                     "leases_taken_over_total",
                     "Session leases taken over from an instance whose lease expired",
+                )?,
+            ),
+            leases_handed_over: reg(
+                &r,
+                IntCounter::new(
+                    "leases_handed_over_total",
+                    "Sessions handed over to the instance the load balancer routes them to",
                 )?,
             ),
             store_seconds: reg(

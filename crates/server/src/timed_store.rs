@@ -103,6 +103,9 @@ impl Store for TimedStore {
     fn release_lease(&self, id: &str, owner: &str, revision: Fence) -> Result<(), StoreError> {
         self.timed("release_lease", |s| s.release_lease(id, owner, revision))
     }
+    fn handoffs_wanted(&self, owner: &str) -> Result<Vec<String>, StoreError> {
+        self.timed("handoffs_wanted", |s| s.handoffs_wanted(owner))
+    }
     fn ping(&self) -> Result<(), StoreError> {
         self.timed("ping", |s| s.ping())
     }

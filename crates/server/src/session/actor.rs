@@ -56,6 +56,9 @@ pub(super) struct Actor {
     internal_rx: Option<mpsc::UnboundedReceiver<Internal>>,
     deformer: Option<Deformer>,
     constraints: Option<Arc<Constraints>>,
+    /// `constraints` with the targets of the journaled drags only (what a
+    /// revival would rebuild): restored when a journal append fails.
+    confirmed: Option<Arc<Constraints>>,
     /// The installed constraint set (None before the first).
     set: Option<Arc<InstalledSet>>,
     sets_installed: u64,
@@ -85,9 +88,6 @@ pub(super) struct Actor {
     stop: bool,
 }
 
-/// How long after a failed journal append the actor tries again.
-const RETRY_AFTER: std::time::Duration = std::time::Duration::from_millis(250);
-
 impl Actor {
     pub(super) fn new(
         inner: Arc<Inner>,
@@ -105,6 +105,7 @@ impl Actor {
             internal_rx: Some(internal_rx),
             deformer: Some(deformer),
             constraints: None,
+            confirmed: None,
             set: None,
             sets_installed: 0,
             after_build: AfterBuild::Solve,
@@ -384,6 +385,7 @@ impl Actor {
         }
         let constraints = Arc::new(set.constraints.clone());
         self.constraints = Some(constraints.clone());
+        self.confirmed = Some(constraints.clone());
         let warnings: Vec<serde_json::Value> = set
             .constraints
             .warnings(self.inner.rest.mesh())
@@ -470,7 +472,7 @@ impl Actor {
             self.inner.params,
             self.internal_tx.clone(),
         );
-        let applied_seq = self.last_seq;
+        let (applied_seq, generation) = (self.last_seq, self.generation);
         drop(tokio::task::spawn_blocking(move || {
             let t0 = Instant::now();
             let appended = if journal.is_empty() {
@@ -480,15 +482,15 @@ impl Actor {
             };
             // a drag is acknowledged only once journaled: when the append
             // fails, nothing is solved and the entries go back to the actor
-            let (result, unjournaled) = match appended {
+            let (result, journal_failed) = match appended {
                 Ok(()) => {
                     let step = (|| {
                         let factor = cache.get_or_build(&rest, &params, &constraints)?;
                         Ok(deformer.step(&factor, &constraints, budget)?)
                     })();
-                    (step, vec![])
+                    (step, false)
                 }
-                Err(e) => (Err(SessionError::Store(e)), journal),
+                Err(e) => (Err(SessionError::Store(e)), true),
             };
             let seconds = t0.elapsed().as_secs_f64();
             let body = FrameBody::from_pose(deformer.pose());
@@ -498,19 +500,15 @@ impl Actor {
                 body,
                 seconds,
                 applied_seq,
-                unjournaled,
+                journal_failed,
+                constraints,
+                generation,
             });
         }));
     }
 
     fn on_internal(&mut self, msg: Internal) {
         match msg {
-            Internal::Retry => {
-                if !self.journal.is_empty() && self.state == SessionState::Ready {
-                    self.dirty = true;
-                    self.settled = false;
-                }
-            }
             Internal::Built {
                 generation,
                 result,
@@ -552,14 +550,19 @@ impl Actor {
                 body,
                 seconds,
                 applied_seq,
-                unjournaled,
+                journal_failed,
+                constraints,
+                generation,
             } => {
                 self.pose = Arc::new(deformer.pose().to_vec());
                 self.deformer = Some(deformer);
-                if unjournaled.is_empty() {
-                    self.applied_seq = applied_seq;
-                } else {
-                    self.requeue(unjournaled, &result);
+                if generation == self.generation {
+                    if journal_failed {
+                        self.journal_failed(&result);
+                    } else {
+                        self.applied_seq = applied_seq;
+                        self.confirmed = Some(constraints);
+                    }
                 }
                 let error = match result {
                     Ok(report) => {
@@ -600,8 +603,7 @@ impl Actor {
                 if let Some(e) = error {
                     let _ = self.inner.events.send(Event::Error(e));
                 }
-                // unjournaled drags are in the targets: no checkpoint of them
-                if self.settled && self.journal.is_empty() {
+                if self.settled {
                     self.commit_gesture();
                 }
                 self.sync_shared();
@@ -609,24 +611,27 @@ impl Actor {
         }
     }
 
-    /// Drags whose journal append failed: kept (first) for the next
-    /// append, not acknowledged; retried after [`RETRY_AFTER`] unless a
-    /// new drag comes first. A fenced append stops the session instead.
-    fn requeue(
-        &mut self,
-        mut unjournaled: Vec<JournalEntry>,
-        result: &Result<dend::deform::StepReport, SessionError>,
-    ) {
+    /// The journal append of a solve failed: none of its drags, nor the
+    /// ones composed since, is acknowledged, and the targets go back to
+    /// the last journaled ones (a drag is applied only once journaled, so
+    /// the live state never holds what a revival would not). Clients get
+    /// the error (HTTP 503 `store_unavailable`, or an `error` event with
+    /// frames still acknowledging the previous `seq`) and send again. A
+    /// fenced append stops the session instead.
+    fn journal_failed(&mut self, result: &Result<dend::deform::StepReport, SessionError>) {
         if let Err(SessionError::Store(e)) = result {
             self.on_store_error(e);
         }
-        unjournaled.append(&mut self.journal);
-        self.journal = unjournaled;
-        let tx = self.internal_tx.clone();
-        drop(tokio::spawn(async move {
-            tokio::time::sleep(RETRY_AFTER).await;
-            let _ = tx.send(Internal::Retry);
-        }));
+        self.constraints = self.confirmed.clone();
+        self.journal.clear();
+        self.last_seq = self.applied_seq;
+        self.dirty = false;
+        for (_, w) in self.waiters.drain(..) {
+            let _ = w.send(Err(match result {
+                Err(SessionError::Store(e)) => SessionError::Store(e.clone()),
+                _ => SessionError::Closed,
+            }));
+        }
     }
 
     fn snapshot_for(&self, h: &FrameHeader) -> PoseSnapshot {
@@ -725,6 +730,7 @@ impl Actor {
                 h.target = *t;
             }
         }
+        self.confirmed = self.constraints.clone();
         self.pose = pose;
         self.dirty = false;
         self.settled = true;

@@ -191,11 +191,14 @@ pub(super) enum Internal {
         body: FrameBody,
         seconds: f64,
         applied_seq: u64,
-        /// The drags whose journal append failed (not acknowledged).
-        unjournaled: Vec<crate::store::JournalEntry>,
+        /// Whether the journal append failed (nothing solved, nothing
+        /// acknowledged).
+        journal_failed: bool,
+        /// The constraints the solve used (targets with its drags).
+        constraints: Arc<Constraints>,
+        /// The constraint generation it was started in.
+        generation: u64,
     },
-    /// Try the failed journal append again.
-    Retry,
     Built {
         generation: u64,
         result: Result<(), SessionError>,

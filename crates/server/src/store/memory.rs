@@ -34,6 +34,8 @@ struct LeaseRow {
     owner: String,
     revision: Fence,
     expires: Option<Instant>,
+    /// Another instance asked for the session.
+    wanted_by: Option<String>,
 }
 
 impl MemoryStore {
@@ -190,8 +192,9 @@ impl Store for MemoryStore {
         let _sessions = self.sessions.lock();
         let mut leases = self.leases.lock();
         let now = Instant::now();
-        if let Some(l) = leases.get(id) {
+        if let Some(l) = leases.get_mut(id) {
             if let Some(t) = l.expires.filter(|t| *t > now && l.owner != owner) {
+                l.wanted_by = Some(owner.to_owned());
                 return Ok(LeaseGrant::HeldBy {
                     owner: l.owner.clone(),
                     expires_in_ms: (t - now).as_millis() as u64,
@@ -207,6 +210,7 @@ impl Store for MemoryStore {
                 owner: owner.to_owned(),
                 revision,
                 expires: Some(now + ttl),
+                wanted_by: None,
             },
         );
         Ok(LeaseGrant::Granted {
@@ -240,5 +244,18 @@ impl Store for MemoryStore {
             }
         }
         Ok(())
+    }
+
+    fn handoffs_wanted(&self, owner: &str) -> Result<Vec<String>, StoreError> {
+        let now = Instant::now();
+        Ok(self
+            .leases
+            .lock()
+            .iter()
+            .filter(|(_, l)| {
+                l.owner == owner && l.wanted_by.is_some() && l.expires.is_some_and(|t| t > now)
+            })
+            .map(|(id, _)| id.clone())
+            .collect())
     }
 }

@@ -54,7 +54,7 @@ use serde::{Deserialize, Serialize};
 use dend::mesh::Mesh;
 
 /// Errors of a [`Store`].
-#[derive(Debug, thiserror::Error)]
+#[derive(Debug, Clone, thiserror::Error)]
 pub enum StoreError {
     /// The backend failed (I/O, database); the message says how. Fix: check
     /// the storage (disk full, permissions) — the request can be retried.
@@ -235,7 +235,8 @@ pub trait Store: Send + Sync + 'static {
     fn get_checkpoint(&self, id: &str) -> Result<Option<Checkpoint>, StoreError>;
     /// Takes the lease of session `id` for instance `owner` for `ttl`: when
     /// there is none, it expired, or `owner` already holds it, the revision
-    /// grows by one and is returned; otherwise the holder is named. Taking
+    /// grows by one and is returned; otherwise the holder is named and the
+    /// request recorded (see [`handoffs_wanted`](Store::handoffs_wanted)). Taking
     /// the lease waits for a write fenced by the old revision that is in
     /// flight, so a journal read after it sees every acknowledged write.
     fn acquire_lease(&self, id: &str, owner: &str, ttl: Duration)
@@ -252,6 +253,12 @@ pub trait Store: Send + Sync + 'static {
     /// Gives up `owner`'s lease of `id` under `revision` (a no-op when it is
     /// no longer held so).
     fn release_lease(&self, id: &str, owner: &str, revision: Fence) -> Result<(), StoreError>;
+    /// The sessions `owner` leases that another instance asked for: an
+    /// [`acquire_lease`](Store::acquire_lease) that found them held by
+    /// `owner` (the load balancer routes them elsewhere now, e.g. to an
+    /// instance that came back). The owner hands them over: it closes them
+    /// and releases their leases. A grant clears the request.
+    fn handoffs_wanted(&self, owner: &str) -> Result<Vec<String>, StoreError>;
     /// Checks that the store answers (the readiness probe).
     fn ping(&self) -> Result<(), StoreError> {
         Ok(())

@@ -60,7 +60,7 @@ pub const MIGRATIONS: &[(i32, &str)] = &[
         2,
         "CREATE TABLE leases (
              session TEXT PRIMARY KEY, owner TEXT NOT NULL,
-             revision BIGINT NOT NULL, expires TIMESTAMPTZ);",
+             revision BIGINT NOT NULL, expires TIMESTAMPTZ, wanted_by TEXT);",
     ),
 ];
 
@@ -472,6 +472,10 @@ impl Store for PgStore {
 
     fn release_lease(&self, id: &str, owner: &str, revision: Fence) -> Result<(), StoreError> {
         postgres_leases::release(&mut self.conn()?, id, owner, revision)
+    }
+
+    fn handoffs_wanted(&self, owner: &str) -> Result<Vec<String>, StoreError> {
+        postgres_leases::wanted(&mut self.conn()?, owner)
     }
 
     fn ping(&self) -> Result<(), StoreError> {

@@ -73,6 +73,13 @@ pub(super) fn acquire(
     let (holder, live, left_ms, held): (String, bool, i64, bool) =
         (r.get(0), r.get(2), r.get(3), r.get(4));
     if live && holder != owner {
+        let _ = tx
+            .execute(
+                "UPDATE leases SET wanted_by = $2 WHERE session = $1",
+                &[&id, &owner],
+            )
+            .map_err(pg_err)?;
+        tx.commit().map_err(pg_err)?;
         return Ok(LeaseGrant::HeldBy {
             owner: holder,
             expires_in_ms: left_ms.max(0) as u64,
@@ -82,7 +89,7 @@ pub(super) fn acquire(
     let revision: i64 = tx
         .query_one(
             "UPDATE leases SET owner = $2, revision = revision + 1,
-                 expires = now() + $3::FLOAT8 * INTERVAL '1 millisecond'
+                 expires = now() + $3::FLOAT8 * INTERVAL '1 millisecond', wanted_by = NULL
              WHERE session = $1 RETURNING revision",
             &[&id, &owner, &ttl_ms(ttl)],
         )
@@ -140,4 +147,17 @@ pub(super) fn release(
         )
         .map_err(pg_err)?;
     Ok(())
+}
+
+/// [`super::Store::handoffs_wanted`].
+pub(super) fn wanted(c: &mut Conn, owner: &str) -> Result<Vec<String>, StoreError> {
+    Ok(c.query(
+        "SELECT session FROM leases
+         WHERE owner = $1 AND wanted_by IS NOT NULL AND expires > now()",
+        &[&owner],
+    )
+    .map_err(pg_err)?
+    .iter()
+    .map(|r| r.get(0))
+    .collect())
 }

@@ -412,6 +412,10 @@ impl Store for SqliteStore {
     fn release_lease(&self, id: &str, owner: &str, revision: Fence) -> Result<(), StoreError> {
         sqlite_leases::release(&self.conn.lock(), id, owner, revision)
     }
+
+    fn handoffs_wanted(&self, owner: &str) -> Result<Vec<String>, StoreError> {
+        sqlite_leases::wanted(&self.conn.lock(), owner)
+    }
 }
 
 #[cfg(test)]

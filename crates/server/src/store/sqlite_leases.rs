@@ -19,7 +19,8 @@ CREATE TABLE IF NOT EXISTS leases (
     session TEXT PRIMARY KEY,
     owner TEXT NOT NULL,
     revision INTEGER NOT NULL,
-    expires_ms INTEGER NOT NULL
+    expires_ms INTEGER NOT NULL,
+    wanted_by TEXT
 );
 ";
 
@@ -83,6 +84,13 @@ pub(super) fn acquire(
         .map_err(backend)?;
     if let Some((holder, _, expires)) = &row {
         if holder != owner && *expires > now {
+            let _ = tx
+                .execute(
+                    "UPDATE leases SET wanted_by = ?2 WHERE session = ?1",
+                    params![id, owner],
+                )
+                .map_err(backend)?;
+            tx.commit().map_err(backend)?;
             return Ok(LeaseGrant::HeldBy {
                 owner: holder.clone(),
                 expires_in_ms: (*expires - now) as u64,
@@ -95,7 +103,7 @@ pub(super) fn acquire(
         .execute(
             "INSERT INTO leases (session, owner, revision, expires_ms) VALUES (?1, ?2, ?3, ?4)
              ON CONFLICT(session) DO UPDATE SET owner = excluded.owner,
-               revision = excluded.revision, expires_ms = excluded.expires_ms",
+               revision = excluded.revision, expires_ms = excluded.expires_ms, wanted_by = NULL",
             params![id, owner, revision, now.saturating_add(ttl_ms(ttl))],
         )
         .map_err(backend)?;
@@ -145,4 +153,18 @@ pub(super) fn release(
         )
         .map_err(backend)?;
     Ok(())
+}
+
+/// [`super::Store::handoffs_wanted`].
+pub(super) fn wanted(conn: &Connection, owner: &str) -> Result<Vec<String>, StoreError> {
+    let mut stmt = conn
+        .prepare(
+            "SELECT session FROM leases
+             WHERE owner = ?1 AND wanted_by IS NOT NULL AND expires_ms > ?2",
+        )
+        .map_err(backend)?;
+    let rows = stmt
+        .query_map(params![owner, now_ms()], |r| r.get(0))
+        .map_err(backend)?;
+    rows.collect::<Result<_, _>>().map_err(backend)
 }

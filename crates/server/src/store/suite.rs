@@ -334,6 +334,39 @@ pub(super) fn leases_hold_expire_and_fence(b: Backend) -> Result<(), StoreError>
     Ok(())
 }
 
+pub(super) fn handoff_requests_reach_the_owner(b: Backend) -> Result<(), StoreError> {
+    let s = &*b.store;
+    let ttl = Duration::from_secs(30);
+    s.put_session(&record("a"))?;
+    s.put_session(&record("b"))?;
+    let _ = s.acquire_lease("a", "i1", ttl)?;
+    let _ = s.acquire_lease("b", "i1", ttl)?;
+    assert!(s.handoffs_wanted("i1")?.is_empty());
+    assert!(matches!(
+        s.acquire_lease("a", "i2", ttl)?,
+        LeaseGrant::HeldBy { .. }
+    ));
+    assert_eq!(s.handoffs_wanted("i1")?, vec!["a"]);
+    assert!(s.handoffs_wanted("i2")?.is_empty());
+    // renewing keeps the request; the owner releases, the asker takes it
+    assert!(s.renew_leases("i1", &[("a".into(), 1)], ttl)?.is_empty());
+    assert_eq!(s.handoffs_wanted("i1")?, vec!["a"]);
+    s.release_lease("a", "i1", 1)?;
+    assert!(
+        s.handoffs_wanted("i1")?.is_empty(),
+        "released: nothing to hand over"
+    );
+    assert_eq!(
+        s.acquire_lease("a", "i2", ttl)?,
+        LeaseGrant::Granted {
+            revision: 2,
+            taken_over: false
+        }
+    );
+    assert!(s.handoffs_wanted("i2")?.is_empty(), "the grant cleared it");
+    Ok(())
+}
+
 pub(super) fn one_winner_when_instances_race_for_a_lease(b: Backend) -> Result<(), StoreError> {
     let s = b.store.clone();
     s.put_session(&record("r"))?;
@@ -408,6 +441,7 @@ macro_rules! every_case {
                 journal_append_and_truncate_on_checkpoint,
                 concurrent_appends_are_all_kept_in_order,
                 leases_hold_expire_and_fence,
+                handoff_requests_reach_the_owner,
                 one_winner_when_instances_race_for_a_lease,
                 everything_survives_reopen,
             );
