@@ -407,9 +407,13 @@ async fn restart_postgres(
     tallies: &[Arc<Mutex<Tally>>],
 ) -> Result<serde_json::Value, String> {
     let acked_before: Vec<u64> = tallies.iter().map(|t| t.lock().acked).collect();
+    let live: Vec<&Instance> = instances.iter().filter(|i| i.alive()).collect();
+    let owner_base = match owner(instances, s).await {
+        Some(i) => instances[i].base.clone(),
+        None => live[0].base.clone(),
+    };
     let t0 = Instant::now();
     pg.stop()?;
-    let live: Vec<&Instance> = instances.iter().filter(|i| i.alive()).collect();
     // not ready (the store ping fails) on every live instance
     for i in &live {
         let url = format!("{}/healthz/ready", i.base);
@@ -427,18 +431,18 @@ async fn restart_postgres(
         );
     }
     // writes are refused with the typed 503
+    let not_ready_after = t0.elapsed();
     let direct = Client::new(&live[0].base);
     let (p, t) = grid(3);
-    match direct.upload_json(&p, &t).await {
+    let t1 = Instant::now();
+    let upload = direct.upload_json(&p, &t).await;
+    let refused_in = t1.elapsed();
+    match upload {
         Err(ClientError::Api {
             status: 503, code, ..
         }) if code == "store_unavailable" => {}
         other => return Err(format!("upload with PostgreSQL down: {other:?}")),
     }
-    let owner_base = match owner(instances, s).await {
-        Some(i) => instances[i].base.clone(),
-        None => live[0].base.clone(),
-    };
     let put = Client::new(&owner_base)
         .session(&s.id, &s.token)
         .set_constraints(&grid_constraints(N))
@@ -466,8 +470,11 @@ async fn restart_postgres(
     assert_eq!(lost, 0);
     let store_errors: u64 = tallies.iter().map(|t| t.lock().store_errors).sum();
     Ok(json!({
-        "down_ms": down_for.as_millis() as u64,
-        "ready_again_ms": ready_after.as_millis() as u64,
+        "live_instances": live.len(),
+        "not_ready_on_all_after_ms": not_ready_after.as_millis() as u64,
+        "upload_refused_in_ms": refused_in.as_millis() as u64,
+        "postgres_down_ms": down_for.as_millis() as u64,
+        "ready_again_after_stop_ms": ready_after.as_millis() as u64,
         "not_ready_on_every_instance": true,
         "writes_refused_503_store_unavailable": true,
         "drag_store_errors_seen_by_clients": store_errors,
