@@ -22,6 +22,7 @@ mod failover_support;
 mod server_common;
 mod support;
 
+use std::collections::HashMap;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
 use std::time::{Duration, Instant};
@@ -51,16 +52,22 @@ struct Tally {
     drags: u64,
     /// Acknowledged before a failure but missing after it (must stay 0).
     lost: u64,
-    /// Each outage: time from the kill (or PG stop) to the first frame.
+    /// Each reconnection after a kill of the owner: time from the kill to
+    /// the first frame served again.
     recoveries: Vec<Duration>,
+    /// Each other reconnection (a hand-over to a returning instance): time
+    /// from the client noticing to the first frame.
+    other_reconnections: Vec<Duration>,
+
     /// Store errors seen as events while PostgreSQL was down.
     store_errors: u64,
 }
 
 struct Shared {
     stop: AtomicBool,
-    /// When the last kill happened (for recovery times).
-    killed_at: Mutex<Option<Instant>>,
+    /// The sessions whose owner was killed, with the time of the kill,
+    /// until their client gets a frame again.
+    affected: Mutex<HashMap<String, Instant>>,
 }
 
 /// How the server answered one drag.
@@ -113,8 +120,11 @@ async fn drive(
                 t.lost += t.acked - h.ack_seq;
             }
             if let Some(since) = down_since.take() {
-                let from = shared.killed_at.lock().unwrap_or(since).min(since);
-                t.recoveries.push(from.elapsed());
+                // was its session on the instance that was killed?
+                match shared.affected.lock().remove(&s.id) {
+                    Some(killed_at) => t.recoveries.push(killed_at.elapsed()),
+                    None => t.other_reconnections.push(since.elapsed()),
+                }
             }
             t.acked = t.acked.max(h.ack_seq);
             seq_next = t.acked + 1;
@@ -149,6 +159,7 @@ async fn drive(
                     let mut t = tally.lock();
                     t.drags += a.saturating_sub(t.acked);
                     t.acked = t.acked.max(a);
+
                     seq_next = t.acked + 1;
                 }
                 Answer::Refused => {
@@ -167,22 +178,17 @@ async fn drive(
     Ok(())
 }
 
-/// The instance owning session `s`: the one that answers its info with
-/// 200 (the others say `session_owned_elsewhere`, naming it).
-async fn owner(instances: &[Instance], s: &SessionClient) -> Option<usize> {
-    for (i, inst) in instances.iter().enumerate().filter(|(_, i)| i.alive()) {
-        let direct = Client::new(&inst.base).session(&s.id, &s.token);
-        match direct.info().await {
-            Ok(_) => return Some(i),
-            Err(ClientError::Api { code, message, .. }) if code == "session_owned_elsewhere" => {
-                return instances
-                    .iter()
-                    .position(|x| message.contains(&format!("`{}`", x.id)));
-            }
-            Err(_) => {}
-        }
-    }
-    None
+/// The instance owning session `s`, read from the `leases` table (asking
+/// the instances would not do: a request to a non-owner asks the owner to
+/// hand the session over).
+async fn owner(instances: &[Instance], pg: &Postgres, s: &SessionClient) -> Option<usize> {
+    let owner = pg
+        .query(&format!(
+            "SELECT owner FROM leases WHERE session = '{}'",
+            s.id
+        ))
+        .ok()?;
+    instances.iter().position(|i| i.id == owner && i.alive())
 }
 
 fn median(mut v: Vec<Duration>) -> Duration {
@@ -286,7 +292,7 @@ async fn run(
     }
     let shared = Arc::new(Shared {
         stop: AtomicBool::new(false),
-        killed_at: Mutex::new(None),
+        affected: Mutex::new(HashMap::new()),
     });
     let tallies: Vec<Arc<Mutex<Tally>>> = (0..SESSIONS).map(|_| Arc::default()).collect();
     let tasks: Vec<_> = sessions
@@ -319,10 +325,20 @@ async fn run(
     // two kills: the owner of session 0, then its new owner
     let mut killed = vec![];
     for _ in 0..2 {
-        let victim = owner(instances, &sessions[0])
+        let victim = owner(instances, pg, &sessions[0])
             .await
             .ok_or("no owner of session 0")?;
-        *shared.killed_at.lock() = Some(Instant::now());
+        let owned = pg.query(&format!(
+            "SELECT string_agg(session, ',') FROM leases WHERE owner = '{}' AND expires > now()",
+            instances[victim].id
+        ))?;
+        let now = Instant::now();
+        shared.affected.lock().extend(
+            owned
+                .split(',')
+                .filter(|x| !x.is_empty())
+                .map(|x| (x.to_owned(), now)),
+        );
         instances[victim].kill();
         killed.push(instances[victim].id.clone());
         eprintln!("killed {} (SIGKILL) mid-drags", instances[victim].id);
@@ -370,6 +386,10 @@ async fn run(
         assert_eq!(t.lost, 0, "acknowledged drags lost in session {}", s.id);
     }
     let handed_over = metric_sum(instances, "dend_leases_handed_over_total").await;
+    let others: Vec<Duration> = tallies
+        .iter()
+        .flat_map(|t| t.lock().other_reconnections.clone())
+        .collect();
     let recoveries: Vec<Duration> = tallies
         .iter()
         .flat_map(|t| t.lock().recoveries.clone())
@@ -385,7 +405,9 @@ async fn run(
         "sessions_handed_over_on_the_final_reads": handed_over - handed_over_before,
         "acknowledged_drags_lost": 0,
         "lease_ttl_ms": LEASE_TTL_MS,
-        "reconnections": recoveries.len(),
+        "reconnections_after_a_kill": recoveries.len(),
+        "other_reconnections": others.len(),
+        "other_reconnection_ms_max": others.iter().max().copied().unwrap_or_default().as_millis() as u64,
         "recovery_ms_median": median(recoveries.clone()).as_millis() as u64,
         "recovery_ms_max": recoveries.iter().max().copied().unwrap_or_default().as_millis() as u64,
         "postgres_restart": pg_outcome,
@@ -408,7 +430,7 @@ async fn restart_postgres(
 ) -> Result<serde_json::Value, String> {
     let acked_before: Vec<u64> = tallies.iter().map(|t| t.lock().acked).collect();
     let live: Vec<&Instance> = instances.iter().filter(|i| i.alive()).collect();
-    let owner_base = match owner(instances, s).await {
+    let owner_base = match owner(instances, pg, s).await {
         Some(i) => instances[i].base.clone(),
         None => live[0].base.clone(),
     };

@@ -75,6 +75,19 @@ impl Postgres {
         })
     }
 
+    /// The first column of the first row of `sql` (psql, unaligned).
+    pub fn query(&self, sql: &str) -> Result<String> {
+        let bin = pg_script(&["bindir"])?;
+        let out = Command::new(Path::new(&bin).join("psql"))
+            .args([self.url.as_str(), "-Atc", sql])
+            .output()
+            .map_err(|e| format!("psql: {e}"))?;
+        if !out.status.success() {
+            return Err(String::from_utf8_lossy(&out.stderr).into_owned());
+        }
+        Ok(String::from_utf8_lossy(&out.stdout).trim().to_owned())
+    }
+
     /// Fast shutdown (open connections are cut).
     pub fn stop(&self) -> Result<()> {
         pg_script(&["stop", &self.dir.display().to_string()]).map(|_| ())

@@ -37,6 +37,9 @@ pub const PG_SCHEMA_VERSION: i32 = 2;
 /// How long a store call waits for a pooled connection (or a new one).
 pub const POOL_TIMEOUT: Duration = Duration::from_secs(2);
 
+/// How long the readiness ping waits for a connection.
+pub const PING_TIMEOUT: Duration = Duration::from_millis(500);
+
 /// The migrations, in order: `(version, SQL)`.
 pub const MIGRATIONS: &[(i32, &str)] = &[
     (
@@ -478,8 +481,17 @@ impl Store for PgStore {
         postgres_leases::wanted(&mut self.conn()?, owner)
     }
 
+    /// A connection within [`PING_TIMEOUT`] (tested on checkout), so that
+    /// readiness answers fast when the server is gone.
     fn ping(&self) -> Result<(), StoreError> {
-        let _ = self.conn()?.query_one("SELECT 1", &[]).map_err(pg_err)?;
+        let pool = self
+            .pool
+            .as_ref()
+            .ok_or_else(|| StoreError::Unavailable("store closed".into()))?;
+        let mut c = pool
+            .get_timeout(PING_TIMEOUT)
+            .map_err(|e| StoreError::Unavailable(format!("no PostgreSQL connection: {e}")))?;
+        let _ = c.query_one("SELECT 1", &[]).map_err(pg_err)?;
         Ok(())
     }
 }
