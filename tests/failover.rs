@@ -1,7 +1,9 @@
 //! Multi-instance failover, for real: PostgreSQL (Debian's server, its own
 //! data directory, an unprivileged user), three `dend serve` instances
 //! sharing it, HAProxy in front hashing the session id. Clients drag over
-//! WebSocket through HAProxy; the instance owning a session is killed with
+//! WebSocket through HAProxy, holding the handle as the editor does (a
+//! gesture of 40 drags is checkpointed when it ends: until then its drags
+//! exist only in the journal); the instance owning a session is killed with
 //! SIGKILL in the middle of the drags (twice: the second time the new
 //! owner); clients reconnect through HAProxy and every drag acknowledged
 //! before the kill must be in the pose the surviving instance serves (the
@@ -129,8 +131,32 @@ async fn drive(
             t.acked = t.acked.max(h.ack_seq);
             seq_next = t.acked + 1;
         }
+        // hold the handle, as the editor does during a gesture: the session
+        // checkpoints only when a gesture ends, so until then the
+        // acknowledged drags exist in the journal alone
+        if ws
+            .send(&json!({"type": "grab", "handle": 0}))
+            .await
+            .is_err()
+        {
+            down_since.get_or_insert_with(Instant::now);
+            continue 'connect;
+        }
         while !shared.stop.load(Ordering::Relaxed) {
             let seq = seq_next;
+            if seq % 40 == 0 {
+                // end the gesture (a checkpoint), start the next
+                let release = ws.send(&json!({"type": "release", "handle": 0})).await;
+                if release.is_err()
+                    || ws
+                        .send(&json!({"type": "grab", "handle": 0}))
+                        .await
+                        .is_err()
+                {
+                    down_since.get_or_insert_with(Instant::now);
+                    continue 'connect;
+                }
+            }
             if ws.drag(0, [dx(seq), 0.0, 0.0], None, seq).await.is_err() {
                 down_since.get_or_insert_with(Instant::now);
                 continue 'connect;
