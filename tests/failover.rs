@@ -9,7 +9,11 @@
 //! before the kill must be in the pose the surviving instance serves (the
 //! final pose is checked against the sum of every acknowledged drag). The
 //! first victim then comes back: HAProxy routes its share of the sessions
-//! to it again and their owners hand them over.
+//! to it again and their owners hand them over. The owner of session 0 is
+//! then frozen (SIGSTOP) until the others took its sessions over, and
+//! resumed: it must let them go, its late writes fenced. At the very end a
+//! fresh instance revives every session from PostgreSQL alone and must
+//! serve exactly the acknowledged drags.
 //! Then PostgreSQL is restarted under load: the instances report not
 //! ready, refuse writes with 503 `store_unavailable` (drags get an `error`
 //! event `store_unavailable` and are not applied; the clients send them
@@ -29,7 +33,8 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
-use dend_client::{Client, ClientError, SessionClient, WsEvent};
+use dend_client::{Client, ClientError, SessionClient};
+use failover_support::client::{drive, dx, Cut, Shared, Tally};
 use failover_support::{http_status, prerequisites, Haproxy, Instance, Postgres};
 use parking_lot::Mutex;
 use serde_json::json;
@@ -38,171 +43,6 @@ use server_common::{grid, grid_constraints};
 const N: usize = 8; // grid side: the handle is the top row
 const SESSIONS: usize = 6;
 const LEASE_TTL_MS: u64 = 2000;
-
-/// The x translation of drag `seq` (distinct per seq, so the final pose
-/// tells which drags it holds).
-fn dx(seq: u64) -> f64 {
-    0.001 * (1 + seq % 5) as f64
-}
-
-/// What one client saw.
-#[derive(Default, Debug)]
-struct Tally {
-    /// Highest sequence number acknowledged by a frame.
-    acked: u64,
-    /// Drags acknowledged (each seq once).
-    drags: u64,
-    /// Acknowledged before a failure but missing after it (must stay 0).
-    lost: u64,
-    /// Each reconnection after a kill of the owner: time from the kill to
-    /// the first frame served again.
-    recoveries: Vec<Duration>,
-    /// Each other reconnection (a hand-over to a returning instance): time
-    /// from the client noticing to the first frame.
-    other_reconnections: Vec<Duration>,
-
-    /// Store errors seen as events while PostgreSQL was down.
-    store_errors: u64,
-}
-
-struct Shared {
-    stop: AtomicBool,
-    /// The sessions whose owner was killed, with the time of the kill,
-    /// until their client gets a frame again.
-    affected: Mutex<HashMap<String, Instant>>,
-}
-
-/// How the server answered one drag.
-enum Answer {
-    /// A frame acknowledged it (and everything before): the acked seq.
-    Acked(u64),
-    /// An `error` event `store_unavailable`: not applied.
-    Refused,
-    /// The connection failed or went silent.
-    Broken,
-}
-
-/// One client: drags one at a time, each acknowledged by a frame before
-/// the next; on any failure reconnects through HAProxy and resumes after
-/// the acknowledged sequence number the server reports.
-async fn drive(
-    s: SessionClient,
-    shared: Arc<Shared>,
-    tally: Arc<Mutex<Tally>>,
-) -> Result<(), String> {
-    let mut seq_next;
-    let mut down_since: Option<Instant> = None;
-    'connect: while !shared.stop.load(Ordering::Relaxed) {
-        let mut ws = match s.connect().await {
-            Ok(ws) => ws,
-            Err(_) => {
-                down_since.get_or_insert_with(Instant::now);
-                tokio::time::sleep(Duration::from_millis(50)).await;
-                continue;
-            }
-        };
-        // the first frame says what the (possibly new) owner holds
-        let first = tokio::time::timeout(Duration::from_secs(30), async {
-            loop {
-                match ws.next().await {
-                    Ok(WsEvent::Frame(h, _)) => return Some(h),
-                    Ok(WsEvent::Closed(_)) | Err(_) => return None,
-                    Ok(WsEvent::Event(_)) => {}
-                }
-            }
-        })
-        .await;
-        let Ok(Some(h)) = first else {
-            down_since.get_or_insert_with(Instant::now);
-            continue 'connect;
-        };
-        {
-            let mut t = tally.lock();
-            if h.ack_seq < t.acked {
-                t.lost += t.acked - h.ack_seq;
-            }
-            if let Some(since) = down_since.take() {
-                // was its session on the instance that was killed?
-                match shared.affected.lock().remove(&s.id) {
-                    Some(killed_at) => t.recoveries.push(killed_at.elapsed()),
-                    None => t.other_reconnections.push(since.elapsed()),
-                }
-            }
-            t.acked = t.acked.max(h.ack_seq);
-            seq_next = t.acked + 1;
-        }
-        // hold the handle, as the editor does during a gesture: the session
-        // checkpoints only when a gesture ends, so until then the
-        // acknowledged drags exist in the journal alone
-        if ws
-            .send(&json!({"type": "grab", "handle": 0}))
-            .await
-            .is_err()
-        {
-            down_since.get_or_insert_with(Instant::now);
-            continue 'connect;
-        }
-        while !shared.stop.load(Ordering::Relaxed) {
-            let seq = seq_next;
-            if seq % 40 == 0 {
-                // end the gesture (a checkpoint), start the next
-                let release = ws.send(&json!({"type": "release", "handle": 0})).await;
-                if release.is_err()
-                    || ws
-                        .send(&json!({"type": "grab", "handle": 0}))
-                        .await
-                        .is_err()
-                {
-                    down_since.get_or_insert_with(Instant::now);
-                    continue 'connect;
-                }
-            }
-            if ws.drag(0, [dx(seq), 0.0, 0.0], None, seq).await.is_err() {
-                down_since.get_or_insert_with(Instant::now);
-                continue 'connect;
-            }
-            let answer = tokio::time::timeout(Duration::from_secs(10), async {
-                loop {
-                    match ws.next().await {
-                        Ok(WsEvent::Frame(h, _)) if h.ack_seq >= seq => {
-                            return Answer::Acked(h.ack_seq)
-                        }
-                        // refused, not applied (the store is down): send it again
-                        Ok(WsEvent::Event(v))
-                            if v["type"] == "error" && v["code"] == "store_unavailable" =>
-                        {
-                            return Answer::Refused;
-                        }
-                        Ok(WsEvent::Closed(_)) | Err(_) => return Answer::Broken,
-                        _ => {}
-                    }
-                }
-            })
-            .await
-            .unwrap_or(Answer::Broken);
-            match answer {
-                Answer::Acked(a) => {
-                    let mut t = tally.lock();
-                    t.drags += a.saturating_sub(t.acked);
-                    t.acked = t.acked.max(a);
-
-                    seq_next = t.acked + 1;
-                }
-                Answer::Refused => {
-                    tally.lock().store_errors += 1;
-                    tokio::time::sleep(Duration::from_millis(100)).await;
-                }
-                Answer::Broken => {
-                    down_since.get_or_insert_with(Instant::now);
-                    continue 'connect;
-                }
-            }
-            tokio::time::sleep(Duration::from_millis(15)).await;
-        }
-        let _ = ws.close().await;
-    }
-    Ok(())
-}
 
 /// The instance owning session `s`, read from the `leases` table (asking
 /// the instances would not do: a request to a non-owner asks the owner to
@@ -285,6 +125,22 @@ async fn pose_retrying(s: &SessionClient) -> Result<dend_client::Pose, String> {
     }
 }
 
+/// Marks the sessions `inst` leases now as cut off by `how`.
+fn mark_owned(shared: &Shared, pg: &Postgres, inst: &Instance, how: Cut) -> Result<(), String> {
+    let owned = pg.query(&format!(
+        "SELECT string_agg(session, ',') FROM leases WHERE owner = '{}' AND expires > now()",
+        inst.id
+    ))?;
+    let now = Instant::now();
+    shared.affected.lock().extend(
+        owned
+            .split(',')
+            .filter(|x| !x.is_empty())
+            .map(|x| (x.to_owned(), (now, how))),
+    );
+    Ok(())
+}
+
 /// The sum of a metric over the live instances.
 async fn metric_sum(instances: &[Instance], name: &str) -> f64 {
     let mut sum = 0.0;
@@ -354,17 +210,7 @@ async fn run(
         let victim = owner(instances, pg, &sessions[0])
             .await
             .ok_or("no owner of session 0")?;
-        let owned = pg.query(&format!(
-            "SELECT string_agg(session, ',') FROM leases WHERE owner = '{}' AND expires > now()",
-            instances[victim].id
-        ))?;
-        let now = Instant::now();
-        shared.affected.lock().extend(
-            owned
-                .split(',')
-                .filter(|x| !x.is_empty())
-                .map(|x| (x.to_owned(), now)),
-        );
+        mark_owned(&shared, pg, &instances[victim], Cut::Kill)?;
         instances[victim].kill();
         killed.push(instances[victim].id.clone());
         eprintln!("killed {} (SIGKILL) mid-drags", instances[victim].id);
@@ -379,6 +225,38 @@ async fn run(
     let (id, port) = (instances[back].id.clone(), instances[back].port);
     instances[back] = Instance::start_on(dir, &id, &pg.url, LEASE_TTL_MS, port)?;
     eprintln!("{id} restarted");
+    progress(20).await?;
+    // a frozen owner (SIGSTOP: alive, silent) loses its sessions like a
+    // dead one; resumed, it must let them go, its late writes fenced
+    let zombie = owner(instances, pg, &sessions[0])
+        .await
+        .ok_or("no owner of session 0")?;
+    mark_owned(&shared, pg, &instances[zombie], Cut::Freeze)?;
+    instances[zombie].signal("STOP")?;
+    eprintln!("froze {} (SIGSTOP) mid-drags", instances[zombie].id);
+    progress(20).await?;
+    instances[zombie].signal("CONT")?;
+    let frozen = instances[zombie].id.clone();
+    let z = Client::new(&instances[zombie].base);
+    let t0 = Instant::now();
+    loop {
+        let held: f64 = pg
+            .query(&format!(
+                "SELECT count(*) FROM leases WHERE owner = '{frozen}' AND expires > now()"
+            ))?
+            .parse()
+            .map_err(|_| "count")?;
+        let owned = z.metric("dend_sessions_owned").await.ok().flatten();
+        if owned == Some(held) {
+            break;
+        }
+        if t0.elapsed() > Duration::from_secs(10) {
+            return Err(format!(
+                "{frozen} resumed owning {owned:?} sessions, leases {held}"
+            ));
+        }
+        tokio::time::sleep(Duration::from_millis(100)).await;
+    }
     progress(20).await?;
     // PostgreSQL restart under load
     let pg_outcome = restart_postgres(pg, instances, &sessions[0], &tallies).await?;
@@ -412,6 +290,11 @@ async fn run(
         assert_eq!(t.lost, 0, "acknowledged drags lost in session {}", s.id);
     }
     let handed_over = metric_sum(instances, "dend_leases_handed_over_total").await;
+    let revived = revive_everything_elsewhere(dir, pg, instances, &sessions, &tallies).await?;
+    let freezes: Vec<Duration> = tallies
+        .iter()
+        .flat_map(|t| t.lock().freeze_recoveries.clone())
+        .collect();
     let others: Vec<Duration> = tallies
         .iter()
         .flat_map(|t| t.lock().other_reconnections.clone())
@@ -427,6 +310,10 @@ async fn run(
         "drags_acknowledged": drags,
         "instances_killed": killed,
         "instance_restarted": killed[0],
+        "instance_frozen_then_resumed": frozen,
+        "reconnections_after_the_freeze": freezes.len(),
+        "freeze_recovery_ms_max": freezes.iter().max().copied().unwrap_or_default().as_millis() as u64,
+        "revived_from_the_store_by_a_fresh_instance": revived,
         "sessions_handed_over": handed_over,
         "sessions_handed_over_on_the_final_reads": handed_over - handed_over_before,
         "acknowledged_drags_lost": 0,
@@ -444,6 +331,54 @@ async fn run(
     }
     assert!(!recoveries.is_empty(), "the kills cut some client off");
     Ok(())
+}
+
+/// The end-to-end check of what the store holds: every instance is
+/// killed, a fresh one revives each session from PostgreSQL alone
+/// (checkpoint + journal), and its settled pose must hold exactly the
+/// acknowledged drags (none lost, none twice: a zombie's late write would
+/// show as a drag applied twice).
+async fn revive_everything_elsewhere(
+    dir: &std::path::Path,
+    pg: &Postgres,
+    instances: &mut [Instance],
+    sessions: &[SessionClient],
+    tallies: &[Arc<Mutex<Tally>>],
+) -> Result<usize, String> {
+    for i in instances.iter_mut() {
+        i.kill();
+    }
+    let fresh = Instance::start(dir, "dend9", &pg.url, LEASE_TTL_MS)?;
+    let c = Client::new(&fresh.base);
+    for (s, t) in sessions.iter().zip(tallies) {
+        let s = c.session(&s.id, &s.token);
+        let t0 = Instant::now();
+        let pose = loop {
+            let p = pose_retrying(&s).await?;
+            if p.settled && p.iteration > 0 {
+                break p;
+            }
+            if t0.elapsed() > Duration::from_secs(20) {
+                return Err(format!("session {} did not settle after its revival", s.id));
+            }
+            tokio::time::sleep(Duration::from_millis(50)).await;
+        };
+        let acked = t.lock().acked;
+        assert!(
+            pose.ack_seq >= acked,
+            "revived ack {} < acknowledged {acked}",
+            pose.ack_seq
+        );
+        let sum: f64 = (1..=pose.ack_seq).map(dx).sum();
+        let x = pose.positions[N * (N - 1)][0];
+        assert!(
+            (x - sum).abs() < 1e-6,
+            "session {} revived from the store: handle at x = {x}, its {} acknowledged drags put it at {sum}",
+            s.id,
+            pose.ack_seq
+        );
+    }
+    Ok(sessions.len())
 }
 
 /// Stops PostgreSQL while clients drag, checks not-ready and typed 503s on

@@ -5,6 +5,8 @@
 //! one temporary directory; dropping a [`Cluster`] stops every process.
 #![allow(dead_code)]
 
+pub mod client;
+
 use std::path::{Path, PathBuf};
 use std::process::{Child, Command, Stdio};
 use std::time::{Duration, Instant};
@@ -170,6 +172,18 @@ impl Instance {
             let _ = c.kill(); // SIGKILL on Unix
             let _ = c.wait();
         }
+    }
+
+    /// Sends a signal (`STOP`, `CONT`) with kill(1).
+    pub fn signal(&self, sig: &str) -> Result<()> {
+        let pid = self.child.as_ref().ok_or("not running")?.id();
+        let st = Command::new("kill")
+            .args(["-s", sig, &pid.to_string()])
+            .status()
+            .map_err(|e| format!("kill -s {sig}: {e}"))?;
+        st.success()
+            .then_some(())
+            .ok_or_else(|| format!("kill -s {sig} {pid} failed"))
     }
 
     /// Whether the process still runs.
