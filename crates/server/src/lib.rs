@@ -67,9 +67,9 @@ pub struct AppState {
     /// This instance in a shared-store deployment (None: embedded store,
     /// no leases); see [`lease`].
     pub cluster: Option<Arc<lease::Cluster>>,
-    /// Held from a session's lease to its insertion among the live ones,
-    /// so that two requests reviving one session take one lease.
-    open_lock: Arc<tokio::sync::Mutex<()>>,
+    /// Per session id, held from its lease to its insertion among the live
+    /// ones, so that two requests reviving one session take one lease.
+    open_locks: Arc<Mutex<HashMap<String, Weak<tokio::sync::Mutex<()>>>>>,
 }
 
 impl AppState {
@@ -88,6 +88,18 @@ impl AppState {
             .map_err(ApiError::from)
     }
 
+    /// The opening lock of session `id` (see `open_locks`).
+    pub(crate) fn open_lock(&self, id: &str) -> Arc<tokio::sync::Mutex<()>> {
+        let mut locks = self.open_locks.lock();
+        if let Some(l) = locks.get(id).and_then(Weak::upgrade) {
+            return l;
+        }
+        locks.retain(|_, w| w.strong_count() > 0);
+        let l = Arc::new(tokio::sync::Mutex::new(()));
+        let _ = locks.insert(id.to_owned(), Arc::downgrade(&l));
+        l
+    }
+
     /// State with the embedded in-memory store.
     pub fn new(config: Config) -> anyhow::Result<Self> {
         Self::with_store(config, Arc::new(MemoryStore::new()))
@@ -104,7 +116,7 @@ impl AppState {
         ));
         Ok(AppState {
             cluster: lease::Cluster::from_config(&config),
-            open_lock: Arc::new(tokio::sync::Mutex::new(())),
+            open_locks: Arc::new(Mutex::new(HashMap::new())),
             cache: Arc::new(FactorCache::with_options(
                 config.factor_cache_bytes,
                 SolveOptions {

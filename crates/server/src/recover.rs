@@ -83,16 +83,19 @@ pub(crate) async fn revive(
     if !bool::from(super::sessions::token_hash(token).ct_eq(&token_sha256)) {
         return Err(ApiError::WrongToken);
     }
-    let rest = rest_for(st, &record.mesh_id).await?;
-    // one opening at a time: check, lease, spawn and insert together
-    let opening = st.open_lock.clone().lock_owned().await;
+    // one opening of this session at a time: check, lease, spawn and
+    // insert together
+    let opening = st.open_lock(id).lock_owned().await;
     if let Some(live) = st.sessions.read().get(id).filter(|s| !s.is_fenced()) {
         return Ok(Some(live.clone()));
     }
     if st.sessions.read().len() >= st.config.max_sessions {
         return Err(ApiError::TooManySessions(st.config.max_sessions));
     }
+    // the lease before the rest operators: a session owned elsewhere costs
+    // a store read and a lease check, not a rest build
     let fence = crate::lease::acquire(st, id).await?;
+    let rest = rest_for(st, &record.mesh_id).await?;
     let opts = SessionOptions {
         cache: st.cache.clone(),
         store: st.store.clone(),
