@@ -12,6 +12,10 @@ use crate::session::shared::Internal;
 use crate::session::{Event, Frame, PoseSnapshot, SessionError, SessionState};
 
 impl Actor {
+    /// Starts a solve on the blocking pool when the session is ready and
+    /// has something to do (new drags, waiters, or iterations left before
+    /// it settles); the drags composed since the last solve are journaled
+    /// first, in the same task.
     pub(super) fn maybe_start_solve(&mut self) {
         if self.deformer.is_none() || self.state != SessionState::Ready {
             return;
@@ -67,7 +71,8 @@ impl Actor {
                 store.append(&id, fence, &journal)
             };
             // a drag is acknowledged only once journaled: when the append
-            // fails, nothing is solved and the entries go back to the actor
+            // fails, nothing is solved and the actor refuses the drags
+            // (`journal_failed`: back to the last journaled targets)
             let (result, journal_failed) = match appended {
                 Ok(()) => {
                     let step = (|| {
