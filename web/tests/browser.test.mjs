@@ -14,7 +14,7 @@
 // from the URL with its regions. Screenshots go to web/test-artifacts/.
 
 import { spawn } from 'node:child_process';
-import { mkdirSync, mkdtempSync, writeFileSync, copyFileSync } from 'node:fs';
+import { mkdirSync, mkdtempSync, rmSync, writeFileSync, copyFileSync } from 'node:fs';
 import { tmpdir } from 'node:os';
 import { dirname, join, resolve } from 'node:path';
 import { fileURLToPath } from 'node:url';
@@ -519,6 +519,8 @@ async function main() {
   } finally {
     await browser.close();
     proc.kill('SIGTERM');
+    await new Promise((res) => setTimeout(res, 200));
+    rmSync(dataDir, { recursive: true, force: true });
   }
 }
 
