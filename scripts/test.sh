@@ -13,8 +13,20 @@ cargo clippy --workspace --all-targets -- -D warnings
 # benches are compiled by clippy above; running them is `cargo bench`
 # tests that cannot run here (no ../shared/meshes) record why in this file
 export DEND_SKIP_LOG="$(mktemp)"
-trap 'rm -f "$DEND_SKIP_LOG"' EXIT
+# a throw-away PostgreSQL for the store suite's PostgreSQL backend
+# (DEND_TEST_POSTGRES); tests/failover.rs starts its own, with HAProxy
+PG_TMP="$(mktemp -d)"
+cleanup() { bash scripts/pg-temp.sh stop "$PG_TMP/pg" || true; rm -rf "$PG_TMP" "$DEND_SKIP_LOG"; }
+trap cleanup EXIT
+if [ -z "${DEND_TEST_POSTGRES:-}" ] && bash scripts/pg-temp.sh bindir >/dev/null 2>&1; then
+  PG_PORT="$(python3 -c 'import socket; s=socket.socket(); s.bind(("127.0.0.1",0)); print(s.getsockname()[1])')"
+  DEND_TEST_POSTGRES="$(bash scripts/pg-temp.sh start "$PG_TMP/pg" "$PG_PORT")"
+  export DEND_TEST_POSTGRES
+fi
+# the failover test's figures (docs/reliability.md)
+export DEND_FAILOVER_REPORT="${DEND_FAILOVER_REPORT:-$PG_TMP/failover.json}"
 cargo test --workspace --lib --bins --tests --examples
+[ -s "$DEND_FAILOVER_REPORT" ] && { echo "== failover figures:"; cat "$DEND_FAILOVER_REPORT"; }
 # the browser test drives the `dend` binary cargo test built for the CLI tests
 DEND_BIN="${CARGO_TARGET_DIR:-$(pwd)/target}/debug/dend" bash scripts/test-web.sh
 if [ -s "$DEND_SKIP_LOG" ]; then

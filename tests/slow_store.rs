@@ -10,7 +10,8 @@ use std::time::{Duration, Instant};
 use dend::mesh::Mesh;
 use dend_client::{Client, ClientError, WsEvent};
 use dend_server::store::{
-    Checkpoint, JournalEntry, MemoryStore, SessionRecord, Store, StoreError, StoredAsset,
+    Checkpoint, Fence, JournalEntry, LeaseGrant, MemoryStore, SessionRecord, Store, StoreError,
+    StoredAsset,
 };
 use dend_server::Config;
 use parking_lot::Mutex;
@@ -66,19 +67,51 @@ impl Store for SlowStore {
     fn delete_session(&self, id: &str) -> Result<(), StoreError> {
         self.inner.delete_session(id)
     }
-    fn set_constraints(&self, id: &str, spec: &serde_json::Value) -> Result<(), StoreError> {
+    fn set_constraints(
+        &self,
+        id: &str,
+        fence: Fence,
+        spec: &serde_json::Value,
+    ) -> Result<(), StoreError> {
         self.nap(id);
-        self.inner.set_constraints(id, spec)
+        self.inner.set_constraints(id, fence, spec)
     }
-    fn append(&self, id: &str, entries: &[JournalEntry]) -> Result<(), StoreError> {
-        self.inner.append(id, entries)
+    fn append(&self, id: &str, fence: Fence, entries: &[JournalEntry]) -> Result<(), StoreError> {
+        self.inner.append(id, fence, entries)
     }
     fn journal(&self, id: &str) -> Result<Vec<JournalEntry>, StoreError> {
         self.inner.journal(id)
     }
-    fn checkpoint(&self, id: &str, checkpoint: &Checkpoint) -> Result<(), StoreError> {
+    fn checkpoint(
+        &self,
+        id: &str,
+        fence: Fence,
+        checkpoint: &Checkpoint,
+    ) -> Result<(), StoreError> {
         self.nap(id);
-        self.inner.checkpoint(id, checkpoint)
+        self.inner.checkpoint(id, fence, checkpoint)
+    }
+    fn acquire_lease(
+        &self,
+        id: &str,
+        owner: &str,
+        ttl: Duration,
+    ) -> Result<LeaseGrant, StoreError> {
+        self.inner.acquire_lease(id, owner, ttl)
+    }
+    fn renew_leases(
+        &self,
+        owner: &str,
+        leases: &[(String, Fence)],
+        ttl: Duration,
+    ) -> Result<Vec<String>, StoreError> {
+        self.inner.renew_leases(owner, leases, ttl)
+    }
+    fn release_lease(&self, id: &str, owner: &str, revision: Fence) -> Result<(), StoreError> {
+        self.inner.release_lease(id, owner, revision)
+    }
+    fn handoffs_wanted(&self, owner: &str) -> Result<Vec<String>, StoreError> {
+        self.inner.handoffs_wanted(owner)
     }
     fn get_checkpoint(&self, id: &str) -> Result<Option<Checkpoint>, StoreError> {
         self.inner.get_checkpoint(id)

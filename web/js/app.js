@@ -474,7 +474,40 @@ function onEvent(e) {
 function onClose(code, reason) {
   app.ws = null;
   setState('disconnected');
-  if (code !== 1000) showError({ code: `closed_${code}`, message: reason || 'the session socket closed' });
+  if (code === 1000) return;
+  // 4004: the session closed here (deleted, expired, or moved to another
+  // instance: its owner died or handed it over); 1001/1006/1011/1012: the
+  // server went away. Reopen it while the server says it exists.
+  if (app.session && [4004, 1001, 1006, 1011, 1012].includes(code)) {
+    reconnect(app.session, 250);
+    return;
+  }
+  showError({ code: `closed_${code}`, message: reason || 'the session socket closed' });
+}
+
+/** Reopens `session`'s socket after `delay` ms, doubling up to 2 s while
+ * the session is not reachable yet (409 `session_owned_elsewhere` while a
+ * failover or hand-over is under way, 503 while the store is down, no
+ * answer while the load balancer re-routes); a 404 or another error ends
+ * it. Stops when another session was opened meanwhile. */
+function reconnect(session, delay) {
+  setTimeout(async () => {
+    if (app.session !== session || app.ws) return;
+    const again = () => reconnect(session, Math.min(2 * delay, 2000));
+    try {
+      await app.api.json('GET', `/v1/sessions/${session.id}`, undefined, session.token);
+    } catch (e) {
+      const transient = !(e instanceof ApiError) || ['session_owned_elsewhere', 'store_unavailable'].includes(e.code) || e.status >= 502;
+      if (transient) again();
+      else showError(e);
+      return;
+    }
+    try {
+      app.ws = await app.api.connect(session.id, session.token, { frame: onFrame, event: onEvent, close: onClose });
+    } catch (e) {
+      again();
+    }
+  }, delay);
 }
 
 /** Sends a JSON message on the session socket. */

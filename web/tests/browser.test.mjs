@@ -14,7 +14,8 @@
 // from the URL with its regions. Screenshots go to web/test-artifacts/.
 
 import { spawn } from 'node:child_process';
-import { mkdirSync, writeFileSync, copyFileSync } from 'node:fs';
+import { mkdirSync, mkdtempSync, rmSync, writeFileSync, copyFileSync } from 'node:fs';
+import { tmpdir } from 'node:os';
 import { dirname, join, resolve } from 'node:path';
 import { fileURLToPath } from 'node:url';
 import assert from 'node:assert/strict';
@@ -29,9 +30,12 @@ mkdirSync(artifacts, { recursive: true });
 
 function log(...a) { console.log('[web-test]', ...a); }
 
-/** Starts `dend serve` on a free port; resolves with {proc, base}. */
-function startServer() {
-  const proc = spawn(bin, ['serve', '--addr', '127.0.0.1:0'], { stdio: ['ignore', 'pipe', 'pipe'] });
+/** The server's store (SQLite), kept across its restart below. */
+const dataDir = mkdtempSync(join(tmpdir(), 'dend-web-test-'));
+
+/** Starts `dend serve` on `addr` (default: a free port); resolves with {proc, base}. */
+function startServer(addr = '127.0.0.1:0') {
+  const proc = spawn(bin, ['serve', '--addr', addr, '--data-dir', dataDir], { stdio: ['ignore', 'pipe', 'pipe'] });
   let stderr = '';
   proc.stderr.on('data', (d) => { stderr += d; });
   return new Promise((res, rej) => {
@@ -145,7 +149,7 @@ async function boxSelect(page, b) {
 }
 
 async function main() {
-  const { proc, base } = await startServer();
+  let { proc, base } = await startServer();
   log('server at', base);
   const browser = await chromium.launch({
     executablePath: chromiumPath,
@@ -513,6 +517,35 @@ async function main() {
     assert.ok(folded.height > view.height, 'folding the panel gives the canvas more room');
     await phone.screenshot({ path: join(artifacts, '7-phone.png') });
 
+    // The server dies (SIGKILL) and comes back on its port with its store:
+    // the page reconnects by itself (web/js/app.js, reconnect) and draws
+    // the pose it had, revived from the store.
+    const kept = await serverPose(base, session);
+    const errorsBefore = pageErrors.length;
+    proc.kill('SIGKILL');
+    await waitFor(page, () => window.dend.app.state === 'disconnected', null, 'the page noticing the server is gone');
+    ({ proc } = await startServer(new URL(base).host));
+    await waitFor(page, () => window.dend.app.ws && window.dend.app.state === 'ready', null, 'the page reconnecting after the restart', 60000);
+    // revived: the recovered targets and the checkpoint pose as the warm
+    // start, solved again to convergence (so equal up to the solver's
+    // tolerance, not bit for bit); the page draws the server's pose
+    let revived = null;
+    for (let t = 0; t < 600 && !revived; t++) {
+      const r = await fetch(`${base}/v1/sessions/${session.id}/pose`, { headers: { Authorization: `Bearer ${session.token}` } });
+      const j = await r.json();
+      if (r.status === 200 && j.settled) revived = Float32Array.from(j.positions.flat());
+      else await new Promise((res) => setTimeout(res, 50));
+    }
+    assert.ok(revived, 'the revived session settles');
+    await waitForPose(page, revived, 'the revived pose');
+    const drift = maxDiff(kept, revived, Array.from({ length: n }, (_, i) => i));
+    log('revived pose off the pre-kill pose by', drift.toExponential(2), '(bar length 6)');
+    assert.ok(drift < 5e-3, `the revived pose is the pose from before the kill (off by ${drift})`);
+    // the browser logs the refused connections while the server was down
+    const refused = pageErrors.splice(errorsBefore).filter((e) => !/ERR_CONNECTION_REFUSED|WebSocket connection to/.test(e));
+    assert.deepEqual(refused, [], 'no other error while reconnecting');
+    log('server killed and restarted: the page reconnected and draws the pose it had');
+
     // Upload: a 4×4 grid as OBJ through the file input.
     const g = [];
     for (let j = 0; j < 4; j++) for (let i = 0; i < 4; i++) g.push(`v ${i} ${j} 0`);
@@ -532,6 +565,8 @@ async function main() {
   } finally {
     await browser.close();
     proc.kill('SIGTERM');
+    await new Promise((res) => setTimeout(res, 200));
+    rmSync(dataDir, { recursive: true, force: true });
   }
 }
 

@@ -65,6 +65,24 @@ pub struct Config {
     /// Keep everything in memory instead (nothing survives a restart).
     #[arg(long, env = "DEND_IN_MEMORY")]
     pub in_memory: bool,
+    /// A shared store instead of the embedded one: a PostgreSQL URL
+    /// (`postgres://user[:password]@host:port/db`). Several instances may
+    /// share it; each live session is then leased by one instance
+    /// (docs/deployment.md). Overrides `data_dir` and `in_memory`.
+    #[arg(long, env = "DEND_STORE")]
+    pub store: Option<String>,
+    /// Most pooled connections to the shared store.
+    #[arg(long, env = "DEND_STORE_CONNECTIONS", default_value_t = 16)]
+    pub store_connections: u32,
+    /// This instance's id in session leases and `session_owned_elsewhere`
+    /// answers (default: `dend-` and 8 random hex digits, new every start).
+    #[arg(long, env = "DEND_INSTANCE_ID")]
+    pub instance_id: Option<String>,
+    /// Lifetime of a session lease in milliseconds (shared store only): the
+    /// owner renews it every third of this; when the owner dies, another
+    /// instance takes the session over once it expires.
+    #[arg(long, env = "DEND_LEASE_TTL_MS", default_value_t = 10_000)]
+    pub lease_ttl_ms: u64,
 }
 
 impl Default for Config {
@@ -84,6 +102,10 @@ impl Default for Config {
             iters_per_frame: 1,
             data_dir: PathBuf::from("./dend-data"),
             in_memory: false,
+            store: None,
+            store_connections: 16,
+            instance_id: None,
+            lease_ttl_ms: 10_000,
         }
     }
 }
@@ -99,6 +121,11 @@ impl Config {
     /// The idle timeout as a [`Duration`].
     pub fn idle_timeout(&self) -> Duration {
         Duration::from_secs(self.idle_timeout_secs)
+    }
+
+    /// The session lease lifetime as a [`Duration`].
+    pub fn lease_ttl(&self) -> Duration {
+        Duration::from_millis(self.lease_ttl_ms.max(100))
     }
 
     /// The request timeout as a [`Duration`].
@@ -138,6 +165,27 @@ mod tests {
         let cli = Cli::try_parse_from(["x", "--addr", "0.0.0.0:9", "--max-vertices", "7"]).unwrap();
         assert_eq!(cli.config.addr.port(), 9);
         assert_eq!(cli.config.max_vertices, 7);
+    }
+
+    #[test]
+    fn shared_store_flags() {
+        let cli = Cli::try_parse_from([
+            "x",
+            "--store",
+            "postgres://dend@127.0.0.1:5432/dend",
+            "--instance-id",
+            "dend1",
+            "--lease-ttl-ms",
+            "3000",
+        ])
+        .unwrap();
+        assert_eq!(
+            cli.config.store.as_deref(),
+            Some("postgres://dend@127.0.0.1:5432/dend")
+        );
+        assert_eq!(cli.config.instance_id.as_deref(), Some("dend1"));
+        assert_eq!(cli.config.lease_ttl(), Duration::from_secs(3));
+        assert!(Cli::try_parse_from(["x", "--lease-ttl-ms", "soon"]).is_err());
     }
 
     #[test]

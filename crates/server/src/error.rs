@@ -110,6 +110,25 @@ pub enum ApiError {
     /// The session was closed meanwhile.
     #[error("session closed")]
     SessionClosed,
+    /// The store cannot be reached (a database restart, a network fault):
+    /// nothing was written and nothing acknowledged. Fix: retry shortly;
+    /// `GET /healthz/ready` says when the instance is ready again.
+    #[error("the session store is unavailable; retry shortly")]
+    StoreUnavailable(String),
+    /// Another live instance holds the session's lease: this one does not
+    /// drive it. Behind the load balancer (consistent hashing on the
+    /// session id) requests normally reach the owner; after a failover the
+    /// lease expires within `retry_after_ms` and another instance takes
+    /// the session over. Fix: retry after that long.
+    #[error("session `{session}` is owned by instance `{owner}`; retry in {retry_after_ms} ms")]
+    SessionOwnedElsewhere {
+        /// The session.
+        session: String,
+        /// The owning instance's id.
+        owner: String,
+        /// When its lease expires unless renewed.
+        retry_after_ms: u64,
+    },
     /// Anything else: logged, reported generically.
     #[error("internal error")]
     Internal(String),
@@ -156,6 +175,8 @@ impl ApiError {
             TooManyMeshes(_) => ("too_many_meshes", StatusCode::SERVICE_UNAVAILABLE),
             Timeout => ("timeout", StatusCode::REQUEST_TIMEOUT),
             SessionClosed => ("session_closed", StatusCode::GONE),
+            StoreUnavailable(_) => ("store_unavailable", StatusCode::SERVICE_UNAVAILABLE),
+            SessionOwnedElsewhere { .. } => ("session_owned_elsewhere", StatusCode::CONFLICT),
             Internal(_) => ("internal", StatusCode::INTERNAL_SERVER_ERROR),
         }
     }
@@ -167,8 +188,10 @@ impl ApiError {
 
     /// The JSON body (internal details replaced by a generic message).
     pub fn body(&self) -> ErrorBody {
-        if let ApiError::Internal(detail) = self {
-            tracing::error!(%detail, "internal error");
+        match self {
+            ApiError::Internal(detail) => tracing::error!(%detail, "internal error"),
+            ApiError::StoreUnavailable(detail) => tracing::warn!(%detail, "store unavailable"),
+            _ => {}
         }
         ErrorBody {
             code: self.code().to_owned(),
@@ -213,7 +236,24 @@ impl From<DeformError> for ApiError {
 
 impl From<StoreError> for ApiError {
     fn from(e: StoreError) -> Self {
-        ApiError::Internal(e.to_string())
+        ApiError::from(&e)
+    }
+}
+
+impl From<&StoreError> for ApiError {
+    /// Unreachable store → 503 `store_unavailable`; a fenced write (the
+    /// lease was taken over) → 409 `session_owned_elsewhere`; the rest is
+    /// internal.
+    fn from(e: &StoreError) -> Self {
+        match e {
+            StoreError::Unavailable(m) => ApiError::StoreUnavailable(m.clone()),
+            StoreError::Fenced { session, owner, .. } => ApiError::SessionOwnedElsewhere {
+                session: session.clone(),
+                owner: owner.clone().unwrap_or_else(|| "none".into()),
+                retry_after_ms: 0,
+            },
+            other => ApiError::Internal(other.to_string()),
+        }
     }
 }
 
@@ -230,7 +270,7 @@ impl From<&SessionError> for ApiError {
             SessionError::StaleConstraints { .. } => ApiError::StaleConstraints(msg),
             SessionError::InvalidConstraints(m) => ApiError::InvalidConstraints(m.clone()),
             SessionError::Deform(d) => deform_ref(d, msg),
-            SessionError::Store(s) => ApiError::Internal(s.to_string()),
+            SessionError::Store(s) => ApiError::from(s),
             SessionError::Shared(inner) => ApiError::from(&**inner),
             SessionError::Closed => ApiError::SessionClosed,
         }
@@ -298,12 +338,31 @@ mod tests {
             ApiError::TooManyMeshes(1),
             ApiError::Timeout,
             ApiError::SessionClosed,
+            ApiError::StoreUnavailable("connection refused".into()),
+            ApiError::SessionOwnedElsewhere {
+                session: "s".into(),
+                owner: "i2".into(),
+                retry_after_ms: 5,
+            },
             ApiError::Internal("secret path /etc".into()),
         ];
         let mut codes: Vec<_> = all.iter().map(|e| e.code()).collect();
         codes.sort_unstable();
         codes.dedup();
         assert_eq!(codes.len(), all.len());
+        let unavailable = ApiError::from(StoreError::Unavailable("refused".into()));
+        assert_eq!(
+            unavailable.code_status(),
+            ("store_unavailable", StatusCode::SERVICE_UNAVAILABLE)
+        );
+        let fenced = ApiError::from(StoreError::Fenced {
+            session: "s".into(),
+            fence: 1,
+            current: Some(2),
+            owner: Some("dend2".into()),
+        });
+        assert_eq!(fenced.code(), "session_owned_elsewhere");
+        assert!(fenced.to_string().contains("dend2"), "{fenced}");
         let body = ApiError::Internal("secret path /etc".into()).body();
         assert!(!body.message.contains("secret"));
         assert_eq!(ApiError::WrongToken.code_status().1, StatusCode::FORBIDDEN);

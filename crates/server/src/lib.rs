@@ -9,12 +9,14 @@ pub mod config;
 mod curvature;
 pub mod error;
 pub mod fuzzing;
+pub mod lease;
 mod meshes;
 pub mod metrics;
 pub mod recover;
 pub mod session;
 mod sessions;
 pub mod store;
+pub mod timed_store;
 pub mod web;
 pub mod ws;
 
@@ -62,6 +64,12 @@ pub struct AppState {
     /// Held across an upload's `max_meshes` check and its insert, so that
     /// concurrent uploads cannot both pass the check for the last slot.
     mesh_admission: Arc<Mutex<()>>,
+    /// This instance in a shared-store deployment (None: embedded store,
+    /// no leases); see [`lease`].
+    pub cluster: Option<Arc<lease::Cluster>>,
+    /// Per session id, held from its lease to its insertion among the live
+    /// ones, so that two requests reviving one session take one lease.
+    open_locks: Arc<Mutex<HashMap<String, Weak<tokio::sync::Mutex<()>>>>>,
 }
 
 impl AppState {
@@ -80,14 +88,35 @@ impl AppState {
             .map_err(ApiError::from)
     }
 
+    /// The opening lock of session `id` (see `open_locks`).
+    pub(crate) fn open_lock(&self, id: &str) -> Arc<tokio::sync::Mutex<()>> {
+        let mut locks = self.open_locks.lock();
+        if let Some(l) = locks.get(id).and_then(Weak::upgrade) {
+            return l;
+        }
+        locks.retain(|_, w| w.strong_count() > 0);
+        let l = Arc::new(tokio::sync::Mutex::new(()));
+        let _ = locks.insert(id.to_owned(), Arc::downgrade(&l));
+        l
+    }
+
     /// State with the embedded in-memory store.
     pub fn new(config: Config) -> anyhow::Result<Self> {
         Self::with_store(config, Arc::new(MemoryStore::new()))
     }
 
-    /// State with a given store.
+    /// State with a given store (timed into the `dend_store_seconds`
+    /// histogram). A configured shared store (`config.store`) turns
+    /// session leases on.
     pub fn with_store(config: Config, store: Arc<dyn Store>) -> anyhow::Result<Self> {
+        let metrics = Arc::new(Metrics::new()?);
+        let store: Arc<dyn Store> = Arc::new(timed_store::TimedStore::new(
+            store,
+            metrics.store_seconds.clone(),
+        ));
         Ok(AppState {
+            cluster: lease::Cluster::from_config(&config),
+            open_locks: Arc::new(Mutex::new(HashMap::new())),
             cache: Arc::new(FactorCache::with_options(
                 config.factor_cache_bytes,
                 SolveOptions {
@@ -97,7 +126,7 @@ impl AppState {
             )),
             config: Arc::new(config),
             store,
-            metrics: Arc::new(Metrics::new()?),
+            metrics,
             sessions: Arc::new(RwLock::new(HashMap::new())),
             rests: Arc::new(Mutex::new(HashMap::new())),
             rest_ids: Arc::new(Mutex::new(HashMap::new())),
@@ -109,6 +138,7 @@ impl AppState {
 /// Every route: (path, methods). `api/openapi.yaml` must list exactly these.
 pub const ROUTES: &[(&str, &[&str])] = &[
     ("/healthz", &["get"]),
+    ("/healthz/ready", &["get"]),
     ("/metrics", &["get"]),
     ("/v1/meshes", &["post"]),
     ("/v1/meshes/generate", &["post"]),
@@ -129,6 +159,7 @@ pub const ROUTES: &[(&str, &[&str])] = &[
 fn route_list() -> Vec<(&'static str, MethodRouter<AppState>)> {
     vec![
         ("/healthz", get(healthz)),
+        ("/healthz/ready", get(ready)),
         ("/metrics", get(metrics::render)),
         ("/v1/meshes", post(meshes::upload)),
         ("/v1/meshes/generate", post(meshes::generate)),
@@ -204,8 +235,21 @@ async fn content_length_limit(State(st): State<AppState>, req: Request, next: Ne
     }
 }
 
-async fn healthz() -> impl IntoResponse {
-    axum::Json(serde_json::json!({"status": "ok"}))
+/// `GET /healthz`: liveness (the process answers), with this instance's id.
+async fn healthz(State(st): State<AppState>) -> impl IntoResponse {
+    let instance = st.cluster.as_ref().map(|c| c.instance.clone());
+    axum::Json(serde_json::json!({"status": "ok", "instance": instance}))
+}
+
+/// `GET /healthz/ready`: readiness, the store answers within 2 s; else 503
+/// `store_unavailable` (the load balancer's health check).
+async fn ready(State(st): State<AppState>) -> Result<impl IntoResponse, ApiError> {
+    let ping = st.store_call(|s| s.ping());
+    match tokio::time::timeout(Duration::from_secs(2), ping).await {
+        Ok(Ok(())) => Ok(axum::Json(serde_json::json!({"status": "ready"}))),
+        Ok(Err(e)) => Err(e),
+        Err(_) => Err(ApiError::StoreUnavailable("store ping timed out".into())),
+    }
 }
 
 /// Closes sessions idle for longer than the configured timeout, every
@@ -248,10 +292,18 @@ pub async fn serve(config: Config) -> anyhow::Result<()> {
     let store = recover::open_store(&config)?;
     let state = AppState::with_store(config, store)?;
     let _reaper = spawn_idle_reaper(state.clone(), Duration::from_secs(10));
+    let _renewer = lease::spawn_renewer(state.clone());
+    if let Some(c) = &state.cluster {
+        println!(
+            "instance {} (shared store, session leases of {:?})",
+            c.instance, c.ttl
+        );
+    }
     println!("listening on http://{addr}");
-    axum::serve(listener, app(state))
+    axum::serve(listener, app(state.clone()))
         .with_graceful_shutdown(shutdown_signal())
         .await?;
+    lease::release_all(&state).await;
     Ok(())
 }
 

@@ -6,7 +6,9 @@
 use axum::extract::State;
 use axum::http::header;
 use axum::response::IntoResponse;
-use prometheus::{Encoder, Histogram, HistogramOpts, IntCounter, IntGauge, Registry, TextEncoder};
+use prometheus::{
+    Encoder, Histogram, HistogramOpts, HistogramVec, IntCounter, IntGauge, Registry, TextEncoder,
+};
 
 use super::error::ApiError;
 use super::AppState;
@@ -41,6 +43,15 @@ pub struct Metrics {
     pub factor_cache_hits: IntGauge,
     /// Factor cache: builds since start.
     pub factor_cache_builds: IntGauge,
+    /// Sessions whose lease this instance holds (shared store), or live
+    /// sessions (embedded store).
+    pub sessions_owned: IntGauge,
+    /// Sessions this instance took over from an instance whose lease expired.
+    pub leases_taken_over: IntCounter,
+    /// Sessions this instance handed over to an instance that asked for them.
+    pub leases_handed_over: IntCounter,
+    /// Wall time of each store call, seconds, by operation (`op`).
+    pub store_seconds: HistogramVec,
 }
 
 fn reg<T: prometheus::core::Collector + Clone + 'static>(r: &Registry, m: T) -> T {
@@ -102,6 +113,32 @@ impl Metrics {
                 &r,
                 IntGauge::new("factor_cache_builds", "Factors built since start")?,
             ),
+            sessions_owned: reg(
+                &r,
+                IntGauge::new("sessions_owned", "Sessions leased by this instance")?,
+            ),
+            leases_taken_over: reg(
+                &r,
+                IntCounter::new(
+                    "leases_taken_over_total",
+                    "Session leases taken over from an instance whose lease expired",
+                )?,
+            ),
+            leases_handed_over: reg(
+                &r,
+                IntCounter::new(
+                    "leases_handed_over_total",
+                    "Sessions handed over to the instance the load balancer routes them to",
+                )?,
+            ),
+            store_seconds: reg(
+                &r,
+                HistogramVec::new(
+                    HistogramOpts::new("store_seconds", "Wall time of one store call, seconds")
+                        .buckets(prometheus::exponential_buckets(0.0001, 2.0, 18)?),
+                    &["op"],
+                )?,
+            ),
             registry: r,
         })
     }
@@ -139,6 +176,7 @@ pub async fn render(State(st): State<AppState>) -> Result<impl IntoResponse, Api
     m.factor_cache_hits.set(st.cache.hits() as i64);
     m.factor_cache_builds.set(st.cache.builds() as i64);
     m.sessions.set(st.sessions.read().len() as i64);
+    m.sessions_owned.set(st.sessions.read().len() as i64);
     Ok((
         [(header::CONTENT_TYPE, "text/plain; version=0.0.4")],
         m.render()?,

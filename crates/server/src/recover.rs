@@ -18,12 +18,16 @@ use subtle::ConstantTimeEq;
 use super::error::ApiError;
 use super::{rest_for, AppState, Config};
 use crate::session::{Recovered, SessionHandle, SessionOptions};
-use crate::store::{JournalEntry, MemoryStore, SqliteStore, Store};
+use crate::store::{JournalEntry, MemoryStore, PgStore, SqliteStore, Store};
 use dend::deform::Params;
 
-/// Opens the store `config` asks for (SQLite in `data_dir`, or memory with
-/// `in_memory`) and reports the stored sessions on stderr's log.
+/// Opens the store `config` asks for (PostgreSQL with `store`, SQLite in
+/// `data_dir`, or memory with `in_memory`) and reports the stored sessions
+/// on stderr's log.
 pub fn open_store(config: &Config) -> anyhow::Result<Arc<dyn Store>> {
+    if let Some(url) = &config.store {
+        return open_postgres(url, config.store_connections);
+    }
     if config.in_memory {
         tracing::warn!("in-memory store: nothing survives a restart");
         return Ok(Arc::new(MemoryStore::new()));
@@ -31,6 +35,25 @@ pub fn open_store(config: &Config) -> anyhow::Result<Arc<dyn Store>> {
     let store = SqliteStore::open(&config.data_dir)?;
     let sessions = store.list_sessions()?;
     tracing::info!(path = %store.path().display(), sessions = sessions.len(), "opened the session store");
+    Ok(Arc::new(store))
+}
+
+/// Opens the shared PostgreSQL store (migrating its schema) on a plain
+/// thread: the blocking client must not run inside the async runtime.
+fn open_postgres(url: &str, connections: u32) -> anyhow::Result<Arc<dyn Store>> {
+    if !(url.starts_with("postgres://") || url.starts_with("postgresql://")) {
+        anyhow::bail!("--store takes a postgres:// or postgresql:// URL");
+    }
+    let url = url.to_owned();
+    let opened = std::thread::spawn(move || -> anyhow::Result<(PgStore, usize)> {
+        let store = PgStore::open(&url, connections)?;
+        let n = store.list_sessions()?.len();
+        Ok((store, n))
+    })
+    .join()
+    .map_err(|_| anyhow::anyhow!("opening the PostgreSQL store panicked"))?;
+    let (store, sessions) = opened?;
+    tracing::info!(sessions, "opened the shared PostgreSQL session store");
     Ok(Arc::new(store))
 }
 
@@ -60,12 +83,25 @@ pub(crate) async fn revive(
     if !bool::from(super::sessions::token_hash(token).ct_eq(&token_sha256)) {
         return Err(ApiError::WrongToken);
     }
+    // one opening of this session at a time: check, lease, spawn and
+    // insert together
+    let opening = st.open_lock(id).lock_owned().await;
+    if let Some(live) = st.sessions.read().get(id).filter(|s| !s.is_fenced()) {
+        return Ok(Some(live.clone()));
+    }
+    if st.sessions.read().len() >= st.config.max_sessions {
+        return Err(ApiError::TooManySessions(st.config.max_sessions));
+    }
+    // the lease before the rest operators: a session owned elsewhere costs
+    // a store read and a lease check, not a rest build
+    let fence = crate::lease::acquire(st, id).await?;
     let rest = rest_for(st, &record.mesh_id).await?;
     let opts = SessionOptions {
         cache: st.cache.clone(),
         store: st.store.clone(),
         observer: st.metrics.clone(),
         iters_per_frame: st.config.iters_per_frame,
+        fence,
     };
     let handle = SessionHandle::spawn(
         id.to_owned(),
@@ -76,37 +112,24 @@ pub(crate) async fn revive(
         opts,
     );
     handle.touch();
-    // Insert unless another request revived it meanwhile (then use that one).
-    let existing = {
-        let mut sessions = st.sessions.write();
-        match sessions.get(id) {
-            Some(other) => Ok(Some(other.clone())),
-            None if sessions.len() >= st.config.max_sessions => {
-                Err(ApiError::TooManySessions(st.config.max_sessions))
-            }
-            None => {
-                let _ = sessions.insert(id.to_owned(), handle.clone());
-                Ok(None)
-            }
-        }
-    };
-    match existing {
-        Ok(None) => {}
-        Ok(Some(other)) => {
-            handle.close().await;
-            return Ok(Some(other));
-        }
-        Err(e) => {
-            handle.close().await;
-            return Err(e);
-        }
-    }
+    let _ = st.sessions.write().insert(id.to_owned(), handle.clone());
+    drop(opening);
     st.metrics.sessions.set(st.sessions.read().len() as i64);
     if let Some(spec) = record.constraints {
         let key = id.to_owned();
-        let (checkpoint, journal) = st
+        // read after the lease was taken: every write of a previous owner
+        // is either in it or refused
+        let read = st
             .store_call(move |s| Ok((s.get_checkpoint(&key)?, s.journal(&key)?)))
-            .await?;
+            .await;
+        let (checkpoint, journal) = match read {
+            Ok(r) => r,
+            Err(e) => {
+                let _ = st.sessions.write().remove(id);
+                handle.close().await;
+                return Err(e);
+            }
+        };
         let journaled_seq = journal
             .iter()
             .map(|JournalEntry::Drag { seq, .. }| *seq)

@@ -51,8 +51,10 @@ pub(crate) async fn find(
 ) -> Result<SessionHandle, ApiError> {
     let live = st.sessions.read().get(id).cloned();
     match live {
-        Some(s) => Ok(s),
-        None => super::recover::revive(st, id, token)
+        Some(s) if !s.is_fenced() => Ok(s),
+        // its lease was taken over: forget it here, then it is revived
+        // here only if this instance can lease it again
+        _ => super::recover::revive(st, id, token)
             .await?
             .ok_or_else(|| ApiError::SessionNotFound(id.to_owned())),
     }
@@ -122,7 +124,16 @@ pub async fn create(
     if st.sessions.read().len() >= st.config.max_sessions {
         return Err(ApiError::TooManySessions(st.config.max_sessions));
     }
-    let rest = rest_for(&st, &req.mesh_id).await?;
+    let rest = if st.cluster.is_some() {
+        // the rest is built where the session opens (see below)
+        let key = req.mesh_id.clone();
+        if st.store_call(move |s| s.get_mesh(&key)).await?.is_none() {
+            return Err(ApiError::MeshNotFound(req.mesh_id));
+        }
+        None
+    } else {
+        Some(rest_for(&st, &req.mesh_id).await?)
+    };
     let id = new_id();
     let token = hex::encode(rand::random::<[u8; 32]>());
     let hash = token_hash(&token);
@@ -141,11 +152,26 @@ pub async fn create(
             .unwrap_or(0),
     };
     st.store_call(move |s| s.put_session(&record)).await?;
+    let Some(rest) = rest else {
+        // Shared store: the session opens on the instance its first request
+        // reaches (the load balancer hashes its id), which leases it then.
+        st.metrics.sessions_created.inc();
+        return Ok((
+            StatusCode::CREATED,
+            Json(Created {
+                id,
+                token,
+                mesh_id: req.mesh_id,
+                state: crate::session::SessionState::Empty,
+            }),
+        ));
+    };
     let opts = SessionOptions {
         cache: st.cache.clone(),
         store: st.store.clone(),
         observer: st.metrics.clone(),
         iters_per_frame: st.config.iters_per_frame,
+        fence: crate::store::NO_FENCE,
     };
     let handle = SessionHandle::spawn(id.clone(), req.mesh_id.clone(), hash, rest, params, opts);
     handle.touch();

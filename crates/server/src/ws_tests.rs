@@ -42,11 +42,12 @@ fn session() -> SessionHandle {
         store: Arc::new(MemoryStore::new()),
         observer: Arc::new(NoObserver),
         iters_per_frame: 1,
+        fence: crate::store::NO_FENCE,
     };
     let store_record = crate::store::SessionRecord {
         id: "s".into(),
         mesh_id: "m".into(),
-        token_sha256: String::new(),
+        token_sha256: hex::encode([0u8; 32]),
         params: serde_json::json!({}),
         constraints: None,
         created_unix: 0,

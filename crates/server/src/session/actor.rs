@@ -7,10 +7,9 @@ use std::time::Instant;
 
 use tokio::sync::{mpsc, watch};
 
-use super::frame::{FrameBody, FrameHeader};
 use super::shared::{off_worker, Cmd, Inner, Internal, Reply, Restore, SessionOptions};
 use super::{Delta, Event, Frame, PoseSnapshot, SessionError, SessionState};
-use crate::store::{Checkpoint, JournalEntry, StoredTransform};
+use crate::store::JournalEntry;
 use dend::deform::{Constraints, ConstraintsSpec, Deformer, RigidTransform};
 
 /// Most history entries kept per session (older ones are dropped).
@@ -55,6 +54,9 @@ pub(super) struct Actor {
     internal_rx: Option<mpsc::UnboundedReceiver<Internal>>,
     deformer: Option<Deformer>,
     constraints: Option<Arc<Constraints>>,
+    /// `constraints` with the targets of the journaled drags only (what a
+    /// revival would rebuild): restored when a journal append fails.
+    confirmed: Option<Arc<Constraints>>,
     /// The installed constraint set (None before the first).
     set: Option<Arc<InstalledSet>>,
     sets_installed: u64,
@@ -80,6 +82,8 @@ pub(super) struct Actor {
     cursor: usize,
     uncommitted: bool,
     pose: Arc<Vec<[f64; 3]>>,
+    /// Set when the lease is lost (a fenced write): the actor ends.
+    stop: bool,
 }
 
 impl Actor {
@@ -99,6 +103,7 @@ impl Actor {
             internal_rx: Some(internal_rx),
             deformer: Some(deformer),
             constraints: None,
+            confirmed: None,
             set: None,
             sets_installed: 0,
             after_build: AfterBuild::Solve,
@@ -120,6 +125,7 @@ impl Actor {
             cursor: 0,
             uncommitted: false,
             pose,
+            stop: false,
         }
     }
 
@@ -143,6 +149,9 @@ impl Actor {
                     Some(cmd) => if !self.on_cmd(cmd) { return self.closed() },
                     None => return self.closed(),
                 },
+            }
+            if self.stop {
+                return self.closed();
             }
         }
     }
@@ -334,8 +343,11 @@ impl Actor {
 
     /// Writes `set`'s stored spec to the store, then [`activate`](Self::activate)s it.
     fn install(&mut self, set: Arc<InstalledSet>, after: AfterBuild) -> Result<(), SessionError> {
-        let (store, id) = (&self.opts.store, &self.inner.id);
-        off_worker(|| store.set_constraints(id, &set.stored))?;
+        let (store, id, fence) = (&self.opts.store, &self.inner.id, self.opts.fence);
+        if let Err(e) = off_worker(|| store.set_constraints(id, fence, &set.stored)) {
+            self.on_store_error(&e);
+            return Err(e.into());
+        }
         self.activate(set, after);
         Ok(())
     }
@@ -371,6 +383,7 @@ impl Actor {
         }
         let constraints = Arc::new(set.constraints.clone());
         self.constraints = Some(constraints.clone());
+        self.confirmed = Some(constraints.clone());
         let warnings: Vec<serde_json::Value> = set
             .constraints
             .warnings(self.inner.rest.mesh())
@@ -411,344 +424,15 @@ impl Actor {
         }));
     }
 
-    fn maybe_start_solve(&mut self) {
-        if self.deformer.is_none() || self.state != SessionState::Ready {
-            return;
-        }
-        let Some(constraints) = self.constraints.clone() else {
-            return;
-        };
-        if self.dirty {
-            self.iters_since_change = 0;
-        }
-        let max_iters = self.inner.params.max_iters;
-        let budget = if !self.waiters.is_empty() {
-            self.waiters
-                .iter()
-                .map(|w| w.0)
-                .max()
-                .unwrap_or(max_iters)
-                .max(1)
-        } else if !self.settled {
-            let remaining = max_iters.saturating_sub(self.iters_since_change);
-            if remaining == 0 {
-                self.settled = true;
-                self.commit_gesture();
-                return;
-            }
-            self.opts.iters_per_frame.clamp(1, remaining)
-        } else {
-            return;
-        };
-        self.inflight = self.waiters.drain(..).map(|w| w.1).collect();
-        self.dirty = false;
-        let Some(mut deformer) = self.deformer.take() else {
-            return;
-        };
-        let journal = std::mem::take(&mut self.journal);
-        let (id, store, cache) = (
-            self.inner.id.clone(),
-            self.opts.store.clone(),
-            self.opts.cache.clone(),
-        );
-        let (rest, params, tx) = (
-            self.inner.rest.clone(),
-            self.inner.params,
-            self.internal_tx.clone(),
-        );
-        let applied_seq = self.last_seq;
-        drop(tokio::task::spawn_blocking(move || {
-            let t0 = Instant::now();
-            let result = (|| {
-                if !journal.is_empty() {
-                    store.append(&id, &journal)?;
-                }
-                let factor = cache.get_or_build(&rest, &params, &constraints)?;
-                Ok(deformer.step(&factor, &constraints, budget)?)
-            })();
-            let seconds = t0.elapsed().as_secs_f64();
-            let body = FrameBody::from_pose(deformer.pose());
-            let _ = tx.send(Internal::Solved {
-                deformer,
-                result,
-                body,
-                seconds,
-                applied_seq,
-            });
-        }));
-    }
-
-    fn on_internal(&mut self, msg: Internal) {
-        match msg {
-            Internal::Built {
-                generation,
-                result,
-                seconds,
-            } => {
-                if result.is_ok() {
-                    self.opts.observer.factor_ready(seconds);
-                }
-                if generation != self.generation {
-                    return;
-                }
-                self.revision += 1;
-                match result {
-                    Ok(()) => {
-                        self.state = SessionState::Ready;
-                        if self.after_build == AfterBuild::Solve {
-                            // solve towards the set's targets; the settled
-                            // result becomes a history entry
-                            self.dirty = true;
-                            self.settled = false;
-                            self.uncommitted = true;
-                        }
-                        self.sync_shared();
-                        let _ = self.inner.events.send(Event::Ready {
-                            revision: self.revision,
-                        });
-                    }
-                    Err(e) => {
-                        self.state = SessionState::Failed;
-                        self.sync_shared();
-                        let _ = self.inner.events.send(Event::Error(Arc::new(e)));
-                        let _ = self.inner.events.send(Event::State);
-                    }
-                }
-            }
-            Internal::Solved {
-                deformer,
-                result,
-                body,
-                seconds,
-                applied_seq,
-            } => {
-                self.pose = Arc::new(deformer.pose().to_vec());
-                self.deformer = Some(deformer);
-                self.applied_seq = applied_seq;
-                let error = match result {
-                    Ok(report) => {
-                        self.iters_since_change += report.iterations;
-                        self.converged = report.converged;
-                        self.objective = report.objective;
-                        self.opts
-                            .observer
-                            .solved(report.iterations, seconds, report.converged);
-                        let done = report.converged
-                            || self.iters_since_change >= self.inner.params.max_iters;
-                        self.settled = !self.dirty && (done || report.diverged);
-                        None
-                    }
-                    Err(e) => {
-                        self.settled = true;
-                        Some(Arc::new(e))
-                    }
-                };
-                self.revision += 1;
-                let header = FrameHeader {
-                    revision: self.revision,
-                    ack_seq: applied_seq,
-                    iteration: self.iters_since_change as u32,
-                    converged: self.converged,
-                    settled: self.settled,
-                    objective: self.objective,
-                    vertex_count: self.pose.len() as u32,
-                };
-                let bytes = body.finish(&header);
-                self.frames_tx.send_replace(Some(Frame { header, bytes }));
-                for w in std::mem::take(&mut self.inflight) {
-                    let _ = w.send(match &error {
-                        None => Ok(self.snapshot_for(&header)),
-                        Some(e) => Err(SessionError::Shared(e.clone())),
-                    });
-                }
-                if let Some(e) = error {
-                    let _ = self.inner.events.send(Event::Error(e));
-                }
-                if self.settled {
-                    self.commit_gesture();
-                }
-                self.sync_shared();
-            }
-        }
-    }
-
-    fn snapshot_for(&self, h: &FrameHeader) -> PoseSnapshot {
-        PoseSnapshot {
-            revision: h.revision,
-            ack_seq: h.ack_seq,
-            iteration: h.iteration,
-            converged: h.converged,
-            settled: h.settled,
-            objective: h.objective,
-            positions: self.pose.clone(),
-        }
-    }
-
     fn targets(&self) -> Vec<RigidTransform> {
         self.constraints
             .as_ref()
             .map(|c| c.handles.iter().map(|h| h.target).collect())
             .unwrap_or_default()
     }
-
-    /// [`commit`](Self::commit) unless a client holds a handle: one user
-    /// gesture (grab … release) is one undo step, however often the pose
-    /// settles during it; the release commits ([`Cmd::GestureEnded`]).
-    fn commit_gesture(&mut self) {
-        if self.inner.shared.lock().grabs.is_empty() {
-            self.commit();
-        }
-    }
-
-    /// Records the settled state as a history entry and checkpoints it.
-    fn commit(&mut self) {
-        if !self.uncommitted {
-            return;
-        }
-        self.uncommitted = false;
-        if !self.history.is_empty() {
-            self.history.truncate(self.cursor + 1);
-        }
-        let Some(set) = self.set.clone() else {
-            return;
-        };
-        self.history.push(Snapshot {
-            pose: self.pose.clone(),
-            targets: self.targets(),
-            set,
-        });
-        if self.history.len() > HISTORY_LIMIT {
-            let _ = self.history.remove(0);
-        }
-        self.cursor = self.history.len() - 1;
-        self.checkpoint();
-        self.sync_shared();
-        // clients enable their undo/redo buttons from `can_undo`/`can_redo`
-        let _ = self.inner.events.send(Event::State);
-    }
-
-    fn checkpoint(&mut self) {
-        let cp = Checkpoint {
-            revision: self.revision,
-            ack_seq: self.applied_seq,
-            pose: self.pose.to_vec(),
-            targets: self.targets().iter().map(StoredTransform::from).collect(),
-        };
-        let (store, id) = (&self.opts.store, &self.inner.id);
-        if let Err(e) = off_worker(|| store.checkpoint(id, &cp)) {
-            tracing::error!(session = %self.inner.id, error = %e, "checkpoint failed");
-        }
-    }
-
-    /// Restores a pose and targets without solving; publishes a converged frame.
-    fn restore(
-        &mut self,
-        pose: Arc<Vec<[f64; 3]>>,
-        targets: &[RigidTransform],
-    ) -> Result<PoseSnapshot, SessionError> {
-        if let Some(d) = self.deformer.as_mut() {
-            d.set_pose(pose.to_vec())?;
-        }
-        if let Some(c) = self.constraints.as_mut() {
-            for (h, t) in Arc::make_mut(c).handles.iter_mut().zip(targets) {
-                h.target = *t;
-            }
-        }
-        self.pose = pose;
-        self.dirty = false;
-        self.settled = true;
-        self.converged = true;
-        self.objective = f64::NAN;
-        self.iters_since_change = 0;
-        self.journal.clear();
-        for (_, w) in self.waiters.drain(..) {
-            let _ = w.send(Err(SessionError::NotReady { state: self.state }));
-        }
-        self.revision += 1;
-        let header = FrameHeader {
-            revision: self.revision,
-            ack_seq: self.applied_seq,
-            iteration: 0,
-            converged: true,
-            settled: true,
-            objective: f64::NAN,
-            vertex_count: self.pose.len() as u32,
-        };
-        let bytes = FrameBody::from_pose(&self.pose).finish(&header);
-        self.frames_tx.send_replace(Some(Frame { header, bytes }));
-        Ok(self.snapshot_for(&header))
-    }
-
-    fn undo_redo(&mut self, undo: bool) -> Result<PoseSnapshot, SessionError> {
-        if self.state != SessionState::Ready {
-            return Err(SessionError::NotReady { state: self.state });
-        }
-        let target = if undo {
-            if self.uncommitted && !self.history.is_empty() {
-                Some(self.cursor)
-            } else {
-                self.cursor
-                    .checked_sub(1)
-                    .filter(|_| !self.history.is_empty())
-            }
-            .ok_or(SessionError::NothingToUndo)?
-        } else {
-            Some(self.cursor + 1)
-                .filter(|i| !self.uncommitted && *i < self.history.len())
-                .ok_or(SessionError::NothingToRedo)?
-        };
-        let entry = &self.history[target];
-        let (pose, targets, set) = (entry.pose.clone(), entry.targets.clone(), entry.set.clone());
-        if self.set.as_ref().map(|s| s.id) != Some(set.id) {
-            // back to another constraint set: its factor is looked up (or
-            // rebuilt) while the pose is already the entry's
-            self.install(set, AfterBuild::Keep)?;
-        }
-        self.cursor = target;
-        self.uncommitted = false;
-        let snap = self.restore(pose, &targets)?;
-        self.checkpoint();
-        self.sync_shared();
-        let _ = self.inner.events.send(Event::State);
-        Ok(snap)
-    }
-
-    fn reset(&mut self) -> Result<PoseSnapshot, SessionError> {
-        if self.state != SessionState::Ready {
-            return Err(SessionError::NotReady { state: self.state });
-        }
-        let mesh = self.inner.rest.mesh();
-        let rest = Arc::new(mesh.positions().to_vec());
-        // the set anchored at rest again (a set installed on a posed mesh
-        // holds its vertices where that pose had them)
-        if let Some(set) = self.set.clone() {
-            let at_rest = set.client.resolve(mesh)?;
-            let stored = serde_json::to_value(set.client.anchored(mesh, &at_rest))
-                .map_err(|e| SessionError::InvalidConstraints(e.to_string()))?;
-            if stored != set.stored {
-                self.sets_installed += 1;
-                let set = Arc::new(InstalledSet {
-                    id: self.sets_installed,
-                    client: set.client.clone(),
-                    stored,
-                    constraints: at_rest,
-                });
-                self.install(set, AfterBuild::Keep)?;
-            }
-        }
-        let targets: Vec<RigidTransform> = self
-            .constraints
-            .as_ref()
-            .map(|c| {
-                c.handles
-                    .iter()
-                    .map(|h| RigidTransform::identity(h.rest_centroid))
-                    .collect()
-            })
-            .unwrap_or_default();
-        let snap = self.restore(rest, &targets)?;
-        self.uncommitted = true;
-        self.commit();
-        Ok(snap)
-    }
 }
+
+#[path = "actor_history.rs"]
+mod history;
+#[path = "actor_solve.rs"]
+mod solve;

@@ -93,11 +93,24 @@ impl SessionHandle {
             started: Instant::now(),
             last_active_ms: AtomicU64::new(0),
             clients: AtomicUsize::new(0),
+            fenced: std::sync::atomic::AtomicBool::new(false),
+            fence: opts.fence,
             next_client: AtomicU64::new(1),
         });
         let actor = Actor::new(inner.clone(), frames_tx, opts);
         drop(tokio::spawn(actor.run(cmd_rx)));
         SessionHandle { inner }
+    }
+
+    /// Whether a store write was refused because another instance took the
+    /// session's lease over: the session no longer runs here.
+    pub fn is_fenced(&self) -> bool {
+        self.inner.fenced.load(Ordering::Relaxed)
+    }
+
+    /// The lease revision the session runs under (its fencing token).
+    pub fn fence(&self) -> crate::store::Fence {
+        self.inner.fence
     }
 
     /// Session id.

@@ -30,6 +30,9 @@ pub struct SessionOptions {
     pub observer: Arc<dyn Observer>,
     /// DEND iterations per frame while settling.
     pub iters_per_frame: usize,
+    /// The session's lease revision, carried by every store write
+    /// ([`NO_FENCE`](crate::store::NO_FENCE) without leases).
+    pub fence: crate::store::Fence,
 }
 
 /// State shared between the actor and the handles.
@@ -62,6 +65,10 @@ pub(super) struct Inner {
     pub started: Instant,
     pub last_active_ms: AtomicU64,
     pub clients: AtomicUsize,
+    /// Set when a store write was fenced: another instance owns the session.
+    pub fenced: std::sync::atomic::AtomicBool,
+    /// The lease revision this session runs under.
+    pub fence: crate::store::Fence,
     pub next_client: AtomicU64,
 }
 
@@ -184,6 +191,13 @@ pub(super) enum Internal {
         body: FrameBody,
         seconds: f64,
         applied_seq: u64,
+        /// Whether the journal append failed (nothing solved, nothing
+        /// acknowledged).
+        journal_failed: bool,
+        /// The constraints the solve used (targets with its drags).
+        constraints: Arc<Constraints>,
+        /// The constraint generation it was started in.
+        generation: u64,
     },
     Built {
         generation: u64,

@@ -3,10 +3,14 @@
 
 use std::collections::HashMap;
 use std::sync::Arc;
+use std::time::{Duration, Instant};
 
 use parking_lot::Mutex;
 
-use super::{Checkpoint, JournalEntry, SessionRecord, Store, StoreError, StoredAsset};
+use super::{
+    Checkpoint, Fence, JournalEntry, LeaseGrant, SessionRecord, Store, StoreError, StoredAsset,
+    NO_FENCE,
+};
 use dend::mesh::Mesh;
 
 #[derive(Default)]
@@ -22,6 +26,16 @@ pub struct MemoryStore {
     meshes: Mutex<HashMap<String, Arc<Mesh>>>,
     assets: Mutex<HashMap<String, StoredAsset>>,
     sessions: Mutex<HashMap<String, SessionData>>,
+    leases: Mutex<HashMap<String, LeaseRow>>,
+}
+
+/// A lease: owner, revision, expiry (`None` once released).
+struct LeaseRow {
+    owner: String,
+    revision: Fence,
+    expires: Option<Instant>,
+    /// Another instance asked for the session.
+    wanted_by: Option<String>,
 }
 
 impl MemoryStore {
@@ -33,6 +47,25 @@ impl MemoryStore {
 
 fn missing(id: &str) -> StoreError {
     StoreError::Backend(format!("no session `{id}`"))
+}
+
+impl MemoryStore {
+    /// Refuses a write fenced by a revision that is not `id`'s lease's.
+    fn check_fence(&self, id: &str, fence: Fence) -> Result<(), StoreError> {
+        if fence == NO_FENCE {
+            return Ok(());
+        }
+        let leases = self.leases.lock();
+        match leases.get(id) {
+            Some(l) if l.revision == fence => Ok(()),
+            other => Err(StoreError::Fenced {
+                session: id.to_owned(),
+                fence,
+                current: other.map(|l| l.revision),
+                owner: other.map(|l| l.owner.clone()),
+            }),
+        }
+    }
 }
 
 impl Store for MemoryStore {
@@ -64,6 +97,7 @@ impl Store for MemoryStore {
     }
 
     fn put_session(&self, record: &SessionRecord) -> Result<(), StoreError> {
+        let _ = super::codec::token_hash_bytes(record)?;
         self.sessions
             .lock()
             .entry(record.id.clone())
@@ -87,11 +121,19 @@ impl Store for MemoryStore {
 
     fn delete_session(&self, id: &str) -> Result<(), StoreError> {
         let _ = self.sessions.lock().remove(id);
+        let _ = self.leases.lock().remove(id);
         Ok(())
     }
 
-    fn set_constraints(&self, id: &str, spec: &serde_json::Value) -> Result<(), StoreError> {
+    fn set_constraints(
+        &self,
+        id: &str,
+        fence: Fence,
+        spec: &serde_json::Value,
+    ) -> Result<(), StoreError> {
+        // the sessions lock is held across the check: a takeover waits
         let mut sessions = self.sessions.lock();
+        self.check_fence(id, fence)?;
         let s = sessions.get_mut(id).ok_or_else(|| missing(id))?;
         let record = s.record.as_mut().ok_or_else(|| missing(id))?;
         record.constraints = Some(spec.clone());
@@ -100,9 +142,10 @@ impl Store for MemoryStore {
         Ok(())
     }
 
-    fn append(&self, id: &str, entries: &[JournalEntry]) -> Result<(), StoreError> {
+    fn append(&self, id: &str, fence: Fence, entries: &[JournalEntry]) -> Result<(), StoreError> {
         let mut sessions = self.sessions.lock();
         let s = sessions.get_mut(id).ok_or_else(|| missing(id))?;
+        self.check_fence(id, fence)?;
         s.journal.extend_from_slice(entries);
         Ok(())
     }
@@ -116,9 +159,15 @@ impl Store for MemoryStore {
             .unwrap_or_default())
     }
 
-    fn checkpoint(&self, id: &str, checkpoint: &Checkpoint) -> Result<(), StoreError> {
+    fn checkpoint(
+        &self,
+        id: &str,
+        fence: Fence,
+        checkpoint: &Checkpoint,
+    ) -> Result<(), StoreError> {
         let mut sessions = self.sessions.lock();
         let s = sessions.get_mut(id).ok_or_else(|| missing(id))?;
+        self.check_fence(id, fence)?;
         s.checkpoint = Some(checkpoint.clone());
         s.journal.clear();
         Ok(())
@@ -131,52 +180,82 @@ impl Store for MemoryStore {
             .get(id)
             .and_then(|s| s.checkpoint.clone()))
     }
-}
 
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    fn record(id: &str) -> SessionRecord {
-        SessionRecord {
-            id: id.into(),
-            mesh_id: "m".into(),
-            token_sha256: "00".into(),
-            params: serde_json::json!({}),
-            constraints: None,
-            created_unix: 0,
+    fn acquire_lease(
+        &self,
+        id: &str,
+        owner: &str,
+        ttl: Duration,
+    ) -> Result<LeaseGrant, StoreError> {
+        // the sessions lock first, as the fenced writes take it: a takeover
+        // waits for a write in flight
+        let _sessions = self.sessions.lock();
+        let mut leases = self.leases.lock();
+        let now = Instant::now();
+        if let Some(l) = leases.get_mut(id) {
+            if let Some(t) = l.expires.filter(|t| *t > now && l.owner != owner) {
+                l.wanted_by = Some(owner.to_owned());
+                return Ok(LeaseGrant::HeldBy {
+                    owner: l.owner.clone(),
+                    expires_in_ms: (t - now).as_millis() as u64,
+                });
+            }
         }
+        let old = leases.get(id);
+        let taken_over = old.is_some_and(|l| l.owner != owner && l.expires.is_some());
+        let revision = old.map_or(1, |l| l.revision + 1);
+        let _ = leases.insert(
+            id.to_owned(),
+            LeaseRow {
+                owner: owner.to_owned(),
+                revision,
+                expires: Some(now + ttl),
+                wanted_by: None,
+            },
+        );
+        Ok(LeaseGrant::Granted {
+            revision,
+            taken_over,
+        })
     }
 
-    #[test]
-    fn journal_is_truncated_by_checkpoint_and_constraints() -> Result<(), StoreError> {
-        let s = MemoryStore::new();
-        s.put_session(&record("a"))?;
-        let drag = JournalEntry::Drag {
-            handle: 0,
-            rotation: [0.0, 0.0, 0.0, 1.0],
-            translation: [1.0, 0.0, 0.0],
-            seq: 1,
-        };
-        s.append("a", &[drag.clone(), drag.clone()])?;
-        assert_eq!(s.journal("a")?, vec![drag.clone(), drag.clone()]);
-        let cp = Checkpoint {
-            revision: 3,
-            ack_seq: 2,
-            pose: vec![[0.0; 3]],
-            targets: vec![],
-        };
-        s.checkpoint("a", &cp)?;
-        assert!(s.journal("a")?.is_empty());
-        assert_eq!(s.get_checkpoint("a")?, Some(cp));
-        s.append("a", &[drag])?;
-        s.set_constraints("a", &serde_json::json!({"fixed": [0]}))?;
-        assert!(s.journal("a")?.is_empty());
-        assert!(s.get_checkpoint("a")?.is_none());
-        assert!(s.get_session("a")?.unwrap().constraints.is_some());
-        s.delete_session("a")?;
-        assert!(s.get_session("a")?.is_none());
-        assert!(s.append("a", &[]).is_err());
+    fn renew_leases(
+        &self,
+        owner: &str,
+        held: &[(String, Fence)],
+        ttl: Duration,
+    ) -> Result<Vec<String>, StoreError> {
+        let mut leases = self.leases.lock();
+        let until = Instant::now() + ttl;
+        let mut lost = vec![];
+        for (id, rev) in held {
+            match leases.get_mut(id) {
+                Some(l) if l.owner == owner && l.revision == *rev => l.expires = Some(until),
+                _ => lost.push(id.clone()),
+            }
+        }
+        Ok(lost)
+    }
+
+    fn release_lease(&self, id: &str, owner: &str, revision: Fence) -> Result<(), StoreError> {
+        if let Some(l) = self.leases.lock().get_mut(id) {
+            if l.owner == owner && l.revision == revision {
+                l.expires = None;
+            }
+        }
         Ok(())
+    }
+
+    fn handoffs_wanted(&self, owner: &str) -> Result<Vec<String>, StoreError> {
+        let now = Instant::now();
+        Ok(self
+            .leases
+            .lock()
+            .iter()
+            .filter(|(_, l)| {
+                l.owner == owner && l.wanted_by.is_some() && l.expires.is_some_and(|t| t > now)
+            })
+            .map(|(id, _)| id.clone())
+            .collect())
     }
 }

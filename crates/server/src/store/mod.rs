@@ -20,22 +20,41 @@
 //!
 //! All methods are synchronous and may block briefly (disk I/O); the server
 //! calls the per-drag ones ([`Store::append`]) from its blocking solver pool.
+//!
+//! [`PgStore`] (PostgreSQL) is the store several instances share. Each live
+//! session is then *leased* by one instance ([`Store::acquire_lease`]): a
+//! row naming the owner, an expiry the owner keeps pushing forward
+//! ([`Store::renew_leases`]) and a revision that grows by one with every
+//! new ownership. The revision is the session's fencing token: every
+//! journal write ([`Store::append`], [`Store::checkpoint`],
+//! [`Store::set_constraints`]) carries it, and the store refuses it with
+//! [`StoreError::Fenced`] once another instance has taken the lease over.
+//! A fence of [`NO_FENCE`] (the single-instance stores' mode) skips the check.
 
+mod codec;
 mod memory;
+mod postgres;
+mod postgres_leases;
 mod sqlite;
 mod sqlite_assets;
+mod sqlite_leases;
+#[cfg(test)]
+mod suite;
 
+pub use codec::{decode_entry, encode_entry};
 pub use memory::MemoryStore;
+pub use postgres::{PgStore, PG_SCHEMA_VERSION};
 pub use sqlite::{SqliteStore, DB_FILE, SCHEMA_VERSION};
 
 use std::sync::Arc;
+use std::time::Duration;
 
 use serde::{Deserialize, Serialize};
 
 use dend::mesh::Mesh;
 
 /// Errors of a [`Store`].
-#[derive(Debug, thiserror::Error)]
+#[derive(Debug, Clone, thiserror::Error)]
 pub enum StoreError {
     /// The backend failed (I/O, database); the message says how. Fix: check
     /// the storage (disk full, permissions) — the request can be retried.
@@ -48,6 +67,52 @@ pub enum StoreError {
         what: String,
         /// Why it could not be decoded.
         reason: String,
+    },
+    /// The store cannot be reached (connection refused or lost, server
+    /// restarting, pool exhausted). Nothing was written; retry later.
+    #[error("store unavailable: {0}")]
+    Unavailable(String),
+    /// A write carried a fencing token that is no longer the session's
+    /// lease revision: another instance owns the session now. Nothing was
+    /// written; this instance must stop driving the session.
+    #[error(
+        "session `{session}`: lease revision {fence} is stale (now {current:?}, held by {owner:?})"
+    )]
+    Fenced {
+        /// The session.
+        session: String,
+        /// The revision the writer held.
+        fence: Fence,
+        /// The lease's current revision, if a lease exists.
+        current: Option<Fence>,
+        /// The current owner, if a lease exists.
+        owner: Option<String>,
+    },
+}
+
+/// A lease revision used as a fencing token (see the module docs).
+pub type Fence = u64;
+
+/// The fence of a writer that holds no lease (single-instance stores): the
+/// store does not check it.
+pub const NO_FENCE: Fence = 0;
+
+/// The answer to [`Store::acquire_lease`].
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum LeaseGrant {
+    /// The caller owns the session now, under this revision.
+    Granted {
+        /// The new lease revision (the fencing token of its writes).
+        revision: Fence,
+        /// Whether another instance's expired lease was taken over.
+        taken_over: bool,
+    },
+    /// Another instance holds an unexpired lease.
+    HeldBy {
+        /// The owner's instance id.
+        owner: String,
+        /// Milliseconds until the lease expires unless renewed.
+        expires_in_ms: u64,
     },
 }
 
@@ -150,16 +215,54 @@ pub trait Store: Send + Sync + 'static {
     /// Deletes a session with its journal and checkpoint (a no-op if absent).
     fn delete_session(&self, id: &str) -> Result<(), StoreError>;
     /// Sets the constraints spec of a session and clears its journal and
-    /// checkpoint (a new constraint set starts a new history).
-    fn set_constraints(&self, id: &str, spec: &serde_json::Value) -> Result<(), StoreError>;
-    /// Appends journal entries; must be durable when it returns.
-    fn append(&self, id: &str, entries: &[JournalEntry]) -> Result<(), StoreError>;
+    /// checkpoint (a new constraint set starts a new history). Fenced.
+    fn set_constraints(
+        &self,
+        id: &str,
+        fence: Fence,
+        spec: &serde_json::Value,
+    ) -> Result<(), StoreError>;
+    /// Appends journal entries; must be durable when it returns. Fenced:
+    /// unless `fence` is [`NO_FENCE`], it must be the session's current
+    /// lease revision, else [`StoreError::Fenced`] and nothing is written.
+    fn append(&self, id: &str, fence: Fence, entries: &[JournalEntry]) -> Result<(), StoreError>;
     /// The journal entries after the last checkpoint, oldest first.
     fn journal(&self, id: &str) -> Result<Vec<JournalEntry>, StoreError>;
-    /// Replaces the checkpoint and truncates the journal (atomically).
-    fn checkpoint(&self, id: &str, checkpoint: &Checkpoint) -> Result<(), StoreError>;
+    /// Replaces the checkpoint and truncates the journal (atomically). Fenced.
+    fn checkpoint(&self, id: &str, fence: Fence, checkpoint: &Checkpoint)
+        -> Result<(), StoreError>;
     /// The last checkpoint.
     fn get_checkpoint(&self, id: &str) -> Result<Option<Checkpoint>, StoreError>;
+    /// Takes the lease of session `id` for instance `owner` for `ttl`: when
+    /// there is none, it expired, or `owner` already holds it, the revision
+    /// grows by one and is returned; otherwise the holder is named and the
+    /// request recorded (see [`handoffs_wanted`](Store::handoffs_wanted)). Taking
+    /// the lease waits for a write fenced by the old revision that is in
+    /// flight, so a journal read after it sees every acknowledged write.
+    fn acquire_lease(&self, id: &str, owner: &str, ttl: Duration)
+        -> Result<LeaseGrant, StoreError>;
+    /// Pushes the expiry of `owner`'s leases `(session, revision)` to now +
+    /// `ttl`; returns the sessions whose lease `owner` no longer holds
+    /// under that revision (taken over or deleted).
+    fn renew_leases(
+        &self,
+        owner: &str,
+        leases: &[(String, Fence)],
+        ttl: Duration,
+    ) -> Result<Vec<String>, StoreError>;
+    /// Gives up `owner`'s lease of `id` under `revision` (a no-op when it is
+    /// no longer held so).
+    fn release_lease(&self, id: &str, owner: &str, revision: Fence) -> Result<(), StoreError>;
+    /// The sessions `owner` leases that another instance asked for: an
+    /// [`acquire_lease`](Store::acquire_lease) that found them held by
+    /// `owner` (the load balancer routes them elsewhere now, e.g. to an
+    /// instance that came back). The owner hands them over: it closes them
+    /// and releases their leases. A grant clears the request.
+    fn handoffs_wanted(&self, owner: &str) -> Result<Vec<String>, StoreError>;
+    /// Checks that the store answers (the readiness probe).
+    fn ping(&self) -> Result<(), StoreError> {
+        Ok(())
+    }
 }
 
 impl From<&dend::deform::RigidTransform> for StoredTransform {

@@ -22,14 +22,19 @@ use std::sync::Arc;
 use parking_lot::Mutex;
 use rusqlite::{params, Connection, OptionalExtension, TransactionBehavior};
 
+use super::codec::{
+    corrupt, decode_checkpoint, decode_entry, decode_points, decode_record, decode_triangles,
+    encode_entry, encode_points, encode_targets, encode_triangles, token_hash_bytes,
+};
 use super::{
-    sqlite_assets, Checkpoint, JournalEntry, SessionRecord, Store, StoreError, StoredAsset,
-    StoredTransform,
+    sqlite_assets, sqlite_leases, Checkpoint, Fence, JournalEntry, LeaseGrant, SessionRecord,
+    Store, StoreError, StoredAsset,
 };
 use dend::mesh::Mesh;
 
-/// Version of the schema below (`PRAGMA user_version`).
-pub const SCHEMA_VERSION: i64 = 1;
+/// Version of the schema below (`PRAGMA user_version`): 1 the tables
+/// below, 2 added `leases` (see `sqlite_leases`).
+pub const SCHEMA_VERSION: i64 = 2;
 
 /// The database file name inside the data directory.
 pub const DB_FILE: &str = "dend.sqlite3";
@@ -74,13 +79,6 @@ fn backend(e: impl std::fmt::Display) -> StoreError {
     StoreError::Backend(e.to_string())
 }
 
-fn corrupt(what: impl Into<String>, reason: impl Into<String>) -> StoreError {
-    StoreError::Corrupt {
-        what: what.into(),
-        reason: reason.into(),
-    }
-}
-
 fn missing(id: &str) -> StoreError {
     StoreError::Backend(format!("no session `{id}`"))
 }
@@ -117,6 +115,7 @@ impl SqliteStore {
             ));
         }
         conn.execute_batch(SCHEMA).map_err(backend)?;
+        conn.execute_batch(sqlite_leases::SCHEMA).map_err(backend)?;
         conn.pragma_update(None, "user_version", SCHEMA_VERSION)
             .map_err(backend)?;
         Ok(SqliteStore {
@@ -146,186 +145,6 @@ impl SqliteStore {
             Err(corrupt(self.path.display().to_string(), rows.join("; ")))
         }
     }
-}
-
-// ---- binary encodings -------------------------------------------------------
-
-fn put_f64s(out: &mut Vec<u8>, xs: &[f64]) {
-    for x in xs {
-        out.extend_from_slice(&x.to_le_bytes());
-    }
-}
-
-/// Splits `blob` into `stride`-byte records, or says why it cannot.
-fn records<'a>(
-    blob: &'a [u8],
-    stride: usize,
-    what: &str,
-) -> Result<std::slice::ChunksExact<'a, u8>, StoreError> {
-    if blob.len() % stride != 0 {
-        return Err(corrupt(
-            what,
-            format!("blob of {} bytes is not a multiple of {stride}", blob.len()),
-        ));
-    }
-    Ok(blob.chunks_exact(stride))
-}
-
-fn f64_at(b: &[u8], i: usize) -> f64 {
-    let mut a = [0u8; 8];
-    a.copy_from_slice(&b[8 * i..8 * i + 8]);
-    f64::from_le_bytes(a)
-}
-
-fn f64_array<const N: usize>(b: &[u8], start: usize) -> [f64; N] {
-    std::array::from_fn(|k| f64_at(b, start + k))
-}
-
-fn encode_points(p: &[[f64; 3]]) -> Vec<u8> {
-    let mut out = Vec::with_capacity(p.len() * 24);
-    for v in p {
-        put_f64s(&mut out, v);
-    }
-    out
-}
-
-fn decode_points(b: &[u8], what: &str) -> Result<Vec<[f64; 3]>, StoreError> {
-    Ok(records(b, 24, what)?
-        .map(|r| f64_array::<3>(r, 0))
-        .collect())
-}
-
-fn encode_triangles(t: &[[u32; 3]]) -> Vec<u8> {
-    let mut out = Vec::with_capacity(t.len() * 12);
-    for f in t {
-        for i in f {
-            out.extend_from_slice(&i.to_le_bytes());
-        }
-    }
-    out
-}
-
-fn decode_triangles(b: &[u8], what: &str) -> Result<Vec<[u32; 3]>, StoreError> {
-    Ok(records(b, 12, what)?
-        .map(|r| {
-            std::array::from_fn(|k| {
-                u32::from_le_bytes([r[4 * k], r[4 * k + 1], r[4 * k + 2], r[4 * k + 3]])
-            })
-        })
-        .collect())
-}
-
-fn encode_targets(t: &[StoredTransform]) -> Vec<u8> {
-    let mut out = Vec::with_capacity(t.len() * 80);
-    for x in t {
-        put_f64s(&mut out, &x.rotation);
-        put_f64s(&mut out, &x.translation);
-        put_f64s(&mut out, &x.pivot);
-    }
-    out
-}
-
-fn decode_targets(b: &[u8], what: &str) -> Result<Vec<StoredTransform>, StoreError> {
-    Ok(records(b, 80, what)?
-        .map(|r| StoredTransform {
-            rotation: f64_array(r, 0),
-            translation: f64_array(r, 4),
-            pivot: f64_array(r, 7),
-        })
-        .collect())
-}
-
-/// Tag byte of a [`JournalEntry::Drag`] record.
-const TAG_DRAG: u8 = 1;
-/// Size of an encoded journal entry: tag, handle `u64`, rotation 4×`f64`,
-/// translation 3×`f64`, seq `u64`.
-const ENTRY_BYTES: usize = 1 + 8 + 32 + 24 + 8;
-
-/// Encodes a journal entry as a fixed-size little-endian record.
-pub fn encode_entry(e: &JournalEntry) -> Vec<u8> {
-    let mut out = Vec::with_capacity(ENTRY_BYTES);
-    match e {
-        JournalEntry::Drag {
-            handle,
-            rotation,
-            translation,
-            seq,
-        } => {
-            out.push(TAG_DRAG);
-            out.extend_from_slice(&(*handle as u64).to_le_bytes());
-            put_f64s(&mut out, rotation);
-            put_f64s(&mut out, translation);
-            out.extend_from_slice(&seq.to_le_bytes());
-        }
-    }
-    out
-}
-
-/// Decodes a record written by [`encode_entry`]; `what` names it in errors.
-pub fn decode_entry(b: &[u8], what: &str) -> Result<JournalEntry, StoreError> {
-    if b.len() != ENTRY_BYTES {
-        return Err(corrupt(
-            what,
-            format!("{} bytes, expected {ENTRY_BYTES}", b.len()),
-        ));
-    }
-    if b[0] != TAG_DRAG {
-        return Err(corrupt(what, format!("unknown entry tag {}", b[0])));
-    }
-    let u64_at = |o: usize| {
-        let mut a = [0u8; 8];
-        a.copy_from_slice(&b[o..o + 8]);
-        u64::from_le_bytes(a)
-    };
-    let handle =
-        usize::try_from(u64_at(1)).map_err(|_| corrupt(what, "handle index out of range"))?;
-    let body = &b[9..9 + 56];
-    let rotation: [f64; 4] = f64_array(body, 0);
-    let translation: [f64; 3] = f64_array(body, 4);
-    if !rotation.iter().chain(&translation).all(|x| x.is_finite()) {
-        return Err(corrupt(what, "non-finite delta"));
-    }
-    Ok(JournalEntry::Drag {
-        handle,
-        rotation,
-        translation,
-        seq: u64_at(65),
-    })
-}
-
-fn decode_record(
-    id: String,
-    mesh_id: String,
-    hash: Vec<u8>,
-    params: String,
-    constraints: Option<String>,
-    created: i64,
-) -> Result<SessionRecord, StoreError> {
-    let what = || format!("session `{id}`");
-    if hash.len() != 32 {
-        return Err(corrupt(
-            what(),
-            format!("token hash of {} bytes, expected 32", hash.len()),
-        ));
-    }
-    let params =
-        serde_json::from_str(&params).map_err(|e| corrupt(what(), format!("params: {e}")))?;
-    let constraints = match constraints {
-        Some(c) => Some(
-            serde_json::from_str(&c).map_err(|e| corrupt(what(), format!("constraints: {e}")))?,
-        ),
-        None => None,
-    };
-    let created_unix =
-        u64::try_from(created).map_err(|_| corrupt(what(), "negative creation time"))?;
-    Ok(SessionRecord {
-        id,
-        mesh_id,
-        token_sha256: hex::encode(hash),
-        params,
-        constraints,
-        created_unix,
-    })
 }
 
 type RawRecord = (String, String, Vec<u8>, String, Option<String>, i64);
@@ -407,15 +226,7 @@ impl Store for SqliteStore {
     }
 
     fn put_session(&self, r: &SessionRecord) -> Result<(), StoreError> {
-        let hash = hex::decode(&r.token_sha256)
-            .ok()
-            .filter(|h| h.len() == 32)
-            .ok_or_else(|| {
-                backend(format!(
-                    "session `{}`: token hash is not 64 hex digits",
-                    r.id
-                ))
-            })?;
+        let hash = token_hash_bytes(r)?;
         let params = r.params.to_string();
         let constraints = r.constraints.as_ref().map(|c| c.to_string());
         let created = i64::try_from(r.created_unix).unwrap_or(i64::MAX);
@@ -461,19 +272,28 @@ impl Store for SqliteStore {
     }
 
     fn delete_session(&self, id: &str) -> Result<(), StoreError> {
-        let _ = self
-            .conn
-            .lock()
+        let mut conn = self.conn.lock();
+        let tx = conn.transaction().map_err(backend)?;
+        let _ = tx
             .execute("DELETE FROM sessions WHERE id = ?1", [id])
             .map_err(backend)?;
-        Ok(())
+        let _ = tx
+            .execute("DELETE FROM leases WHERE session = ?1", [id])
+            .map_err(backend)?;
+        tx.commit().map_err(backend)
     }
 
-    fn set_constraints(&self, id: &str, spec: &serde_json::Value) -> Result<(), StoreError> {
+    fn set_constraints(
+        &self,
+        id: &str,
+        fence: Fence,
+        spec: &serde_json::Value,
+    ) -> Result<(), StoreError> {
         let mut conn = self.conn.lock();
         let tx = conn
             .transaction_with_behavior(TransactionBehavior::Immediate)
             .map_err(backend)?;
+        sqlite_leases::check_fence(&tx, id, fence)?;
         let n = tx.execute(
             "UPDATE sessions SET constraints = ?2 WHERE id = ?1",
             params![id, spec.to_string()],
@@ -490,7 +310,7 @@ impl Store for SqliteStore {
         tx.commit().map_err(backend)
     }
 
-    fn append(&self, id: &str, entries: &[JournalEntry]) -> Result<(), StoreError> {
+    fn append(&self, id: &str, fence: Fence, entries: &[JournalEntry]) -> Result<(), StoreError> {
         let mut conn = self.conn.lock();
         let tx = conn
             .transaction_with_behavior(TransactionBehavior::Immediate)
@@ -498,6 +318,7 @@ impl Store for SqliteStore {
         if !session_exists(&tx, id)? {
             return Err(missing(id));
         }
+        sqlite_leases::check_fence(&tx, id, fence)?;
         {
             let mut stmt = tx
                 .prepare_cached("INSERT INTO journal (session, entry) VALUES (?1, ?2)")
@@ -528,7 +349,7 @@ impl Store for SqliteStore {
             .collect()
     }
 
-    fn checkpoint(&self, id: &str, cp: &Checkpoint) -> Result<(), StoreError> {
+    fn checkpoint(&self, id: &str, fence: Fence, cp: &Checkpoint) -> Result<(), StoreError> {
         let (pose, targets) = (encode_points(&cp.pose), encode_targets(&cp.targets));
         let revision = i64::try_from(cp.revision).unwrap_or(i64::MAX);
         let ack_seq = cp.ack_seq as i64; // the u64's bits, cast back on read
@@ -539,6 +360,7 @@ impl Store for SqliteStore {
         if !session_exists(&tx, id)? {
             return Err(missing(id));
         }
+        sqlite_leases::check_fence(&tx, id, fence)?;
         let _ = tx
             .execute(
                 "INSERT OR REPLACE INTO checkpoints (session, revision, ack_seq, pose, targets)
@@ -566,29 +388,33 @@ impl Store for SqliteStore {
         let Some((revision, ack_seq, pose, targets)) = row else {
             return Ok(None);
         };
-        let what = format!("checkpoint of session `{id}`");
-        let revision = u64::try_from(revision).map_err(|_| corrupt(&what, "negative revision"))?;
-        let pose = decode_points(&pose, &what)?;
-        if !pose.iter().flatten().all(|x| x.is_finite()) {
-            return Err(corrupt(&what, "non-finite pose coordinate"));
-        }
-        let targets = decode_targets(&targets, &what)?;
-        let finite = targets.iter().all(|t| {
-            t.rotation
-                .iter()
-                .chain(&t.translation)
-                .chain(&t.pivot)
-                .all(|x| x.is_finite())
-        });
-        if !finite {
-            return Err(corrupt(&what, "non-finite target"));
-        }
-        Ok(Some(Checkpoint {
-            revision,
-            ack_seq: ack_seq as u64,
-            pose,
-            targets,
-        }))
+        decode_checkpoint(revision, ack_seq, &pose, &targets, id).map(Some)
+    }
+
+    fn acquire_lease(
+        &self,
+        id: &str,
+        owner: &str,
+        ttl: std::time::Duration,
+    ) -> Result<LeaseGrant, StoreError> {
+        sqlite_leases::acquire(&mut self.conn.lock(), id, owner, ttl)
+    }
+
+    fn renew_leases(
+        &self,
+        owner: &str,
+        leases: &[(String, Fence)],
+        ttl: std::time::Duration,
+    ) -> Result<Vec<String>, StoreError> {
+        sqlite_leases::renew(&mut self.conn.lock(), owner, leases, ttl)
+    }
+
+    fn release_lease(&self, id: &str, owner: &str, revision: Fence) -> Result<(), StoreError> {
+        sqlite_leases::release(&self.conn.lock(), id, owner, revision)
+    }
+
+    fn handoffs_wanted(&self, owner: &str) -> Result<Vec<String>, StoreError> {
+        sqlite_leases::wanted(&self.conn.lock(), owner)
     }
 }
 

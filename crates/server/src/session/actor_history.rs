@@ -1,0 +1,191 @@
+//! The history side of the session actor: commit points (history entries
+//! and their checkpoints), undo, redo and reset, and what a failed store
+//! write means for the session.
+
+use std::sync::atomic::Ordering;
+use std::sync::Arc;
+
+use super::{Actor, AfterBuild, InstalledSet, Snapshot, HISTORY_LIMIT};
+use crate::session::frame::{FrameBody, FrameHeader};
+use crate::session::shared::off_worker;
+use crate::session::{Event, Frame, PoseSnapshot, SessionError, SessionState};
+use crate::store::{Checkpoint, StoreError, StoredTransform};
+use dend::deform::RigidTransform;
+
+impl Actor {
+    /// [`commit`](Self::commit) unless a client holds a handle: one user
+    /// gesture (grab … release) is one undo step, however often the pose
+    /// settles during it; the release commits ([`Cmd::GestureEnded`]).
+    pub(super) fn commit_gesture(&mut self) {
+        if self.inner.shared.lock().grabs.is_empty() {
+            self.commit();
+        }
+    }
+
+    /// Records the settled state as a history entry and checkpoints it.
+    pub(super) fn commit(&mut self) {
+        if !self.uncommitted {
+            return;
+        }
+        self.uncommitted = false;
+        if !self.history.is_empty() {
+            self.history.truncate(self.cursor + 1);
+        }
+        let Some(set) = self.set.clone() else {
+            return;
+        };
+        self.history.push(Snapshot {
+            pose: self.pose.clone(),
+            targets: self.targets(),
+            set,
+        });
+        if self.history.len() > HISTORY_LIMIT {
+            let _ = self.history.remove(0);
+        }
+        self.cursor = self.history.len() - 1;
+        self.checkpoint();
+        self.sync_shared();
+        // clients enable their undo/redo buttons from `can_undo`/`can_redo`
+        let _ = self.inner.events.send(Event::State);
+    }
+
+    pub(super) fn checkpoint(&mut self) {
+        let cp = Checkpoint {
+            revision: self.revision,
+            ack_seq: self.applied_seq,
+            pose: self.pose.to_vec(),
+            targets: self.targets().iter().map(StoredTransform::from).collect(),
+        };
+        let (store, id, fence) = (&self.opts.store, &self.inner.id, self.opts.fence);
+        if let Err(e) = off_worker(|| store.checkpoint(id, fence, &cp)) {
+            // the journal stays as it was: a recovery still replays every
+            // acknowledged drag onto the previous checkpoint
+            tracing::error!(session = %self.inner.id, error = %e, "checkpoint failed");
+            self.on_store_error(&e);
+        }
+    }
+
+    /// A store write failed: a fenced one means another instance owns the
+    /// session now, so this one stops driving it (its clients are told the
+    /// session closed and reconnect, reaching the owner).
+    pub(super) fn on_store_error(&mut self, e: &StoreError) {
+        if matches!(e, StoreError::Fenced { .. }) {
+            tracing::warn!(session = %self.inner.id, error = %e, "lease lost: closing the session here");
+            self.inner.fenced.store(true, Ordering::Relaxed);
+            self.stop = true;
+        }
+    }
+
+    /// Restores a pose and targets without solving; publishes a converged frame.
+    pub(super) fn restore(
+        &mut self,
+        pose: Arc<Vec<[f64; 3]>>,
+        targets: &[RigidTransform],
+    ) -> Result<PoseSnapshot, SessionError> {
+        if let Some(d) = self.deformer.as_mut() {
+            d.set_pose(pose.to_vec())?;
+        }
+        if let Some(c) = self.constraints.as_mut() {
+            for (h, t) in Arc::make_mut(c).handles.iter_mut().zip(targets) {
+                h.target = *t;
+            }
+        }
+        self.confirmed = self.constraints.clone();
+        self.pose = pose;
+        self.dirty = false;
+        self.settled = true;
+        self.converged = true;
+        self.objective = f64::NAN;
+        self.iters_since_change = 0;
+        self.journal.clear();
+        for (_, w) in self.waiters.drain(..) {
+            let _ = w.send(Err(SessionError::NotReady { state: self.state }));
+        }
+        self.revision += 1;
+        let header = FrameHeader {
+            revision: self.revision,
+            ack_seq: self.applied_seq,
+            iteration: 0,
+            converged: true,
+            settled: true,
+            objective: f64::NAN,
+            vertex_count: self.pose.len() as u32,
+        };
+        let bytes = FrameBody::from_pose(&self.pose).finish(&header);
+        self.frames_tx.send_replace(Some(Frame { header, bytes }));
+        Ok(self.snapshot_for(&header))
+    }
+
+    pub(super) fn undo_redo(&mut self, undo: bool) -> Result<PoseSnapshot, SessionError> {
+        if self.state != SessionState::Ready {
+            return Err(SessionError::NotReady { state: self.state });
+        }
+        let target = if undo {
+            if self.uncommitted && !self.history.is_empty() {
+                Some(self.cursor)
+            } else {
+                self.cursor
+                    .checked_sub(1)
+                    .filter(|_| !self.history.is_empty())
+            }
+            .ok_or(SessionError::NothingToUndo)?
+        } else {
+            Some(self.cursor + 1)
+                .filter(|i| !self.uncommitted && *i < self.history.len())
+                .ok_or(SessionError::NothingToRedo)?
+        };
+        let entry = &self.history[target];
+        let (pose, targets, set) = (entry.pose.clone(), entry.targets.clone(), entry.set.clone());
+        if self.set.as_ref().map(|s| s.id) != Some(set.id) {
+            // back to another constraint set: its factor is looked up (or
+            // rebuilt) while the pose is already the entry's
+            self.install(set, AfterBuild::Keep)?;
+        }
+        self.cursor = target;
+        self.uncommitted = false;
+        let snap = self.restore(pose, &targets)?;
+        self.checkpoint();
+        self.sync_shared();
+        let _ = self.inner.events.send(Event::State);
+        Ok(snap)
+    }
+
+    pub(super) fn reset(&mut self) -> Result<PoseSnapshot, SessionError> {
+        if self.state != SessionState::Ready {
+            return Err(SessionError::NotReady { state: self.state });
+        }
+        let mesh = self.inner.rest.mesh();
+        let rest = Arc::new(mesh.positions().to_vec());
+        // the set anchored at rest again (a set installed on a posed mesh
+        // holds its vertices where that pose had them)
+        if let Some(set) = self.set.clone() {
+            let at_rest = set.client.resolve(mesh)?;
+            let stored = serde_json::to_value(set.client.anchored(mesh, &at_rest))
+                .map_err(|e| SessionError::InvalidConstraints(e.to_string()))?;
+            if stored != set.stored {
+                self.sets_installed += 1;
+                let set = Arc::new(InstalledSet {
+                    id: self.sets_installed,
+                    client: set.client.clone(),
+                    stored,
+                    constraints: at_rest,
+                });
+                self.install(set, AfterBuild::Keep)?;
+            }
+        }
+        let targets: Vec<RigidTransform> = self
+            .constraints
+            .as_ref()
+            .map(|c| {
+                c.handles
+                    .iter()
+                    .map(|h| RigidTransform::identity(h.rest_centroid))
+                    .collect()
+            })
+            .unwrap_or_default();
+        let snap = self.restore(rest, &targets)?;
+        self.uncommitted = true;
+        self.commit();
+        Ok(snap)
+    }
+}

@@ -1,0 +1,242 @@
+//! The solving side of the session actor: one solve at a time on the
+//! blocking pool, journaling the drags it carries first (a drag is
+//! acknowledged only once journaled), and what comes back from the solver
+//! and factor-build tasks.
+
+use std::sync::Arc;
+use std::time::Instant;
+
+use super::{Actor, AfterBuild};
+use crate::session::frame::{FrameBody, FrameHeader};
+use crate::session::shared::Internal;
+use crate::session::{Event, Frame, PoseSnapshot, SessionError, SessionState};
+
+impl Actor {
+    /// Starts a solve on the blocking pool when the session is ready and
+    /// has something to do (new drags, waiters, or iterations left before
+    /// it settles); the drags composed since the last solve are journaled
+    /// first, in the same task.
+    pub(super) fn maybe_start_solve(&mut self) {
+        if self.deformer.is_none() || self.state != SessionState::Ready {
+            return;
+        }
+        let Some(constraints) = self.constraints.clone() else {
+            return;
+        };
+        if self.dirty {
+            self.iters_since_change = 0;
+        }
+        let max_iters = self.inner.params.max_iters;
+        let budget = if !self.waiters.is_empty() {
+            self.waiters
+                .iter()
+                .map(|w| w.0)
+                .max()
+                .unwrap_or(max_iters)
+                .max(1)
+        } else if !self.settled {
+            let remaining = max_iters.saturating_sub(self.iters_since_change);
+            if remaining == 0 {
+                self.settled = true;
+                self.commit_gesture();
+                return;
+            }
+            self.opts.iters_per_frame.clamp(1, remaining)
+        } else {
+            return;
+        };
+        self.inflight = self.waiters.drain(..).map(|w| w.1).collect();
+        self.dirty = false;
+        let Some(mut deformer) = self.deformer.take() else {
+            return;
+        };
+        let journal = std::mem::take(&mut self.journal);
+        let (id, store, cache, fence) = (
+            self.inner.id.clone(),
+            self.opts.store.clone(),
+            self.opts.cache.clone(),
+            self.opts.fence,
+        );
+        let (rest, params, tx) = (
+            self.inner.rest.clone(),
+            self.inner.params,
+            self.internal_tx.clone(),
+        );
+        let (applied_seq, generation) = (self.last_seq, self.generation);
+        drop(tokio::task::spawn_blocking(move || {
+            let t0 = Instant::now();
+            let appended = if journal.is_empty() {
+                Ok(())
+            } else {
+                store.append(&id, fence, &journal)
+            };
+            // a drag is acknowledged only once journaled: when the append
+            // fails, nothing is solved and the actor refuses the drags
+            // (`journal_failed`: back to the last journaled targets)
+            let (result, journal_failed) = match appended {
+                Ok(()) => {
+                    let step = (|| {
+                        let factor = cache.get_or_build(&rest, &params, &constraints)?;
+                        Ok(deformer.step(&factor, &constraints, budget)?)
+                    })();
+                    (step, false)
+                }
+                Err(e) => (Err(SessionError::Store(e)), true),
+            };
+            let seconds = t0.elapsed().as_secs_f64();
+            let body = FrameBody::from_pose(deformer.pose());
+            let _ = tx.send(Internal::Solved {
+                deformer,
+                result,
+                body,
+                seconds,
+                applied_seq,
+                journal_failed,
+                constraints,
+                generation,
+            });
+        }));
+    }
+
+    pub(super) fn on_internal(&mut self, msg: Internal) {
+        match msg {
+            Internal::Built {
+                generation,
+                result,
+                seconds,
+            } => {
+                if result.is_ok() {
+                    self.opts.observer.factor_ready(seconds);
+                }
+                if generation != self.generation {
+                    return;
+                }
+                self.revision += 1;
+                match result {
+                    Ok(()) => {
+                        self.state = SessionState::Ready;
+                        if self.after_build == AfterBuild::Solve {
+                            // solve towards the set's targets; the settled
+                            // result becomes a history entry
+                            self.dirty = true;
+                            self.settled = false;
+                            self.uncommitted = true;
+                        }
+                        self.sync_shared();
+                        let _ = self.inner.events.send(Event::Ready {
+                            revision: self.revision,
+                        });
+                    }
+                    Err(e) => {
+                        self.state = SessionState::Failed;
+                        self.sync_shared();
+                        let _ = self.inner.events.send(Event::Error(Arc::new(e)));
+                        let _ = self.inner.events.send(Event::State);
+                    }
+                }
+            }
+            Internal::Solved {
+                deformer,
+                result,
+                body,
+                seconds,
+                applied_seq,
+                journal_failed,
+                constraints,
+                generation,
+            } => {
+                self.pose = Arc::new(deformer.pose().to_vec());
+                self.deformer = Some(deformer);
+                if generation == self.generation {
+                    if journal_failed {
+                        self.journal_failed(&result);
+                    } else {
+                        self.applied_seq = applied_seq;
+                        self.confirmed = Some(constraints);
+                    }
+                }
+                let error = match result {
+                    Ok(report) => {
+                        self.iters_since_change += report.iterations;
+                        self.converged = report.converged;
+                        self.objective = report.objective;
+                        self.opts
+                            .observer
+                            .solved(report.iterations, seconds, report.converged);
+                        let done = report.converged
+                            || self.iters_since_change >= self.inner.params.max_iters;
+                        self.settled = !self.dirty && (done || report.diverged);
+                        None
+                    }
+                    Err(e) => {
+                        self.settled = true;
+                        Some(Arc::new(e))
+                    }
+                };
+                self.revision += 1;
+                let header = FrameHeader {
+                    revision: self.revision,
+                    ack_seq: self.applied_seq,
+                    iteration: self.iters_since_change as u32,
+                    converged: self.converged,
+                    settled: self.settled,
+                    objective: self.objective,
+                    vertex_count: self.pose.len() as u32,
+                };
+                let bytes = body.finish(&header);
+                self.frames_tx.send_replace(Some(Frame { header, bytes }));
+                for w in std::mem::take(&mut self.inflight) {
+                    let _ = w.send(match &error {
+                        None => Ok(self.snapshot_for(&header)),
+                        Some(e) => Err(SessionError::Shared(e.clone())),
+                    });
+                }
+                if let Some(e) = error {
+                    let _ = self.inner.events.send(Event::Error(e));
+                }
+                if self.settled {
+                    self.commit_gesture();
+                }
+                self.sync_shared();
+            }
+        }
+    }
+
+    /// The journal append of a solve failed: none of its drags, nor the
+    /// ones composed since, is acknowledged, and the targets go back to
+    /// the last journaled ones (a drag is applied only once journaled, so
+    /// the live state never holds what a revival would not). Clients get
+    /// the error (HTTP 503 `store_unavailable`, or an `error` event with
+    /// frames still acknowledging the previous `seq`) and send again. A
+    /// fenced append stops the session instead.
+    pub(super) fn journal_failed(
+        &mut self,
+        result: &Result<dend::deform::StepReport, SessionError>,
+    ) {
+        if let Err(SessionError::Store(e)) = result {
+            self.on_store_error(e);
+        }
+        self.constraints = self.confirmed.clone();
+        self.journal.clear();
+        self.last_seq = self.applied_seq;
+        self.dirty = false;
+        for (_, w) in self.waiters.drain(..) {
+            let _ = w.send(Err(match result {
+                Err(SessionError::Store(e)) => SessionError::Store(e.clone()),
+                _ => SessionError::Closed,
+            }));
+        }
+    }
+
+    pub(super) fn snapshot_for(&self, h: &FrameHeader) -> PoseSnapshot {
+        PoseSnapshot {
+            revision: h.revision,
+            ack_seq: h.ack_seq,
+            iteration: h.iteration,
+            converged: h.converged,
+            settled: h.settled,
+            objective: h.objective,
+            positions: self.pose.clone(),
+        }
+    }
+}

@@ -1,0 +1,501 @@
+//! [`PgStore`]: the [`Store`] several `dend serve` instances share, in one
+//! PostgreSQL database.
+//!
+//! - The synchronous `postgres` client pooled by r2d2 (the trait is
+//!   synchronous and the server calls it from blocking threads). Checkout
+//!   waits at most [`POOL_TIMEOUT`] and tests the connection first, so a
+//!   restarted server costs one failed call per pooled connection at most.
+//! - Versioned migrations ([`MIGRATIONS`]) applied at open under an
+//!   advisory lock (instances starting together apply each once), recorded
+//!   in `dend_schema_migrations`; a database migrated by a newer program
+//!   (a version this one does not know) is refused.
+//! - The same binary encodings as the SQLite store (`codec`), in `bytea`.
+//! - Every commit is durable when it returns (PostgreSQL's default
+//!   `synchronous_commit=on`), so an acknowledged drag is on disk.
+//! - Errors: a lost or refused connection, a server shutting down or a pool
+//!   timeout is [`StoreError::Unavailable`]; other failures `Backend`.
+
+use std::sync::Arc;
+use std::time::Duration;
+
+use postgres::NoTls;
+use r2d2_postgres::PostgresConnectionManager;
+
+use super::codec::{
+    corrupt, decode_checkpoint, decode_entry, decode_points, decode_record, decode_triangles,
+    encode_entry, encode_points, encode_targets, encode_triangles, token_hash_bytes,
+};
+use super::{
+    postgres_leases, Checkpoint, Fence, JournalEntry, LeaseGrant, SessionRecord, Store, StoreError,
+    StoredAsset,
+};
+use dend::mesh::Mesh;
+
+/// The newest schema version this program knows (the last of [`MIGRATIONS`]).
+pub const PG_SCHEMA_VERSION: i32 = 2;
+
+/// How long a store call waits for a pooled connection (or a new one).
+pub const POOL_TIMEOUT: Duration = Duration::from_secs(2);
+
+/// How long the readiness ping waits for a connection.
+pub const PING_TIMEOUT: Duration = Duration::from_millis(500);
+
+/// The migrations, in order: `(version, SQL)`.
+pub const MIGRATIONS: &[(i32, &str)] = &[
+    (
+        1,
+        "CREATE TABLE meshes (id TEXT PRIMARY KEY, positions BYTEA NOT NULL, triangles BYTEA NOT NULL);
+         CREATE TABLE mesh_assets (id TEXT PRIMARY KEY, format TEXT NOT NULL, bytes BYTEA NOT NULL);
+         CREATE TABLE sessions (
+             id TEXT PRIMARY KEY, mesh_id TEXT NOT NULL, token_sha256 BYTEA NOT NULL,
+             params TEXT NOT NULL, constraints TEXT, created_unix BIGINT NOT NULL);
+         CREATE TABLE journal (
+             n BIGSERIAL PRIMARY KEY,
+             session TEXT NOT NULL REFERENCES sessions(id) ON DELETE CASCADE,
+             entry BYTEA NOT NULL);
+         CREATE INDEX journal_session ON journal(session, n);
+         CREATE TABLE checkpoints (
+             session TEXT PRIMARY KEY REFERENCES sessions(id) ON DELETE CASCADE,
+             revision BIGINT NOT NULL, ack_seq BIGINT NOT NULL,
+             pose BYTEA NOT NULL, targets BYTEA NOT NULL);",
+    ),
+    (
+        2,
+        "CREATE TABLE leases (
+             session TEXT PRIMARY KEY, owner TEXT NOT NULL,
+             revision BIGINT NOT NULL, expires TIMESTAMPTZ, wanted_by TEXT);",
+    ),
+];
+
+type Pool = r2d2::Pool<PostgresConnectionManager<NoTls>>;
+pub(super) type Conn = r2d2::PooledConnection<PostgresConnectionManager<NoTls>>;
+
+/// A [`Store`] in a PostgreSQL database (see the module docs).
+pub struct PgStore {
+    /// `Some` until dropped (see `Drop`).
+    pool: Option<Pool>,
+}
+
+/// Classifies a client error: connection-level failures are
+/// [`StoreError::Unavailable`] (retry later), the rest `Backend`.
+pub(super) fn pg_err(e: postgres::Error) -> StoreError {
+    let unavailable = e.is_closed()
+        || std::error::Error::source(&e).is_some_and(|s| s.is::<std::io::Error>())
+        || e.code().is_some_and(|c| {
+            let c = c.code();
+            // 08: connection exception; 57P0x: shutdown / cannot connect now;
+            // 53: insufficient resources
+            c.starts_with("08") || c.starts_with("57P0") || c.starts_with("53")
+        });
+    if unavailable {
+        StoreError::Unavailable(e.to_string())
+    } else {
+        StoreError::Backend(e.to_string())
+    }
+}
+
+fn missing(id: &str) -> StoreError {
+    StoreError::Backend(format!("no session `{id}`"))
+}
+
+impl PgStore {
+    /// Connects to `url` (`postgres://user@host:port/db`), builds a pool of
+    /// up to `max_connections` and applies the pending migrations.
+    pub fn open(url: &str, max_connections: u32) -> Result<PgStore, StoreError> {
+        let config: postgres::Config = url
+            .parse()
+            .map_err(|e| StoreError::Backend(format!("bad PostgreSQL URL: {e}")))?;
+        Self::open_config(config, max_connections)
+    }
+
+    /// [`open`](Self::open) with a parsed client configuration.
+    pub fn open_config(
+        mut config: postgres::Config,
+        max_connections: u32,
+    ) -> Result<PgStore, StoreError> {
+        if config.get_connect_timeout().is_none() {
+            let _ = config.connect_timeout(POOL_TIMEOUT);
+        }
+        let _ = config.application_name("dend");
+        let manager = PostgresConnectionManager::new(config, NoTls);
+        let pool = r2d2::Pool::builder()
+            .max_size(max_connections.max(1))
+            .min_idle(Some(1))
+            .connection_timeout(POOL_TIMEOUT)
+            .test_on_check_out(true)
+            .build(manager)
+            .map_err(|e| StoreError::Unavailable(format!("cannot connect to PostgreSQL: {e}")))?;
+        let store = PgStore { pool: Some(pool) };
+        store.migrate()?;
+        Ok(store)
+    }
+
+    /// A pooled connection, or [`StoreError::Unavailable`].
+    pub(super) fn conn(&self) -> Result<Conn, StoreError> {
+        let pool = self
+            .pool
+            .as_ref()
+            .ok_or_else(|| StoreError::Unavailable("store closed".into()))?;
+        pool.get()
+            .map_err(|e| StoreError::Unavailable(format!("no PostgreSQL connection: {e}")))
+    }
+
+    /// Applies every migration newer than the database's version, each in
+    /// its own transaction, under a transaction-level advisory lock.
+    fn migrate(&self) -> Result<(), StoreError> {
+        let mut c = self.conn()?;
+        let mut tx = c.transaction().map_err(pg_err)?;
+        let _ = tx
+            .execute("SELECT pg_advisory_xact_lock(7720211)", &[])
+            .map_err(pg_err)?;
+        let _ = tx
+            .execute(
+                "CREATE TABLE IF NOT EXISTS dend_schema_migrations (
+                     version INT PRIMARY KEY, applied_at TIMESTAMPTZ NOT NULL DEFAULT now())",
+                &[],
+            )
+            .map_err(pg_err)?;
+        let current: i32 = tx
+            .query_one(
+                "SELECT COALESCE(MAX(version), 0) FROM dend_schema_migrations",
+                &[],
+            )
+            .map_err(pg_err)?
+            .get(0);
+        if current > PG_SCHEMA_VERSION {
+            return Err(corrupt(
+                "PostgreSQL schema",
+                format!("version {current} is newer than this program's {PG_SCHEMA_VERSION}"),
+            ));
+        }
+        for (version, sql) in MIGRATIONS.iter().filter(|(v, _)| *v > current) {
+            tx.batch_execute(sql).map_err(pg_err)?;
+            let _ = tx
+                .execute(
+                    "INSERT INTO dend_schema_migrations (version) VALUES ($1)",
+                    &[version],
+                )
+                .map_err(pg_err)?;
+            tracing::info!(version, "applied a PostgreSQL schema migration");
+        }
+        tx.commit().map_err(pg_err)
+    }
+
+    /// The schema version the database is at.
+    pub fn schema_version(&self) -> Result<i32, StoreError> {
+        Ok(self
+            .conn()?
+            .query_one("SELECT MAX(version) FROM dend_schema_migrations", &[])
+            .map_err(pg_err)?
+            .get(0))
+    }
+
+    /// Runs SQL statements as they are (tests and maintenance).
+    pub fn execute_batch(&self, sql: &str) -> Result<(), StoreError> {
+        self.conn()?.batch_execute(sql).map_err(pg_err)
+    }
+}
+
+impl Drop for PgStore {
+    /// Drops the pool on a plain thread: each `postgres` client owns a small
+    /// tokio runtime, which must not be dropped inside an async context
+    /// (the server drops its state at the end of its runtime).
+    fn drop(&mut self) {
+        if let Some(pool) = self.pool.take() {
+            let _ = std::thread::spawn(move || drop(pool)).join();
+        }
+    }
+}
+
+/// Whether session `id` exists; inside a transaction.
+fn session_exists(tx: &mut postgres::Transaction<'_>, id: &str) -> Result<bool, StoreError> {
+    Ok(tx
+        .query_opt("SELECT 1 FROM sessions WHERE id = $1", &[&id])
+        .map_err(pg_err)?
+        .is_some())
+}
+
+const SELECT_SESSION: &str =
+    "SELECT id, mesh_id, token_sha256, params, constraints, created_unix FROM sessions";
+
+fn row_record(r: &postgres::Row) -> Result<SessionRecord, StoreError> {
+    decode_record(r.get(0), r.get(1), r.get(2), r.get(3), r.get(4), r.get(5))
+}
+
+impl Store for PgStore {
+    fn put_mesh(&self, id: &str, mesh: Arc<Mesh>) -> Result<(), StoreError> {
+        let (p, t) = (
+            encode_points(mesh.positions()),
+            encode_triangles(mesh.triangles()),
+        );
+        let _ = self
+            .conn()?
+            .execute(
+                "INSERT INTO meshes (id, positions, triangles) VALUES ($1, $2, $3)
+                 ON CONFLICT (id) DO UPDATE SET positions = excluded.positions,
+                   triangles = excluded.triangles",
+                &[&id, &p, &t],
+            )
+            .map_err(pg_err)?;
+        Ok(())
+    }
+
+    fn get_mesh(&self, id: &str) -> Result<Option<Arc<Mesh>>, StoreError> {
+        let Some(row) = self
+            .conn()?
+            .query_opt(
+                "SELECT positions, triangles FROM meshes WHERE id = $1",
+                &[&id],
+            )
+            .map_err(pg_err)?
+        else {
+            return Ok(None);
+        };
+        let (p, t): (Vec<u8>, Vec<u8>) = (row.get(0), row.get(1));
+        let what = format!("mesh `{id}`");
+        let mesh = Mesh::new(decode_points(&p, &what)?, decode_triangles(&t, &what)?)
+            .map_err(|e| corrupt(&what, e.to_string()))?;
+        Ok(Some(Arc::new(mesh)))
+    }
+
+    fn mesh_count(&self) -> Result<usize, StoreError> {
+        let n: i64 = self
+            .conn()?
+            .query_one("SELECT COUNT(*) FROM meshes", &[])
+            .map_err(pg_err)?
+            .get(0);
+        Ok(n as usize)
+    }
+
+    fn put_asset(&self, id: &str, a: &StoredAsset) -> Result<(), StoreError> {
+        let _ = self
+            .conn()?
+            .execute(
+                "INSERT INTO mesh_assets (id, format, bytes) VALUES ($1, $2, $3)
+                 ON CONFLICT (id) DO UPDATE SET format = excluded.format, bytes = excluded.bytes",
+                &[&id, &a.format, &a.bytes],
+            )
+            .map_err(pg_err)?;
+        Ok(())
+    }
+
+    fn get_asset(&self, id: &str) -> Result<Option<StoredAsset>, StoreError> {
+        Ok(self
+            .conn()?
+            .query_opt(
+                "SELECT format, bytes FROM mesh_assets WHERE id = $1",
+                &[&id],
+            )
+            .map_err(pg_err)?
+            .map(|r| StoredAsset {
+                format: r.get(0),
+                bytes: r.get(1),
+            }))
+    }
+
+    fn delete_mesh(&self, id: &str) -> Result<bool, StoreError> {
+        let mut c = self.conn()?;
+        let mut tx = c.transaction().map_err(pg_err)?;
+        let _ = tx
+            .execute("DELETE FROM mesh_assets WHERE id = $1", &[&id])
+            .map_err(pg_err)?;
+        let n = tx
+            .execute("DELETE FROM meshes WHERE id = $1", &[&id])
+            .map_err(pg_err)?;
+        tx.commit().map_err(pg_err)?;
+        Ok(n > 0)
+    }
+
+    fn put_session(&self, r: &SessionRecord) -> Result<(), StoreError> {
+        let hash = token_hash_bytes(r)?;
+        let params = r.params.to_string();
+        let constraints = r.constraints.as_ref().map(|c| c.to_string());
+        let created = i64::try_from(r.created_unix).unwrap_or(i64::MAX);
+        let _ = self
+            .conn()?
+            .execute(
+                "INSERT INTO sessions (id, mesh_id, token_sha256, params, constraints, created_unix)
+                 VALUES ($1, $2, $3, $4, $5, $6)
+                 ON CONFLICT (id) DO UPDATE SET mesh_id = excluded.mesh_id,
+                   token_sha256 = excluded.token_sha256, params = excluded.params,
+                   constraints = excluded.constraints, created_unix = excluded.created_unix",
+                &[&r.id, &r.mesh_id, &hash, &params, &constraints, &created],
+            )
+            .map_err(pg_err)?;
+        Ok(())
+    }
+
+    fn get_session(&self, id: &str) -> Result<Option<SessionRecord>, StoreError> {
+        self.conn()?
+            .query_opt(&format!("{SELECT_SESSION} WHERE id = $1"), &[&id])
+            .map_err(pg_err)?
+            .map(|r| row_record(&r))
+            .transpose()
+    }
+
+    fn list_sessions(&self) -> Result<Vec<SessionRecord>, StoreError> {
+        self.conn()?
+            .query(&format!("{SELECT_SESSION} ORDER BY created_unix, id"), &[])
+            .map_err(pg_err)?
+            .iter()
+            .map(row_record)
+            .collect()
+    }
+
+    fn delete_session(&self, id: &str) -> Result<(), StoreError> {
+        let mut c = self.conn()?;
+        let mut tx = c.transaction().map_err(pg_err)?;
+        let _ = tx
+            .execute("DELETE FROM sessions WHERE id = $1", &[&id])
+            .map_err(pg_err)?;
+        let _ = tx
+            .execute("DELETE FROM leases WHERE session = $1", &[&id])
+            .map_err(pg_err)?;
+        tx.commit().map_err(pg_err)
+    }
+
+    fn set_constraints(
+        &self,
+        id: &str,
+        fence: Fence,
+        spec: &serde_json::Value,
+    ) -> Result<(), StoreError> {
+        let mut c = self.conn()?;
+        let mut tx = c.transaction().map_err(pg_err)?;
+        postgres_leases::check_fence(&mut tx, id, fence)?;
+        let n = tx
+            .execute(
+                "UPDATE sessions SET constraints = $2 WHERE id = $1",
+                &[&id, &spec.to_string()],
+            )
+            .map_err(pg_err)?;
+        if n == 0 {
+            return Err(missing(id));
+        }
+        let _ = tx
+            .execute("DELETE FROM journal WHERE session = $1", &[&id])
+            .map_err(pg_err)?;
+        let _ = tx
+            .execute("DELETE FROM checkpoints WHERE session = $1", &[&id])
+            .map_err(pg_err)?;
+        tx.commit().map_err(pg_err)
+    }
+
+    fn append(&self, id: &str, fence: Fence, entries: &[JournalEntry]) -> Result<(), StoreError> {
+        let mut c = self.conn()?;
+        let mut tx = c.transaction().map_err(pg_err)?;
+        if !session_exists(&mut tx, id)? {
+            return Err(missing(id));
+        }
+        postgres_leases::check_fence(&mut tx, id, fence)?;
+        let stmt = tx
+            .prepare("INSERT INTO journal (session, entry) VALUES ($1, $2)")
+            .map_err(pg_err)?;
+        for e in entries {
+            let _ = tx
+                .execute(&stmt, &[&id, &encode_entry(e)])
+                .map_err(pg_err)?;
+        }
+        tx.commit().map_err(pg_err)
+    }
+
+    fn journal(&self, id: &str) -> Result<Vec<JournalEntry>, StoreError> {
+        self.conn()?
+            .query(
+                "SELECT n, entry FROM journal WHERE session = $1 ORDER BY n",
+                &[&id],
+            )
+            .map_err(pg_err)?
+            .iter()
+            .map(|r| {
+                let n: i64 = r.get(0);
+                let b: Vec<u8> = r.get(1);
+                decode_entry(&b, &format!("journal entry {n} of session `{id}`"))
+            })
+            .collect()
+    }
+
+    fn checkpoint(&self, id: &str, fence: Fence, cp: &Checkpoint) -> Result<(), StoreError> {
+        let (pose, targets) = (encode_points(&cp.pose), encode_targets(&cp.targets));
+        let revision = i64::try_from(cp.revision).unwrap_or(i64::MAX);
+        let ack_seq = cp.ack_seq as i64; // the u64's bits, cast back on read
+        let mut c = self.conn()?;
+        let mut tx = c.transaction().map_err(pg_err)?;
+        if !session_exists(&mut tx, id)? {
+            return Err(missing(id));
+        }
+        postgres_leases::check_fence(&mut tx, id, fence)?;
+        let _ = tx
+            .execute(
+                "INSERT INTO checkpoints (session, revision, ack_seq, pose, targets)
+                 VALUES ($1, $2, $3, $4, $5)
+                 ON CONFLICT (session) DO UPDATE SET revision = excluded.revision,
+                   ack_seq = excluded.ack_seq, pose = excluded.pose, targets = excluded.targets",
+                &[&id, &revision, &ack_seq, &pose, &targets],
+            )
+            .map_err(pg_err)?;
+        let _ = tx
+            .execute("DELETE FROM journal WHERE session = $1", &[&id])
+            .map_err(pg_err)?;
+        tx.commit().map_err(pg_err)
+    }
+
+    fn get_checkpoint(&self, id: &str) -> Result<Option<Checkpoint>, StoreError> {
+        let Some(r) = self
+            .conn()?
+            .query_opt(
+                "SELECT revision, ack_seq, pose, targets FROM checkpoints WHERE session = $1",
+                &[&id],
+            )
+            .map_err(pg_err)?
+        else {
+            return Ok(None);
+        };
+        let (pose, targets): (Vec<u8>, Vec<u8>) = (r.get(2), r.get(3));
+        decode_checkpoint(r.get(0), r.get(1), &pose, &targets, id).map(Some)
+    }
+
+    fn acquire_lease(
+        &self,
+        id: &str,
+        owner: &str,
+        ttl: Duration,
+    ) -> Result<LeaseGrant, StoreError> {
+        postgres_leases::acquire(&mut self.conn()?, id, owner, ttl)
+    }
+
+    fn renew_leases(
+        &self,
+        owner: &str,
+        leases: &[(String, Fence)],
+        ttl: Duration,
+    ) -> Result<Vec<String>, StoreError> {
+        postgres_leases::renew(&mut self.conn()?, owner, leases, ttl)
+    }
+
+    fn release_lease(&self, id: &str, owner: &str, revision: Fence) -> Result<(), StoreError> {
+        postgres_leases::release(&mut self.conn()?, id, owner, revision)
+    }
+
+    fn handoffs_wanted(&self, owner: &str) -> Result<Vec<String>, StoreError> {
+        postgres_leases::wanted(&mut self.conn()?, owner)
+    }
+
+    /// A connection within [`PING_TIMEOUT`] (tested on checkout), so that
+    /// readiness answers fast when the server is gone.
+    fn ping(&self) -> Result<(), StoreError> {
+        let pool = self
+            .pool
+            .as_ref()
+            .ok_or_else(|| StoreError::Unavailable("store closed".into()))?;
+        let mut c = pool
+            .get_timeout(PING_TIMEOUT)
+            .map_err(|e| StoreError::Unavailable(format!("no PostgreSQL connection: {e}")))?;
+        let _ = c.query_one("SELECT 1", &[]).map_err(pg_err)?;
+        Ok(())
+    }
+}
+
+#[cfg(test)]
+#[path = "postgres_tests.rs"]
+mod tests;
