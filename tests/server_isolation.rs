@@ -18,6 +18,11 @@ use tokio_tungstenite::tungstenite::Message;
 
 type Res = Result<(), ClientError>;
 
+/// The tests of this file run one at a time: the flood test measures the
+/// process's resident memory, which another test's large request bodies
+/// (hostile_json_gets_typed_4xx) would otherwise inflate.
+static SERIAL: tokio::sync::Mutex<()> = tokio::sync::Mutex::const_new(());
+
 async fn code_of(r: reqwest::Response) -> (u16, String) {
     let status = r.status().as_u16();
     let body: Value = r.json().await.unwrap_or(Value::Null);
@@ -26,6 +31,7 @@ async fn code_of(r: reqwest::Response) -> (u16, String) {
 
 #[tokio::test]
 async fn a_token_opens_its_own_session_only() -> Res {
+    let _serial = SERIAL.lock().await;
     let (base, _state) = start(Config::default()).await;
     let c = Client::new(&base);
     let (p, t) = grid(5);
@@ -86,6 +92,7 @@ async fn a_token_opens_its_own_session_only() -> Res {
 
 #[tokio::test]
 async fn ids_and_tokens_are_random_128_bit_or_more() -> Res {
+    let _serial = SERIAL.lock().await;
     let (base, _state) = start(Config::default()).await;
     let c = Client::new(&base);
     let (p, t) = grid(3);
@@ -112,6 +119,7 @@ async fn ids_and_tokens_are_random_128_bit_or_more() -> Res {
 
 #[tokio::test]
 async fn hostile_json_gets_typed_4xx() -> Res {
+    let _serial = SERIAL.lock().await;
     let (base, _state) = start(Config::default()).await;
     let c = Client::new(&base);
     let n = 6;
@@ -261,6 +269,7 @@ fn rss() -> Option<u64> {
 
 #[tokio::test]
 async fn floods_slow_readers_and_many_connections_stay_bounded() -> Res {
+    let _serial = SERIAL.lock().await;
     let config = Config {
         ws_max_messages_per_sec: 50,
         ..Config::default()
