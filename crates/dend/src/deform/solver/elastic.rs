@@ -411,17 +411,7 @@ impl Deformer {
         let st = &mut self.elastic;
         st.rot_try.copy_from_slice(&st.rot);
         st.proj_try.copy_from_slice(&st.proj);
-        for (i, q) in st.rot.iter_mut().enumerate() {
-            if set.fit[i] {
-                *q = UnitQuaternion::from_scaled_axis(w[i]) * *q;
-            }
-        }
-        for (v0, p) in el.area_first_vertices().zip(st.proj.iter_mut()) {
-            let turn = UnitQuaternion::from_scaled_axis(w[v0]);
-            let c0 = turn * Vector3::new(p[0], p[1], p[2]);
-            let c1 = turn * Vector3::new(p[3], p[4], p[5]);
-            *p = [c0[0], c0[1], c0[2], c1[0], c1[1], c1[2]];
-        }
+        self.turn_rotations((el, set), w);
         self.global_rhs(factor, (el, set));
         let st = &mut self.elastic;
         {

@@ -80,14 +80,25 @@ impl Deformer {
             return;
         }
         let w = self.spread(factor, set, constraints, &turns);
+        self.turn_rotations((el, set), &w);
+    }
+
+    /// Turns the rotations of the vertices with `set.fit` by the rotation
+    /// vectors `w` (`R_i ← exp(w_i) R_i`) and each area target with its
+    /// triangle's first vertex (`P_t ← exp(w_{t0}) P_t`).
+    pub(super) fn turn_rotations(
+        &mut self,
+        (el, set): (&ElasticOps, &ElasticSet),
+        w: &[Vector3<Real>],
+    ) {
         let st = &mut self.elastic;
-        for (i, (q, w)) in st.rot.iter_mut().zip(&w).enumerate() {
+        for (i, (q, w)) in st.rot.iter_mut().zip(w).enumerate() {
             if set.fit[i] {
                 *q = UnitQuaternion::from_scaled_axis(*w) * *q;
             }
         }
-        for (e, p) in el.area_first_vertices().zip(st.proj.iter_mut()) {
-            let turn = UnitQuaternion::from_scaled_axis(w[e]);
+        for (v0, p) in el.area_first_vertices().zip(st.proj.iter_mut()) {
+            let turn = UnitQuaternion::from_scaled_axis(w[v0]);
             let c0 = turn * Vector3::new(p[0], p[1], p[2]);
             let c1 = turn * Vector3::new(p[3], p[4], p[5]);
             *p = [c0[0], c0[1], c0[2], c1[0], c1[1], c1[2]];
