@@ -299,6 +299,7 @@ def run_ours(dend, case, args, tmp):
            "--tol", repr(args.tol), "--report", rep_path]
     if args.formulation:
         cmd += ["--formulation", args.formulation]
+    cmd += args.dend_arg
     t0 = time.perf_counter()
     res = subprocess.run(cmd, capture_output=True, text=True, timeout=args.timeout)
     wall = (time.perf_counter() - t0) * 1e3
@@ -545,6 +546,9 @@ def main():
     ap.add_argument("--only", nargs="+", metavar="NAME", help="case names or patterns")
     ap.add_argument("--skip-large", action="store_true", help=f"skip meshes of {LARGE}+ vertices")
     ap.add_argument("--formulation", help="passed to dend deform (default: dend's default)")
+    ap.add_argument("--dend-arg", action="append", default=[], metavar="ARG",
+                    help="one more argument for every dend deform run (repeat: "
+                         "--dend-arg=--lambda2 --dend-arg=0.5)")
     ap.add_argument("--max-iters", type=int, default=100, help="dend deform limit per step")
     ap.add_argument("--tol", type=float, default=1e-3,
                     help="largest vertex move in mean edge lengths (both solvers)")

@@ -51,6 +51,9 @@ pub struct Args {
     /// Elastic formulation: area-preservation weight k_a, dimensionless.
     #[arg(long, default_value_t = dend::deform::DEFAULT_AREA)]
     area: f64,
+    /// Elastic formulation: weight k_L of the Laplacian part of the bending energy (the rotated detail rows), dimensionless; 1 with λ2 = 1 is E_T exactly.
+    #[arg(long, default_value_t = dend::deform::DEFAULT_LAPLACIAN)]
+    laplacian: f64,
     /// Linear detail term (δ̂ = δ, paper eq. 15) instead of the nonlinear one.
     #[arg(long)]
     linear: bool,
@@ -157,6 +160,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         anderson: args.anderson,
         stretch: args.stretch,
         bending: args.bending,
+        laplacian: args.laplacian,
         area: args.area,
         formulation: match &args.formulation {
             Some(name) => Formulation::from_name(name).with_context(|| {

@@ -40,7 +40,9 @@ pub use detail::{local_rotations, Mu, RingWeights};
 pub use elastic::{ElasticOps, ElasticSet};
 pub use factor::FactorCache;
 pub use factor::{Factor, FactorKey, FactorPrecision, FactorTimings, SolveOptions, SolverChoice};
-pub use params::{DetailTerm, Energy, Formulation, Mode, Params, DEFAULT_AREA, DEFAULT_BENDING};
+pub use params::{
+    DetailTerm, Energy, Formulation, Mode, Params, DEFAULT_AREA, DEFAULT_BENDING, DEFAULT_LAPLACIAN,
+};
 pub use rest::Rest;
 pub use rotation::{best_rotation, fit_rotation, fit_rotation_quat, rotation_from_covariance};
 pub use solver::{

@@ -15,11 +15,11 @@
 //!   E(Y, R, P) = Σ_{i ∈ F̃} Σ_{j ∈ N(i)} c_ij |(y_j − y_i) − R_i e_ij|²    (E1)
 //!              + Σ_{i ∈ F̃} b_i |(L Y)_i − R_i δ_i|²                        (E2)
 //!              + k_a Σ_t a_t ‖F_t(Y) − P_t‖²                                (E3)
-//!   c_ij = (k_s + k_b G_ij) c⁺_ij,   b_i = λ2 k_b A_i,   k_b = β S,
+//!   c_ij = (k_s + k_b G_ij) c⁺_ij,   b_i = k_L λ2 k_b A_i,   k_b = β S,
 //!   G_ij = (G_i + G_j)/2,   G_i = min(max(H_i² − K_i, 0), 1), 0 on the boundary.
 //! ```
 //!
-//! - At `λ2 = 1`, `E2` plus the `G` part of `E1` is `k_b E_T(d)`,
+//! - At `k_L = λ2 = 1` (the defaults), `E2` plus the `G` part of `E1` is `k_b E_T(d)`,
 //!   `E_T(d) = ‖L d‖²_W + 2 ‖∇d‖²_G`: paper eq. (12) as an energy (its
 //!   gradient is `2 W (L² − 2GL) d`, eq. (24)'s operator), measured in the
 //!   frames `R_i`. `E2` is also the paper's detail term (eq. (16)) with
@@ -43,10 +43,10 @@
 //!
 //! Expanded, `E = Yᵀ Q Y − 2 Yᵀ g(R, P) + const` with the constant
 //! symmetric positive semi-definite
-//! `Q = K_c + Lbar diag(λ2 k_b [i ∈ F̃] / A_i) Lbar − k_a Lbar`
+//! `Q = K_c + Lbar diag(k_L λ2 k_b [i ∈ F̃] / A_i) Lbar − k_a Lbar`
 //! (`K_c` the graph Laplacian of the kept spokes; `Σ_t a_t ‖F_t‖² =
 //! −Yᵀ Lbar Y`, the Dirichlet energy) and
-//! `g_v = −Σ_j c_vj ([v ∈ F̃] R_v + [j ∈ F̃] R_j) e_vj + λ2 k_b (Lbar t)_v
+//! `g_v = −Σ_j c_vj ([v ∈ F̃] R_v + [j ∈ F̃] R_j) e_vj + k_L λ2 k_b (Lbar t)_v
 //!        + k_a Σ_{t ∋ v} a_t (P_t B_tᵀ)ᵀ∂F_t/∂y_v`, `t_i = [i ∈ F̃] R_i δ_i`.
 //! Global step (hard constraints): `Q_UU Δ_U = (g − Q Y)_U`. Local step:
 //! `R_i = argmax tr(R_iᵀ M_i)`, `M_i = Σ_j c_ij (y_j − y_i) e_ijᵀ + b_i (LY)_i δ_iᵀ`,
@@ -90,12 +90,12 @@ pub struct ElasticOps {
     c: Vec<Real>,
     /// `e_ij = x_j − x_i`.
     e: Vec<Point>,
-    /// `b_i = λ2 k_b A_i`.
+    /// `b_i = k_L λ2 k_b A_i`.
     b: Vec<Real>,
     /// `k_i = Σ_j c_ij |e_ij|² + b_i |δ_i|²`: the rest part of vertex
     /// `i`'s energy terms.
     k_rest: Vec<Real>,
-    /// `λ2 k_b`.
+    /// `k_L λ2 k_b`.
     kbl: Real,
     /// `Q` with every row kept (the rows a constraint set drops are
     /// subtracted from it, see `system`).
@@ -130,7 +130,7 @@ impl ElasticOps {
             Energy::ThinPlate => 0.0,
             _ => kb,
         };
-        let kbl = params.lambda2 * kb;
+        let kbl = params.lambda2 * params.laplacian * kb;
         let g: Vec<Real> = (0..n)
             .map(|i| {
                 if topo.is_boundary(i) {

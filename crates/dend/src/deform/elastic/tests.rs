@@ -44,14 +44,23 @@ fn dropping_rows_equals_assembling_the_kept_ones() {
 /// projections: checked against central differences of the energy
 /// `local_step` computes without fitting, on a wavy grid with random
 /// rotations, projections and pose, for a constrained set that drops
-/// rows. Pins down every sign and factor of `Q` and `g`.
+/// rows. Pins down every sign and factor of `Q` and `g`, with the
+/// default weights and with a Laplacian share `k_L` and `λ2` away from 1.
 #[test]
 fn the_residual_is_minus_half_the_energy_gradient() {
+    residual_is_minus_half_the_gradient(Params::default());
+    residual_is_minus_half_the_gradient(Params {
+        laplacian: 0.37,
+        lambda2: 1.3,
+        ..Params::default()
+    });
+}
+
+fn residual_is_minus_half_the_gradient(params: Params) {
     let mesh = grid(7);
     let rest = Rest::new(mesh.clone()).unwrap();
     let ops = rest.operators();
     let n = mesh.num_vertices();
-    let params = Params::default();
     let el = ElasticOps::new(&mesh, ops, &params);
     let constrained: Vec<u32> = (0..7).chain(42..49).collect();
     let set = el.system(ops, &constrained);
@@ -99,4 +108,44 @@ fn the_residual_is_minus_half_the_energy_gradient() {
         worst < 1e-5 * scale.max(1.0),
         "gradient mismatch {worst} (scale {scale})"
     );
+}
+
+/// `k_L` and `λ2` enter the energy only as their product: halving one and
+/// doubling the other gives the same `Q`; and a negative or NaN `k_L` is
+/// refused.
+#[test]
+fn the_laplacian_share_and_lambda2_enter_as_a_product() {
+    let mesh = grid(6);
+    let rest = Rest::new(mesh.clone()).unwrap();
+    let ops = rest.operators();
+    let q = |laplacian: Real, lambda2: Real| {
+        let p = Params {
+            laplacian,
+            lambda2,
+            ..Params::default()
+        };
+        p.validate().unwrap();
+        ElasticOps::new(&mesh, ops, &p).q_all
+    };
+    let (a, b, c) = (q(0.5, 2.0), q(1.0, 1.0), q(0.5, 1.0));
+    let n = mesh.num_vertices();
+    let diff = |x: &CsMat<Real>, y: &CsMat<Real>| {
+        let mut worst: Real = 0.0;
+        for i in 0..n {
+            for j in 0..n {
+                let (u, v) = (x.get(i, j).copied(), y.get(i, j).copied());
+                worst = worst.max((u.unwrap_or(0.0) - v.unwrap_or(0.0)).abs());
+            }
+        }
+        worst
+    };
+    assert!(diff(&a, &b) < 1e-12, "{}", diff(&a, &b));
+    assert!(diff(&b, &c) > 1e-3, "k_L changed nothing");
+    for bad in [-0.1, Real::NAN] {
+        let p = Params {
+            laplacian: bad,
+            ..Params::default()
+        };
+        assert!(p.validate().is_err(), "k_L = {bad} accepted");
+    }
 }

@@ -348,7 +348,10 @@ impl Deformer {
             Correction::Kept(e_new, run) => {
                 let gain = e - e_new;
                 e = e_new;
-                self.elastic.anderson.reset();
+                // the Anderson history is kept: its pairs are secants of the
+                // same fixed-point map, and restarting it after a correction
+                // cost iterations (camel limb 45 against 40, dino limb 26
+                // against 22, armadillo limb 19 against 17)
                 (gain, run)
             }
             Correction::Dropped(run) => (0.0, run),
