@@ -6,12 +6,12 @@
 //! Cholesky, one DEND iteration (STEP 2 + local rotations + 3-RHS solve +
 //! the safeguard's objective evaluation), and convergence of the standard
 //! edit (lowest 10 % in z fixed, highest 10 % moved and rotated; see
-//! `support::standard_edit`). Factor nonzeros and bytes per vertex are
+//! `dend_testkit::standard_edit`). Factor nonzeros and bytes per vertex are
 //! printed on stderr (criterion measures time only).
 //!
 //! Environment:
 //! - `DEND_MESHES`: the shared meshes folder (default `../shared/meshes`);
-//!   absent meshes are skipped.
+//!   absent meshes are skipped (`dend_testkit::shared_mesh`).
 //! - `DEND_BENCH_LARGE=1`: also the ~540k-vertex subdivided igea and
 //!   convergence on meshes above 60k vertices (slow: minutes).
 //! - `DEND_BENCH_ONLY=name1,name2`: only these meshes.
@@ -24,8 +24,6 @@ use dend::deform::{Constraints, Deformer, Factor, Params, Rest};
 use dend::mesh::Mesh;
 use dend::operators::Operators;
 
-mod support;
-
 fn meshes() -> Vec<(String, Mesh)> {
     let large = std::env::var_os("DEND_BENCH_LARGE").is_some();
     let only: Option<Vec<String>> = std::env::var("DEND_BENCH_ONLY")
@@ -36,7 +34,7 @@ fn meshes() -> Vec<(String, Mesh)> {
     for n in [2_000, 8_000, 32_000] {
         let name = format!("tube_{}k", n / 1000);
         if wanted(&name) {
-            out.push((name, support::tube_of_size(n)));
+            out.push((name, dend_testkit::tube_of_size(n)));
         }
     }
     for file in [
@@ -47,14 +45,14 @@ fn meshes() -> Vec<(String, Mesh)> {
     ] {
         let name = file.rsplit_once('.').map_or(file, |(s, _)| s).to_owned();
         if wanted(&name) {
-            if let Some(m) = support::shared(file) {
+            if let Some(m) = dend_testkit::shared_mesh(file) {
                 out.push((name, m));
             }
         }
     }
     if large && wanted("igea_sub_537k") {
-        if let Some(m) = support::shared("igea_134k.ply") {
-            out.push(("igea_sub_537k".into(), support::subdivide(&m)));
+        if let Some(m) = dend_testkit::shared_mesh("igea_134k.ply") {
+            out.push(("igea_sub_537k".into(), dend_testkit::subdivide(&m)));
         }
     }
     out
@@ -77,7 +75,7 @@ fn bench(c: &mut Criterion) {
     let params = Params::default();
     for (name, mesh) in meshes() {
         let n = mesh.num_vertices();
-        let constraints = support::standard_edit(&mesh);
+        let constraints = dend_testkit::standard_edit(&mesh);
         let rest = Arc::new(Rest::new(mesh.clone()).expect("rest"));
         let factor = Factor::build(&rest, &params, &constraints).expect("factor");
         eprintln!(

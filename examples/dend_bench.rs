@@ -40,9 +40,6 @@ use dend::deform::{
 };
 use dend::mesh::{Mesh, Point};
 
-#[path = "../benches/support/mod.rs"]
-mod support;
-
 fn main() {
     if let Err(e) = run() {
         eprintln!("error: {e}");
@@ -73,9 +70,9 @@ fn median(mut v: Vec<f64>) -> f64 {
 fn load(spec: &str) -> Result<Mesh, String> {
     if let Some(n) = spec.strip_prefix("tube:") {
         let n: usize = n.parse().map_err(|_| format!("bad tube size {n:?}"))?;
-        return Ok(support::tube_of_size(n));
+        return Ok(dend_testkit::tube_of_size(n));
     }
-    support::read_mesh(std::path::Path::new(spec))
+    dend::mesh::io::read_path(std::path::Path::new(spec)).map_err(|e| e.to_string())
 }
 
 fn ms(d: std::time::Duration) -> f64 {
@@ -87,17 +84,18 @@ fn run() -> Result<(), String> {
     let spec = args.first().ok_or("usage: dend_bench MESH [options]")?;
     let mut mesh = load(spec)?;
     for _ in 0..arg::<usize>(&args, "--subdivide").unwrap_or(0) {
-        mesh = support::subdivide(&mesh);
+        mesh = dend_testkit::subdivide(&mesh);
     }
     let iters: usize = arg(&args, "--iters").unwrap_or(30);
     let with_cg = args.iter().any(|a| a == "--cg");
     let rebuilds: usize = arg(&args, "--rebuilds").unwrap_or(0);
     let constraints = match arg::<String>(&args, "--sets") {
         Some(path) => read_sets(&mesh, &path)?,
-        None => support::standard_edit(&mesh),
+        None => dend_testkit::standard_edit(&mesh),
     };
     if let Some(path) = arg::<String>(&args, "--write-mesh") {
-        write_off(&mesh, &path)?;
+        dend::mesh::io::write_path(std::path::Path::new(&path), &mesh)
+            .map_err(|e| e.to_string())?;
     }
     if let Some(path) = arg::<String>(&args, "--write-sets") {
         write_sets(&constraints, &path)?;
@@ -360,16 +358,4 @@ fn read_sets(mesh: &Mesh, path: &str) -> Result<Constraints, String> {
     }
     c.handles[0].base = targets;
     Ok(c)
-}
-
-fn write_off(mesh: &Mesh, path: &str) -> Result<(), String> {
-    use std::fmt::Write;
-    let mut s = format!("OFF\n{} {} 0\n", mesh.num_vertices(), mesh.num_triangles());
-    for p in mesh.positions() {
-        let _ = writeln!(s, "{} {} {}", p[0], p[1], p[2]);
-    }
-    for t in mesh.triangles() {
-        let _ = writeln!(s, "3 {} {} {}", t[0], t[1], t[2]);
-    }
-    std::fs::write(path, s).map_err(|e| format!("{path}: {e}"))
 }

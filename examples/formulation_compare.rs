@@ -22,9 +22,6 @@ use dend::mesh::io::{self, survey};
 use dend::mesh::{Mesh, Point};
 use nalgebra::{UnitQuaternion, Vector3};
 
-#[path = "../benches/support/mod.rs"]
-mod support;
-
 struct Run {
     pose: Vec<Point>,
     rep: StepReport,
@@ -64,7 +61,7 @@ fn free_span(mesh: &Mesh, c: &Constraints) -> (f64, f64) {
 }
 
 fn survey_bar() -> Option<(Mesh, Constraints)> {
-    let dir = support::meshes_dir();
+    let dir = dend_testkit::shared_meshes()?;
     let mesh = io::read_path(&dir.join("survey_bar.off")).ok()?;
     let sel = survey::read_sel(&dir.join("survey_bar.sel")).ok()?;
     let def = survey::read_def(&dir.join("survey_bar.def")).ok()?;
@@ -81,13 +78,6 @@ fn line(label: &str, figure: String, r: &Run) -> String {
         "| {label} | {figure} | {} | {} / {} | {:.2} | {} |",
         r.rep.iterations, r.rep.converged, r.rep.diverged, r.ms_per_it, r.factor_nnz
     )
-}
-
-fn max_dist(a: &[Point], b: &[Point]) -> f64 {
-    a.iter()
-        .zip(b)
-        .map(|(p, q)| (0..3).map(|k| (p[k] - q[k]).powi(2)).sum::<f64>().sqrt())
-        .fold(0.0, f64::max)
 }
 
 fn main() {
@@ -228,7 +218,7 @@ fn main() {
                 ..Params::default()
             };
             let r = run(&bar, params, &c);
-            let err = max_dist(&r.pose, &want) / bar.diagonal();
+            let err = dend_testkit::max_dist(&r.pose, &want) / bar.diagonal();
             println!("| {label} | {f:?} | {err:.2e} | {} |", r.rep.iterations);
         }
     }

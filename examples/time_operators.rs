@@ -2,9 +2,6 @@
 //! paths): `cargo run --release --example time_operators [LEVEL] [MESH.off…]`.
 //! Level 8 has 655 362 vertices.
 
-#[path = "../tests/common/mod.rs"]
-mod common;
-
 use std::time::Instant;
 
 use dend::operators::Operators;
@@ -25,7 +22,7 @@ fn main() {
     let mut args = std::env::args().skip(1);
     let level: u32 = args.next().map_or(8, |a| a.parse().expect("level"));
     let t = Instant::now();
-    let m = common::icosphere(level, 1.0);
+    let m = dend_testkit::icosphere(level, 1.0);
     println!(
         "icosphere({level}) built (incl. Mesh::new) in {:.3} s",
         t.elapsed().as_secs_f64()
@@ -33,7 +30,7 @@ fn main() {
     time(&format!("icosphere({level})"), &m);
     for p in args {
         let t = Instant::now();
-        let m = common::read_mesh(std::path::Path::new(&p));
+        let m = dend_testkit::read_mesh(std::path::Path::new(&p));
         println!("{p} read in {:.3} s", t.elapsed().as_secs_f64());
         time(&p, &m);
     }

@@ -1,11 +1,9 @@
 //! `dend curvature`: the CSV equals the library values in mesh units.
 
-mod common;
-
 use std::process::Command;
 
-use common::*;
 use dend::operators::Operators;
+use dend_testkit::*;
 
 fn dend() -> Command {
     Command::new(env!("CARGO_BIN_EXE_dend"))
@@ -17,7 +15,7 @@ fn curvature_csv_matches_library_on_a_sphere() {
     let m = icosphere(3, r);
     let dir = tempfile::tempdir().unwrap();
     let (inp, out) = (dir.path().join("s.off"), dir.path().join("c.csv"));
-    write_off(&m, &inp);
+    write_mesh(&m, &inp);
     let st = dend()
         .arg("curvature")
         .arg(&inp)

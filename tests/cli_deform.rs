@@ -1,8 +1,6 @@
 //! `dend deform` end to end: the README's commands, the survey format, and
 //! errors with exit code 2.
 
-mod support;
-
 use std::path::Path;
 use std::process::Command;
 
@@ -48,13 +46,13 @@ fn readme_bar_twist_meets_the_handle_targets_and_keeps_the_section() {
     for (v, p) in c.handles[0].target_positions() {
         let got = pose.positions()[v as usize];
         assert!(
-            support::max_dist(&[got], &[p]) < 1e-5,
+            dend_testkit::max_dist(&[got], &[p]) < 1e-5,
             "handle vertex {v}: {got:?} vs {p:?}"
         );
     }
     for &v in &c.fixed {
         assert!(
-            support::max_dist(
+            dend_testkit::max_dist(
                 &[pose.positions()[v as usize]],
                 &[rest.positions()[v as usize]]
             ) < 1e-6
@@ -67,7 +65,7 @@ fn readme_bar_twist_meets_the_handle_targets_and_keeps_the_section() {
 
 #[test]
 fn survey_files_are_read_directly() {
-    let Some(meshes) = support::shared_meshes() else {
+    let Some(meshes) = dend_testkit::shared_meshes() else {
         return;
     };
     let dir = tempfile::tempdir().unwrap();
@@ -94,12 +92,13 @@ fn survey_files_are_read_directly() {
     for v in sel.indices(io::survey::VertexStatus::Handle) {
         let want = def.apply(rest.positions()[v as usize]);
         assert!(
-            support::max_dist(&[pose.positions()[v as usize]], &[want]) < 1e-3 * rest.diagonal()
+            dend_testkit::max_dist(&[pose.positions()[v as usize]], &[want])
+                < 1e-3 * rest.diagonal()
         );
     }
     for v in sel.indices(io::survey::VertexStatus::Fixed) {
         assert!(
-            support::max_dist(
+            dend_testkit::max_dist(
                 &[pose.positions()[v as usize]],
                 &[rest.positions()[v as usize]]
             ) < 1e-9 * rest.diagonal()
@@ -214,7 +213,7 @@ fn formulation_flag_selects_the_square_system_and_rejects_unknown_names() {
     assert!(o.status.success(), "{stderr}");
     let rest = io::read_path(&bar).unwrap();
     let pose = io::read_path(&out).unwrap();
-    assert!(support::max_dist(pose.positions(), rest.positions()) > 0.1);
+    assert!(dend_testkit::max_dist(pose.positions(), rest.positions()) > 0.1);
     let o = run("cubic");
     let stderr = String::from_utf8_lossy(&o.stderr);
     assert_eq!(o.status.code(), Some(2), "{stderr}");

@@ -3,8 +3,6 @@
 //! validator; `gen`, `info`, `curvature` read and write glTF; malformed glTF
 //! exits with 2.
 
-mod support;
-
 use std::path::Path;
 use std::process::Command;
 
@@ -52,11 +50,11 @@ fn deform_glb_keeps_vertex_count_uvs_and_skin_and_validates() {
         assert_eq!(a.triangles(), rest.triangles());
         assert_eq!(a.summary(), rest.summary(), "attributes, skin, materials");
         assert!(
-            support::max_dist(a.positions(), rest.positions()) > 0.3,
+            dend_testkit::max_dist(a.positions(), rest.positions()) > 0.3,
             "posed"
         );
         if let Some(r) =
-            support::gltf_validator::validate(&got, out.file_name().unwrap().to_str().unwrap())
+            dend_testkit::gltf_validator::validate(&got, out.file_name().unwrap().to_str().unwrap())
         {
             assert_eq!((r.errors, r.warnings), (0, 0), "{}", r.messages);
         }
@@ -109,7 +107,7 @@ fn the_generated_assets_and_gen_outputs_pass_the_validator() {
         .collect();
     files.push(("bent.glb".into(), a.export(&pose, Format::Glb).unwrap()));
     for (name, bytes) in files {
-        match support::gltf_validator::validate(&bytes, &name) {
+        match dend_testkit::gltf_validator::validate(&bytes, &name) {
             Some(r) => assert_eq!((r.errors, r.warnings), (0, 0), "{name}: {}", r.messages),
             None => return,
         }

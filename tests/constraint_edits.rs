@@ -2,13 +2,11 @@
 //! pose (`ConstraintsSpec::resolve_at`) keeps the pose, where the same set
 //! resolved at rest snaps the constrained vertices back.
 
-mod support;
-
 use std::sync::Arc;
 
 use dend::deform::{ConstraintsSpec, Deformer, Factor, Params, Rest};
 use dend::mesh::Point;
-use support::{handle, max_dist, tube, tube_spec};
+use dend_testkit::{handle, max_dist, square_tube, tube_spec};
 
 fn json(j: serde_json::Value) -> ConstraintsSpec {
     serde_json::from_value(j).unwrap()
@@ -16,7 +14,7 @@ fn json(j: serde_json::Value) -> ConstraintsSpec {
 
 #[test]
 fn pinning_more_after_posing_keeps_the_pose() {
-    let mesh = tube(1.0, 6.0, 4, 25);
+    let mesh = square_tube(1.0, 6.0, 4, 25);
     let rest = Arc::new(Rest::new(mesh.clone()).unwrap());
     let params = Params::default();
     // pose: the top pulled sideways

@@ -3,39 +3,16 @@
 //! checked by an independent validator (Python's `jsonschema`, from the
 //! test venv).
 
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::process::Command;
 
 use dend::deform::ConstraintsSpec;
 
-fn python() -> Option<PathBuf> {
-    let p = std::env::var("DEND_PYTHON")
-        .map(PathBuf::from)
-        .unwrap_or_else(|_| Path::new(env!("CARGO_MANIFEST_DIR")).join(".venv/bin/python"));
-    let ok = Command::new(&p)
-        .args(["-c", "import jsonschema"])
-        .status()
-        .map(|s| s.success())
-        .unwrap_or(false);
-    if ok {
-        Some(p)
-    } else if std::env::var("CI").is_ok() {
-        panic!(
-            "python with jsonschema not found at {} (run scripts/setup-test-env.sh)",
-            p.display()
-        );
-    } else {
-        eprintln!(
-            "skipping: python with jsonschema not found at {}",
-            p.display()
-        );
-        None
-    }
-}
-
 #[test]
 fn schema_and_serde_agree_on_examples_and_invalid_documents() {
-    let Some(py) = python() else { return };
+    let Some(py) = dend_testkit::python_with(&["jsonschema"]) else {
+        return;
+    };
     let root = Path::new(env!("CARGO_MANIFEST_DIR"));
     let mut docs: Vec<(String, String)> = std::fs::read_dir(root.join("examples"))
         .unwrap()

@@ -13,8 +13,6 @@
 //! checks the sessions come back `ready` with that `ack_seq` and a finite,
 //! non-rest pose.
 
-mod server_common;
-
 use std::io::{BufRead, BufReader};
 use std::process::{Child, Command, Stdio};
 use std::sync::Arc;
@@ -168,7 +166,7 @@ async fn drag_loop(
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn kill_9_loses_no_acknowledged_drag() -> Res<()> {
     let dir = tempfile::tempdir()?;
-    let (positions, triangles) = server_common::grid(N);
+    let (positions, triangles) = dend_testkit::server::grid(N);
     let mesh = Mesh::new(positions.clone(), triangles.clone())?;
     let spec_json = spec();
     let initial = serde_json::from_value::<ConstraintsSpec>(spec_json.clone())?

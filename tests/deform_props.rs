@@ -1,13 +1,11 @@
 //! Properties of the DEND solver (dend.md §7) on generated meshes.
 
-mod support;
-
 use std::sync::Arc;
 
 use dend::deform::*;
 
+use dend_testkit::*;
 use nalgebra::{UnitQuaternion, Vector3};
-use support::*;
 
 #[test]
 fn identity_edit_keeps_the_rest_pose_on_irregular_meshes() {
@@ -35,7 +33,7 @@ fn identity_edit_keeps_the_rest_pose_on_irregular_meshes() {
 
 #[test]
 fn translating_every_constraint_translates_the_mesh() {
-    let m = tube(1.0, 6.0, 5, 25);
+    let m = square_tube(1.0, 6.0, 5, 25);
     let t = [0.7, -1.3, 2.1];
     let mut spec = tube_spec(&m, handle(Some(t), None));
     // move the fixed set as a second handle with the same translation
@@ -96,7 +94,7 @@ fn translating_every_constraint_translates_the_mesh() {
 /// the middle; thin plate with the linear term collapses (paper Fig. 1c).
 #[test]
 fn twisted_tube_default_keeps_sections_paper_and_linear_fail() {
-    let m = tube(1.0, 6.0, 5, 25);
+    let m = square_tube(1.0, 6.0, 5, 25);
     let spec = tube_spec(
         &m,
         handle(
@@ -161,7 +159,7 @@ fn rotate_about(p: [f64; 3], q: &UnitQuaternion<f64>, c: [f64; 3], t: [f64; 3]) 
 /// (dend.md §7), and in the paper mode closer as λ2 grows.
 #[test]
 fn rigid_rotation_of_all_constraints() {
-    let m = tube(1.0, 4.0, 4, 17);
+    let m = square_tube(1.0, 4.0, 4, 17);
     let axis = [0.3, 1.0, 0.2];
     let deg = 40.0;
     let pivot = [0.0, 0.0, 2.0];
@@ -236,7 +234,7 @@ fn rigid_rotation_of_all_constraints() {
 
 #[test]
 fn scaling_mesh_and_targets_scales_the_result() {
-    let m = tube(1.0, 6.0, 4, 19);
+    let m = square_tube(1.0, 6.0, 4, 19);
     let spec = tube_spec(
         &m,
         handle(
@@ -288,7 +286,7 @@ fn scaling_mesh_and_targets_scales_the_result() {
 
 #[test]
 fn hard_constraints_are_met_exactly_and_soft_ones_approach_them() {
-    let m = tube(1.0, 5.0, 4, 16);
+    let m = square_tube(1.0, 5.0, 4, 16);
     let spec = tube_spec(
         &m,
         handle(
@@ -440,7 +438,7 @@ fn real_edit_converges_on_an_irregular_grid() {
 /// the best pose and the Anderson history carry over between the calls.
 #[test]
 fn chained_one_iteration_steps_equal_one_long_step() {
-    let m = tube(1.0, 6.0, 5, 25);
+    let m = square_tube(1.0, 6.0, 5, 25);
     let spec = tube_spec(
         &m,
         handle(

@@ -2,8 +2,6 @@
 //! fail, on generated meshes (irregular open patches with obtuse triangles,
 //! tubes, a limb-like shape), so they run on every clone.
 
-mod support;
-
 use std::sync::Arc;
 
 use dend::deform::{
@@ -11,9 +9,9 @@ use dend::deform::{
     VertexSet,
 };
 use dend::mesh::{Mesh, Point};
+use dend_testkit::{max_dist, random_delaunay_patch, square_tube, standard_edit, subdivide};
 use nalgebra::{UnitQuaternion, Vector3};
 use proptest::prelude::*;
-use support::{max_dist, random_delaunay_patch, tube};
 
 /// Fixed: the vertices with `x < x0`; handle: `x > x1`, moved by `t`
 /// rotated by `r` about its centroid.
@@ -180,39 +178,12 @@ fn scaling_the_input_scales_the_pose() {
     assert!(err < 1e-6 * big.diagonal(), "error {err:e}");
 }
 
-/// Midpoint 1-to-4 subdivision of `mesh` (the new vertices after the old).
-fn subdivide(mesh: &Mesh) -> Mesh {
-    let mut p = mesh.positions().to_vec();
-    let mut mid = std::collections::HashMap::new();
-    let mut midpoint = |a: u32, b: u32, p: &mut Vec<Point>| {
-        *mid.entry((a.min(b), a.max(b))).or_insert_with(|| {
-            let (x, y) = (p[a as usize], p[b as usize]);
-            p.push([
-                0.5 * (x[0] + y[0]),
-                0.5 * (x[1] + y[1]),
-                0.5 * (x[2] + y[2]),
-            ]);
-            (p.len() - 1) as u32
-        })
-    };
-    let mut t = Vec::new();
-    for &[a, b, c] in mesh.triangles() {
-        let (ab, bc, ca) = (
-            midpoint(a, b, &mut p),
-            midpoint(b, c, &mut p),
-            midpoint(c, a, &mut p),
-        );
-        t.extend([[a, ab, ca], [ab, b, bc], [ca, bc, c], [ab, bc, ca]]);
-    }
-    Mesh::new(p, t).unwrap()
-}
-
 /// A mesh and its midpoint subdivision, with the same constraint regions
 /// (boxes), give the same pose at the original vertices to 1 % of the
 /// diagonal: the weights do not depend on the resolution.
 #[test]
 fn subdivision_does_not_change_the_pose() {
-    let coarse = tube(1.0, 4.0, 5, 17);
+    let coarse = square_tube(1.0, 4.0, 5, 17);
     let fine = subdivide(&coarse);
     let r = UnitQuaternion::from_axis_angle(&Vector3::z_axis(), 60f64.to_radians());
     let pose = |m: &Mesh| {
@@ -447,11 +418,11 @@ fn a_twist_in_steps_keeps_its_direction() {
 /// ARAP run to convergence on the same sets (ARAP's figures measured by
 /// scripts/posing_suite.py: camel 0.00307 / 0.0937, dino 0.00281 / 0.0374).
 /// The least-squares default before this one stretched the camel's neck
-/// 42× (dend.md §9). Needs `../shared/meshes`: skipped without it, a
-/// failure under `CI=true`.
+/// 42× (dend.md §9). Needs `../shared/meshes`: skipped (and listed by
+/// `scripts/test.sh`) without it.
 #[test]
 fn characters_keep_their_proportions_under_the_standard_edit() {
-    let Some(dir) = support::shared_meshes() else {
+    let Some(dir) = dend_testkit::shared_meshes() else {
         return;
     };
     for (file, arap_mean, arap_max) in [
@@ -460,18 +431,7 @@ fn characters_keep_their_proportions_under_the_standard_edit() {
     ] {
         let mesh = dend::mesh::io::read_path(&dir.join(file)).unwrap();
         let pos = mesh.positions();
-        let mut order: Vec<u32> = (0..pos.len() as u32).collect();
-        order.sort_by(|&a, &b| pos[a as usize][2].total_cmp(&pos[b as usize][2]));
-        let k = pos.len() / 10;
-        let fixed = order[..k].to_vec();
-        let handle = order[pos.len() - k..].to_vec();
-        let mut c = Constraints::new(&mesh, fixed, vec![("h".into(), handle, None)]).unwrap();
-        let pivot = c.handles[0].rest_centroid;
-        c.handles[0].target = RigidTransform {
-            rotation: UnitQuaternion::from_axis_angle(&Vector3::y_axis(), 30f64.to_radians()),
-            translation: [0.15 * mesh.diagonal(), 0.0, 0.0],
-            pivot,
-        };
+        let c = standard_edit(&mesh);
         let rest = Arc::new(Rest::new(mesh.clone()).unwrap());
         let (obj, converged, pose) = objectives(&rest, Params::default(), &c, 200);
         assert!(converged, "{file}");

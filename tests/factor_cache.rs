@@ -2,18 +2,16 @@
 //! refactor, one build per constraint set, degenerate input gives finite
 //! poses or typed errors.
 
-mod support;
-
 use std::sync::Arc;
 
 use dend::deform::*;
 use dend::mesh::Mesh;
+use dend_testkit::*;
 use nalgebra::{UnitQuaternion, Vector3};
-use support::*;
 
 #[test]
 fn changing_only_targets_never_refactors() {
-    let m = tube(1.0, 5.0, 4, 16);
+    let m = square_tube(1.0, 5.0, 4, 16);
     let rest = Arc::new(Rest::new(m.clone()).unwrap());
     let cache = FactorCache::new(1 << 30);
     let spec = tube_spec(&m, handle(None, None));
@@ -44,7 +42,7 @@ fn changing_only_targets_never_refactors() {
 #[test]
 fn a_cache_builds_its_factors_with_its_options() {
     use dend::deform::{FactorPrecision, SolveOptions};
-    let m = tube(1.0, 5.0, 40, 40);
+    let m = square_tube(1.0, 5.0, 40, 40);
     let rest = Arc::new(Rest::new(m.clone()).unwrap());
     let c = tube_spec(&m, handle(None, None)).resolve(&m).unwrap();
     let params = ls();
@@ -72,7 +70,7 @@ fn a_cache_builds_its_factors_with_its_options() {
 /// concurrent requests wait for the first factorisation.
 #[test]
 fn concurrent_requests_for_one_set_build_one_factor() {
-    let m = tube(1.0, 5.0, 6, 30);
+    let m = square_tube(1.0, 5.0, 6, 30);
     let rest = Arc::new(Rest::new(m.clone()).unwrap());
     let cache = Arc::new(FactorCache::new(1 << 30));
     let c = tube_spec(&m, handle(None, None)).resolve(&m).unwrap();

@@ -25,8 +25,6 @@
 //! missing, a failure under `CI=true`.
 
 mod failover_support;
-mod server_common;
-mod support;
 
 use std::collections::HashMap;
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -34,11 +32,11 @@ use std::sync::Arc;
 use std::time::{Duration, Instant};
 
 use dend_client::{Client, ClientError, SessionClient};
+use dend_testkit::server::{grid, grid_constraints};
 use failover_support::client::{drive, dx, Cut, Shared, Tally};
 use failover_support::{http_status, prerequisites, Haproxy, Instance, Postgres};
 use parking_lot::Mutex;
 use serde_json::json;
-use server_common::{grid, grid_constraints};
 
 const N: usize = 8; // grid side: the handle is the top row
 const SESSIONS: usize = 6;
@@ -71,7 +69,7 @@ async fn sigkill_the_owner_and_restart_postgres_under_load() -> Result<(), Strin
                 std::env::var("CI").map_or(true, |v| v != "true"),
                 "{why}: CI installs them (.ci/run)"
             );
-            support::record_skip(&why);
+            dend_testkit::record_skip(&why);
             return Ok(());
         }
     };

@@ -4,8 +4,6 @@
 //! keep hard edges, node transforms are inverted on write; malformed files
 //! give typed errors.
 
-mod support;
-
 use std::collections::HashSet;
 
 use dend::deform::{Params, RotationSpec};
@@ -66,9 +64,9 @@ fn f32s(bytes: &[u8], n: usize) -> Vec<Vec<f32>> {
 }
 
 fn twist_spec(mesh: &dend::mesh::Mesh, degrees: f64) -> dend::deform::ConstraintsSpec {
-    support::tube_spec(
+    dend_testkit::tube_spec(
         mesh,
-        support::handle(
+        dend_testkit::handle(
             None,
             Some(RotationSpec::AxisAngle {
                 axis: [0.0, 0.0, 1.0],
@@ -110,7 +108,7 @@ fn the_sample_reads_as_one_closed_welded_surface_in_both_containers() {
 fn a_twisted_skinned_glb_keeps_layout_uvs_skin_and_hard_edges() {
     let input = tube(true, Container::Glb);
     let asset = Asset::read_bytes(&input, Format::Glb, Sidecars::Refuse).unwrap();
-    let (pose, rep) = support::solve(
+    let (pose, rep) = dend_testkit::solve(
         asset.mesh(),
         Params::default(),
         &twist_spec(asset.mesh(), 90.0),
@@ -163,7 +161,7 @@ fn a_twisted_skinned_glb_keeps_layout_uvs_skin_and_hard_edges() {
         assert_eq!(mx[k].as_f64().unwrap(), f64::from(hi));
     }
     // the twist moved the top: positions did change
-    assert!(support::max_dist(&pose, asset.mesh().positions()) > 0.3);
+    assert!(dend_testkit::max_dist(&pose, asset.mesh().positions()) > 0.3);
 
     let tube_n = f32s(&accessor_bytes(&d1, &b1, 1), 3);
     let cap_n = f32s(&accessor_bytes(&d1, &b1, 5), 3);
@@ -239,7 +237,7 @@ fn node_transforms_are_applied_on_read_and_inverted_on_write() {
     // local (0.5, 0, 0) → scale (1, 2, 0.5) → rotate x→y→z→x → + (1, 2, 3)
     let p0 = a.positions()[0];
     assert!(
-        support::max_dist(&[p0], &[[1.0, 2.5, 3.0]]) < 1e-6,
+        dend_testkit::max_dist(&[p0], &[[1.0, 2.5, 3.0]]) < 1e-6,
         "{p0:?}"
     );
     // a rigid quarter turn about world z, then a shift: positions and normals follow
@@ -249,7 +247,7 @@ fn node_transforms_are_applied_on_read_and_inverted_on_write() {
     let back = Asset::read_bytes(&out, Format::Glb, Sidecars::Refuse).unwrap();
     assert_eq!(back.positions().len(), a.positions().len());
     let want: Vec<Point> = a.positions().iter().map(|&p| rot(p)).collect();
-    assert!(support::max_dist(back.positions(), &want) < 1e-5);
+    assert!(dend_testkit::max_dist(back.positions(), &want) < 1e-5);
     let before = GltfAsset::parse(&input, Sidecars::Refuse).unwrap();
     let after = GltfAsset::parse(&out, Sidecars::Refuse).unwrap();
     for (n0, n1) in before.normals().iter().zip(after.normals()) {
@@ -257,7 +255,7 @@ fn node_transforms_are_applied_on_read_and_inverted_on_write() {
         // a rigid motion turns every normal by its rotation
         let turned = [-n0[1], n0[0], n0[2]];
         assert!(
-            support::max_dist(&[turned], &[n1]) < 1e-6,
+            dend_testkit::max_dist(&[turned], &[n1]) < 1e-6,
             "{n0:?} → {n1:?}"
         );
     }
@@ -454,7 +452,8 @@ fn an_obj_asset_keeps_its_lines_and_rewrites_v_and_vn() {
         a.export(a.mesh().positions(), Format::Obj).unwrap(),
         obj.as_bytes()
     );
-    let (pose, _) = support::solve(a.mesh(), Params::default(), &twist_spec(a.mesh(), 60.0), 20);
+    let (pose, _) =
+        dend_testkit::solve(a.mesh(), Params::default(), &twist_spec(a.mesh(), 60.0), 20);
     let out = String::from_utf8(a.export(&pose, Format::Obj).unwrap()).unwrap();
     let (before, after): (Vec<&str>, Vec<&str>) = (obj.lines().collect(), out.lines().collect());
     assert_eq!(before.len(), after.len());
@@ -508,7 +507,8 @@ fn a_ply_asset_keeps_its_extra_vertex_properties() {
     let a = Asset::read_bytes(&ply, Format::Ply, Sidecars::Refuse).unwrap();
     assert_eq!(a.info().attributes, vec!["red", "s", "t"]);
     assert_eq!(a.export(a.mesh().positions(), Format::Ply).unwrap(), ply);
-    let (pose, _) = support::solve(a.mesh(), Params::default(), &twist_spec(a.mesh(), 60.0), 20);
+    let (pose, _) =
+        dend_testkit::solve(a.mesh(), Params::default(), &twist_spec(a.mesh(), 60.0), 20);
     let out = a.export(&pose, Format::Ply).unwrap();
     assert_eq!(out.len(), ply.len());
     // only x y z bytes changed: the 9 bytes of red, s, t after each vertex's 12

@@ -15,15 +15,13 @@
 //! values once scaled back: `Lbar` invariant, areas `· s²`, `K A` invariant,
 //! `H / s`.
 
-mod common;
-
 use std::collections::HashMap;
 use std::path::Path;
 use std::process::Command;
 
-use common::*;
 use dend::mesh::Mesh;
 use dend::operators::{angle_defect, cotmatrix, voronoi_areas, Operators};
+use dend_testkit::*;
 
 const TOL: f64 = 1e-9;
 
@@ -37,7 +35,7 @@ struct Oracle {
 fn run_oracle(py: &Path, m: &Mesh) -> Oracle {
     let dir = tempfile::tempdir().unwrap();
     let off = dir.path().join("mesh.off");
-    write_off(m, &off);
+    write_mesh(m, &off);
     let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("scripts/oracle/operators.py");
     let out = Command::new(py).arg(&script).arg(&off).output().unwrap();
     assert!(
@@ -156,7 +154,7 @@ fn operators_match_libigl_on_generated_meshes() {
         .map(|q| [q[0] + 3.0, q[1] - 1.0, q[2] + 0.5])
         .collect();
     compare("icosphere(2)", &py, &ico.with_positions(moved).unwrap());
-    let g = grid(9, 0.25);
+    let g = jittered_grid(9, 0.25);
     let lifted: Vec<_> = g
         .positions()
         .iter()
@@ -175,7 +173,7 @@ fn operators_match_libigl_on_generated_meshes() {
 
 #[test]
 fn operators_match_libigl_on_shared_meshes() {
-    let Some(dir) = meshes_dir() else { return };
+    let Some(dir) = shared_meshes() else { return };
     let Some(py) = oracle_python() else { return };
     for f in [
         "torus_288.off",

@@ -2,13 +2,11 @@
 //! exact values on regular solids, Gauss–Bonnet on every mesh, flat grids,
 //! spheres (with measured convergence orders) and cylinders.
 
-mod common;
-
 use std::f64::consts::PI;
 
-use common::*;
 use dend::mesh::Mesh;
 use dend::operators::{angle_defect, cotmatrix, voronoi_areas, Operators};
+use dend_testkit::*;
 
 /// `Σ_i K_i A_i = 2π χ` to 1e-9, both from the free `angle_defect` and from
 /// `Operators` (where `K_i A_i` is scale-free). On open meshes this holds
@@ -128,9 +126,9 @@ fn gauss_bonnet_on_closed_and_open_meshes() {
     assert_gauss_bonnet(&icosphere(3, 0.7)); // χ = 2
     assert_gauss_bonnet(&uv_sphere(9, 20, 3.0)); // χ = 2
     assert_gauss_bonnet(&torus(24, 12, 2.0, 0.6)); // χ = 0
-    assert_gauss_bonnet(&grid(9, 0.25)); // open disc, χ = 1
+    assert_gauss_bonnet(&jittered_grid(9, 0.25)); // open disc, χ = 1
     assert_gauss_bonnet(&cylinder(16, 7, 1.0, 0.4)); // open annulus, χ = 0
-    if let Some(dir) = meshes_dir() {
+    if let Some(dir) = shared_meshes() {
         for f in [
             "torus_288.off",
             "hand_1502.obj",
@@ -146,7 +144,7 @@ fn gauss_bonnet_on_closed_and_open_meshes() {
 fn flat_grid_has_zero_curvature_inside() {
     // planar triangulations (regular or jittered): the cotangent Laplacian
     // reproduces linear functions, so L X = 0 and the angle sum is 2π inside
-    for m in [grid(7, 0.0), grid(11, 0.28)] {
+    for m in [jittered_grid(7, 0.0), jittered_grid(11, 0.28)] {
         let op = Operators::new(&m);
         let mut interior = 0;
         for i in 0..m.num_vertices() {

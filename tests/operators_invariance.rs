@@ -7,11 +7,9 @@
 //! Translations are drawn proportional to `s` (up to 100 mesh sizes): a
 //! fixed offset of 10³ on a mesh of size 10⁻⁸ leaves no significant digits.
 
-mod common;
-
-use common::*;
 use dend::mesh::{Mesh, Point};
 use dend::operators::{angle_defect, cotmatrix, voronoi_areas, Operators};
+use dend_testkit::*;
 use proptest::prelude::*;
 
 const TOL: f64 = 1e-9;
@@ -146,9 +144,9 @@ fn assert_lbar_properties(m: &Mesh) {
 fn lbar_annihilates_constants_and_is_symmetric() {
     assert_lbar_properties(&icosphere(3, 2.0));
     assert_lbar_properties(&torus(20, 9, 3.0, 1.0));
-    assert_lbar_properties(&grid(10, 0.28));
+    assert_lbar_properties(&jittered_grid(10, 0.28));
     assert_lbar_properties(&cylinder(12, 5, 0.5, 0.3));
-    if let Some(dir) = meshes_dir() {
+    if let Some(dir) = shared_meshes() {
         for f in ["hand_1502.obj", "bumpy_plane_441.off", "bar_722.off"] {
             assert_lbar_properties(&read_mesh(&dir.join(f)));
         }
@@ -157,7 +155,11 @@ fn lbar_annihilates_constants_and_is_symmetric() {
 
 #[test]
 fn extreme_scales_are_exact_enough() {
-    for m in [icosphere(2, 1.0), grid(8, 0.2), torus(16, 8, 2.0, 0.5)] {
+    for m in [
+        icosphere(2, 1.0),
+        jittered_grid(8, 0.2),
+        torus(16, 8, 2.0, 0.5),
+    ] {
         for s in [1e8, 1e-8] {
             let r = rotation([0.3, -0.5, 0.2, 0.7]);
             let e = discrepancy(&m, &transform(&m, r, [2.0 * s, -s, 0.5 * s], s), s);
@@ -179,7 +181,7 @@ proptest! {
     ) {
         let m = match which {
             0 => bumpy_sphere(&bumps),
-            1 => grid(7, 0.25),
+            1 => jittered_grid(7, 0.25),
             _ => torus(12, 7, 2.0, 0.7),
         };
         let s = 10f64.powf(log_s);

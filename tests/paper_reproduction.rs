@@ -15,8 +15,6 @@
 //! `--nocapture`); docs/paper-reproduction.md tabulates them beside libigl's
 //! ARAP (`scripts/arap_reference.py`).
 
-mod support;
-
 use std::path::PathBuf;
 use std::sync::Arc;
 use std::time::Instant;
@@ -140,7 +138,7 @@ fn generated(shape: Shape) -> Mesh {
 }
 
 fn meshes_dir() -> Option<PathBuf> {
-    support::shared_meshes()
+    dend_testkit::shared_meshes()
 }
 
 /// A survey set-up: mesh, status 0 fixed, status 2 the handle, the `.def`

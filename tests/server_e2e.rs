@@ -2,8 +2,6 @@
 //! reqwest for HTTP and tokio-tungstenite (through `dend::client`) for
 //! WebSocket.
 
-mod server_common;
-
 use std::sync::Arc;
 use std::time::Duration;
 
@@ -11,9 +9,9 @@ use dend::deform::{ConstraintsSpec, Deformer, Factor, Params, Rest};
 use dend::mesh::Mesh;
 use dend_client::{Client, ClientError, WsEvent};
 use dend_server::Config;
+use dend_testkit::server::{grid, grid_constraints, start};
 use nalgebra::{Unit, UnitQuaternion, Vector3};
 use serde_json::json;
-use server_common::{grid, grid_constraints, start};
 
 const N: usize = 8;
 

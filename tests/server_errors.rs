@@ -1,14 +1,12 @@
 //! Each bad input gets its specific error code, over real sockets; oversize
 //! uploads are refused from `Content-Length` or while streaming.
 
-mod server_common;
-
 use std::time::Duration;
 
 use dend_client::{Client, ClientError};
 use dend_server::Config;
+use dend_testkit::server::{grid, grid_constraints, start};
 use serde_json::{json, Value};
-use server_common::{grid, grid_constraints, start};
 
 async fn expect(r: reqwest::Response, status: u16, code: &str) {
     assert_eq!(r.status().as_u16(), status, "status for {code}");
@@ -227,7 +225,9 @@ async fn start_on_store(dir: &std::path::Path) -> String {
         ..Config::default()
     };
     let store = dend_server::recover::open_store(&config).expect("store");
-    server_common::start_with_store(config, store).await.0
+    dend_testkit::server::start_with_store(config, store)
+        .await
+        .0
 }
 
 /// A wrong or missing token on a stored session that is not live is

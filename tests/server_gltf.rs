@@ -2,9 +2,6 @@
 //! asset kept by the store (memory and SQLite, across a restart), exports
 //! in the asset's layout that pass the Khronos validator, typed 4xx errors.
 
-mod server_common;
-mod support;
-
 use std::sync::Arc;
 use std::time::Duration;
 
@@ -13,8 +10,8 @@ use dend::mesh::io::gltf::{Container, GltfAsset, Sidecars};
 use dend_client::{Client, ClientError};
 use dend_server::store::SqliteStore;
 use dend_server::Config;
+use dend_testkit::server::{start, start_with_store};
 use serde_json::json;
-use server_common::{start, start_with_store};
 
 fn twist() -> serde_json::Value {
     json!({
@@ -74,8 +71,8 @@ async fn a_glb_upload_exports_posed_in_its_own_layout() -> Result<(), ClientErro
         assert_eq!(a.positions().len(), rest.positions().len(), "{format}");
         assert_eq!(a.triangles(), rest.triangles());
         assert_eq!(a.summary(), rest.summary());
-        assert!(support::max_dist(a.positions(), rest.positions()) > 0.2);
-        if let Some(r) = support::gltf_validator::validate(&out, &format!("posed.{format}")) {
+        assert!(dend_testkit::max_dist(a.positions(), rest.positions()) > 0.2);
+        if let Some(r) = dend_testkit::gltf_validator::validate(&out, &format!("posed.{format}")) {
             assert_eq!((r.errors, r.warnings), (0, 0), "{format}: {}", r.messages);
         }
     }

@@ -4,16 +4,14 @@
 //! every numeric field, message floods, clients that never read and many
 //! connections each get a bounded, typed answer.
 
-mod server_common;
-
 use std::collections::HashSet;
 use std::time::Duration;
 
 use dend_client::{Client, ClientError, WsEvent};
 use dend_server::Config;
+use dend_testkit::server::{grid, grid_constraints, start};
 use futures_util::{SinkExt, StreamExt};
 use serde_json::{json, Value};
-use server_common::{grid, grid_constraints, start};
 use tokio_tungstenite::tungstenite::Message;
 
 type Res = Result<(), ClientError>;

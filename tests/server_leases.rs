@@ -11,8 +11,6 @@
 //!   event and not applied, and after the store is back no acknowledged
 //!   drag is missing and no refused one present.
 
-mod server_common;
-
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
 use std::time::Duration;
@@ -25,8 +23,8 @@ use dend_server::store::{
     StoredAsset,
 };
 use dend_server::{app, AppState, Config};
+use dend_testkit::server::{grid, grid_constraints};
 use serde_json::json;
-use server_common::{grid, grid_constraints};
 
 const N: usize = 5;
 

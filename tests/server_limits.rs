@@ -2,12 +2,10 @@
 //! while streaming, without the server's memory growing (this test is alone
 //! in its process so the RSS check sees only it).
 
-mod server_common;
-
 use std::time::Duration;
 
 use dend_server::Config;
-use server_common::start;
+use dend_testkit::server::start;
 use tokio::io::{AsyncReadExt, AsyncWriteExt};
 
 /// Resident set size of this process in bytes (Linux), if known.

@@ -3,17 +3,14 @@
 //! redo span constraint edits, and a revived session gets the anchored set
 //! back from the store.
 
-mod common;
-mod server_common;
-
 use std::sync::Arc;
 use std::time::Duration;
 
 use dend_client::{Client, ClientError, SessionClient};
 use dend_server::store::MemoryStore;
 use dend_server::Config;
+use dend_testkit::server::{grid, grid_constraints, start_with_store};
 use serde_json::json;
-use server_common::{grid, grid_constraints, start_with_store};
 
 const N: usize = 8;
 
@@ -256,7 +253,7 @@ fn median(mut v: Vec<f64>) -> f64 {
 async fn curvature_of_the_pose_matches_a_sphere() -> Result<(), ClientError> {
     let (base, _state) = start_with_store(Config::default(), Arc::new(MemoryStore::new())).await;
     let c = Client::new(&base);
-    let sphere = common::uv_sphere(23, 48, 2.0);
+    let sphere = dend_testkit::uv_sphere(23, 48, 2.0);
     let (p, t) = (sphere.positions().to_vec(), sphere.triangles().to_vec());
     let mesh = c.upload_json(&p, &t).await?;
     let s = c.create_session(&mesh.id, json!({})).await?;

@@ -2,15 +2,13 @@
 //! and matches the README's table; the survey `.sel`/`.def` files parse and
 //! their conventions hold.
 
-mod support;
-
 use std::path::PathBuf;
 
 use dend::mesh::io::read_path;
 use dend::mesh::io::survey::{read_def, read_sel, VertexStatus};
 
 fn meshes_dir() -> Option<PathBuf> {
-    support::shared_meshes()
+    dend_testkit::shared_meshes()
 }
 
 /// (file, V, F, boundary loops, genus) from the meshes' README.

@@ -2,8 +2,6 @@
 //! session's frames: the session actor's store writes (checkpoint,
 //! constraints) leave the async worker (`block_in_place`) while they block.
 
-mod server_common;
-
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
@@ -14,9 +12,9 @@ use dend_server::store::{
     StoredAsset,
 };
 use dend_server::Config;
+use dend_testkit::server::{grid, grid_constraints, start_with_store};
 use parking_lot::Mutex;
 use serde_json::json;
-use server_common::{grid, grid_constraints, start_with_store};
 
 /// A memory store whose writes for one session sleep `delay` first.
 struct SlowStore {

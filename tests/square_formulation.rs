@@ -2,16 +2,14 @@
 //! invariances of dend.md §7 on generated meshes, the paper's 135° bar twist
 //! and 120° cylinder bend, soft constraints, and factor keys per formulation.
 
-mod support;
-
 use std::sync::Arc;
 
 use dend::deform::*;
 use dend::measure::{bar_slabs, bend_angles};
 use dend::mesh::gen::{generate, Shape, ShapeSpec};
 use dend::mesh::{Mesh, Point};
+use dend_testkit::*;
 use nalgebra::{UnitQuaternion, Vector3};
-use support::*;
 
 fn square(energy: Energy) -> Params {
     Params {
@@ -103,7 +101,7 @@ fn identity_is_exact_on_irregular_meshes() {
 
 #[test]
 fn translating_every_constraint_translates_the_mesh() {
-    let m = tube(1.0, 6.0, 5, 25);
+    let m = square_tube(1.0, 6.0, 5, 25);
     let t = [0.7, -1.3, 2.1];
     let c = both_ends(&m, motion(UnitQuaternion::identity(), t));
     let want: Vec<Point> = m
@@ -128,7 +126,7 @@ fn translating_every_constraint_translates_the_mesh() {
 
 #[test]
 fn rigid_motion_of_every_constraint_is_reproduced() {
-    let m = tube(1.0, 4.0, 4, 17);
+    let m = square_tube(1.0, 4.0, 4, 17);
     let q = UnitQuaternion::from_axis_angle(
         &nalgebra::Unit::new_normalize(Vector3::new(0.3, 1.0, 0.2)),
         40f64.to_radians(),
@@ -226,7 +224,7 @@ fn generated_cylinder_bent_120_bends_evenly() {
 
 #[test]
 fn soft_constraints_approach_the_targets_as_lambda1_grows() {
-    let m = tube(1.0, 4.0, 4, 17);
+    let m = square_tube(1.0, 4.0, 4, 17);
     // bottom kept, top moved: a non-rigid edit, so the soft targets are missed
     let mut c = both_ends(&m, motion(UnitQuaternion::identity(), [0.3, 0.0, 0.4]));
     c.handles[0].target = motion(UnitQuaternion::identity(), [0.0; 3]);
@@ -256,7 +254,7 @@ fn soft_constraints_approach_the_targets_as_lambda1_grows() {
 
 #[test]
 fn factor_keys_differ_per_formulation() {
-    let m = tube(1.0, 4.0, 4, 17);
+    let m = square_tube(1.0, 4.0, 4, 17);
     let rest = Arc::new(Rest::new(m.clone()).unwrap());
     let c = both_ends(&m, motion(UnitQuaternion::identity(), [0.0; 3]));
     let ls = Params {

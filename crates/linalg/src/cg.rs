@@ -15,17 +15,15 @@
 //!
 //! DEND solves for the *update* `ΔY` each iteration, so the natural warm start
 //! is `x0 = 0`. Each of the three coordinate columns is solved on its own;
-//! the product `M p` runs on the rayon pool above [`PARALLEL_MIN`] unknowns.
+//! the product `M p` is [`crate::sparse::mul_columns`] (on the rayon pool
+//! from 4096 unknowns).
 
 use faer::dyn_stack::{MemStack, StackReq};
 use faer::MatMut;
-use rayon::prelude::*;
 use sprs::CsMat;
 
+use crate::sparse::mul_columns;
 use crate::Real;
-
-/// Unknown count above which `M p` runs in parallel.
-const PARALLEL_MIN: usize = 4096;
 
 /// The preconditioned CG solver of one normal matrix: `P⁻¹ = 1 / diag(M)`.
 #[derive(Debug, Clone)]
@@ -127,7 +125,7 @@ impl Cg {
         let mut res = b_norm;
         let mut k = 0;
         while k < self.max_iters && res > goal {
-            matvec(m, p, q);
+            mul_columns::<1>(m, p, q);
             let pq = dot(p, q);
             if pq.is_nan() || pq <= 0.0 {
                 break; // breakdown: M not positive definite on p
@@ -155,22 +153,4 @@ impl Cg {
 
 fn dot(a: &[Real], b: &[Real]) -> Real {
     a.iter().zip(b).map(|(x, y)| x * y).sum()
-}
-
-/// `q = M p` for CSR `m`.
-fn matvec(m: &CsMat<Real>, p: &[Real], q: &mut [Real]) {
-    let (indptr, indices, data) = (m.indptr(), m.indices(), m.data());
-    let row = |(i, out): (usize, &mut Real)| {
-        let (s, e) = (indptr.index(i), indptr.index(i + 1));
-        let mut acc = 0.0;
-        for k in s..e {
-            acc += data[k] * p[indices[k]];
-        }
-        *out = acc;
-    };
-    if q.len() >= PARALLEL_MIN {
-        q.par_iter_mut().enumerate().for_each(row);
-    } else {
-        q.iter_mut().enumerate().for_each(row);
-    }
 }

@@ -62,12 +62,35 @@ fn open_postgres(url: &str, connections: u32) -> anyhow::Result<Arc<dyn Store>> 
 /// against the stored hash before the rest operators are built or a
 /// factor build starts, so a request without the right token costs one
 /// store read.
+///
+/// The revival runs in a task of its own: a request dropped midway (its
+/// client gone, a timeout) does not cancel it half-way. The session
+/// becomes live only once it is whole (lease, actor, restored constraint
+/// set), one opening at a time per session, so a request that comes
+/// meanwhile waits for it and gets the same session instead of opening it
+/// again; a revival that fails leaves nothing live and the next request
+/// tries again.
 pub(crate) async fn revive(
     st: &AppState,
     id: &str,
     token: Option<&str>,
 ) -> Result<Option<SessionHandle>, ApiError> {
-    let key = id.to_owned();
+    let task = tokio::spawn(revive_whole(
+        st.clone(),
+        id.to_owned(),
+        token.map(str::to_owned),
+    ));
+    task.await
+        .map_err(|e| ApiError::Internal(format!("re-opening session `{id}`: {e}")))?
+}
+
+/// [`revive`]'s work, which must run to its end once started.
+async fn revive_whole(
+    st: AppState,
+    id: String,
+    token: Option<String>,
+) -> Result<Option<SessionHandle>, ApiError> {
+    let key = id.clone();
     let Some(record) = st.store_call(move |s| s.get_session(&key)).await? else {
         return Ok(None);
     };
@@ -80,13 +103,13 @@ pub(crate) async fn revive(
             ApiError::Internal(format!("stored token hash of session `{id}` is malformed"))
         })?;
     let token = token.ok_or(ApiError::MissingToken)?;
-    if !bool::from(super::sessions::token_hash(token).ct_eq(&token_sha256)) {
+    if !bool::from(super::sessions::token_hash(&token).ct_eq(&token_sha256)) {
         return Err(ApiError::WrongToken);
     }
-    // one opening of this session at a time: check, lease, spawn and
-    // insert together
-    let opening = st.open_lock(id).lock_owned().await;
-    if let Some(live) = st.sessions.read().get(id).filter(|s| !s.is_fenced()) {
+    // one opening of this session at a time: check, lease, spawn, restore
+    // and insert together
+    let opening = st.open_lock(&id).lock_owned().await;
+    if let Some(live) = st.sessions.read().get(&id).filter(|s| !s.is_fenced()) {
         return Ok(Some(live.clone()));
     }
     if st.sessions.read().len() >= st.config.max_sessions {
@@ -94,8 +117,8 @@ pub(crate) async fn revive(
     }
     // the lease before the rest operators: a session owned elsewhere costs
     // a store read and a lease check, not a rest build
-    let fence = crate::lease::acquire(st, id).await?;
-    let rest = rest_for(st, &record.mesh_id).await?;
+    let fence = crate::lease::acquire(&st, &id).await?;
+    let rest = rest_for(&st, &record.mesh_id).await?;
     let opts = SessionOptions {
         cache: st.cache.clone(),
         store: st.store.clone(),
@@ -104,57 +127,64 @@ pub(crate) async fn revive(
         fence,
     };
     let handle = SessionHandle::spawn(
-        id.to_owned(),
+        id.clone(),
         record.mesh_id.clone(),
         token_sha256,
         rest,
         params,
         opts,
     );
-    handle.touch();
-    let _ = st.sessions.write().insert(id.to_owned(), handle.clone());
-    drop(opening);
-    st.metrics.sessions.set(st.sessions.read().len() as i64);
     if let Some(spec) = record.constraints {
-        let key = id.to_owned();
-        // read after the lease was taken: every write of a previous owner
-        // is either in it or refused
-        let read = st
-            .store_call(move |s| Ok((s.get_checkpoint(&key)?, s.journal(&key)?)))
-            .await;
-        let (checkpoint, journal) = match read {
-            Ok(r) => r,
-            Err(e) => {
-                let _ = st.sessions.write().remove(id);
-                handle.close().await;
-                return Err(e);
-            }
-        };
-        let journaled_seq = journal
-            .iter()
-            .map(|JournalEntry::Drag { seq, .. }| *seq)
-            .max()
-            .unwrap_or(0);
-        let recovered = Recovered {
-            ack_seq: checkpoint
-                .as_ref()
-                .map_or(0, |c| c.ack_seq)
-                .max(journaled_seq),
-            checkpoint,
-            journal,
-        };
-        tracing::info!(
-            session = id,
-            drags = recovered.journal.len(),
-            "re-opening a stored session"
-        );
-        if let Err(e) = handle.restore(spec, recovered).await {
+        if let Err(e) = restore(&st, &handle, spec).await {
             // not left live half-restored: the next request tries again
             tracing::error!(session = id, error = %e, "restoring a stored session failed");
-            let _ = st.sessions.write().remove(id);
             handle.close().await;
-            return Err(ApiError::from(e));
+            return Err(e);
         }
     }
+    handle.touch();
+    let _ = st.sessions.write().insert(id, handle.clone());
+    drop(opening);
+    st.metrics.sessions.set(st.sessions.read().len() as i64);
     Ok(Some(handle))
 }
+
+/// Restores the stored constraint set `spec` of `handle`'s session with
+/// the recovered targets: the last checkpoint and every journaled drag
+/// after it.
+async fn restore(
+    st: &AppState,
+    handle: &SessionHandle,
+    spec: serde_json::Value,
+) -> Result<(), ApiError> {
+    let key = handle.id().to_owned();
+    // read after the lease was taken: every write of a previous owner is
+    // either in it or refused
+    let (checkpoint, journal) = st
+        .store_call(move |s| Ok((s.get_checkpoint(&key)?, s.journal(&key)?)))
+        .await?;
+    let journaled_seq = journal
+        .iter()
+        .map(|JournalEntry::Drag { seq, .. }| *seq)
+        .max()
+        .unwrap_or(0);
+    let recovered = Recovered {
+        ack_seq: checkpoint
+            .as_ref()
+            .map_or(0, |c| c.ack_seq)
+            .max(journaled_seq),
+        checkpoint,
+        journal,
+    };
+    tracing::info!(
+        session = handle.id(),
+        drags = recovered.journal.len(),
+        "re-opening a stored session"
+    );
+    let _ = handle.restore(spec, recovered).await?;
+    Ok(())
+}
+
+#[cfg(test)]
+#[path = "recover_tests.rs"]
+mod tests;

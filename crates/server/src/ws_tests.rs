@@ -10,33 +10,12 @@ use super::*;
 use crate::session::{decode_frame, NoObserver, SessionOptions};
 use crate::store::MemoryStore;
 use dend::deform::{FactorCache, Params, Rest};
-use dend::mesh::Mesh;
-
-/// An n×n grid in the z=0 plane, unit spacing.
-pub(crate) fn grid(n: usize) -> Mesh {
-    let mut p = vec![];
-    for j in 0..n {
-        for i in 0..n {
-            p.push([i as f64, j as f64, 0.0]);
-        }
-    }
-    let mut t = vec![];
-    for j in 0..n - 1 {
-        for i in 0..n - 1 {
-            let a = (j * n + i) as u32;
-            let (b, c, d) = (a + 1, a + n as u32, a + n as u32 + 1);
-            t.push([a, b, d]);
-            t.push([a, d, c]);
-        }
-    }
-    Mesh::new(p, t).expect("valid grid")
-}
 
 const TOKEN: &str = "secret-token";
 const MAX_ITERS: usize = 40;
 
 fn session() -> SessionHandle {
-    let rest = Arc::new(Rest::new(grid(6)).expect("rest"));
+    let rest = Arc::new(Rest::new(dend_testkit::unit_grid(6)).expect("rest"));
     let opts = SessionOptions {
         cache: Arc::new(FactorCache::new(1 << 30)),
         store: Arc::new(MemoryStore::new()),

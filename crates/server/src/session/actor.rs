@@ -185,7 +185,7 @@ impl Actor {
         // these read or replace the pose: they wait for a running solve
         let needs_deformer = matches!(
             cmd,
-            Cmd::Undo(_) | Cmd::Redo(_) | Cmd::Reset(_) | Cmd::SetConstraints { restore: None, .. }
+            Cmd::Undo(_) | Cmd::Redo(_) | Cmd::Reset(_) | Cmd::SetConstraints { .. }
         );
         if needs_deformer && self.deformer.is_none() {
             self.deferred.push_back(cmd);
@@ -201,17 +201,13 @@ impl Actor {
             Cmd::SetConstraints {
                 spec,
                 if_revision,
-                constraints,
-                restore,
                 reply,
             } => {
-                let current = self.set.as_ref().map_or(0, |s| s.id);
-                let r = match if_revision {
-                    Some(given) if given != current => {
-                        Err(SessionError::StaleConstraints { current, given })
-                    }
-                    _ => self.on_set_constraints(spec, constraints, restore),
-                };
+                let r = self.on_set_constraints(spec, if_revision);
+                let _ = reply.send(r);
+            }
+            Cmd::Restore { restore, reply } => {
+                let r = self.on_restore(restore);
                 let _ = reply.send(r);
             }
             Cmd::Undo(reply) => {
@@ -285,59 +281,60 @@ impl Actor {
         }
     }
 
-    /// A new constraint set. From a client (`restore` None): the set is
-    /// anchored at the current pose (`ConstraintsSpec::resolve_at`: fixed
-    /// vertices stay where the pose has them, handles move from there), the
-    /// pose before it stays in the history, and the pose does not jump.
-    /// From the store (`restore`): the recovered targets and pose.
+    /// A client's new constraint set, resolved here once, anchored at the
+    /// current pose (`ConstraintsSpec::resolve_at`: fixed vertices stay
+    /// where the pose has them, handles move from there): the pose before
+    /// it stays in the history, and the pose does not jump. An invalid set
+    /// is refused before a stale one, as nothing is changed for either.
     fn on_set_constraints(
         &mut self,
-        spec_json: serde_json::Value,
-        constraints: Constraints,
-        restore: Option<Restore>,
+        client: ConstraintsSpec,
+        if_revision: Option<u64>,
     ) -> Result<SessionState, SessionError> {
-        let client: ConstraintsSpec = serde_json::from_value(spec_json.clone())
-            .map_err(|e| SessionError::InvalidConstraints(e.to_string()))?;
-        match restore {
-            None => {
-                // the pose the edit starts from is an undo step of its own
-                self.commit();
-                let mesh = self.inner.rest.mesh();
-                let anchored = client.resolve_at(mesh, Some(&self.pose))?;
-                let stored = serde_json::to_value(client.anchored(mesh, &anchored))
-                    .map_err(|e| SessionError::InvalidConstraints(e.to_string()))?;
-                self.sets_installed += 1;
-                let set = Arc::new(InstalledSet {
-                    id: self.sets_installed,
-                    client,
-                    stored,
-                    constraints: anchored,
-                });
-                self.install(set, AfterBuild::Solve)?;
-                // the store's checkpoint went with its old constraints
-                self.checkpoint();
-            }
-            Some(r) => {
-                if let (Some(pose), Some(d)) = (r.pose, self.deformer.as_mut()) {
-                    d.set_pose(pose)?;
-                    self.pose = Arc::new(d.pose().to_vec());
-                }
-                self.last_seq = r.ack_seq;
-                self.applied_seq = r.ack_seq;
-                // a revived session's history starts here
-                self.history.clear();
-                self.cursor = 0;
-                self.uncommitted = false;
-                self.sets_installed += 1;
-                let set = Arc::new(InstalledSet {
-                    id: self.sets_installed,
-                    client,
-                    stored: spec_json,
-                    constraints,
-                });
-                self.activate(set, AfterBuild::Solve);
-            }
+        let mesh = self.inner.rest.mesh();
+        let anchored = client.resolve_at(mesh, Some(&self.pose))?;
+        let current = self.set.as_ref().map_or(0, |s| s.id);
+        if let Some(given) = if_revision.filter(|&given| given != current) {
+            return Err(SessionError::StaleConstraints { current, given });
         }
+        let stored = serde_json::to_value(client.anchored(mesh, &anchored))
+            .map_err(|e| SessionError::InvalidConstraints(e.to_string()))?;
+        // the pose the edit starts from is an undo step of its own
+        self.commit();
+        self.sets_installed += 1;
+        let set = Arc::new(InstalledSet {
+            id: self.sets_installed,
+            client,
+            stored,
+            constraints: anchored,
+        });
+        self.install(set, AfterBuild::Solve)?;
+        // the store's checkpoint went with its old constraints
+        self.checkpoint();
+        Ok(SessionState::Building)
+    }
+
+    /// A stored constraint set re-opened with the recovered targets and
+    /// pose (resolved by the handle); a revived session's history starts
+    /// here.
+    fn on_restore(&mut self, r: Restore) -> Result<SessionState, SessionError> {
+        if let (Some(pose), Some(d)) = (r.pose, self.deformer.as_mut()) {
+            d.set_pose(pose)?;
+            self.pose = Arc::new(d.pose().to_vec());
+        }
+        self.last_seq = r.ack_seq;
+        self.applied_seq = r.ack_seq;
+        self.history.clear();
+        self.cursor = 0;
+        self.uncommitted = false;
+        self.sets_installed += 1;
+        let set = Arc::new(InstalledSet {
+            id: self.sets_installed,
+            client: r.spec,
+            stored: r.stored,
+            constraints: r.constraints,
+        });
+        self.activate(set, AfterBuild::Solve);
         Ok(SessionState::Building)
     }
 

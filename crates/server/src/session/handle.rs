@@ -260,8 +260,9 @@ impl SessionHandle {
         .await
     }
 
-    /// Validates and resolves a constraints spec against the mesh, then
-    /// starts building its factor in the background (state `building`).
+    /// Parses a constraints spec; the session resolves it against the mesh
+    /// at its current pose, then starts building its factor in the
+    /// background (state `building`).
     ///
     /// With `if_revision`, the edit applies only if the session's
     /// constraints revision still is that one ([`SessionError::StaleConstraints`]
@@ -271,27 +272,22 @@ impl SessionHandle {
         spec_json: serde_json::Value,
         if_revision: Option<u64>,
     ) -> Result<SessionState, SessionError> {
-        let spec: ConstraintsSpec = serde_json::from_value(spec_json.clone())
+        let spec: ConstraintsSpec = serde_json::from_value(spec_json)
             .map_err(|e| SessionError::InvalidConstraints(e.to_string()))?;
-        let rest = self.inner.rest.clone();
-        let constraints = tokio::task::spawn_blocking(move || spec.resolve(rest.mesh()))
-            .await
-            .map_err(|_| SessionError::Closed)??;
-        self.call(|tx| Cmd::SetConstraints {
-            spec: spec_json,
+        self.call(|reply| Cmd::SetConstraints {
+            spec,
             if_revision,
-            constraints,
-            restore: None,
-            reply: tx,
+            reply,
         })
         .await
     }
 
     /// Re-opens the stored constraints `spec_json` of a session read back
     /// from the store, with the [`Recovered`] targets and pose (see
-    /// `server::recover`); the factor builds as after
-    /// [`set_constraints`](Self::set_constraints). Stored data that does not
-    /// fit is [`StoreError::Corrupt`](crate::store::StoreError::Corrupt).
+    /// `server::recover`): parsed and resolved here, off the actor; the
+    /// factor builds as after [`set_constraints`](Self::set_constraints).
+    /// Stored data that does not fit is
+    /// [`StoreError::Corrupt`](crate::store::StoreError::Corrupt).
     pub async fn restore(
         &self,
         spec_json: serde_json::Value,
@@ -304,24 +300,20 @@ impl SessionHandle {
         let spec: ConstraintsSpec =
             serde_json::from_value(spec_json.clone()).map_err(|e| corrupt(e.to_string()))?;
         let rest = self.inner.rest.clone();
-        let ack_seq = rec.ack_seq;
-        let (constraints, pose) =
-            tokio::task::spawn_blocking(move || -> Result<_, SessionError> {
-                let mut c = spec.resolve(rest.mesh())?;
-                rec.apply(&mut c)?;
-                Ok((c, rec.pose(rest.mesh().num_vertices())))
+        let restore = tokio::task::spawn_blocking(move || -> Result<_, SessionError> {
+            let mut constraints = spec.resolve(rest.mesh())?;
+            rec.apply(&mut constraints)?;
+            Ok(Restore {
+                stored: spec_json,
+                spec,
+                constraints,
+                pose: rec.pose(rest.mesh().num_vertices()),
+                ack_seq: rec.ack_seq,
             })
-            .await
-            .map_err(|_| SessionError::Closed)??;
-        let restore = Some(Restore { pose, ack_seq });
-        self.call(|tx| Cmd::SetConstraints {
-            spec: spec_json,
-            if_revision: None,
-            constraints,
-            restore,
-            reply: tx,
         })
         .await
+        .map_err(|_| SessionError::Closed)??;
+        self.call(|reply| Cmd::Restore { restore, reply }).await
     }
 
     /// Steps back in the history.

@@ -14,7 +14,7 @@ use tokio::sync::oneshot;
 
 use super::{ClientId, Delta, Event, Frame, Observer, PoseSnapshot, SessionError, SessionState};
 use crate::store::Store;
-use dend::deform::{Constraints, Deformer, StepReport};
+use dend::deform::{Constraints, ConstraintsSpec, Deformer, StepReport};
 
 use super::frame::FrameBody;
 use dend::deform::{FactorCache, Params, Rest};
@@ -141,12 +141,17 @@ pub(super) enum Cmd {
         seq: u64,
         reply: Option<(usize, Reply<PoseSnapshot>)>,
     },
+    /// A client's new constraint set, parsed by the handle; the actor
+    /// resolves it once, at its current pose.
     SetConstraints {
-        spec: serde_json::Value,
+        spec: ConstraintsSpec,
         /// The constraints revision the edit is based on (None: any).
         if_revision: Option<u64>,
-        constraints: Constraints,
-        restore: Option<Restore>,
+        reply: Reply<SessionState>,
+    },
+    /// A stored constraint set re-opened, resolved by the handle.
+    Restore {
+        restore: Restore,
         reply: Reply<SessionState>,
     },
     Undo(Reply<PoseSnapshot>),
@@ -158,10 +163,17 @@ pub(super) enum Cmd {
     Close,
 }
 
-/// Re-opening a stored session: constraints already carry the recovered
-/// targets; the store is left as is (its checkpoint + journal stay valid
-/// until the first commit writes a new checkpoint).
+/// Re-opening a stored session: its stored constraint set, parsed and
+/// resolved once (by the handle) with the recovered targets; the store is
+/// left as is (its checkpoint + journal stay valid until the first commit
+/// writes a new checkpoint).
 pub(super) struct Restore {
+    /// The spec as stored (already anchored).
+    pub stored: serde_json::Value,
+    /// `stored`, parsed.
+    pub spec: ConstraintsSpec,
+    /// `spec` resolved on the rest mesh, with the recovered targets.
+    pub constraints: Constraints,
     /// Warm start (the last checkpoint's pose).
     pub pose: Option<Vec<[f64; 3]>>,
     /// Highest sequence number included in the targets.

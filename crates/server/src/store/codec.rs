@@ -156,40 +156,77 @@ pub fn decode_entry(b: &[u8], what: &str) -> Result<JournalEntry, StoreError> {
     })
 }
 
-/// A session record from its stored columns.
-pub(super) fn decode_record(
-    id: String,
-    mesh_id: String,
-    hash: Vec<u8>,
-    params: String,
-    constraints: Option<String>,
-    created: i64,
-) -> Result<SessionRecord, StoreError> {
-    let what = || format!("session `{id}`");
-    if hash.len() != 32 {
-        return Err(corrupt(
-            what(),
-            format!("token hash of {} bytes, expected 32", hash.len()),
-        ));
+/// The columns of a session record, in the order [`SELECT_SESSION`] reads
+/// them (the `sessions` table of both SQL backends).
+pub(super) const SELECT_SESSION: &str =
+    "SELECT id, mesh_id, token_sha256, params, constraints, created_unix FROM sessions";
+
+/// A session record as stored: the row shape of the SQL backends' `sessions`
+/// table (fields in [`SELECT_SESSION`]'s order), checked on the way in and
+/// out.
+pub(super) struct RecordRow {
+    pub id: String,
+    pub mesh_id: String,
+    /// The token hash's 32 raw bytes.
+    pub token_sha256: Vec<u8>,
+    /// The parameters' JSON.
+    pub params: String,
+    /// The constraint set's JSON.
+    pub constraints: Option<String>,
+    pub created_unix: i64,
+}
+
+impl RecordRow {
+    /// The row of `r`; a token hash that is not 64 hex digits is refused
+    /// ([`token_hash_bytes`]).
+    pub(super) fn encode(r: &SessionRecord) -> Result<RecordRow, StoreError> {
+        Ok(RecordRow {
+            id: r.id.clone(),
+            mesh_id: r.mesh_id.clone(),
+            token_sha256: token_hash_bytes(r)?,
+            params: r.params.to_string(),
+            constraints: r.constraints.as_ref().map(|c| c.to_string()),
+            created_unix: i64::try_from(r.created_unix).unwrap_or(i64::MAX),
+        })
     }
-    let params =
-        serde_json::from_str(&params).map_err(|e| corrupt(what(), format!("params: {e}")))?;
-    let constraints = match constraints {
-        Some(c) => Some(
-            serde_json::from_str(&c).map_err(|e| corrupt(what(), format!("constraints: {e}")))?,
-        ),
-        None => None,
-    };
-    let created_unix =
-        u64::try_from(created).map_err(|_| corrupt(what(), "negative creation time"))?;
-    Ok(SessionRecord {
-        id,
-        mesh_id,
-        token_sha256: hex::encode(hash),
-        params,
-        constraints,
-        created_unix,
-    })
+
+    /// The record of a stored row (a row that cannot be one is corrupt).
+    pub(super) fn decode(self) -> Result<SessionRecord, StoreError> {
+        let RecordRow {
+            id,
+            mesh_id,
+            token_sha256: hash,
+            params,
+            constraints,
+            created_unix: created,
+        } = self;
+        let what = || format!("session `{id}`");
+        if hash.len() != 32 {
+            return Err(corrupt(
+                what(),
+                format!("token hash of {} bytes, expected 32", hash.len()),
+            ));
+        }
+        let params =
+            serde_json::from_str(&params).map_err(|e| corrupt(what(), format!("params: {e}")))?;
+        let constraints = match constraints {
+            Some(c) => Some(
+                serde_json::from_str(&c)
+                    .map_err(|e| corrupt(what(), format!("constraints: {e}")))?,
+            ),
+            None => None,
+        };
+        let created_unix =
+            u64::try_from(created).map_err(|_| corrupt(what(), "negative creation time"))?;
+        Ok(SessionRecord {
+            id,
+            mesh_id,
+            token_sha256: hex::encode(hash),
+            params,
+            constraints,
+            created_unix,
+        })
+    }
 }
 
 /// A checkpoint from its stored columns (`ack_seq` holds the `u64`'s bits).
@@ -227,7 +264,7 @@ pub(super) fn decode_checkpoint(
 
 /// The 32 raw bytes of a record's token hash; anything but 64 hex digits is
 /// refused (a store never keeps what could be a token).
-pub(super) fn token_hash_bytes(r: &SessionRecord) -> Result<Vec<u8>, StoreError> {
+fn token_hash_bytes(r: &SessionRecord) -> Result<Vec<u8>, StoreError> {
     hex::decode(&r.token_sha256)
         .ok()
         .filter(|h| h.len() == 32)

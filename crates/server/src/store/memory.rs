@@ -7,9 +7,9 @@ use std::time::{Duration, Instant};
 
 use parking_lot::Mutex;
 
+use super::lease_rule::{self, Expiry};
 use super::{
     Checkpoint, Fence, JournalEntry, LeaseGrant, SessionRecord, Store, StoreError, StoredAsset,
-    NO_FENCE,
 };
 use dend::mesh::Mesh;
 
@@ -38,6 +38,23 @@ struct LeaseRow {
     wanted_by: Option<String>,
 }
 
+impl LeaseRow {
+    /// The row as the lease rule reads it, at `now`.
+    fn view(&self, now: Instant) -> lease_rule::LeaseRow<'_> {
+        lease_rule::LeaseRow {
+            owner: &self.owner,
+            revision: self.revision,
+            expiry: match self.expires {
+                None => Expiry::Released,
+                Some(t) if t > now => Expiry::Live {
+                    left_ms: u64::try_from((t - now).as_millis()).unwrap_or(u64::MAX),
+                },
+                Some(_) => Expiry::Expired,
+            },
+        }
+    }
+}
+
 impl MemoryStore {
     /// An empty store.
     pub fn new() -> Self {
@@ -52,19 +69,9 @@ fn missing(id: &str) -> StoreError {
 impl MemoryStore {
     /// Refuses a write fenced by a revision that is not `id`'s lease's.
     fn check_fence(&self, id: &str, fence: Fence) -> Result<(), StoreError> {
-        if fence == NO_FENCE {
-            return Ok(());
-        }
         let leases = self.leases.lock();
-        match leases.get(id) {
-            Some(l) if l.revision == fence => Ok(()),
-            other => Err(StoreError::Fenced {
-                session: id.to_owned(),
-                fence,
-                current: other.map(|l| l.revision),
-                owner: other.map(|l| l.owner.clone()),
-            }),
-        }
+        let current = leases.get(id).map(|l| (l.owner.as_str(), l.revision));
+        lease_rule::check_fence(id, fence, current)
     }
 }
 
@@ -97,7 +104,7 @@ impl Store for MemoryStore {
     }
 
     fn put_session(&self, record: &SessionRecord) -> Result<(), StoreError> {
-        let _ = super::codec::token_hash_bytes(record)?;
+        let _ = super::codec::RecordRow::encode(record)?; // the same checks as the SQL stores
         self.sessions
             .lock()
             .entry(record.id.clone())
@@ -192,31 +199,26 @@ impl Store for MemoryStore {
         let _sessions = self.sessions.lock();
         let mut leases = self.leases.lock();
         let now = Instant::now();
-        if let Some(l) = leases.get_mut(id) {
-            if let Some(t) = l.expires.filter(|t| *t > now && l.owner != owner) {
-                l.wanted_by = Some(owner.to_owned());
-                return Ok(LeaseGrant::HeldBy {
-                    owner: l.owner.clone(),
-                    expires_in_ms: (t - now).as_millis() as u64,
-                });
+        let grant = lease_rule::acquire(leases.get(id).map(|l| l.view(now)), owner);
+        match &grant {
+            LeaseGrant::HeldBy { .. } => {
+                if let Some(l) = leases.get_mut(id) {
+                    l.wanted_by = Some(owner.to_owned());
+                }
+            }
+            LeaseGrant::Granted { revision, .. } => {
+                let _ = leases.insert(
+                    id.to_owned(),
+                    LeaseRow {
+                        owner: owner.to_owned(),
+                        revision: *revision,
+                        expires: Some(now + ttl),
+                        wanted_by: None,
+                    },
+                );
             }
         }
-        let old = leases.get(id);
-        let taken_over = old.is_some_and(|l| l.owner != owner && l.expires.is_some());
-        let revision = old.map_or(1, |l| l.revision + 1);
-        let _ = leases.insert(
-            id.to_owned(),
-            LeaseRow {
-                owner: owner.to_owned(),
-                revision,
-                expires: Some(now + ttl),
-                wanted_by: None,
-            },
-        );
-        Ok(LeaseGrant::Granted {
-            revision,
-            taken_over,
-        })
+        Ok(grant)
     }
 
     fn renew_leases(
@@ -226,11 +228,13 @@ impl Store for MemoryStore {
         ttl: Duration,
     ) -> Result<Vec<String>, StoreError> {
         let mut leases = self.leases.lock();
-        let until = Instant::now() + ttl;
+        let now = Instant::now();
         let mut lost = vec![];
         for (id, rev) in held {
             match leases.get_mut(id) {
-                Some(l) if l.owner == owner && l.revision == *rev => l.expires = Some(until),
+                Some(l) if lease_rule::holds(l.view(now), owner, *rev) => {
+                    l.expires = Some(now + ttl);
+                }
                 _ => lost.push(id.clone()),
             }
         }
@@ -239,7 +243,7 @@ impl Store for MemoryStore {
 
     fn release_lease(&self, id: &str, owner: &str, revision: Fence) -> Result<(), StoreError> {
         if let Some(l) = self.leases.lock().get_mut(id) {
-            if l.owner == owner && l.revision == revision {
+            if lease_rule::holds(l.view(Instant::now()), owner, revision) {
                 l.expires = None;
             }
         }
@@ -252,9 +256,7 @@ impl Store for MemoryStore {
             .leases
             .lock()
             .iter()
-            .filter(|(_, l)| {
-                l.owner == owner && l.wanted_by.is_some() && l.expires.is_some_and(|t| t > now)
-            })
+            .filter(|(_, l)| lease_rule::wants_handoff(l.view(now), l.wanted_by.is_some(), owner))
             .map(|(id, _)| id.clone())
             .collect())
     }

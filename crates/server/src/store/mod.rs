@@ -32,6 +32,7 @@
 //! A fence of [`NO_FENCE`] (the single-instance stores' mode) skips the check.
 
 mod codec;
+mod lease_rule;
 mod memory;
 mod postgres;
 mod postgres_leases;

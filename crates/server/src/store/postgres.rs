@@ -22,8 +22,8 @@ use postgres::NoTls;
 use r2d2_postgres::PostgresConnectionManager;
 
 use super::codec::{
-    corrupt, decode_checkpoint, decode_entry, decode_points, decode_record, decode_triangles,
-    encode_entry, encode_points, encode_targets, encode_triangles, token_hash_bytes,
+    corrupt, decode_checkpoint, decode_entry, decode_points, decode_triangles, encode_entry,
+    encode_points, encode_targets, encode_triangles, RecordRow, SELECT_SESSION,
 };
 use super::{
     postgres_leases, Checkpoint, Fence, JournalEntry, LeaseGrant, SessionRecord, Store, StoreError,
@@ -215,11 +215,17 @@ fn session_exists(tx: &mut postgres::Transaction<'_>, id: &str) -> Result<bool, 
         .is_some())
 }
 
-const SELECT_SESSION: &str =
-    "SELECT id, mesh_id, token_sha256, params, constraints, created_unix FROM sessions";
-
+/// The record of a [`SELECT_SESSION`] row.
 fn row_record(r: &postgres::Row) -> Result<SessionRecord, StoreError> {
-    decode_record(r.get(0), r.get(1), r.get(2), r.get(3), r.get(4), r.get(5))
+    RecordRow {
+        id: r.get(0),
+        mesh_id: r.get(1),
+        token_sha256: r.get(2),
+        params: r.get(3),
+        constraints: r.get(4),
+        created_unix: r.get(5),
+    }
+    .decode()
 }
 
 impl Store for PgStore {
@@ -307,10 +313,7 @@ impl Store for PgStore {
     }
 
     fn put_session(&self, r: &SessionRecord) -> Result<(), StoreError> {
-        let hash = token_hash_bytes(r)?;
-        let params = r.params.to_string();
-        let constraints = r.constraints.as_ref().map(|c| c.to_string());
-        let created = i64::try_from(r.created_unix).unwrap_or(i64::MAX);
+        let row = RecordRow::encode(r)?;
         let _ = self
             .conn()?
             .execute(
@@ -319,7 +322,14 @@ impl Store for PgStore {
                  ON CONFLICT (id) DO UPDATE SET mesh_id = excluded.mesh_id,
                    token_sha256 = excluded.token_sha256, params = excluded.params,
                    constraints = excluded.constraints, created_unix = excluded.created_unix",
-                &[&r.id, &r.mesh_id, &hash, &params, &constraints, &created],
+                &[
+                    &row.id,
+                    &row.mesh_id,
+                    &row.token_sha256,
+                    &row.params,
+                    &row.constraints,
+                    &row.created_unix,
+                ],
             )
             .map_err(pg_err)?;
         Ok(())

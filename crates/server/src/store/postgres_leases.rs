@@ -5,10 +5,12 @@
 //! transaction and a takeover updates it (`FOR UPDATE`): a takeover waits
 //! for a fenced write in flight, and a write that starts after a takeover
 //! sees the new revision and is refused. A released lease keeps its row
-//! (expired, `expires` NULL), so revisions only grow.
+//! (expired, `expires` NULL), so revisions only grow. The rule itself is
+//! [`super::lease_rule`]'s, shared with the other backends.
 
 use std::time::Duration;
 
+use super::lease_rule::{self, Expiry, LeaseRow};
 use super::postgres::{pg_err, Conn};
 use super::{Fence, LeaseGrant, StoreError, NO_FENCE};
 
@@ -25,7 +27,7 @@ pub(super) fn check_fence(
     fence: Fence,
 ) -> Result<(), StoreError> {
     if fence == NO_FENCE {
-        return Ok(());
+        return Ok(()); // the unfenced mode reads nothing
     }
     let row = tx
         .query_opt(
@@ -34,15 +36,8 @@ pub(super) fn check_fence(
         )
         .map_err(pg_err)?;
     let current: Option<(String, i64)> = row.map(|r| (r.get(0), r.get(1)));
-    match current {
-        Some((_, rev)) if rev as u64 == fence => Ok(()),
-        other => Err(StoreError::Fenced {
-            session: id.to_owned(),
-            fence,
-            current: other.as_ref().map(|r| r.1 as u64),
-            owner: other.map(|r| r.0),
-        }),
-    }
+    let current = current.as_ref().map(|(o, rev)| (o.as_str(), *rev as Fence));
+    lease_rule::check_fence(id, fence, current)
 }
 
 /// [`super::Store::acquire_lease`].
@@ -70,39 +65,41 @@ pub(super) fn acquire(
             &[&id],
         )
         .map_err(pg_err)?;
-    let (holder, live, left_ms, held): (String, bool, i64, bool) =
-        (r.get(0), r.get(2), r.get(3), r.get(4));
-    if live && holder != owner {
-        let _ = tx
-            .execute(
-                "UPDATE leases SET wanted_by = $2 WHERE session = $1",
-                &[&id, &owner],
-            )
-            .map_err(pg_err)?;
-        tx.commit().map_err(pg_err)?;
-        return Ok(LeaseGrant::HeldBy {
-            owner: holder,
-            expires_in_ms: left_ms.max(0) as u64,
-        });
+    let (holder, revision, live, left_ms, held): (String, i64, bool, i64, bool) =
+        (r.get(0), r.get(1), r.get(2), r.get(3), r.get(4));
+    // `live` by the database's clock, even where less than a millisecond is left
+    let expiry = match (held, live) {
+        (false, _) => Expiry::Released,
+        (true, false) => Expiry::Expired,
+        (true, true) => Expiry::Live {
+            left_ms: left_ms.max(0) as u64,
+        },
+    };
+    let current = LeaseRow {
+        owner: &holder,
+        revision: revision as Fence,
+        expiry,
+    };
+    let grant = lease_rule::acquire(Some(current), owner);
+    let _ = match &grant {
+        LeaseGrant::HeldBy { .. } => tx.execute(
+            "UPDATE leases SET wanted_by = $2 WHERE session = $1",
+            &[&id, &owner],
+        ),
+        LeaseGrant::Granted { revision, .. } => tx.execute(
+            "UPDATE leases SET owner = $2, revision = $3,
+                 expires = now() + $4::FLOAT8 * INTERVAL '1 millisecond', wanted_by = NULL
+             WHERE session = $1",
+            &[&id, &owner, &(*revision as i64), &ttl_ms(ttl)],
+        ),
     }
-    let taken_over = held && !holder.is_empty() && holder != owner;
-    let revision: i64 = tx
-        .query_one(
-            "UPDATE leases SET owner = $2, revision = revision + 1,
-                 expires = now() + $3::FLOAT8 * INTERVAL '1 millisecond', wanted_by = NULL
-             WHERE session = $1 RETURNING revision",
-            &[&id, &owner, &ttl_ms(ttl)],
-        )
-        .map_err(pg_err)?
-        .get(0);
+    .map_err(pg_err)?;
     tx.commit().map_err(pg_err)?;
-    Ok(LeaseGrant::Granted {
-        revision: revision as u64,
-        taken_over,
-    })
+    Ok(grant)
 }
 
-/// [`super::Store::renew_leases`]: one statement for all of them.
+/// [`super::Store::renew_leases`]: one statement for all of them (the
+/// leases [`lease_rule::holds`]).
 pub(super) fn renew(
     c: &mut Conn,
     owner: &str,
@@ -133,7 +130,8 @@ pub(super) fn renew(
         .collect())
 }
 
-/// [`super::Store::release_lease`]: expires the lease, keeping its revision.
+/// [`super::Store::release_lease`]: expires the lease, keeping its revision,
+/// if `owner` [`lease_rule::holds`] it.
 pub(super) fn release(
     c: &mut Conn,
     id: &str,
@@ -149,7 +147,7 @@ pub(super) fn release(
     Ok(())
 }
 
-/// [`super::Store::handoffs_wanted`].
+/// [`super::Store::handoffs_wanted`]: the rows of [`lease_rule::wants_handoff`].
 pub(super) fn wanted(c: &mut Conn, owner: &str) -> Result<Vec<String>, StoreError> {
     Ok(c.query(
         "SELECT session FROM leases

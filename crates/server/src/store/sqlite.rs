@@ -23,8 +23,8 @@ use parking_lot::Mutex;
 use rusqlite::{params, Connection, OptionalExtension, TransactionBehavior};
 
 use super::codec::{
-    corrupt, decode_checkpoint, decode_entry, decode_points, decode_record, decode_triangles,
-    encode_entry, encode_points, encode_targets, encode_triangles, token_hash_bytes,
+    corrupt, decode_checkpoint, decode_entry, decode_points, decode_triangles, encode_entry,
+    encode_points, encode_targets, encode_triangles, RecordRow, SELECT_SESSION,
 };
 use super::{
     sqlite_assets, sqlite_leases, Checkpoint, Fence, JournalEntry, LeaseGrant, SessionRecord,
@@ -147,21 +147,17 @@ impl SqliteStore {
     }
 }
 
-type RawRecord = (String, String, Vec<u8>, String, Option<String>, i64);
-
-fn raw_record(r: &rusqlite::Row<'_>) -> rusqlite::Result<RawRecord> {
-    Ok((
-        r.get(0)?,
-        r.get(1)?,
-        r.get(2)?,
-        r.get(3)?,
-        r.get(4)?,
-        r.get(5)?,
-    ))
+/// A [`SELECT_SESSION`] row.
+fn record_row(r: &rusqlite::Row<'_>) -> rusqlite::Result<RecordRow> {
+    Ok(RecordRow {
+        id: r.get(0)?,
+        mesh_id: r.get(1)?,
+        token_sha256: r.get(2)?,
+        params: r.get(3)?,
+        constraints: r.get(4)?,
+        created_unix: r.get(5)?,
+    })
 }
-
-const SELECT_SESSION: &str =
-    "SELECT id, mesh_id, token_sha256, params, constraints, created_unix FROM sessions";
 
 fn session_exists(conn: &Connection, id: &str) -> Result<bool, StoreError> {
     conn.query_row("SELECT 1 FROM sessions WHERE id = ?1", [id], |_| Ok(()))
@@ -226,10 +222,7 @@ impl Store for SqliteStore {
     }
 
     fn put_session(&self, r: &SessionRecord) -> Result<(), StoreError> {
-        let hash = token_hash_bytes(r)?;
-        let params = r.params.to_string();
-        let constraints = r.constraints.as_ref().map(|c| c.to_string());
-        let created = i64::try_from(r.created_unix).unwrap_or(i64::MAX);
+        let row = RecordRow::encode(r)?;
         // An upsert, not INSERT OR REPLACE: a replace would delete the row and
         // cascade to its journal and checkpoint.
         self.conn
@@ -240,35 +233,39 @@ impl Store for SqliteStore {
                  ON CONFLICT(id) DO UPDATE SET mesh_id = excluded.mesh_id, token_sha256 = excluded.token_sha256,
                    params = excluded.params, constraints = excluded.constraints,
                    created_unix = excluded.created_unix",
-                params![r.id, r.mesh_id, hash, params, constraints, created],
+                params![
+                    row.id,
+                    row.mesh_id,
+                    row.token_sha256,
+                    row.params,
+                    row.constraints,
+                    row.created_unix
+                ],
             )
             .map_err(backend)?;
         Ok(())
     }
 
     fn get_session(&self, id: &str) -> Result<Option<SessionRecord>, StoreError> {
-        let raw = self
+        let row = self
             .conn
             .lock()
-            .query_row(&format!("{SELECT_SESSION} WHERE id = ?1"), [id], raw_record)
+            .query_row(&format!("{SELECT_SESSION} WHERE id = ?1"), [id], record_row)
             .optional()
             .map_err(backend)?;
-        raw.map(|(a, b, c, d, e, f)| decode_record(a, b, c, d, e, f))
-            .transpose()
+        row.map(RecordRow::decode).transpose()
     }
 
     fn list_sessions(&self) -> Result<Vec<SessionRecord>, StoreError> {
-        let raws: Vec<RawRecord> = {
+        let rows: Vec<RecordRow> = {
             let conn = self.conn.lock();
             let mut stmt = conn
                 .prepare(&format!("{SELECT_SESSION} ORDER BY created_unix, id"))
                 .map_err(backend)?;
-            let rows = stmt.query_map([], raw_record).map_err(backend)?;
+            let rows = stmt.query_map([], record_row).map_err(backend)?;
             rows.collect::<Result<_, _>>().map_err(backend)?
         };
-        raws.into_iter()
-            .map(|(a, b, c, d, e, f)| decode_record(a, b, c, d, e, f))
-            .collect()
+        rows.into_iter().map(RecordRow::decode).collect()
     }
 
     fn delete_session(&self, id: &str) -> Result<(), StoreError> {

@@ -1,17 +1,14 @@
 //! Session leases in [`super::SqliteStore`] (the `leases` table, schema
-//! version 2): the same rules as the shared PostgreSQL store, so the one
-//! store test suite checks them on every backend. A SQLite file serves one
-//! instance; expiry uses this machine's wall clock.
-//!
-//! A lease row is never deleted while its session exists: releasing it
-//! only expires it, so revisions keep growing and a fence handed out once
-//! can never become valid again.
+//! version 2): the rule of [`super::lease_rule`], shared with the other
+//! backends, on rows of this table. A SQLite file serves one instance;
+//! expiry uses this machine's wall clock (`expires_ms`, 0 once released).
 
 use std::time::{Duration, SystemTime, UNIX_EPOCH};
 
 use rusqlite::{params, Connection, OptionalExtension, TransactionBehavior};
 
-use super::{Fence, LeaseGrant, StoreError, NO_FENCE};
+use super::lease_rule::{self, Expiry, LeaseRow};
+use super::{Fence, LeaseGrant, StoreError};
 
 /// The table (added by schema version 2).
 pub(super) const SCHEMA: &str = "
@@ -41,8 +38,8 @@ fn ttl_ms(ttl: Duration) -> i64 {
 /// Refuses a write fenced by `fence` unless it is `id`'s lease revision
 /// (inside the write's transaction).
 pub(super) fn check_fence(conn: &Connection, id: &str, fence: Fence) -> Result<(), StoreError> {
-    if fence == NO_FENCE {
-        return Ok(());
+    if fence == super::NO_FENCE {
+        return Ok(()); // the unfenced mode reads nothing
     }
     let row: Option<(String, i64)> = conn
         .query_row(
@@ -52,15 +49,8 @@ pub(super) fn check_fence(conn: &Connection, id: &str, fence: Fence) -> Result<(
         )
         .optional()
         .map_err(backend)?;
-    match row {
-        Some((_, rev)) if rev as u64 == fence => Ok(()),
-        other => Err(StoreError::Fenced {
-            session: id.to_owned(),
-            fence,
-            current: other.as_ref().map(|r| r.1 as u64),
-            owner: other.map(|r| r.0),
-        }),
-    }
+    let current = row.as_ref().map(|(o, rev)| (o.as_str(), *rev as Fence));
+    lease_rule::check_fence(id, fence, current)
 }
 
 /// [`super::Store::acquire_lease`].
@@ -82,39 +72,32 @@ pub(super) fn acquire(
         )
         .optional()
         .map_err(backend)?;
-    if let Some((holder, _, expires)) = &row {
-        if holder != owner && *expires > now {
-            let _ = tx
-                .execute(
-                    "UPDATE leases SET wanted_by = ?2 WHERE session = ?1",
-                    params![id, owner],
-                )
-                .map_err(backend)?;
-            tx.commit().map_err(backend)?;
-            return Ok(LeaseGrant::HeldBy {
-                owner: holder.clone(),
-                expires_in_ms: (*expires - now) as u64,
-            });
-        }
-    }
-    let taken_over = row.as_ref().is_some_and(|r| r.0 != owner && r.2 > 0);
-    let revision = row.map_or(1, |r| r.1 + 1);
-    let _ = tx
-        .execute(
+    let grant = lease_rule::acquire(
+        row.as_ref().map(|(holder, revision, expires_ms)| LeaseRow {
+            owner: holder,
+            revision: *revision as Fence,
+            expiry: Expiry::from_left_ms((*expires_ms > 0).then(|| *expires_ms - now)),
+        }),
+        owner,
+    );
+    let _ = match &grant {
+        LeaseGrant::HeldBy { .. } => tx.execute(
+            "UPDATE leases SET wanted_by = ?2 WHERE session = ?1",
+            params![id, owner],
+        ),
+        LeaseGrant::Granted { revision, .. } => tx.execute(
             "INSERT INTO leases (session, owner, revision, expires_ms) VALUES (?1, ?2, ?3, ?4)
              ON CONFLICT(session) DO UPDATE SET owner = excluded.owner,
                revision = excluded.revision, expires_ms = excluded.expires_ms, wanted_by = NULL",
-            params![id, owner, revision, now.saturating_add(ttl_ms(ttl))],
-        )
-        .map_err(backend)?;
+            params![id, owner, *revision as i64, now.saturating_add(ttl_ms(ttl))],
+        ),
+    }
+    .map_err(backend)?;
     tx.commit().map_err(backend)?;
-    Ok(LeaseGrant::Granted {
-        revision: revision as u64,
-        taken_over,
-    })
+    Ok(grant)
 }
 
-/// [`super::Store::renew_leases`].
+/// [`super::Store::renew_leases`]: the leases [`lease_rule::holds`].
 pub(super) fn renew(
     conn: &mut Connection,
     owner: &str,
@@ -139,7 +122,8 @@ pub(super) fn renew(
     Ok(lost)
 }
 
-/// [`super::Store::release_lease`]: expires the lease, keeping its revision.
+/// [`super::Store::release_lease`]: expires the lease, keeping its revision,
+/// if `owner` [`lease_rule::holds`] it.
 pub(super) fn release(
     conn: &Connection,
     id: &str,
@@ -155,7 +139,7 @@ pub(super) fn release(
     Ok(())
 }
 
-/// [`super::Store::handoffs_wanted`].
+/// [`super::Store::handoffs_wanted`]: the rows of [`lease_rule::wants_handoff`].
 pub(super) fn wanted(conn: &Connection, owner: &str) -> Result<Vec<String>, StoreError> {
     let mut stmt = conn
         .prepare(

@@ -48,31 +48,15 @@ pub(super) fn sqlite() -> Option<Backend> {
     })
 }
 
-/// Records a skipped test (printed by `scripts/test.sh`).
-fn record_skip(why: &str) {
-    let test = std::thread::current().name().unwrap_or("?").to_owned();
-    eprintln!("skipping {test}: {why}");
-    if let Ok(path) = std::env::var("DEND_SKIP_LOG") {
-        use std::io::Write;
-        if let Ok(mut f) = std::fs::OpenOptions::new()
-            .create(true)
-            .append(true)
-            .open(path)
-        {
-            let _ = writeln!(f, "{test}: {why}");
-        }
-    }
-}
-
 /// A client configuration for a new, empty database on the test server.
 pub(super) fn fresh_pg_database() -> Option<::postgres::Config> {
     let Ok(url) = std::env::var("DEND_TEST_POSTGRES") else {
         let why = "DEND_TEST_POSTGRES is not set (scripts/test.sh starts a PostgreSQL for it)";
         assert!(
-            std::env::var("CI").map_or(true, |v| v != "true"),
+            !dend_testkit::under_ci(),
             "{why}; CI must run the PostgreSQL store tests"
         );
-        record_skip(why);
+        dend_testkit::record_skip(why);
         return None;
     };
     let admin: ::postgres::Config = url.parse().expect("DEND_TEST_POSTGRES is a PostgreSQL URL");

@@ -195,7 +195,7 @@ impl Deformer {
             // the one the convergence test measured
             let accelerate = accelerate && max_dx >= self.params.tol;
             if accelerate {
-                mul_m(&factor.sys.m, &st.rhs, &mut st.mf);
+                dend_linalg::sparse::mul_columns::<3>(&factor.sys.m, &st.rhs, &mut st.mf);
             }
             if accelerate
                 && st
@@ -530,23 +530,6 @@ impl Deformer {
                 ],
             };
         }
-    }
-}
-
-/// `out = M x` for the three columns of the column-major `x` (`M` CSR,
-/// symmetric, `|U| × |U|`).
-fn mul_m(m: &sprs::CsMat<Real>, x: &[Real], out: &mut [Real]) {
-    let n = m.rows();
-    for (r, row) in m.outer_iterator().enumerate() {
-        let mut acc = [0.0; 3];
-        for (j, &v) in row.iter() {
-            acc[0] += v * x[j];
-            acc[1] += v * x[n + j];
-            acc[2] += v * x[2 * n + j];
-        }
-        out[r] = acc[0];
-        out[n + r] = acc[1];
-        out[2 * n + r] = acc[2];
     }
 }
 

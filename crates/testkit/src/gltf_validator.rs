@@ -3,7 +3,7 @@
 //! --install-only` and `.ci/run` do), run with Node.js.
 //!
 //! Where node or the package is missing the caller skips, recorded with
-//! [`super::record_skip`]; under `CI=true` a missing validator is a failure.
+//! [`crate::record_skip`]; under `CI=true` a missing validator is a failure.
 
 use std::path::PathBuf;
 use std::process::Command;
@@ -20,7 +20,7 @@ pub struct Report {
 }
 
 fn package() -> PathBuf {
-    std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("web/node_modules/gltf-validator")
+    crate::repo_root().join("web/node_modules/gltf-validator")
 }
 
 const SCRIPT: &str = r#"
@@ -49,8 +49,8 @@ pub fn validate(bytes: &[u8], name: &str) -> Option<Report> {
                 "no node"
             }
         );
-        assert!(std::env::var("CI").as_deref() != Ok("true"), "{why}");
-        super::record_skip(&why);
+        assert!(!crate::under_ci(), "{why}");
+        crate::record_skip(&why);
         return None;
     }
     let dir = tempfile::tempdir().unwrap();

@@ -1,24 +1,18 @@
-//! Shared helpers of the server tests: an in-process server on port 0 and
-//! a generated grid mesh.
-#![allow(dead_code)]
+//! An in-process server on port 0 and the grid the server tests edit.
 
+use std::sync::Arc;
+
+use dend_server::store::{MemoryStore, Store};
 use dend_server::{app, AppState, Config};
 
 /// Starts a server on 127.0.0.1:0 with the in-memory store; returns its
 /// base URL and state.
 pub async fn start(config: Config) -> (String, AppState) {
-    start_with_store(
-        config,
-        std::sync::Arc::new(dend_server::store::MemoryStore::new()),
-    )
-    .await
+    start_with_store(config, Arc::new(MemoryStore::new())).await
 }
 
 /// [`start`] on the given store.
-pub async fn start_with_store(
-    config: Config,
-    store: std::sync::Arc<dyn dend_server::store::Store>,
-) -> (String, AppState) {
+pub async fn start_with_store(config: Config, store: Arc<dyn Store>) -> (String, AppState) {
     let config = Config {
         addr: ([127, 0, 0, 1], 0).into(),
         ..config
@@ -35,24 +29,12 @@ pub async fn start_with_store(
     (format!("http://{addr}"), state)
 }
 
-/// An n×n grid of unit spacing in the z = 0 plane.
+/// The positions and triangles of [`crate::unit_grid`] (`n`×`n`, unit
+/// spacing, z = 0), as uploaded.
 pub fn grid(n: usize) -> (Vec<[f64; 3]>, Vec<[u32; 3]>) {
-    let mut p = vec![];
-    for j in 0..n {
-        for i in 0..n {
-            p.push([i as f64, j as f64, 0.0]);
-        }
-    }
-    let mut t = vec![];
-    for j in 0..n - 1 {
-        for i in 0..n - 1 {
-            let a = (j * n + i) as u32;
-            let (b, c, d) = (a + 1, a + n as u32, a + n as u32 + 1);
-            t.push([a, b, d]);
-            t.push([a, d, c]);
-        }
-    }
-    (p, t)
+    let n = u32::try_from(n).expect("grid size fits u32");
+    let m = crate::unit_grid(n);
+    (m.positions().to_vec(), m.triangles().to_vec())
 }
 
 /// Constraints on an n×n grid: bottom row fixed, top row the handle `top`.

@@ -1,0 +1,123 @@
+//! The solver tests' set-ups: the least-squares parameters, a solve from
+//! rest, the tube and standard edits, and the distance between poses.
+
+use std::sync::Arc;
+
+use dend::deform::{
+    BoxSel, Constraints, ConstraintsSpec, Deformer, Factor, Formulation, HandleSpec, Params, Rest,
+    RigidTransform, RotationSpec, StepReport, VertexSet,
+};
+use dend::mesh::{Mesh, Point};
+use nalgebra::{UnitQuaternion, Vector3};
+
+/// Largest distance between corresponding points.
+pub fn max_dist(a: &[Point], b: &[Point]) -> f64 {
+    a.iter()
+        .zip(b)
+        .map(|(p, q)| {
+            ((p[0] - q[0]).powi(2) + (p[1] - q[1]).powi(2) + (p[2] - q[2]).powi(2)).sqrt()
+        })
+        .fold(0.0, f64::max)
+}
+
+/// Eq. (24) least squares (the default before the elastic formulation),
+/// the parameters of the tests of that formulation's properties; the
+/// elastic default's are in tests/elastic.rs.
+pub fn ls() -> Params {
+    Params {
+        formulation: Formulation::LeastSquares,
+        ..Params::default()
+    }
+}
+
+/// Solves `spec` on `mesh` from rest with up to `iters` iterations.
+pub fn solve(
+    mesh: &Mesh,
+    params: Params,
+    spec: &ConstraintsSpec,
+    iters: usize,
+) -> (Vec<[f64; 3]>, StepReport) {
+    let rest = Arc::new(Rest::new(mesh.clone()).unwrap());
+    let c = spec.resolve(mesh).unwrap();
+    let f = Factor::build(&rest, &params, &c).unwrap();
+    let mut d = Deformer::new(rest, params);
+    let rep = d.step(&f, &c, iters).unwrap();
+    (d.pose().to_vec(), rep)
+}
+
+/// A tube's edit along z: the vertices within 0.3 of its bottom (z = 0)
+/// fixed, those within 0.3 of its top the handle `handle` (whose own
+/// vertex set is replaced).
+pub fn tube_spec(mesh: &Mesh, handle: HandleSpec) -> ConstraintsSpec {
+    let (_, hi) = mesh.bounding_box();
+    ConstraintsSpec {
+        fixed_positions: None,
+        fixed: VertexSet::Box {
+            bbox: BoxSel {
+                min: [-9.0, -9.0, -0.01],
+                max: [9.0, 9.0, 0.01 * hi[2] + 0.3],
+            },
+        },
+        handles: vec![HandleSpec {
+            vertices: VertexSet::Box {
+                bbox: BoxSel {
+                    min: [-9.0, -9.0, hi[2] * 0.99 - 0.3],
+                    max: [9.0, 9.0, hi[2] + 1.0],
+                },
+            },
+            ..handle
+        }],
+    }
+}
+
+/// A handle named `top` with this motion and no vertices yet (see
+/// [`tube_spec`]).
+pub fn handle(translate: Option<[f64; 3]>, rotate: Option<RotationSpec>) -> HandleSpec {
+    HandleSpec {
+        name: Some("top".into()),
+        vertices: VertexSet::Indices(vec![]),
+        translate,
+        rotate,
+        pivot: None,
+        positions: None,
+    }
+}
+
+/// The standard edit: fixed = the lowest 10 % of vertices in z, handle = the
+/// highest 10 %, moved by `0.15 · diagonal` along x and rotated 30° about y
+/// (about the handle's centroid).
+pub fn standard_edit(mesh: &Mesh) -> Constraints {
+    let (fixed, handle) = bottom_top(mesh, 0.1);
+    let c = centroid(mesh, &handle);
+    let d = mesh.diagonal();
+    let target = RigidTransform {
+        rotation: UnitQuaternion::from_axis_angle(&Vector3::y_axis(), 30f64.to_radians()),
+        translation: [0.15 * d, 0.0, 0.0],
+        pivot: c,
+    };
+    Constraints::new(mesh, fixed, vec![("top".into(), handle, Some(target))])
+        .expect("standard edit is valid")
+}
+
+/// Vertex indices of the lowest and highest `frac` of vertices in z.
+pub fn bottom_top(mesh: &Mesh, frac: f64) -> (Vec<u32>, Vec<u32>) {
+    let n = mesh.num_vertices();
+    let mut order: Vec<u32> = (0..n as u32).collect();
+    let z = |v: &u32| mesh.positions()[*v as usize][2];
+    order.sort_by(|a, b| z(a).total_cmp(&z(b)));
+    let k = ((n as f64 * frac) as usize).max(1);
+    let fixed = order[..k].to_vec();
+    let handle = order[n - k..].to_vec();
+    (fixed, handle)
+}
+
+fn centroid(mesh: &Mesh, vs: &[u32]) -> Point {
+    let mut c = [0.0; 3];
+    for &v in vs {
+        let p = mesh.positions()[v as usize];
+        for k in 0..3 {
+            c[k] += p[k] / vs.len() as f64;
+        }
+    }
+    c
+}
