@@ -254,9 +254,10 @@ f 2/1/4 3/2/4 7/3/4 6/4/4\nf 3/1/5 4/2/5 8/3/5 7/4/5\nf 4/1/6 1/2/6 5/3/6 8/4/6\
 #[test]
 fn obj_vn_lines_are_recomputed_per_vn_and_stay_flat() {
     let a = Asset::read_bytes(BOX.as_bytes(), Format::Obj, Sidecars::Refuse).unwrap();
-    // lift one top corner: the top face (vn 2) and two sides bend
+    // pull one top corner out, off every face's plane: the top face (vn 2)
+    // and two sides bend, none symmetrically
     let mut pose = a.mesh().positions().to_vec();
-    pose[6][2] += 0.5;
+    pose[6] = [1.3, 1.2, 1.5];
     let out = String::from_utf8(a.export(&pose, Format::Obj).unwrap()).unwrap();
     let vn: Vec<Point> = out
         .lines()

@@ -11,7 +11,8 @@
 //! (different file normals) stays hard: each side averages only its own
 //! faces.
 //!
-//! **Normal.** The angle-weighted vertex normal (Thürmer and Wüthrich 1998)
+//! **Normal.** Where the neighbourhood changed shape, the angle-weighted
+//! vertex normal (Thürmer and Wüthrich 1998)
 //! of the group's corners on the deformed surface:
 //!
 //! ```text
@@ -37,12 +38,18 @@
 //! normalise(R t − (R t · n) n)`; the handedness `w` is kept. (Recomputing
 //! tangents from the UVs, MikkTSpace-style, would change them even at rest.)
 //!
-//! **Unchanged neighbourhoods.** A group whose neighbourhood did not change
-//! shape or turn (every edge vector from its corners is bit-identical; a
-//! translation is no change) keeps the file's normal and tangent exactly, so
-//! an identity deformation changes nothing, and a file whose normals are
-//! angle-weighted gets back its own normals (to rounding) wherever it moved
-//! rigidly.
+//! **Unchanged and rigidly moved neighbourhoods.** A group whose
+//! neighbourhood did not change shape or turn (every edge vector from its
+//! corners is bit-identical; a translation is no change) keeps the file's
+//! normal and tangent exactly, so an identity deformation changes nothing.
+//! A group whose neighbourhood only turned (its rotation `R` maps every rest
+//! edge `a` onto the posed `b` with `Σ |R a − b|² ≤ RIGID² Σ |a|²`, `RIGID =
+//! 1e-6`: the fixed parts and the handles of a pose) gets the file's normal
+//! turned by `R`: authored normals (analytic, custom-weighted, of a
+//! non-uniformly scaled node) are kept wherever the shape did not change,
+//! and recomputed only where it did. Where the file's normals are
+//! angle-weighted, both rules give the same normals (to rounding), so there
+//! is no seam between turned and recomputed ones.
 
 use nalgebra::{Matrix3, Vector3};
 
@@ -96,6 +103,9 @@ pub struct Shade {
     /// The angle-weighted normal on the deformed surface (None: the group's
     /// triangles are all degenerate).
     pub weighted: Option<Point>,
+    /// Whether the neighbourhood moved rigidly (to within [`RIGID`]): then
+    /// the file's normal is turned, not recomputed.
+    pub rigid: bool,
 }
 
 impl Shade {
@@ -104,6 +114,7 @@ impl Shade {
     pub fn normal(&self, file: Point) -> Option<Point> {
         match self.turn {
             Turn::Keep => None,
+            t if self.rigid => Some(t.apply(file)),
             t => Some(self.weighted.unwrap_or_else(|| t.apply(file))),
         }
     }
@@ -172,12 +183,16 @@ pub fn group_shading(
     corner_group: &[[u32; 3]],
     groups: usize,
 ) -> Vec<Shade> {
-    let turns = group_turns(rest, pose, triangles, corner_group, groups);
+    let turns = fit_turns(rest, pose, triangles, corner_group, groups);
     let normals = weighted_normals(pose, triangles, corner_group, groups);
     turns
         .into_iter()
         .zip(normals)
-        .map(|(turn, weighted)| Shade { turn, weighted })
+        .map(|((turn, rigid), weighted)| Shade {
+            turn,
+            weighted,
+            rigid,
+        })
         .collect()
 }
 
@@ -190,6 +205,40 @@ pub fn group_turns(
     corner_group: &[[u32; 3]],
     groups: usize,
 ) -> Vec<Turn> {
+    fit_turns(rest, pose, triangles, corner_group, groups)
+        .into_iter()
+        .map(|(t, _)| t)
+        .collect()
+}
+
+/// The edges `(a, b)` (rest, posed) from each corner to the other two
+/// corners of its triangle, with the corner's group.
+fn corner_edges<'a>(
+    rest: &'a [Point],
+    pose: &'a [Point],
+    triangles: &'a [[u32; 3]],
+    corner_group: &'a [[u32; 3]],
+) -> impl Iterator<Item = (usize, Vector3<f64>, Vector3<f64>)> + 'a {
+    triangles.iter().zip(corner_group).flat_map(move |(t, g)| {
+        let r = t.map(|i| rest[i as usize]);
+        let p = t.map(|i| pose[i as usize]);
+        (0..3).flat_map(move |k| {
+            [(k + 1) % 3, (k + 2) % 3]
+                .map(|j| (g[k] as usize, v3(sub(r[j], r[k])), v3(sub(p[j], p[k]))))
+        })
+    })
+}
+
+/// [`group_turns`], with whether each group moved rigidly: its rotation
+/// maps every rest edge onto the posed one to within `RIGID` of the edges'
+/// size, `Σ |R a − b|² ≤ RIGID² Σ |a|²`.
+fn fit_turns(
+    rest: &[Point],
+    pose: &[Point],
+    triangles: &[[u32; 3]],
+    corner_group: &[[u32; 3]],
+    groups: usize,
+) -> Vec<(Turn, bool)> {
     let mut cov = vec![Matrix3::zeros(); groups];
     let mut n_rest = vec![Vector3::zeros(); groups];
     let mut n_pose = vec![Vector3::zeros(); groups];
@@ -200,20 +249,17 @@ pub fn group_turns(
         let p = t.map(|i| pose[i as usize]);
         let nr = v3(cross(sub(r[1], r[0]), sub(r[2], r[0])));
         let np = v3(cross(sub(p[1], p[0]), sub(p[2], p[0])));
-        for k in 0..3 {
-            let gi = g[k] as usize;
-            n_rest[gi] += nr;
-            n_pose[gi] += np;
-            for j in [(k + 1) % 3, (k + 2) % 3] {
-                let a = v3(sub(r[j], r[k]));
-                let b = v3(sub(p[j], p[k]));
-                cov[gi] += b * a.transpose();
-                moved[gi] |= a != b;
-                scale[gi] += a.norm_squared();
-            }
+        for &gi in g {
+            n_rest[gi as usize] += nr;
+            n_pose[gi as usize] += np;
         }
     }
-    (0..groups)
+    for (gi, a, b) in corner_edges(rest, pose, triangles, corner_group) {
+        cov[gi] += b * a.transpose();
+        moved[gi] |= a != b;
+        scale[gi] += a.norm_squared();
+    }
+    let turns: Vec<Turn> = (0..groups)
         .map(|g| {
             if !moved[g] {
                 return Turn::Keep;
@@ -225,8 +271,22 @@ pub fn group_turns(
             }
             Turn::Rotate(procrustes(&c))
         })
+        .collect();
+    let mut residual = vec![0.0f64; groups];
+    for (gi, a, b) in corner_edges(rest, pose, triangles, corner_group) {
+        if let Turn::Rotate(r) = turns[gi] {
+            residual[gi] += (r * a - b).norm_squared();
+        }
+    }
+    turns
+        .into_iter()
+        .enumerate()
+        .map(|(g, t)| (t, residual[g] <= RIGID * RIGID * scale[g]))
         .collect()
 }
+
+/// The relative edge error under which a group counts as moved rigidly.
+pub const RIGID: f64 = 1e-6;
 
 #[cfg(test)]
 mod tests {
