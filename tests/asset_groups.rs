@@ -287,3 +287,45 @@ fn dend_deform_poses_an_obj_by_group_and_refuses_unknown_groups() {
         "{err}"
     );
 }
+
+#[test]
+fn dend_deform_poses_a_glb_by_node_and_the_result_validates() {
+    let dir = tempfile::tempdir().unwrap();
+    let input = dir.path().join("two.glb");
+    let out = dir.path().join("posed.glb");
+    let c = dir.path().join("c.json");
+    let bytes = two_node_tube();
+    std::fs::write(&input, &bytes).unwrap();
+    // both caps held by naming their node, the middle ring (z = 1.5) pulled
+    std::fs::write(
+        &c,
+        r#"{"fixed": {"group": {"node": "capsNode"}},
+            "handles": [{"name": "mid", "vertices": {"box": {"min": [-9, -9, 1.4], "max": [9, 9, 1.6]}},
+                         "translate": [0.3, 0, 0]}]}"#,
+    )
+    .unwrap();
+    let o = dend(&["deform", s(&input), "--constraints", s(&c), "-o", s(&out)]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let rest = Asset::read_path(&input).unwrap();
+    let posed = Asset::read_path(&out).unwrap();
+    assert_eq!(posed.positions().len(), rest.positions().len());
+    let (p0, p1) = (rest.mesh().positions(), posed.mesh().positions());
+    let (mut held, mut pulled) = (0, 0);
+    for v in 0..p0.len() {
+        let z = p0[v][2];
+        if z == 0.0 || z == 3.0 {
+            assert_eq!(p1[v], p0[v], "cap vertex {v} kept its stored bits");
+            held += 1;
+        } else if z == 1.5 {
+            let want = [p0[v][0] + 0.3, p0[v][1], z];
+            assert!(support::max_dist(&[p1[v]], &[want]) < 1e-6, "{v}");
+            pulled += 1;
+        }
+    }
+    assert_eq!((held, pulled), (2 * 16 + 2, 16));
+    for (name, b) in [("two.glb", bytes), ("posed.glb", std::fs::read(&out).unwrap())] {
+        if let Some(r) = support::gltf_validator::validate(&b, name) {
+            assert_eq!((r.errors, r.warnings), (0, 0), "{name}: {}", r.messages);
+        }
+    }
+}
