@@ -32,6 +32,9 @@ fn schema_and_serde_agree_on_examples_and_invalid_documents() {
         r#"{"fixed": [0], "handles": [{"vertices": [5], "rotate": {"quaternion_wxyz": [1,0,0,0]}}]}"#,
         r#"{"fixed": [0], "handles": [{"vertices": [5], "positions": [[1,2,3]], "pivot": [0,0,0]}]}"#,
         r#"{"fixed": [0, 4], "fixed_positions": [[0,0,1], [1,0,1]]}"#,
+        r#"{"fixed": {"group": "base"}, "handles": [{"vertices": {"group": {"node": "Arm"}}}]}"#,
+        r#"{"fixed": {"group": {"mesh": 0}}, "handles": [{"vertices": {"group": {"primitive": ["Body", 1]}}}]}"#,
+        r#"{"fixed": {"group": {"node": 2}}, "handles": [{"vertices": {"group": {"primitive": [0, 1]}}}]}"#,
         // invalid ones
         r#"{"fixed": [0], "fixed_positions": [[0,0]]}"#,
         r#"{"fixed": [0], "fixed_positions": [0, 0, 1]}"#,
@@ -44,6 +47,12 @@ fn schema_and_serde_agree_on_examples_and_invalid_documents() {
         r#"{"fixed": {"sphere": {"center": [0,0,0], "radius": 1, "x": 2}}}"#,
         r#"{"fixed": [0], "handles": [{"vertices": [1], "oops": 1}]}"#,
         r#"{"fixed": "all"}"#,
+        r#"{"fixed": {"group": 5}}"#,
+        r#"{"fixed": {"group": {"o": "x"}}}"#,
+        r#"{"fixed": {"group": {"node": 1, "mesh": 2}}}"#,
+        r#"{"fixed": {"group": {"primitive": [0]}}}"#,
+        r#"{"fixed": {"group": {"primitive": [0, -1]}}}"#,
+        r#"{"fixed": {"group": "a", "extra": 1}}"#,
     ];
     for (k, d) in more.iter().enumerate() {
         docs.push((format!("inline #{k}"), d.to_string()));
@@ -97,7 +106,7 @@ for line in sys.stdin:
         invalid += (!serde_ok) as usize;
     }
     assert_eq!(
-        invalid, 11,
+        invalid, 17,
         "the invalid documents must be rejected by both"
     );
 }

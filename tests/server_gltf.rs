@@ -5,6 +5,7 @@
 use std::sync::Arc;
 use std::time::Duration;
 
+use dend_testkit::assets::{banded_tube_obj, AROUND, RINGS};
 use dend::mesh::asset::sample::{self, TubeOptions};
 use dend::mesh::io::gltf::{Container, GltfAsset, Sidecars};
 use dend_client::{Client, ClientError};
@@ -176,5 +177,128 @@ async fn delete_mesh_is_refused_while_a_session_uses_it() -> Result<(), ClientEr
         upload(&base, input, "model/gltf-binary").await.status(),
         201
     );
+    Ok(())
+}
+
+#[tokio::test]
+async fn constraints_by_group_resolve_on_the_uploaded_asset() -> Result<(), ClientError> {
+    let (base, _state) = start(Config::default()).await;
+    let c = Client::new(&base);
+    let obj = banded_tube_obj();
+    let info = c.upload_file(obj.clone().into_bytes(), "obj").await?;
+    // GET /v1/meshes/{id} lists the groups with the vertices they select
+    let got: serde_json::Value = reqwest::get(format!("{base}/v1/meshes/{}", info.id))
+        .await
+        .unwrap()
+        .json()
+        .await
+        .unwrap();
+    let groups: Vec<(String, String, u64)> = got["asset"]["groups"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|g| {
+            let s = |k: &str| g[k].as_str().unwrap().to_owned();
+            (s("kind"), s("name"), g["vertices"].as_u64().unwrap())
+        })
+        .collect();
+    let n = AROUND as u64;
+    let want = [
+        ("o", "tube", n * RINGS as u64),
+        ("g", "base", 2 * n),
+        ("g", "mid", (RINGS as u64 - 2) * n),
+        ("g", "tip", 2 * n),
+        ("g", "end", 2 * n),
+    ];
+    assert_eq!(
+        groups,
+        want.map(|(k, g, v)| (k.to_owned(), g.to_owned(), v))
+            .to_vec()
+    );
+
+    // a session deforms by group: base held, tip moved
+    let rest = dend::mesh::asset::Asset::read_bytes(
+        obj.as_bytes(),
+        dend::mesh::io::Format::Obj,
+        Sidecars::Refuse,
+    )
+    .unwrap();
+    let rest = rest.mesh().positions();
+    let s = c.create_session(&info.id, json!({})).await?;
+    s.set_constraints(&json!({
+        "fixed": {"group": "base"},
+        "handles": [{"name": "tip", "vertices": {"group": {"o": "x"}}}]
+    }))
+    .await
+    .expect_err("not a group selector: invalid constraints");
+    s.set_constraints(&json!({
+        "fixed": {"group": "base"},
+        "handles": [{"name": "tip", "vertices": {"group": "tip"}}]
+    }))
+    .await?;
+    s.wait_ready(Duration::from_secs(60)).await?;
+    let p = s
+        .drag(json!("tip"), json!({"translate": [1.5, 0, 0]}), Some(60))
+        .await?;
+    let top = (RINGS - 1) as f64;
+    let (mut held, mut moved) = (0, 0);
+    for (v, (q, r)) in p.positions.iter().zip(rest).enumerate() {
+        if r[2] <= 1.0 {
+            assert!(dend_testkit::max_dist(&[*q], &[*r]) < 1e-9, "base vertex {v}");
+            held += 1;
+        } else if r[2] >= top - 1.0 {
+            let want = [r[0] + 1.5, r[1], r[2]];
+            assert!(dend_testkit::max_dist(&[*q], &[want]) < 1e-6, "tip vertex {v}");
+            moved += 1;
+        }
+    }
+    assert_eq!((held, moved), (2 * AROUND, 2 * AROUND));
+
+    // an unknown group: 422 unknown_group naming it and listing the groups,
+    // over HTTP and over the WebSocket; the session keeps its constraints
+    let bad = json!({"fixed": {"group": "base"}, "handles": [{"vertices": {"group": "LeftArm"}}]});
+    match s.set_constraints(&bad).await {
+        Err(ClientError::Api {
+            status,
+            code,
+            message,
+        }) => {
+            assert_eq!((status, code.as_str()), (422, "unknown_group"));
+            assert!(
+                message.contains("LeftArm") && message.contains("g \"tip\""),
+                "{message}"
+            );
+        }
+        other => panic!("{other:?}"),
+    }
+    let mut ws = s.connect().await?;
+    ws.send(&json!({"type": "set_constraints", "constraints": bad}))
+        .await?;
+    let e = ws.event("error").await?;
+    assert_eq!(e["code"], "unknown_group", "{e}");
+    // over the WebSocket a known group resolves like over HTTP
+    let good = json!({"fixed": {"group": "tip"}, "handles": [{"name": "b", "vertices": {"group": "base"}}]});
+    ws.send(&json!({"type": "set_constraints", "constraints": good}))
+        .await?;
+    s.wait_ready(Duration::from_secs(60)).await?;
+    let stored = s.info().await?;
+    let fixed = stored["constraints"]["fixed"].clone();
+    let fixed: Vec<u64> = serde_json::from_value(fixed).unwrap();
+    assert_eq!(
+        fixed.len(),
+        2 * AROUND,
+        "stored as the index list: {stored}"
+    );
+    ws.close().await?;
+
+    // a mesh without an asset has no groups
+    let plain = c.generate(json!({"shape": "bar"})).await?;
+    let s = c.create_session(&plain.id, json!({})).await?;
+    match s.set_constraints(&bad).await {
+        Err(ClientError::Api { status, code, .. }) => {
+            assert_eq!((status, code.as_str()), (422, "unknown_group"));
+        }
+        other => panic!("{other:?}"),
+    }
     Ok(())
 }

@@ -117,7 +117,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             std::fs::read_to_string(path).with_context(|| format!("reading {}", path.display()))?;
         let spec: ConstraintsSpec =
             serde_json::from_str(&text).with_context(|| format!("parsing {}", path.display()))?;
-        spec.resolve(&mesh)?
+        // `{"group": …}` sets name the asset's parts: index lists from here on
+        asset.resolve_groups(&spec)?.resolve(&mesh)?
     } else {
         let (sel_path, def_path) = (args.sel.as_ref().unwrap(), args.def.as_ref().unwrap());
         let sel = survey::read_sel(sel_path)?;

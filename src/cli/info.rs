@@ -150,6 +150,10 @@ fn print_text(i: &Info) {
         if !a.attributes.is_empty() {
             println!("attributes:  {}", a.attributes.join(", "));
         }
+        if !a.groups.is_empty() {
+            let g: Vec<String> = a.groups.iter().map(ToString::to_string).collect();
+            println!("groups:      {}", g.join(", "));
+        }
         if a.dropped_triangles > 0 {
             println!(
                 "warning:     {} degenerate triangles of the file are left out of the welded surface",

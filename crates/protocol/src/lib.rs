@@ -172,6 +172,30 @@ pub struct AssetSummary {
     /// Attributes and counts kept by export (`TEXCOORD_0`, `JOINTS_0`,
     /// `skins: 1`, `vt: 120`, …).
     pub attributes: Vec<String>,
+    /// The named parts constraints can select by (`{"group": …}`): OBJ
+    /// `g`/`o` names, glTF nodes, meshes and primitives.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub groups: Vec<AssetGroup>,
+}
+
+/// A named part of an uploaded asset (see [`AssetSummary::groups`]).
+#[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
+pub struct AssetGroup {
+    /// `g`, `o`, `node`, `mesh` or `primitive`.
+    pub kind: String,
+    /// Its name (a primitive's is its mesh's).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub name: Option<String>,
+    /// The glTF node or mesh index (a primitive's mesh).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub index: Option<usize>,
+    /// A primitive's index in its mesh.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub primitive: Option<usize>,
+    /// Asset triangles in it.
+    pub triangles: usize,
+    /// Welded vertices (the ones sessions deform) it selects.
+    pub vertices: usize,
 }
 
 /// A pose as JSON: the answer of drags, undo/redo/reset and

@@ -36,6 +36,10 @@ pub enum ApiError {
     /// A vertex index beyond the mesh.
     #[error("{0}")]
     VertexOutOfRange(String),
+    /// A constraint names a group (`{"group": …}`) the mesh's asset does
+    /// not have; the message lists the ones it has.
+    #[error("{0}")]
+    UnknownGroup(String),
     /// NaN or infinity in a delta or parameter.
     #[error("{0}")]
     NonFinite(String),
@@ -154,6 +158,7 @@ impl ApiError {
             InvalidParams(_) => ("invalid_params", StatusCode::UNPROCESSABLE_ENTITY),
             InvalidConstraints(_) => ("invalid_constraints", StatusCode::UNPROCESSABLE_ENTITY),
             VertexOutOfRange(_) => ("vertex_out_of_range", StatusCode::UNPROCESSABLE_ENTITY),
+            UnknownGroup(_) => ("unknown_group", StatusCode::UNPROCESSABLE_ENTITY),
             NonFinite(_) => ("non_finite", StatusCode::UNPROCESSABLE_ENTITY),
             MeshNotFound(_) => ("mesh_not_found", StatusCode::NOT_FOUND),
             SessionNotFound(_) => ("session_not_found", StatusCode::NOT_FOUND),
@@ -292,6 +297,7 @@ fn deform_ref(d: &DeformError, msg: String) -> ApiError {
         | DeformError::Unconstrained { .. }
         | DeformError::InvalidTransform { .. }
         | DeformError::PositionsMismatch { .. } => ApiError::InvalidConstraints(msg),
+        DeformError::UnknownGroup { .. } => ApiError::UnknownGroup(msg),
         DeformError::OutOfMemory { .. } => ApiError::Internal(msg),
         DeformError::NotPositiveDefinite { .. }
         | DeformError::PoseLength { .. }

@@ -17,7 +17,8 @@ use serde::Deserialize;
 use super::error::ApiError;
 use super::AppState;
 use crate::store::StoredAsset;
-use dend::mesh::asset::Asset;
+use dend::deform::ConstraintsSpec;
+use dend::mesh::asset::{groups, Asset};
 use dend::mesh::gen::{self, ShapeSpec};
 use dend::mesh::io::gltf::Sidecars;
 use dend::mesh::io::{self, Format, IoError};
@@ -31,7 +32,7 @@ pub struct FormatQuery {
     pub format: Option<String>,
 }
 
-pub use dend_protocol::{AssetSummary, MeshInfo};
+pub use dend_protocol::{AssetGroup, AssetSummary, MeshInfo};
 
 fn info_of(id: String, m: &Mesh, asset: Option<&Asset>) -> MeshInfo {
     let (lo, hi) = m.bounding_box();
@@ -47,6 +48,18 @@ fn info_of(id: String, m: &Mesh, asset: Option<&Asset>) -> MeshInfo {
                 name: i.name,
                 asset_vertices: i.asset_vertices,
                 attributes: i.attributes,
+                groups: i
+                    .groups
+                    .into_iter()
+                    .map(|g| AssetGroup {
+                        kind: g.kind.name().to_owned(),
+                        name: g.name,
+                        index: g.index,
+                        primitive: g.primitive,
+                        triangles: g.triangles,
+                        vertices: g.vertices,
+                    })
+                    .collect(),
             }
         }),
     }
@@ -66,6 +79,32 @@ pub(crate) async fn stored_asset(st: &AppState, id: &str) -> Result<Option<Asset
     })
     .await
     .map_err(|e| ApiError::Internal(e.to_string()))?
+}
+
+/// A constraints spec (JSON) with its `{"group": …}` vertex sets resolved
+/// to index lists on mesh `mesh_id`'s asset (`dend::mesh::asset::groups`):
+/// what `PUT …/constraints` and the WebSocket's `set_constraints` pass on, so
+/// the session, its store and its revival see index lists only. A spec that
+/// names no group (or does not parse: the session reports that) is returned
+/// as it is; a group the asset does not have, or any group on a mesh
+/// without an asset, is 422 `unknown_group` listing the asset's groups.
+pub(crate) async fn resolve_groups(
+    st: &AppState,
+    mesh_id: &str,
+    spec: serde_json::Value,
+) -> Result<serde_json::Value, ApiError> {
+    let Ok(parsed) = serde_json::from_value::<ConstraintsSpec>(spec.clone()) else {
+        return Ok(spec);
+    };
+    if !groups::names_groups(&parsed) {
+        return Ok(spec);
+    }
+    let asset = stored_asset(st, mesh_id).await?;
+    let resolved =
+        tokio::task::spawn_blocking(move || groups::resolve_groups(asset.as_ref(), &parsed))
+            .await
+            .map_err(|e| ApiError::Internal(e.to_string()))??;
+    serde_json::to_value(resolved).map_err(|e| ApiError::Internal(format!("constraints: {e}")))
 }
 
 /// A new random 128-bit id, hex.

@@ -229,6 +229,7 @@ pub async fn remove(State(st): State<AppState>, Authed(s): Authed) -> StatusCode
 /// `If-Match: <constraints_revision>` header (quoted or not) makes the edit
 /// conditional: 409 `stale_constraints` when another edit came first.
 pub async fn set_constraints(
+    State(st): State<AppState>,
     Authed(s): Authed,
     headers: HeaderMap,
     body: Result<Json<serde_json::Value>, JsonRejection>,
@@ -248,6 +249,7 @@ pub async fn set_constraints(
         ),
     };
     let Json(spec) = body?;
+    let spec = crate::meshes::resolve_groups(&st, &s.info().mesh_id, spec).await?;
     let state = s.set_constraints(spec, if_revision).await?;
     let revision = s.info().constraints_revision;
     Ok((

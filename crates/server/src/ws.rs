@@ -170,12 +170,25 @@ impl ServerMsg {
 }
 
 /// Per-connection limits.
-#[derive(Debug, Clone)]
+#[derive(Clone)]
 pub struct ConnConfig {
     /// Messages per second (token bucket, burst of the same size).
     pub max_messages_per_sec: u32,
     /// Time allowed for the `auth` message.
     pub auth_timeout: Duration,
+    /// Where `set_constraints` resolves `{"group": …}` vertex sets (the
+    /// session's mesh's asset, from the store); None: passed on as they are.
+    pub groups: Option<AppState>,
+}
+
+impl std::fmt::Debug for ConnConfig {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("ConnConfig")
+            .field("max_messages_per_sec", &self.max_messages_per_sec)
+            .field("auth_timeout", &self.auth_timeout)
+            .field("groups", &self.groups.is_some())
+            .finish()
+    }
 }
 
 struct Bucket {
@@ -315,7 +328,7 @@ where
                     continue;
                 }
                 s.touch();
-                if let Some(reply) = handle_message(s, me, &text).await {
+                if let Some(reply) = handle_message(s, me, &text, cfg.groups.as_ref()).await {
                     send(sink, reply.text()).await?;
                 }
             }
@@ -371,7 +384,12 @@ pub fn decode_client_msg(text: &str) -> Result<ClientMsg, ApiError> {
 }
 
 /// Applies one client message; returns the direct reply, if any.
-async fn handle_message(s: &SessionHandle, me: ClientId, text: &str) -> Option<ServerMsg> {
+async fn handle_message(
+    s: &SessionHandle,
+    me: ClientId,
+    text: &str,
+    groups: Option<&AppState>,
+) -> Option<ServerMsg> {
     let msg = match parse_json::<ClientMsg>(text.as_bytes()) {
         Ok(m) => m,
         Err(e) => return Some(ServerMsg::error(&e, seq_of(text))),
@@ -392,11 +410,18 @@ async fn handle_message(s: &SessionHandle, me: ClientId, text: &str) -> Option<S
             ClientMsg::SetConstraints {
                 constraints,
                 if_revision,
-            } => s
-                .set_constraints(constraints, if_revision)
-                .await
-                .map(|_| None)
-                .map_err(ApiError::from),
+            } => {
+                let constraints = match groups {
+                    Some(st) => {
+                        crate::meshes::resolve_groups(st, &s.info().mesh_id, constraints).await?
+                    }
+                    None => constraints,
+                };
+                s.set_constraints(constraints, if_revision)
+                    .await
+                    .map(|_| None)
+                    .map_err(ApiError::from)
+            }
             ClientMsg::Undo => s.undo().await.map(|_| None).map_err(ApiError::from),
             ClientMsg::Redo => s.redo().await.map(|_| None).map_err(ApiError::from),
         }
@@ -442,6 +467,7 @@ pub async fn upgrade(
     let cfg = ConnConfig {
         max_messages_per_sec: st.config.ws_max_messages_per_sec,
         auth_timeout: Duration::from_secs(10),
+        groups: Some(st.clone()),
     };
     let metrics = st.metrics.clone();
     Ok(ws

@@ -62,6 +62,7 @@ fn connect(s: &SessionHandle, authed: bool, rate: u32) -> Client {
     let cfg = ConnConfig {
         max_messages_per_sec: rate,
         auth_timeout: Duration::from_secs(5),
+        groups: None,
     };
     let task = tokio::spawn(run_connection(
         server_out,

@@ -13,6 +13,7 @@
 //! Mesh files are read and written by the library (`dend::mesh::io`); the
 //! kit has no parser of its own.
 
+pub mod assets;
 pub mod gltf_validator;
 #[cfg(feature = "server")]
 pub mod server;

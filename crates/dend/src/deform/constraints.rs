@@ -5,6 +5,7 @@ use nalgebra::{Matrix3, Rotation3, Unit, UnitQuaternion, Vector3};
 use serde::{Deserialize, Serialize};
 
 use super::DeformError;
+use crate::mesh::asset::groups::GroupSel;
 use crate::mesh::{Mesh, Point};
 
 /// A rigid handle target `p' = pivot + R (p - pivot) + translation`
@@ -124,7 +125,9 @@ impl RigidTransform {
 }
 
 /// A set of vertices, as written in the constraints JSON: an index list, a box
-/// or a sphere (selected on the rest mesh, in the mesh's own units).
+/// or a sphere (selected on the rest mesh, in the mesh's own units), or a
+/// named part of the asset file (resolved by
+/// [`Asset::resolve_groups`](crate::mesh::asset::Asset::resolve_groups)).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(untagged)]
 pub enum VertexSet {
@@ -141,6 +144,9 @@ pub enum VertexSet {
         /// The sphere.
         sphere: SphereSel,
     },
+    /// `{"group": "LeftArm"}`, `{"group": {"node": "Arm"}}`, … : a named
+    /// part of the asset (see [`crate::mesh::asset::groups`]).
+    Group(GroupSel),
 }
 
 /// An axis-aligned box selector.
@@ -592,6 +598,13 @@ pub fn select(set: &VertexSet, mesh: &Mesh) -> Result<Vec<u32>, DeformError> {
                 })
                 .map(|v| v as u32)
                 .collect()
+        }
+        // a group needs the asset: resolved before, by Asset::resolve_groups
+        VertexSet::Group(GroupSel { group }) => {
+            return Err(DeformError::UnknownGroup {
+                group: group.to_string(),
+                available: Vec::new(),
+            })
         }
     };
     out.sort_unstable();

@@ -156,6 +156,16 @@ pub enum DeformError {
     /// The factor was built for another constraint set, mesh or parameters.
     #[error("factor does not match this constraint set or these parameters")]
     FactorMismatch,
+    /// A constraint names a group (`{"group": …}`) the asset does not have,
+    /// or the mesh has no asset groups at all. Fix: use one of the listed
+    /// names (`dend info`, `GET /v1/meshes/{id}` list them).
+    #[error("unknown group {group}: {}", crate::mesh::asset::groups::describe_available(.available))]
+    UnknownGroup {
+        /// The group as the constraint named it.
+        group: String,
+        /// The asset's parts (`g "LeftArm"`, `node 1 "Arm"`, `primitive [0, 1]`, …).
+        available: Vec<String>,
+    },
     /// A combination of parameters the chosen formulation does not have.
     #[error("unsupported: {what}")]
     Unsupported {

@@ -16,11 +16,15 @@
 //!
 //! | format | kept (copied) | recomputed |
 //! |---|---|---|
-//! | glTF / GLB | vertex count and layout, indices, UVs, colours, joints, weights, morph targets, materials, textures, images, skins, animations, extensions, extras | POSITION (local = inverse node matrix × world pose), POSITION `min`/`max`, NORMAL and TANGENT direction ([`normals`]); buffers merged into one |
-//! | OBJ | every line (`vt`, `g`, `o`, `s`, `usemtl`, `mtllib`, comments, faces with their `v/vt/vn` indices, vertex colours after `v x y z`) | the coordinates of `v` lines and of `vn` lines ([`normals`], grouped by `vn` index) |
-//! | PLY | every byte but the vertices' `x y z` and `nx ny nz` values: extra vertex properties (colours, UVs, …), other elements, comments, faces | `x y z`; `nx ny nz` ([`normals`]) |
+//! | glTF / GLB | vertex count and layout, indices, UVs, colours, joints, weights, morph targets, materials, textures, images, skins, animations, extensions, extras, TANGENT `w` | POSITION (local = inverse node matrix × world pose), POSITION `min`/`max`, NORMAL (recomputed, angle-weighted) and TANGENT `xyz` (turned, re-orthogonalised) ([`normals`]); buffers merged into one |
+//! | OBJ | every line (`vt`, `g`, `o`, `s`, `usemtl`, `mtllib`, comments, faces with their `v/vt/vn` indices, vertex colours after `v x y z`) | the coordinates of `v` lines and of `vn` lines ([`normals`], recomputed per `vn` index) |
+//! | PLY | every byte but the vertices' `x y z` and `nx ny nz` values: extra vertex properties (colours, UVs, …), other elements, comments, faces | `x y z`; `nx ny nz` (recomputed, [`normals`]) |
+//!
+//! Named parts (OBJ `g`/`o`, glTF nodes, meshes, primitives) are kept for
+//! constraints that select vertices by them ([`groups`]).
 //! | OFF, STL | vertices and triangles | positions (written as a plain mesh) |
 
+pub mod groups;
 pub mod normals;
 mod obj;
 mod ply;
@@ -34,7 +38,8 @@ use serde::{Deserialize, Serialize};
 use crate::mesh::io::gltf::{Container, GltfAsset, GltfSummary, Shading, Sidecars};
 use crate::mesh::io::{self, Format, IoError};
 use crate::mesh::{Mesh, Point};
-use normals::{group_turns, Turn};
+use groups::{GroupInfo, Part};
+use normals::{group_shading, Shade};
 use obj::ObjAsset;
 use ply::PlyAsset;
 use weld::Weld;
@@ -61,6 +66,8 @@ pub struct Asset {
     weld: Weld,
     mesh: Mesh,
     dropped: usize,
+    /// Named parts (OBJ `g`/`o`, glTF nodes, meshes, primitives).
+    parts: Vec<Part>,
 }
 
 /// What `dend info` and the server report about an asset.
@@ -89,6 +96,10 @@ pub struct AssetInfo {
     /// glTF counts (meshes, primitives, skins, …), for glTF/GLB.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub gltf: Option<GltfSummary>,
+    /// The named parts constraints can select by (`{"group": …}`, see
+    /// [`groups`]).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub groups: Vec<GroupInfo>,
 }
 
 /// Leaves degenerate triangles (a repeated vertex, or zero area as
@@ -121,16 +132,19 @@ impl Asset {
         format: Format,
         sidecars: Sidecars<'_>,
     ) -> Result<Self, IoError> {
+        let mut parts = Vec::new();
         let (source, positions, triangles) = match format {
             Format::Gltf | Format::Glb => {
                 let g = GltfAsset::parse(bytes, sidecars)
                     .map_err(|e| parse_error(format, io::gltf_parse_error(&e)))?;
                 let (p, t) = (g.positions().to_vec(), g.triangles().to_vec());
+                parts = groups::gltf_parts(g.parts());
                 (Source::Gltf(Box::new(g)), p, t)
             }
             Format::Obj => {
-                let o = ObjAsset::parse(bytes).map_err(|e| parse_error(format, e))?;
+                let mut o = ObjAsset::parse(bytes).map_err(|e| parse_error(format, e))?;
                 let (p, t) = (o.positions.clone(), o.triangles.clone());
+                parts = std::mem::take(&mut o.groups);
                 (Source::Obj(o), p, t)
             }
             Format::Ply => {
@@ -143,7 +157,9 @@ impl Asset {
                 (Source::Plain, raw.positions, raw.triangles)
             }
         };
-        Self::assemble(format, source, positions, triangles)
+        let mut asset = Self::assemble(format, source, positions, triangles)?;
+        asset.parts = parts;
+        Ok(asset)
     }
 
     /// Reads the file at `path` (format from its extension; glTF side-car
@@ -172,6 +188,7 @@ impl Asset {
             },
             mesh,
             dropped: 0,
+            parts: Vec::new(),
         }
     }
 
@@ -205,6 +222,7 @@ impl Asset {
             weld,
             mesh,
             dropped,
+            parts: Vec::new(),
         })
     }
 
@@ -271,6 +289,7 @@ impl Asset {
             dropped_triangles: self.dropped,
             attributes,
             gltf,
+            groups: self.groups(),
         }
     }
 
@@ -304,16 +323,22 @@ impl Asset {
             }
             (Source::Obj(o), Format::Obj) => Ok(o.export(&asset_pose)),
             (Source::Ply(o), Format::Ply) => {
-                let turns = self.vertex_turns(&o.normals(), &asset_pose);
-                Ok(o.export(&asset_pose, &turns))
+                let file = o.normals();
+                let shades = self.vertex_shades(&file, &asset_pose);
+                let normals: Vec<Option<Point>> = file
+                    .iter()
+                    .zip(&shades)
+                    .map(|(n, s)| n.and_then(|n| s.normal(n)))
+                    .collect();
+                Ok(o.export(&asset_pose, &normals))
             }
             _ => Ok(io::to_bytes(pose, self.mesh.triangles(), format)),
         }
     }
 
-    /// The turn of each asset vertex's normal group (groups: welded vertex ×
-    /// the file normal's bits; see [`normals`]).
-    fn vertex_turns(&self, file_normals: &[Option<Point>], pose: &[Point]) -> Vec<Turn> {
+    /// The [`Shade`] of each asset vertex's normal group (groups: welded
+    /// vertex × the file normal's bits; see [`normals`]).
+    fn vertex_shades(&self, file_normals: &[Option<Point>], pose: &[Point]) -> Vec<Shade> {
         let mut ids = std::collections::HashMap::new();
         let group: Vec<u32> = (0..self.positions.len())
             .map(|a| {
@@ -328,22 +353,19 @@ impl Asset {
             .iter()
             .map(|t| t.map(|a| group[a as usize]))
             .collect();
-        let turns = group_turns(&self.positions, pose, &self.triangles, &corner, ids.len());
-        group.iter().map(|&g| turns[g as usize]).collect()
+        let shades = group_shading(&self.positions, pose, &self.triangles, &corner, ids.len());
+        group.iter().map(|&g| shades[g as usize]).collect()
     }
 
-    /// New normals and tangents (world space) for a glTF pose: see [`normals`].
+    /// New normals (recomputed) and tangents (turned, orthogonalised), world
+    /// space, for a glTF pose: see [`normals`].
     fn gltf_shading(&self, g: &GltfAsset, pose: &[Point]) -> Shading {
-        let turns = self.vertex_turns(g.normals(), pose);
-        let turned = |a: usize, v: Option<Point>| {
-            let t = turns[a];
-            (t != Turn::Keep).then(|| v.map(|v| t.apply(v))).flatten()
-        };
+        let shades = self.vertex_shades(g.normals(), pose);
         let normals = (0..self.positions.len())
-            .map(|a| turned(a, g.normals()[a]))
+            .map(|a| g.normals()[a].and_then(|n| shades[a].normal(n)))
             .collect();
         let tangents = (0..self.positions.len())
-            .map(|a| turned(a, g.tangents()[a]))
+            .map(|a| g.tangents()[a].and_then(|t| shades[a].tangent(t, g.normals()[a])))
             .collect();
         Shading { normals, tangents }
     }

@@ -9,7 +9,10 @@
 
 use std::fmt::Write as _;
 
-use super::normals::{group_turns, Turn};
+use std::collections::HashMap;
+
+use super::groups::{GroupKind, Part};
+use super::normals::group_shading;
 use crate::mesh::io::{fan, fmt_real, index_u32, parse_real, text_lines, ParseError, Position};
 use crate::mesh::{norm, Point};
 
@@ -34,6 +37,51 @@ pub(crate) struct ObjAsset {
     counts: [usize; 4],
     /// The name on the first `o` or `g` line.
     pub name: Option<String>,
+    /// The `g` and `o` names and the triangles after them.
+    pub groups: Vec<Part>,
+}
+
+/// The current `g` names and `o` name while reading faces.
+#[derive(Default)]
+struct Current {
+    /// Part index of each name, by (kind, name).
+    ids: HashMap<(GroupKind, String), usize>,
+    /// The parts the next faces belong to.
+    now: Vec<usize>,
+    /// The `o` part among them.
+    object: Option<usize>,
+}
+
+impl Current {
+    fn part(&mut self, parts: &mut Vec<Part>, kind: GroupKind, name: &str) -> usize {
+        *self.ids.entry((kind, name.to_owned())).or_insert_with(|| {
+            parts.push(Part::named(kind, name));
+            parts.len() - 1
+        })
+    }
+
+    /// A `g` line: the faces after it belong to each of its names (none for
+    /// a bare `g`) and to the current `o`.
+    fn group(&mut self, parts: &mut Vec<Part>, names: &[&str]) {
+        self.now = names
+            .iter()
+            .map(|n| self.part(parts, GroupKind::G, n))
+            .collect();
+        self.now.extend(self.object);
+    }
+
+    /// An `o` line: a new object, and no `g` group until the next `g`.
+    fn object(&mut self, parts: &mut Vec<Part>, name: &str) {
+        self.object = (!name.is_empty()).then(|| self.part(parts, GroupKind::O, name));
+        self.now = self.object.into_iter().collect();
+    }
+
+    /// Triangles `range` (just read) belong to the current parts.
+    fn add(&self, parts: &mut [Part], range: std::ops::Range<usize>) {
+        for &p in &self.now {
+            parts[p].push(range.clone());
+        }
+    }
 }
 
 fn resolve(tok: &str, defined: usize, ln: usize, what: &str) -> Result<u32, ParseError> {
@@ -72,7 +120,9 @@ impl ObjAsset {
             corner_vn: Vec::new(),
             counts: [0; 4],
             name: None,
+            groups: Vec::new(),
         };
+        let mut current = Current::default();
         let mut poly: Vec<(u32, u32)> = Vec::new();
         let mut fanned: Vec<[u32; 3]> = Vec::new();
         for line in text_lines(bytes, true) {
@@ -123,15 +173,23 @@ impl ObjAsset {
                     let slots: Vec<u32> = (0..poly.len() as u32).collect();
                     fanned.clear();
                     fan(&slots, &mut fanned);
+                    let start = a.triangles.len();
                     for t in &fanned {
                         a.triangles.push(t.map(|s| poly[s as usize].0));
                         a.corner_vn.push(t.map(|s| poly[s as usize].1));
                     }
+                    current.add(&mut a.groups, start..a.triangles.len());
                 }
                 Some("vt") => a.counts[0] += 1,
-                Some("g" | "o") => {
+                Some(kw @ ("g" | "o")) => {
                     a.counts[1] += 1;
-                    let name = toks.collect::<Vec<_>>().join(" ");
+                    let words: Vec<&str> = toks.collect();
+                    if kw == "g" {
+                        current.group(&mut a.groups, &words);
+                    } else {
+                        current.object(&mut a.groups, &words.join(" "));
+                    }
+                    let name = words.join(" ");
                     if a.name.is_none() && !name.is_empty() {
                         a.name = Some(name);
                     }
@@ -164,7 +222,8 @@ impl ObjAsset {
     }
 
     /// The file with `pose` (one point per `v`) in its `v` lines and the
-    /// `vn` lines turned with the surface.
+    /// `vn` lines recomputed on it (angle-weighted over the corners that use
+    /// each `vn`; see [`super::normals`]).
     pub fn export(&self, pose: &[Point]) -> Vec<u8> {
         let mut lines = self.lines.clone();
         for (k, &l) in self.v_lines.iter().enumerate() {
@@ -186,14 +245,13 @@ impl ObjAsset {
                 })
             })
             .collect();
-        let turns = group_turns(&self.positions, pose, &self.triangles, &corner, groups);
-        for (k, turn) in turns.iter().take(self.vn.len()).enumerate() {
-            if *turn != Turn::Keep {
-                let n = self.vn[k];
-                let len = norm(n);
-                let u = if len > 0.0 { n.map(|x| x / len) } else { n };
-                lines[self.vn_lines[k]] =
-                    replace_coords(&self.lines[self.vn_lines[k]], "vn", turn.apply(u));
+        let shades = group_shading(&self.positions, pose, &self.triangles, &corner, groups);
+        for (k, shade) in shades.iter().take(self.vn.len()).enumerate() {
+            let n = self.vn[k];
+            let len = norm(n);
+            let u = if len > 0.0 { n.map(|x| x / len) } else { n };
+            if let Some(new) = shade.normal(u) {
+                lines[self.vn_lines[k]] = replace_coords(&self.lines[self.vn_lines[k]], "vn", new);
             }
         }
         lines.join("\n").into_bytes()

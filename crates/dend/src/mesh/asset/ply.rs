@@ -6,7 +6,6 @@
 //! (integer types rounded); ASCII lines holding a rewritten value are
 //! re-joined with single spaces.
 
-use super::normals::Turn;
 use crate::mesh::io::ply::{parse_located, Body, Layout, Loc, Scalar};
 use crate::mesh::io::{fmt_real, ParseError};
 use crate::mesh::Point;
@@ -79,19 +78,18 @@ impl PlyAsset {
         out
     }
 
-    /// The file with `pose` in its `x y z` and the normals turned by `turns`
-    /// (one per vertex).
-    pub fn export(&self, pose: &[Point], turns: &[Turn]) -> Vec<u8> {
+    /// The file with `pose` in its `x y z` and `normals` (one per vertex;
+    /// None keeps the file's) in its `nx ny nz`.
+    pub fn export(&self, pose: &[Point], normals: &[Option<Point>]) -> Vec<u8> {
         let mut edits: Vec<(Loc, f64)> = Vec::new();
         for (k, locs) in self.layout.xyz.iter().enumerate() {
             if pose[k] != self.positions[k] {
                 edits.extend(locs.iter().zip(pose[k]).map(|(l, v)| (*l, v)));
             }
         }
-        let normals = self.normals();
         for (k, (locs, _)) in self.layout.normals.iter().enumerate() {
-            if let (Some(t @ Turn::Rotate(_)), Some(n)) = (turns.get(k), normals[k]) {
-                edits.extend(locs.iter().zip(t.apply(n)).map(|(l, v)| (*l, v)));
+            if let Some(Some(n)) = normals.get(k) {
+                edits.extend(locs.iter().zip(*n).map(|(l, v)| (*l, v)));
             }
         }
         let big = self.layout.body == Some(Body::Be);
@@ -146,13 +144,13 @@ mod tests {
             + "0 0 0 0 0 1 255 0.25\n1 0 0 0 0 1 128 0.5\n0 1 0 0 0 1 7 0.75\n3 0 1 2\n";
         let a = PlyAsset::parse(src.as_bytes()).unwrap();
         assert_eq!(a.kept(), vec!["nx ny nz", "red", "u"]);
-        assert_eq!(a.export(&a.positions, &[Turn::Keep; 3]), src.as_bytes());
+        assert_eq!(a.export(&a.positions, &[None; 3]), src.as_bytes());
         let pose: Vec<Point> = a
             .positions
             .iter()
             .map(|p| [p[0], p[1], p[2] + 2.0])
             .collect();
-        let out = String::from_utf8(a.export(&pose, &[Turn::Keep; 3])).unwrap();
+        let out = String::from_utf8(a.export(&pose, &[None; 3])).unwrap();
         assert!(out.contains("\n1.0 0.0 2.0 0 0 1 128 0.5\n"), "{out}");
         assert!(out.ends_with("3 0 1 2\n"));
     }
@@ -182,7 +180,7 @@ mod tests {
                 .iter()
                 .map(|p| [p[0] + 0.5, p[1], p[2]])
                 .collect();
-            let out = a.export(&pose, &[Turn::Keep; 3]);
+            let out = a.export(&pose, &[None; 3]);
             assert_eq!(out.len(), src.len());
             let back = PlyAsset::parse(&out).unwrap();
             assert_eq!(back.positions, pose);

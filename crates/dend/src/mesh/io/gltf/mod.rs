@@ -234,7 +234,27 @@ pub struct GltfAsset {
     triangles: Vec<[u32; 3]>,
     normals: Vec<Option<Point>>,
     tangents: Vec<Option<Point>>,
+    parts: Vec<PrimitivePart>,
     summary: GltfSummary,
+}
+
+/// Where one deformed primitive's triangles are in [`GltfAsset::triangles`],
+/// and the node and mesh it belongs to: what constraints name glTF parts by
+/// (see [`crate::mesh::asset::groups`]).
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct PrimitivePart {
+    /// The node placing the mesh.
+    pub node: usize,
+    /// The node's name.
+    pub node_name: Option<String>,
+    /// The mesh.
+    pub mesh: usize,
+    /// The mesh's name.
+    pub mesh_name: Option<String>,
+    /// The primitive's index in its mesh.
+    pub primitive: usize,
+    /// Its triangles, a range of [`GltfAsset::triangles`].
+    pub triangles: std::ops::Range<usize>,
 }
 
 impl GltfAsset {
@@ -268,6 +288,11 @@ impl GltfAsset {
     /// The file's tangent directions in world space (unit), per asset vertex.
     pub fn tangents(&self) -> &[Option<Point>] {
         &self.tangents
+    }
+
+    /// The deformed primitives, in the order of their triangles.
+    pub fn parts(&self) -> &[PrimitivePart] {
+        &self.parts
     }
 
     /// What the asset holds.

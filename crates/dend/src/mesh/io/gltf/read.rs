@@ -7,7 +7,7 @@ use nalgebra::{Matrix3, Matrix4, Vector3, Vector4};
 
 use super::accessor::{check_bounds, locate, read_f32, read_indices, Located};
 use super::container::{is_glb, resolve_buffer, split_glb, Sidecars};
-use super::{Container, GltfAsset, GltfError, REFUSED_EXTENSIONS};
+use super::{Container, GltfAsset, GltfError, PrimitivePart, REFUSED_EXTENSIONS};
 use crate::mesh::Point;
 
 /// The vertices of one POSITION accessor as placed by one node.
@@ -146,6 +146,7 @@ pub(crate) fn parse(bytes: &[u8], sidecars: Sidecars<'_>) -> Result<GltfAsset, G
         triangles: Vec::new(),
         normals: Vec::new(),
         tangents: Vec::new(),
+        parts: Vec::new(),
         summary: Default::default(),
     };
     asset.summary.name = doc
@@ -291,6 +292,7 @@ fn add_mesh(
                 vertices: count,
             });
         }
+        let start = asset.triangles.len();
         for t in indices.chunks_exact(3) {
             let g = |k: usize| (first + t[k] as usize) as u32;
             asset.triangles.push(if flip {
@@ -299,6 +301,14 @@ fn add_mesh(
                 [g(0), g(1), g(2)]
             });
         }
+        asset.parts.push(PrimitivePart {
+            node: node.index(),
+            node_name: node.name().map(str::to_owned),
+            mesh: mesh.index(),
+            mesh_name: mesh.name().map(str::to_owned),
+            primitive: prim.index(),
+            triangles: start..asset.triangles.len(),
+        });
     }
     Ok(())
 }
