@@ -41,6 +41,7 @@ export const app = {
   last: null, // last frame header
   needsDraw: true,
   eventLog: [],
+  progressLog: [],
   warnings: [],
   colorMode: 'regions', // or a field of GET …/curvature: mean, gaussian, g
   curvature: null,
@@ -68,6 +69,18 @@ export function showError(e) {
   $('error').hidden = false;
 }
 $('errorClose').onclick = () => { $('error').hidden = true; };
+
+/** The progress line of the status bar (upload, session set-up, the
+ * factor build's stages from the server); '' hides it. Each text shown
+ * is kept in `app.progressLog` (the last 20) for the browser test. */
+export function progress(text) {
+  $('stProgress').textContent = text;
+  $('stProgress').hidden = !text;
+  if (text) {
+    app.progressLog.push(text);
+    if (app.progressLog.length > 20) app.progressLog.shift();
+  }
+}
 
 function guarded(fn) {
   return async (...a) => {
@@ -328,7 +341,8 @@ async function openSession(id, token, meshId) {
 }
 
 async function startSession(meshId) {
-  const s = await app.api.createSession(meshId, params());
+  progress('computing the mesh operators…');
+  const s = await app.api.createSession(meshId, params()).finally(() => progress(''));
   // The triangles come from the OBJ export of the rest pose (the API has no
   // route for the mesh itself); then the socket, whose frames need them.
   setMesh(parseObj(await app.api.exportObj(s.id, s.token)));
@@ -350,6 +364,7 @@ const upload = guarded(async (ev) => {
   $('error').hidden = true;
   const before = app.state;
   setState('uploading');
+  progress(`uploading and parsing ${file.name} (${(file.size / 1e6).toFixed(1)} MB)…`);
   let m;
   try {
     m = await app.api.upload(file);
@@ -357,6 +372,7 @@ const upload = guarded(async (ev) => {
     setState(before);
     throw e;
   } finally {
+    progress('');
     ev.target.value = ''; // the same file can be picked again
   }
   await startSession(m.id);

@@ -4,7 +4,7 @@
 
 import { ApiError } from './api.js';
 import {
-  app, setState, showConstraints, showWarnings, showError, updateStats, uploadPose, refreshCurvature,
+  app, progress, setState, showConstraints, showWarnings, showError, updateStats, uploadPose, refreshCurvature,
 } from './app.js';
 
 const $ = (id) => document.getElementById(id);
@@ -27,9 +27,17 @@ function onFrame(f) {
   if (f.settled) refreshCurvature();
 }
 
+const STAGES = { assembly: 'assembling the system', symbolic: 'symbolic analysis', numeric: 'numeric factorisation' };
+
+/** The factor build's stage (a `build_progress` event, or a state's
+ * `build_stage` for a tab that joins mid-build) on the progress line. */
+function showStage(stage) {
+  progress(stage ? `factor: ${STAGES[stage] || stage}…` : '');
+}
+
 function onEvent(e) {
   // the last events, for the browser test's failure messages
-  app.eventLog.push(e.type === 'state' ? `state:${e.state}:${e.constraints_revision}` : e.type);
+  app.eventLog.push(e.type === 'state' ? `state:${e.state}:${e.constraints_revision}` : e.type === 'build_progress' ? `build_progress:${e.stage}` : e.type);
   if (app.eventLog.length > 40) app.eventLog.shift();
   switch (e.type) {
     case 'state':
@@ -44,9 +52,15 @@ function onEvent(e) {
         showConstraints(e);
       }
       showWarnings(e.warnings || []);
+      if (e.state === 'building') showStage(e.build_stage);
+      else showStage(null);
+      break;
+    case 'build_progress':
+      showStage(e.stage);
       break;
     case 'ready':
       setState('ready');
+      showStage(null);
       break;
     case 'error':
       // a refused drag never gets a frame: not a latency sample
@@ -56,7 +70,10 @@ function onEvent(e) {
       } else {
         showError(e);
       }
-      if (app.state === 'building') setState('failed');
+      if (app.state === 'building') {
+        setState('failed');
+        showStage(null);
+      }
       break;
     case 'handle_grabbed':
       if (e.client !== app.you) $('stState').textContent = `handle ${e.handle} held by client ${e.client}`;

@@ -254,6 +254,13 @@ async function gizmo(page, base) {
   assert.deepEqual(labelled(await page.evaluate(() => window.dend.labels()), 1), handle, 'handle 0 painted');
   await page.click('#apply');
   await waitFor(page, () => window.dend.app.state === 'ready', null, 'constraints ready', 60000);
+  // the server reported the factor build's stages and the page showed them
+  const { events } = await page.evaluate(() => window.dend.stats());
+  const stages = events.filter((e) => e.startsWith('build_progress:')).map((e) => e.slice(15));
+  log('factor build stages:', stages.join(' → '), '; progress lines:', (await page.evaluate(() => window.dend.app.progressLog)).join(' | '));
+  assert.deepEqual(stages, ['assembly', 'symbolic', 'numeric'], 'the build stages arrive in order');
+  assert.ok((await page.evaluate(() => window.dend.app.progressLog)).includes('factor: numeric factorisation…'), 'the progress line showed them');
+  assert.ok(await page.locator('#stProgress').isHidden(), 'and is gone once ready');
   await page.check('input[name=tool][value=navigate]');
   const session = await page.evaluate(() => window.dend.app.session);
   // handle 0 is the paint target: the gizmo shows at its centroid
