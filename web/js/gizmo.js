@@ -160,6 +160,8 @@ export class Gizmo {
       d.dir = [tx - geo.center[0], ty - geo.center[1]];
       d.len = geo.length;
     } else {
+      d.world = geo.world;
+      d.theta = this.ringAngle(part.ring, geo.world, x, y);
       d.angle = Math.atan2(y - geo.center[1], x - geo.center[0]);
       const f = dot(AXES[part.ring], this.app.camera.basis().fwd);
       // clockwise on screen (y down) is a right-handed turn about the
@@ -167,6 +169,24 @@ export class Gizmo {
       d.sign = f >= 0 ? 1 : -1;
     }
     return d;
+  }
+
+  /** The angle about axis k, in the ring's plane through `c`, of the point
+   * under the pointer (the view ray through (x, y) meets the plane), from
+   * the ring's first axis towards its second; null when the plane is seen
+   * nearly edge-on. */
+  ringAngle(k, c, x, y) {
+    const cam = this.app.camera;
+    const [w, h] = [this.overlay.clientWidth, this.overlay.clientHeight];
+    const { right, up, fwd } = cam.basis();
+    const t = Math.tan(cam.fovy / 2);
+    const dir = add(fwd, add(scale(right, ((2 * x) / w - 1) * t * (w / h)), scale(up, (1 - (2 * y) / h) * t)));
+    const a = AXES[k];
+    const eye = cam.eye();
+    const den = dot(dir, a);
+    if (Math.abs(den) < 0.15 * Math.hypot(...dir)) return null;
+    const p = sub(add(eye, scale(dir, dot(sub(c, eye), a) / den)), c);
+    return Math.atan2(dot(p, AXES[(k + 2) % 3]), dot(p, AXES[(k + 1) % 3]));
   }
 
   /** The delta of the drag `d` for the pointer at (x, y): {translate} or
@@ -180,10 +200,20 @@ export class Gizmo {
       d.sent = total;
       return step === 0 ? null : { translate: scale(AXES[d.part.axis], step) };
     }
+    const wrap = (r) => ((r + 3 * Math.PI) % (2 * Math.PI)) - Math.PI;
     const a = Math.atan2(y - d.center[1], x - d.center[0]);
-    const degrees = ((a - d.angle + 3 * Math.PI) % (2 * Math.PI) - Math.PI) * (180 / Math.PI);
+    const theta = this.ringAngle(d.part.ring, d.world, x, y);
+    let degrees;
+    if (theta !== null && d.theta !== null) {
+      // the ring's point under the pointer follows it
+      degrees = wrap(theta - d.theta) * (180 / Math.PI);
+    } else {
+      // seen edge-on: the angle swept around the centre on screen
+      degrees = d.sign * wrap(a - d.angle) * (180 / Math.PI);
+    }
     d.angle = a;
-    return degrees === 0 ? null : { axis: AXES[d.part.ring], degrees: d.sign * degrees };
+    d.theta = theta;
+    return degrees === 0 ? null : { axis: AXES[d.part.ring], degrees };
   }
 
   end() {

@@ -262,6 +262,8 @@ async function gizmo(page, base) {
   assert.ok((await page.evaluate(() => window.dend.app.progressLog)).includes('factor: numeric factorisation…'), 'the progress line showed them');
   assert.ok(await page.locator('#stProgress').isHidden(), 'and is gone once ready');
   await page.check('input[name=tool][value=navigate]');
+  // an oblique view: every arrow and ring shows
+  await view(page, 1.0, 0.5);
   const session = await page.evaluate(() => window.dend.app.session);
   // handle 0 is the paint target: the gizmo shows at its centroid
   await waitFor(page, () => window.dend.gizmo() !== null, null, 'the gizmo');
@@ -311,10 +313,11 @@ async function gizmo(page, base) {
   // about z through its centroid (the centroid stays).
   const g2 = await page.evaluate(() => window.dend.gizmo());
   const ring = g2.rings[2];
-  const r0 = ring[0];
+  // from 45° to 135° (the arrows lie on the ring at 0° and 90°)
+  const r0 = ring[6];
   await page.mouse.move(cb.x + r0[0], cb.y + r0[1]);
   await page.mouse.down();
-  for (const q of ring.slice(1, 13)) await page.mouse.move(cb.x + q[0], cb.y + q[1], { steps: 2 });
+  for (const q of ring.slice(7, 19)) await page.mouse.move(cb.x + q[0], cb.y + q[1], { steps: 2 });
   await page.mouse.up();
   await settled(page, 'the ring drag');
   const turned = await serverPose(base, session);

@@ -35,7 +35,10 @@ pub const FILES: &[(&str, &[u8])] = &[
     ),
     ("js/select.js", include_bytes!("../../../web/js/select.js")),
     ("js/socket.js", include_bytes!("../../../web/js/socket.js")),
-    ("js/zbuffer.js", include_bytes!("../../../web/js/zbuffer.js")),
+    (
+        "js/zbuffer.js",
+        include_bytes!("../../../web/js/zbuffer.js"),
+    ),
 ];
 
 fn content_type(path: &str) -> &'static str {

@@ -215,10 +215,7 @@ pub(super) enum Internal {
     },
     /// A stage of the factor build of constraint generation `generation`
     /// started.
-    Stage {
-        generation: u64,
-        stage: BuildStage,
-    },
+    Stage { generation: u64, stage: BuildStage },
     Built {
         generation: u64,
         result: Result<(), SessionError>,
