@@ -29,7 +29,10 @@ pub const FILES: &[(&str, &[u8])] = &[
     ),
     ("js/keys.js", include_bytes!("../../../web/js/keys.js")),
     ("js/mesh.js", include_bytes!("../../../web/js/mesh.js")),
-    ("js/regions.js", include_bytes!("../../../web/js/regions.js")),
+    (
+        "js/regions.js",
+        include_bytes!("../../../web/js/regions.js"),
+    ),
     (
         "js/renderer.js",
         include_bytes!("../../../web/js/renderer.js"),
