@@ -243,15 +243,16 @@ async function gizmo(page, base) {
   const p = Float32Array.from(await page.evaluate(() => window.dend.positions()));
   const n = p.length / 3;
   const fixedIdx = [...Array(n).keys()].filter((i) => p[3 * i + 2] < 0.5);
-  const handle = [...Array(n).keys()].filter((i) => p[3 * i + 2] > 5.5);
+  const far = [...Array(n).keys()].filter((i) => p[3 * i + 2] > 5.5);
   await page.check('input[name=tool][value=box]');
   await page.check('#throughSel');
   await page.selectOption('#target', 'fixed');
   await boxSelect(page, await screenBox(page, fixedIdx, 6));
   await page.selectOption('#target', 'h0');
-  await boxSelect(page, await screenBox(page, handle, 6));
+  await boxSelect(page, await screenBox(page, far, 6));
   await page.uncheck('#throughSel');
-  assert.deepEqual(labelled(await page.evaluate(() => window.dend.labels()), 1), handle, 'handle 0 painted');
+  const handle = labelled(await page.evaluate(() => window.dend.labels()), 1);
+  assert.ok(far.every((i) => handle.includes(i)) && handle.length < n / 4, 'handle 0 painted at the far end');
   await page.click('#apply');
   await waitFor(page, () => window.dend.app.state === 'ready', null, 'constraints ready', 60000);
   // the server reported the factor build's stages and the page showed them
@@ -323,8 +324,8 @@ async function gizmo(page, base) {
   const turned = await serverPose(base, session);
   const c3 = centroidOf(turned, handle);
   const ang = (pp, i, c) => Math.atan2(pp[3 * i + 1] - c[1], pp[3 * i] - c[0]);
-  const far = handle.filter((i) => Math.hypot(dragged[3 * i] - c2[0], dragged[3 * i + 1] - c2[1]) > 0.2);
-  const turns = far.map((i) => (((ang(turned, i, c3) - ang(dragged, i, c2)) * 180) / Math.PI + 540) % 360 - 180);
+  const spread = handle.filter((i) => Math.hypot(dragged[3 * i] - c2[0], dragged[3 * i + 1] - c2[1]) > 0.2);
+  const turns = spread.map((i) => (((ang(turned, i, c3) - ang(dragged, i, c2)) * 180) / Math.PI + 540) % 360 - 180);
   const mean = turns.reduce((a, b) => a + b, 0) / turns.length;
   log('z ring dragged a quarter: handle turned', mean.toFixed(2), '° about z; centroid moved', Math.hypot(...[0, 1, 2].map((k) => c3[k] - c2[k])).toExponential(2));
   assert.ok(Math.abs(Math.abs(mean) - 90) < 3, `the ring turns the handle a quarter about z (${mean}°)`);
