@@ -1,5 +1,6 @@
 #!/usr/bin/env bash
-# Browser test of the web client (web/tests/browser.test.mjs): installs what
+# Browser tests of the web client (web/tests/browser.test.mjs, then
+# web/tests/tools.test.mjs for the posing tools): installs what
 # it needs if missing (Debian's chromium, node/npm, playwright-core and the
 # glTF validator from npm),
 # builds `dend`, and runs the test against the real `dend serve`.
@@ -52,3 +53,4 @@ if [ -z "${DEND_BIN:-}" ] || [ ! -x "$DEND_BIN" ]; then
 fi
 export CHROMIUM DEND_BIN
 node web/tests/browser.test.mjs
+node web/tests/tools.test.mjs

@@ -8,11 +8,13 @@ import { OrbitCamera } from './camera.js';
 import { parseObj, vertexNormals, edgeList, bbox } from './mesh.js';
 import { Renderer } from './renderer.js';
 import { attachInteraction } from './interact.js';
+import { Gizmo, wireNumeric, gizmoLabel } from './gizmo.js';
+import { attachKeys } from './keys.js';
+import { socketHandlers } from './socket.js';
 import { project } from './select.js';
+import { FREE, FIXED, MIXED, faceLabels, faceColors, fieldColors } from './regions.js';
 
 const $ = (id) => document.getElementById(id);
-const FREE = 0;
-const FIXED = -1; // labels: 0 free, -1 fixed, k + 1 handle k
 
 export const app = {
   api: new Api(),
@@ -27,6 +29,7 @@ export const app = {
   normals: null,
   colors: null,
   labels: null,
+  faceLabels: null, // per triangle: its vertices' label, or MIXED (regions.js)
   handles: 0,
   applied: null, // {serverIndexOf: Map(uiHandle → server index), json}
   constraintsRevision: 0, // the session's constraint set these labels show
@@ -38,6 +41,7 @@ export const app = {
   last: null, // last frame header
   needsDraw: true,
   eventLog: [],
+  progressLog: [],
   warnings: [],
   colorMode: 'regions', // or a field of GET …/curvature: mean, gaussian, g
   curvature: null,
@@ -47,7 +51,7 @@ let curvatureTimer = null;
 
 /** Fetches the pose's curvatures (GET …/curvature) for the colour map,
  * at most once per settled pose. */
-function refreshCurvature() {
+export function refreshCurvature() {
   if (app.colorMode === 'regions' || !app.session) return;
   clearTimeout(curvatureTimer);
   curvatureTimer = setTimeout(guarded(async () => {
@@ -66,6 +70,18 @@ export function showError(e) {
 }
 $('errorClose').onclick = () => { $('error').hidden = true; };
 
+/** The progress line of the status bar (upload, session set-up, the
+ * factor build's stages from the server); '' hides it. Each text shown
+ * is kept in `app.progressLog` (the last 20) for the browser test. */
+export function progress(text) {
+  $('stProgress').textContent = text;
+  $('stProgress').hidden = !text;
+  if (text) {
+    app.progressLog.push(text);
+    if (app.progressLog.length > 20) app.progressLog.shift();
+  }
+}
+
 function guarded(fn) {
   return async (...a) => {
     try {
@@ -76,13 +92,13 @@ function guarded(fn) {
   };
 }
 
-function setState(s) {
+export function setState(s) {
   app.eventLog.push(`setState:${s}`);
   app.state = s;
   $('stState').textContent = `session: ${s}`;
 }
 
-function updateStats() {
+export function updateStats() {
   const f = app.last;
   $('stIter').textContent = f ? String(f.iteration) : '–';
   $('stConv').textContent = !f
@@ -103,7 +119,7 @@ function updateStats() {
 
 /** The server's warnings about the constraint set (nothing fixed, a loose
  * part, stray picks), shown until the set changes. */
-function showWarnings(list) {
+export function showWarnings(list) {
   app.warnings = list;
   const box = $('warnings');
   box.replaceChildren(...list.map((w) => {
@@ -117,35 +133,22 @@ function showWarnings(list) {
 
 // ---------- colours and labels ----------
 
-const HANDLE_COLORS = [[0.15, 0.35, 0.95], [0.2, 0.6, 1.0], [0.45, 0.25, 0.95], [0.1, 0.75, 0.85]];
-
-/** Diverging colour of `t` in [-1, 1]: blue, white, red. */
-function diverging(t) {
-  const s = Math.max(-1, Math.min(1, t));
-  return s < 0 ? [1 + 0.8 * s, 1 + 0.6 * s, 1] : [1, 1 - 0.6 * s, 1 - 0.8 * s];
-}
-
 function recolor() {
-  const c = app.colors;
   const field = app.colorMode !== 'regions' && app.curvature ? app.curvature[app.colorMode] : null;
   if (field && field.length === app.labels.length) {
-    // symmetric range: the 95th percentile of |value| (outliers saturate)
-    const mags = field.map(Math.abs).sort((a, b) => a - b);
-    const range = Math.max(mags[Math.floor(0.95 * (mags.length - 1))], 1e-12);
-    for (let i = 0; i < field.length; i++) c.set(diverging(field[i] / range), 3 * i);
+    app.faceLabels = null;
+    app.renderer.setColors(fieldColors(field, app.colors));
   } else {
-    for (let i = 0; i < app.labels.length; i++) {
-      const l = app.labels[i];
-      const rgb = l === FIXED ? [0.9, 0.15, 0.12] : l > 0 ? HANDLE_COLORS[(l - 1) % HANDLE_COLORS.length] : [0.55, 0.8, 0.5];
-      c.set(rgb, 3 * i);
-    }
+    app.faceLabels = faceLabels(app.labels, app.mesh.triangles);
+    const { rgb, hatch } = faceColors(app.faceLabels);
+    app.renderer.setFaceColors(rgb, hatch);
   }
-  app.renderer.setColors(c);
   app.needsDraw = true;
   const nf = app.labels.filter((l) => l === FIXED).length;
   const counts = [];
   for (let h = 1; h <= app.handles; h++) counts.push(app.labels.filter((l) => l === h).length);
-  $('selinfo').textContent = `fixed ${nf}; handles [${counts.join(', ')}]${app.dirtyLabels ? ' — not applied' : ''}`;
+  const mixed = app.faceLabels ? app.faceLabels.filter((l) => l === MIXED).length : 0;
+  $('selinfo').textContent = `fixed ${nf}; handles [${counts.join(', ')}]; ${mixed} border faces${app.dirtyLabels ? ' — not applied' : ''}`;
 }
 
 /** Grows (adds every neighbour) or shrinks (removes every vertex with a
@@ -209,7 +212,7 @@ function constraintsJson() {
   return { json: { fixed, handles }, serverIndexOf };
 }
 
-const applyConstraints = guarded(async () => {
+export const applyConstraints = guarded(async () => {
   if (!app.session) throw new ApiError('no_session', 'generate or upload a mesh first');
   const c = constraintsJson();
   const before = app.state;
@@ -238,7 +241,7 @@ const applyConstraints = guarded(async () => {
 /** Labels from the session's constraint set (the `constraints` of a state
  * message or of GET session): index lists as painted; box and sphere
  * selectors are not shown (this client paints index lists). */
-function showConstraints(info) {
+export function showConstraints(info) {
   if (!app.labels || info.constraints_revision === undefined) return;
   app.constraintsRevision = info.constraints_revision;
   const c = info.constraints;
@@ -301,6 +304,7 @@ function setMesh(obj) {
   app.colors = new Float32Array(obj.positions.length);
   app.labels = new Int32Array(obj.positions.length / 3);
   app.renderer.setTopology(app.mesh.triangles, app.mesh.edges);
+  app.gizmo.handle = null;
   // a fresh camera per mesh: the default orbit, framed on it
   const fresh = new OrbitCamera();
   app.camera.yaw = fresh.yaw;
@@ -311,7 +315,7 @@ function setMesh(obj) {
   $('meshinfo').textContent = `${obj.positions.length / 3} vertices, ${obj.triangles.length / 3} triangles`;
 }
 
-function uploadPose() {
+export function uploadPose() {
   vertexNormals(app.positions, app.mesh.triangles, app.normals);
   app.renderer.setPositions(app.positions, app.normals);
   app.needsDraw = true;
@@ -333,11 +337,12 @@ async function openSession(id, token, meshId) {
   $('shareLink').value = link;
   // the session in the URL: a reload or a bookmark reopens it
   history.replaceState(null, '', `#session=${id}&token=${token}`);
-  app.ws = await app.api.connect(id, token, { frame: onFrame, event: onEvent, close: onClose });
+  app.ws = await app.api.connect(id, token, socketHandlers);
 }
 
 async function startSession(meshId) {
-  const s = await app.api.createSession(meshId, params());
+  progress('computing the mesh operators…');
+  const s = await app.api.createSession(meshId, params()).finally(() => progress(''));
   // The triangles come from the OBJ export of the rest pose (the API has no
   // route for the mesh itself); then the socket, whose frames need them.
   setMesh(parseObj(await app.api.exportObj(s.id, s.token)));
@@ -359,6 +364,7 @@ const upload = guarded(async (ev) => {
   $('error').hidden = true;
   const before = app.state;
   setState('uploading');
+  progress(`uploading and parsing ${file.name} (${(file.size / 1e6).toFixed(1)} MB)…`);
   let m;
   try {
     m = await app.api.upload(file);
@@ -366,6 +372,7 @@ const upload = guarded(async (ev) => {
     setState(before);
     throw e;
   } finally {
+    progress('');
     ev.target.value = ''; // the same file can be picked again
   }
   await startSession(m.id);
@@ -403,112 +410,6 @@ async function join(id, token) {
 }
 
 // ---------- WebSocket ----------
-
-function onFrame(f) {
-  if (!app.positions || f.positions.length !== app.positions.length) return;
-  const now = performance.now();
-  for (const [s, t] of app.sent) {
-    if (s <= f.ackSeq) {
-      app.latencies.push(now - t);
-      if (app.latencies.length > 100) app.latencies.shift();
-      app.sent.delete(s);
-    }
-  }
-  app.positions = new Float32Array(f.positions);
-  app.frames++;
-  app.last = f;
-  uploadPose();
-  updateStats();
-  if (f.settled) refreshCurvature();
-}
-
-function onEvent(e) {
-  // the last events, for the browser test's failure messages
-  app.eventLog.push(e.type === 'state' ? `state:${e.state}:${e.constraints_revision}` : e.type);
-  if (app.eventLog.length > 40) app.eventLog.shift();
-  switch (e.type) {
-    case 'state':
-      if (e.you !== undefined) app.you = e.you;
-      setState(e.state);
-      $('stPeers').textContent = String(e.peers);
-      $('undo').disabled = !e.can_undo;
-      $('redo').disabled = !e.can_redo;
-      // another client's constraint edit (or undo to another set): show it,
-      // unless this tab has strokes of its own not applied yet
-      if (e.constraints_revision !== undefined && e.constraints_revision !== app.constraintsRevision && !app.dirtyLabels) {
-        showConstraints(e);
-      }
-      showWarnings(e.warnings || []);
-      break;
-    case 'ready':
-      setState('ready');
-      break;
-    case 'error':
-      // a refused drag never gets a frame: not a latency sample
-      if (e.seq !== undefined && e.seq !== null) app.sent.delete(e.seq);
-      if ((e.code === 'unknown_handle' || e.code === 'not_ready') && (app.dirtyLabels || !app.applied)) {
-        showError({ code: e.code, message: `${e.message} — the painted regions are not applied yet: paint a fixed region and press “Apply constraints”` });
-      } else {
-        showError(e);
-      }
-      if (app.state === 'building') setState('failed');
-      break;
-    case 'handle_grabbed':
-      if (e.client !== app.you) $('stState').textContent = `handle ${e.handle} held by client ${e.client}`;
-      break;
-    case 'handle_released':
-      if (e.client !== app.you) setState(app.state);
-      break;
-    case 'peer_joined':
-    case 'peer_left':
-      if (e.client !== app.you) {
-        const n = (+$('stPeers').textContent || 1) + (e.type === 'peer_joined' ? 1 : -1);
-        $('stPeers').textContent = String(Math.max(1, n));
-      }
-      break;
-    default:
-      break;
-  }
-}
-
-function onClose(code, reason) {
-  app.ws = null;
-  setState('disconnected');
-  if (code === 1000) return;
-  // 4004: the session closed here (deleted, expired, or moved to another
-  // instance: its owner died or handed it over); 1001/1006/1011/1012: the
-  // server went away. Reopen it while the server says it exists.
-  if (app.session && [4004, 1001, 1006, 1011, 1012].includes(code)) {
-    reconnect(app.session, 250);
-    return;
-  }
-  showError({ code: `closed_${code}`, message: reason || 'the session socket closed' });
-}
-
-/** Reopens `session`'s socket after `delay` ms, doubling up to 2 s while
- * the session is not reachable yet (409 `session_owned_elsewhere` while a
- * failover or hand-over is under way, 503 while the store is down, no
- * answer while the load balancer re-routes); a 404 or another error ends
- * it. Stops when another session was opened meanwhile. */
-function reconnect(session, delay) {
-  setTimeout(async () => {
-    if (app.session !== session || app.ws) return;
-    const again = () => reconnect(session, Math.min(2 * delay, 2000));
-    try {
-      await app.api.json('GET', `/v1/sessions/${session.id}`, undefined, session.token);
-    } catch (e) {
-      const transient = !(e instanceof ApiError) || ['session_owned_elsewhere', 'store_unavailable'].includes(e.code) || e.status >= 502;
-      if (transient) again();
-      else showError(e);
-      return;
-    }
-    try {
-      app.ws = await app.api.connect(session.id, session.token, { frame: onFrame, event: onEvent, close: onClose });
-    } catch (e) {
-      again();
-    }
-  }, delay);
-}
 
 /** Sends a JSON message on the session socket. */
 export function send(msg) {
@@ -553,6 +454,12 @@ function needSession() {
 $('generate').onclick = generate;
 $('upload').onchange = upload;
 $('addHandle').onclick = addHandle;
+// a handle chosen as the paint target gets the gizmo
+$('target').onchange = (e) => {
+  const v = e.target.value;
+  if (v.startsWith('h')) app.gizmo.handle = Number(v.slice(1));
+  app.needsDraw = true;
+};
 $('apply').onclick = applyConstraints;
 $('clearSel').onclick = () => { app.labels.fill(FREE); app.dirtyLabels = true; recolor(); };
 $('growSel').onclick = () => growShrink(true);
@@ -605,8 +512,6 @@ $('wireframe').onchange = (e) => { app.renderer.wireframe = e.target.checked; ap
 $('energy').onchange = (e) => { $('combinedRow').hidden = e.target.value !== 'combined'; };
 $('hard').onchange = (e) => { $('lambda1').disabled = e.target.checked; };
 
-// ---------- keyboard ----------
-
 /** Width / height of the canvas. */
 function viewAspect() {
   const c = $('view');
@@ -614,36 +519,19 @@ function viewAspect() {
 }
 
 /** Frames the current pose: the camera fits its bounding box. */
-function frameView() {
+export function frameView() {
   if (!app.positions) return;
   app.camera.fit(bbox(app.positions), viewAspect());
   app.needsDraw = true;
 }
-
-window.addEventListener('keydown', (e) => {
-  const t = e.target;
-  if (t && (t.tagName === 'INPUT' || t.tagName === 'SELECT' || t.tagName === 'TEXTAREA')) return;
-  const key = e.key.toLowerCase();
-  const ctrl = e.ctrlKey || e.metaKey;
-  const tool = (v) => { const r = document.querySelector(`input[name=tool][value=${v}]`); if (r) r.checked = true; };
-  if (ctrl && key === 'z' && !e.shiftKey) send({ type: 'undo' });
-  else if (ctrl && (key === 'y' || (key === 'z' && e.shiftKey))) send({ type: 'redo' });
-  else if (ctrl) return;
-  else if (key === 'f') frameView();
-  else if (key === 'n') tool('navigate');
-  else if (key === 'b') tool('brush');
-  else if (key === 'x') tool('box');
-  else if (key === 'a') applyConstraints();
-  else if (key === '?') document.querySelector('.help').classList.toggle('flash');
-  else return;
-  e.preventDefault();
-});
 
 // ---------- start ----------
 
 function loop() {
   if (app.needsDraw && app.renderer) {
     app.renderer.draw(app.camera);
+    app.gizmo.draw();
+    $('gizmoInfo').textContent = gizmoLabel(app);
     app.needsDraw = false;
   }
   requestAnimationFrame(loop);
@@ -651,7 +539,10 @@ function loop() {
 
 try {
   app.renderer = new Renderer($('view'));
+  app.gizmo = new Gizmo(app, $('gizmo'));
+  wireNumeric(app);
   attachInteraction(app, $('view'));
+  attachKeys();
   new ResizeObserver(() => { app.needsDraw = true; }).observe($('view'));
   requestAnimationFrame(loop);
   const h = new URLSearchParams(location.hash.slice(1));
@@ -665,6 +556,11 @@ window.dend = {
   app,
   positions: () => (app.positions ? Array.from(app.positions) : null),
   labels: () => (app.labels ? Array.from(app.labels) : null),
+  /** Per-face labels as drawn (-2: a face whose vertices disagree, hatched). */
+  faceLabels: () => (app.faceLabels ? Array.from(app.faceLabels) : null),
+  /** The gizmo's screen geometry (CSS px: center, tips, rings) and its
+   * arrow length in mesh units, or null when no handle shows one. */
+  gizmo: () => app.gizmo.geometry(),
   /** CSS-pixel [x, y] of each vertex index in the current view. */
   project: (indices) => {
     const c = $('view');

@@ -1,9 +1,14 @@
-// Mouse interaction on the canvas: orbit/pan/zoom, brush and box painting,
-// and handle dragging (translate in the view plane; Shift rotates about the
-// handle's centroid).
+// Pointer interaction on the canvas: orbit/pan/zoom, brush, box and lasso
+// painting (visible vertices only unless "through": zbuffer.js), the
+// handle gizmo (gizmo.js), and handle dragging (translate in the view
+// plane; Alt in depth; Shift rotates about the handle's centroid). Touch:
+// one finger acts as the left mouse button (orbit, paint, drag), two
+// fingers pan (their midpoint), pinch-zoom (their distance) and twist (the
+// angle between them turns the view about the vertical).
 
 import { Renderer } from './renderer.js';
-import { project, brush, box, frontFacing, pick, adjacency, fillRegion } from './select.js';
+import { project, brush, box, lasso, pick, adjacency, fillRegion } from './select.js';
+import { Occlusion } from './zbuffer.js';
 import { sub, dot, add, scale } from './camera.js';
 import { paint, strokeEnded, sendDrag, send, serverHandle } from './app.js';
 
@@ -21,7 +26,14 @@ export function attachInteraction(app, canvas) {
     const [w, h] = size();
     return project(app.positions, Renderer.mvp(app.camera, w / h), w, h);
   };
-  const visible = () => ($('throughSel').checked ? null : frontFacing(app.positions, app.normals, app.camera.eye()));
+  app.occlusion = new Occlusion();
+  /** The visibility predicate of the selection tools: the z-buffer test,
+   * or none ("through": every vertex under the tool). */
+  const visible = () => {
+    if ($('throughSel').checked) return null;
+    const [w, h] = size();
+    return app.occlusion.get(app.positions, app.mesh.triangles, app.camera, w, h);
+  };
 
   /** Centroid of a UI handle's vertices in the current pose. */
   const centroid = (k) => {
@@ -45,10 +57,47 @@ export function attachInteraction(app, canvas) {
 
   canvas.addEventListener('contextmenu', (e) => e.preventDefault());
 
+  const touches = new Map(); // pointerId → [x, y] of the fingers down
+  let pinch = null; // {mid, dist, angle} of the last two-finger move
+
+  const twoFingers = () => {
+    const [a, b] = [...touches.values()];
+    return {
+      mid: [(a[0] + b[0]) / 2, (a[1] + b[1]) / 2],
+      dist: Math.max(1, Math.hypot(b[0] - a[0], b[1] - a[1])),
+      angle: Math.atan2(b[1] - a[1], b[0] - a[0]),
+    };
+  };
+
+  /** A second finger ends the one-finger gesture: a handle drag is
+   * released (its moves so far stay), a box or lasso is dropped. */
+  const cancelGesture = () => {
+    if (!drag) return;
+    if (drag.kind === 'handle' || drag.kind === 'gizmo') endHandleDrag(drag);
+    if (drag.kind === 'brush') strokeEnded();
+    $('boxRect').hidden = true;
+    $('lasso').hidden = true;
+    drag = null;
+  };
+
+  const endHandleDrag = (d) => {
+    send({ type: 'release', handle: serverHandle(d.k) });
+    if (d.kind === 'gizmo') app.gizmo.end();
+    app.needsDraw = true;
+  };
+
   canvas.addEventListener('pointerdown', (e) => {
     canvas.focus();
     canvas.setPointerCapture(e.pointerId);
     const x = e.offsetX, y = e.offsetY;
+    if (e.pointerType === 'touch') {
+      touches.set(e.pointerId, [x, y]);
+      if (touches.size >= 2) {
+        cancelGesture();
+        pinch = touches.size === 2 ? twoFingers() : pinch;
+        return;
+      }
+    }
     const t = tool();
     const panning = e.button === 2 || e.button === 1 || e.ctrlKey;
     if (!app.positions || panning) {
@@ -64,6 +113,10 @@ export function attachInteraction(app, canvas) {
       drag = { kind: 'box', x0: x, y0: y, erase: e.altKey };
       return;
     }
+    if (t === 'lasso') {
+      drag = { kind: 'lasso', points: [[x, y]], erase: e.altKey };
+      return;
+    }
     if (t === 'fill') {
       // the nearest visible vertex under the cursor seeds a bucket fill of
       // its label's connected region (Alt: erase that region)
@@ -77,9 +130,19 @@ export function attachInteraction(app, canvas) {
       }
       return;
     }
+    const part = app.gizmo.hit(x, y);
+    if (part) {
+      const k = app.gizmo.handle;
+      drag = { kind: 'gizmo', k, g: app.gizmo.start(part, x, y) };
+      send({ type: 'grab', handle: serverHandle(k) });
+      app.needsDraw = true;
+      return;
+    }
     const v = pick(screen(), x, y, 14, (i) => app.labels[i] > 0);
     if (v >= 0) {
       const k = app.labels[v] - 1;
+      app.gizmo.handle = k; // a picked handle gets the gizmo
+      app.needsDraw = true;
       const c = centroid(k);
       const { fwd } = app.camera.basis();
       const depth = Math.max(1e-9, dot(sub(c, app.camera.eye()), fwd));
@@ -103,9 +166,23 @@ export function attachInteraction(app, canvas) {
   canvas.addEventListener('pointerleave', () => brushCircle(null, null));
 
   canvas.addEventListener('pointermove', (e) => {
-    brushCircle(e.offsetX, e.offsetY);
-    if (!drag) return;
     const x = e.offsetX, y = e.offsetY;
+    if (e.pointerType === 'touch' && touches.has(e.pointerId)) {
+      touches.set(e.pointerId, [x, y]);
+      if (pinch && touches.size === 2) {
+        const now = twoFingers();
+        app.camera.pan(now.mid[0] - pinch.mid[0], now.mid[1] - pinch.mid[1], size()[1]);
+        app.camera.zoom(pinch.dist / now.dist); // fingers apart: closer
+        app.camera.yaw -= ((now.angle - pinch.angle + 3 * Math.PI) % (2 * Math.PI)) - Math.PI;
+        pinch = now;
+        app.needsDraw = true;
+        return;
+      }
+      if (pinch) return;
+    } else {
+      brushCircle(x, y);
+    }
+    if (!drag) return;
     if (drag.kind === 'orbit' || drag.kind === 'pan') {
       if (drag.kind === 'orbit') app.camera.orbit(x - drag.x, y - drag.y);
       else app.camera.pan(x - drag.x, y - drag.y, size()[1]);
@@ -123,6 +200,16 @@ export function attachInteraction(app, canvas) {
       });
       drag.x1 = x;
       drag.y1 = y;
+    } else if (drag.kind === 'lasso') {
+      const last = drag.points[drag.points.length - 1];
+      if (Math.hypot(x - last[0], y - last[1]) >= 2) drag.points.push([x, y]);
+      const l = $('lasso');
+      l.hidden = false;
+      l.firstElementChild.setAttribute('points', drag.points.map((p) => p.join(',')).join(' '));
+    } else if (drag.kind === 'gizmo') {
+      const delta = app.gizmo.move(drag.g, x, y);
+      if (delta && delta.translate) sendDrag(drag.k, delta.translate, null);
+      else if (delta) sendDrag(drag.k, [0, 0, 0], { axis: delta.axis, degrees: delta.degrees });
     } else if (drag.kind === 'handle') {
       handleMove(drag, x, y, e.shiftKey, e.altKey);
     }
@@ -165,20 +252,40 @@ export function attachInteraction(app, canvas) {
     sendDrag(d.k, t, null);
   }
 
-  canvas.addEventListener('pointerup', (e) => {
+  const pointerUp = (e) => {
+    if (e.pointerType === 'touch') {
+      touches.delete(e.pointerId);
+      if (pinch) {
+        // the gesture ends with the last finger: no orbit jump in between
+        if (touches.size === 0) pinch = null;
+        else if (touches.size === 2) pinch = twoFingers();
+        return;
+      }
+    }
     if (!drag) return;
     const d = drag;
     drag = null;
-    canvas.releasePointerCapture(e.pointerId);
+    if (canvas.hasPointerCapture(e.pointerId)) canvas.releasePointerCapture(e.pointerId);
     if (d.kind === 'box') {
       $('boxRect').hidden = true;
       if (d.x1 !== undefined) paint(box(screen(), d.x0, d.y0, d.x1, d.y1, visible()), d.erase);
       strokeEnded();
+    } else if (d.kind === 'lasso') {
+      $('lasso').hidden = true;
+      paint(lasso(screen(), d.points, visible()), d.erase);
+      strokeEnded();
     } else if (d.kind === 'brush') {
       strokeEnded();
-    } else if (d.kind === 'handle') {
-      send({ type: 'release', handle: serverHandle(d.k) });
+    } else if (d.kind === 'handle' || d.kind === 'gizmo') {
+      endHandleDrag(d);
     }
+  };
+  canvas.addEventListener('pointerup', pointerUp);
+  canvas.addEventListener('pointercancel', (e) => {
+    // the browser took the pointer: nothing is painted, a drag is released
+    if (e.pointerType === 'touch') touches.delete(e.pointerId);
+    if (touches.size === 0) pinch = null;
+    cancelGesture();
   });
 
   canvas.addEventListener('wheel', (e) => {

@@ -1,6 +1,9 @@
-// A small WebGL2 renderer: one indexed triangle mesh with per-vertex
-// colours, normals recomputed by the caller every frame, a headlight with
-// two-sided shading, and an optional wireframe overlay (gl.LINES).
+// A small WebGL2 renderer: one triangle mesh drawn per corner (each
+// triangle its own three vertices, so a colour can belong to a face: the
+// painted regions have crisp borders, and a face whose vertices disagree
+// is hatched), smooth normals recomputed by the caller every frame, a
+// headlight with two-sided shading, and an optional wireframe overlay
+// (gl.LINES over the shared vertices).
 
 import { mul4 } from './camera.js';
 
@@ -8,23 +11,27 @@ const VS = `#version 300 es
 layout(location=0) in vec3 aPos;
 layout(location=1) in vec3 aNormal;
 layout(location=2) in vec3 aColor;
+layout(location=3) in float aHatch;
 uniform mat4 uView, uProj;
-out vec3 vN; out vec3 vC; out vec3 vP;
+out vec3 vN; out vec3 vC; out vec3 vP; flat out float vHatch;
 void main() {
   vec4 p = uView * vec4(aPos, 1.0);
   vP = p.xyz;
   vN = mat3(uView) * aNormal;
   vC = aColor;
+  vHatch = aHatch;
   gl_Position = uProj * p;
 }`;
 
 const FS = `#version 300 es
 precision highp float;
-in vec3 vN; in vec3 vC; in vec3 vP;
+in vec3 vN; in vec3 vC; in vec3 vP; flat in float vHatch;
 uniform int uLines;
 out vec4 o;
 void main() {
   if (uLines == 1) { o = vec4(0.08, 0.08, 0.1, 1.0); return; }
+  // mixed faces: dark diagonal stripes over their colour, 3 px of 6
+  if (vHatch > 0.5 && mod(gl_FragCoord.x + gl_FragCoord.y, 6.0) < 3.0) { o = vec4(0.12, 0.1, 0.1, 1.0); return; }
   vec3 n = normalize(vN);
   vec3 v = normalize(-vP);
   if (dot(n, v) < 0.0) n = -n;
@@ -60,44 +67,91 @@ export class Renderer {
       proj: gl.getUniformLocation(prog, 'uProj'),
       lines: gl.getUniformLocation(prog, 'uLines'),
     };
+    // triangles: per-corner position, normal, colour (vec3) and hatch flag
     this.vao = gl.createVertexArray();
     gl.bindVertexArray(this.vao);
-    this.buf = [0, 1, 2].map((loc) => {
+    this.buf = [3, 3, 3, 1].map((size, loc) => {
       const b = gl.createBuffer();
       gl.bindBuffer(gl.ARRAY_BUFFER, b);
       gl.enableVertexAttribArray(loc);
-      gl.vertexAttribPointer(loc, 3, gl.FLOAT, false, 0, 0);
+      gl.vertexAttribPointer(loc, size, gl.FLOAT, false, 0, 0);
       return b;
     });
-    this.tri = gl.createBuffer();
+    // wireframe: the shared vertices, indexed by the edge list
+    this.lineVao = gl.createVertexArray();
+    gl.bindVertexArray(this.lineVao);
+    this.linePos = gl.createBuffer();
+    gl.bindBuffer(gl.ARRAY_BUFFER, this.linePos);
+    gl.enableVertexAttribArray(0);
+    gl.vertexAttribPointer(0, 3, gl.FLOAT, false, 0, 0);
+    for (const loc of [1, 2, 3]) gl.disableVertexAttribArray(loc);
     this.lines = gl.createBuffer();
     this.counts = { tri: 0, lines: 0 };
+    this.triangles = new Uint32Array(0);
     this.wireframe = false;
   }
 
-  /** New topology: triangle and edge index buffers. */
+  /** New topology: the triangles (corners to expand) and the edge list. */
   setTopology(triangles, edges) {
     const gl = this.gl;
-    gl.bindVertexArray(this.vao);
-    gl.bindBuffer(gl.ELEMENT_ARRAY_BUFFER, this.tri);
-    gl.bufferData(gl.ELEMENT_ARRAY_BUFFER, triangles, gl.STATIC_DRAW);
+    this.triangles = triangles;
+    const c = triangles.length;
+    this.corner = { pos: new Float32Array(3 * c), nrm: new Float32Array(3 * c), col: new Float32Array(3 * c), hatch: new Float32Array(c) };
+    gl.bindVertexArray(this.lineVao);
     gl.bindBuffer(gl.ELEMENT_ARRAY_BUFFER, this.lines);
     gl.bufferData(gl.ELEMENT_ARRAY_BUFFER, edges, gl.STATIC_DRAW);
-    this.counts = { tri: triangles.length, lines: edges.length };
+    gl.bindVertexArray(null);
+    this.counts = { tri: c, lines: edges.length };
+  }
+
+  /** Copies per-vertex vec3 `v` to the corners of every triangle. */
+  expand(v, out) {
+    const t = this.triangles;
+    for (let k = 0; k < t.length; k++) {
+      const i = 3 * t[k];
+      out[3 * k] = v[i];
+      out[3 * k + 1] = v[i + 1];
+      out[3 * k + 2] = v[i + 2];
+    }
+    return out;
+  }
+
+  upload(slot, data) {
+    const gl = this.gl;
+    gl.bindBuffer(gl.ARRAY_BUFFER, slot);
+    gl.bufferData(gl.ARRAY_BUFFER, data, gl.DYNAMIC_DRAW);
   }
 
   setPositions(p, n) {
-    const gl = this.gl;
-    gl.bindBuffer(gl.ARRAY_BUFFER, this.buf[0]);
-    gl.bufferData(gl.ARRAY_BUFFER, p, gl.DYNAMIC_DRAW);
-    gl.bindBuffer(gl.ARRAY_BUFFER, this.buf[1]);
-    gl.bufferData(gl.ARRAY_BUFFER, n, gl.DYNAMIC_DRAW);
+    this.upload(this.buf[0], this.expand(p, this.corner.pos));
+    this.upload(this.buf[1], this.expand(n, this.corner.nrm));
+    this.upload(this.linePos, p);
   }
 
+  /** Per-vertex colours (a colour map), blended across each face. */
   setColors(c) {
-    const gl = this.gl;
-    gl.bindBuffer(gl.ARRAY_BUFFER, this.buf[2]);
-    gl.bufferData(gl.ARRAY_BUFFER, c, gl.DYNAMIC_DRAW);
+    this.upload(this.buf[2], this.expand(c, this.corner.col));
+    this.corner.hatch.fill(0);
+    this.upload(this.buf[3], this.corner.hatch);
+    this.faceHatch = null;
+  }
+
+  /** Per-face colours (`rgb` vec3 per triangle) and hatch flags (1 per
+   * triangle to stripe): every face one flat colour. */
+  setFaceColors(rgb, hatch) {
+    const { col, hatch: h } = this.corner;
+    for (let f = 0; f < hatch.length; f++) {
+      for (let k = 0; k < 3; k++) {
+        const j = 3 * f + k;
+        col[3 * j] = rgb[3 * f];
+        col[3 * j + 1] = rgb[3 * f + 1];
+        col[3 * j + 2] = rgb[3 * f + 2];
+        h[j] = hatch[f];
+      }
+    }
+    this.upload(this.buf[2], col);
+    this.upload(this.buf[3], h);
+    this.faceHatch = hatch;
   }
 
   /** Resizes the drawing buffer to the canvas' CSS size; returns aspect. */
@@ -128,14 +182,17 @@ export class Renderer {
     gl.enable(gl.POLYGON_OFFSET_FILL);
     gl.polygonOffset(1, 1);
     gl.uniform1i(this.u.lines, 0);
-    gl.bindBuffer(gl.ELEMENT_ARRAY_BUFFER, this.tri);
-    gl.drawElements(gl.TRIANGLES, this.counts.tri, gl.UNSIGNED_INT, 0);
+    gl.drawArrays(gl.TRIANGLES, 0, this.counts.tri);
     gl.disable(gl.POLYGON_OFFSET_FILL);
     if (this.wireframe) {
       gl.uniform1i(this.u.lines, 1);
-      gl.bindBuffer(gl.ELEMENT_ARRAY_BUFFER, this.lines);
+      gl.bindVertexArray(this.lineVao);
+      gl.vertexAttrib3f(1, 0, 0, 1);
+      gl.vertexAttrib3f(2, 0, 0, 0);
+      gl.vertexAttrib1f(3, 0);
       gl.drawElements(gl.LINES, this.counts.lines, gl.UNSIGNED_INT, 0);
     }
+    gl.bindVertexArray(null);
   }
 
   /** Model-view-projection of the last draw's camera (for picking). */

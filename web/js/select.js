@@ -1,6 +1,7 @@
 // Screen-space selection of vertices: projection with the current camera,
-// brush (circle) and box, optionally only vertices whose normal faces the
-// eye (so a brush paints the visible side only).
+// brush (circle), box and lasso (freehand polygon), each optionally
+// restricted by a visibility predicate (zbuffer.js: only vertices the
+// camera sees, so a brush paints the visible side only).
 
 /** Projects vertex xyz (f32) through column-major `mvp` to CSS pixels.
  * Returns Float32Array [x, y, depth] per vertex (depth > 1 = clipped). */
@@ -19,11 +20,6 @@ export function project(positions, mvp, width, height) {
     out[3 * i + 2] = cw > 0 ? cz / cw : 2;
   }
   return out;
-}
-
-function facing(i, positions, normals, eye) {
-  const vx = eye[0] - positions[3 * i], vy = eye[1] - positions[3 * i + 1], vz = eye[2] - positions[3 * i + 2];
-  return vx * normals[3 * i] + vy * normals[3 * i + 1] + vz * normals[3 * i + 2] > 0;
 }
 
 /** Vertices within `radius` px of (x, y). */
@@ -51,9 +47,33 @@ export function box(screen, x0, y0, x1, y1, visible) {
   return out;
 }
 
-/** A visibility predicate (front-facing w.r.t. the eye), or null. */
-export function frontFacing(positions, normals, eye) {
-  return (i) => facing(i, positions, normals, eye);
+/** Whether (x, y) is inside the closed polygon `poly` ([[x, y], ...]),
+ * by the even-odd rule (a self-crossing lasso selects what it encloses an
+ * odd number of times, as drawing programs do). */
+export function insidePolygon(poly, x, y) {
+  let inside = false;
+  for (let i = 0, j = poly.length - 1; i < poly.length; j = i++) {
+    const [xi, yi] = poly[i];
+    const [xj, yj] = poly[j];
+    if ((yi > y) !== (yj > y) && x < ((xj - xi) * (y - yi)) / (yj - yi) + xi) inside = !inside;
+  }
+  return inside;
+}
+
+/** Vertices inside the lasso polygon `poly` (screen px, at least 3 points). */
+export function lasso(screen, poly, visible) {
+  if (poly.length < 3) return [];
+  let [ax, ay, bx, by] = [Infinity, Infinity, -Infinity, -Infinity];
+  for (const [x, y] of poly) {
+    [ax, ay, bx, by] = [Math.min(ax, x), Math.min(ay, y), Math.max(bx, x), Math.max(by, y)];
+  }
+  const out = [];
+  for (let i = 0; i < screen.length / 3; i++) {
+    const sx = screen[3 * i], sy = screen[3 * i + 1];
+    if (screen[3 * i + 2] > 1 || sx < ax || sx > bx || sy < ay || sy > by) continue;
+    if (insidePolygon(poly, sx, sy) && (!visible || visible(i))) out.push(i);
+  }
+  return out;
 }
 
 /** The nearest vertex to (x, y) within `radius` px among those `accept`ed,

@@ -13,149 +13,23 @@
 // second tab; one mouse drag is one Undo step; a reload reopens the session
 // from the URL with its regions. Screenshots go to web/test-artifacts/.
 
-import { spawn } from 'node:child_process';
-import { mkdirSync, mkdtempSync, rmSync, writeFileSync, copyFileSync } from 'node:fs';
+import { mkdtempSync, rmSync, writeFileSync, copyFileSync } from 'node:fs';
 import { tmpdir } from 'node:os';
-import { dirname, join, resolve } from 'node:path';
-import { fileURLToPath } from 'node:url';
+import { join } from 'node:path';
 import assert from 'node:assert/strict';
-import { chromium } from 'playwright-core';
-
-const here = dirname(fileURLToPath(import.meta.url));
-const root = resolve(here, '..', '..');
-const artifacts = join(root, 'web', 'test-artifacts');
-const bin = process.env.DEND_BIN || join(root, 'target', 'debug', 'dend');
-const chromiumPath = process.env.CHROMIUM || '/usr/bin/chromium';
-mkdirSync(artifacts, { recursive: true });
-
-function log(...a) { console.log('[web-test]', ...a); }
+import {
+  root, artifacts, log, launch, startServer as start, waitFor, waitForPose, serverPose, maxDiff,
+  pixelDiff, colourCount, screenBox, boxSelect,
+} from './lib.mjs';
 
 /** The server's store (SQLite), kept across its restart below. */
 const dataDir = mkdtempSync(join(tmpdir(), 'dend-web-test-'));
-
-/** Starts `dend serve` on `addr` (default: a free port); resolves with {proc, base}. */
-function startServer(addr = '127.0.0.1:0') {
-  const proc = spawn(bin, ['serve', '--addr', addr, '--data-dir', dataDir], { stdio: ['ignore', 'pipe', 'pipe'] });
-  let stderr = '';
-  proc.stderr.on('data', (d) => { stderr += d; });
-  return new Promise((res, rej) => {
-    const timer = setTimeout(() => rej(new Error(`server did not print its URL in 60 s; stderr:\n${stderr}`)), 60000);
-    let out = '';
-    proc.stdout.on('data', (d) => {
-      out += d;
-      const m = out.match(/listening on (http:\/\/[^\s]+)/);
-      if (m) {
-        clearTimeout(timer);
-        res({ proc, base: m[1] });
-      }
-    });
-    proc.on('exit', (code) => rej(new Error(`server exited with ${code}; stderr:\n${stderr}`)));
-    proc.on('error', rej);
-  });
-}
-
-async function waitFor(page, fn, arg, what, timeout = 30000) {
-  try {
-    await page.waitForFunction(fn, arg, { timeout, polling: 50 });
-  } catch (e) {
-    const stats = await page.evaluate(() => window.dend && window.dend.stats()).catch(() => null);
-    const err = await page.locator('#error').textContent().catch(() => '');
-    throw new Error(`timed out waiting for ${what}; stats ${JSON.stringify(stats)}; error banner "${err}"`);
-  }
-}
-
-/** Waits until the page draws `expected` (every coordinate within 1e-5). */
-async function waitForPose(page, expected, what) {
-  await waitFor(page, (e) => {
-    const p = window.dend.positions();
-    let m = 0;
-    for (let i = 0; i < p.length; i++) m = Math.max(m, Math.abs(p[i] - e[i]));
-    return m < 1e-5;
-  }, Array.from(expected), what, 30000);
-}
-
-async function serverPose(base, s) {
-  const r = await fetch(`${base}/v1/sessions/${s.id}/pose`, {
-    headers: { Authorization: `Bearer ${s.token}`, Accept: 'application/octet-stream' },
-  });
-  assert.equal(r.status, 200, `GET pose: ${r.status}`);
-  return new Float32Array(await r.arrayBuffer());
-}
-
-function maxDiff(a, b, idx) {
-  let m = 0;
-  for (const i of idx) for (let k = 0; k < 3; k++) m = Math.max(m, Math.abs(a[3 * i + k] - b[3 * i + k]));
-  return m;
-}
-
-/** Fraction of pixels that differ (any channel by > 24) between two PNGs,
- * decoded by the browser. */
-async function pixelDiff(page, pngA, pngB) {
-  return page.evaluate(async ([a, b]) => {
-    const load = async (b64) => {
-      const img = new Image();
-      img.src = `data:image/png;base64,${b64}`;
-      await img.decode();
-      const c = document.createElement('canvas');
-      c.width = img.width;
-      c.height = img.height;
-      const g = c.getContext('2d');
-      g.drawImage(img, 0, 0);
-      return g.getImageData(0, 0, c.width, c.height).data;
-    };
-    const [x, y] = [await load(a), await load(b)];
-    if (x.length !== y.length) return 1;
-    let n = 0;
-    for (let i = 0; i < x.length; i += 4) {
-      if (Math.abs(x[i] - y[i]) > 24 || Math.abs(x[i + 1] - y[i + 1]) > 24 || Math.abs(x[i + 2] - y[i + 2]) > 24) n++;
-    }
-    return n / (x.length / 4);
-  }, [pngA.toString('base64'), pngB.toString('base64')]);
-}
-
-/** Distinct colours in a PNG (checks WebGL really drew something). */
-async function colourCount(page, png) {
-  return page.evaluate(async (b64) => {
-    const img = new Image();
-    img.src = `data:image/png;base64,${b64}`;
-    await img.decode();
-    const c = document.createElement('canvas');
-    [c.width, c.height] = [img.width, img.height];
-    const g = c.getContext('2d');
-    g.drawImage(img, 0, 0);
-    const d = g.getImageData(0, 0, c.width, c.height).data;
-    const s = new Set();
-    for (let i = 0; i < d.length; i += 16) s.add((d[i] >> 3) * 1024 + (d[i + 1] >> 3) * 32 + (d[i + 2] >> 3));
-    return s.size;
-  }, png.toString('base64'));
-}
-
-/** Screen box (CSS px, page coordinates) around the given vertices. */
-async function screenBox(page, idx, pad) {
-  const pts = await page.evaluate((i) => window.dend.project(i), idx);
-  const canvas = await page.locator('#view').boundingBox();
-  const xs = pts.map((p) => p[0]), ys = pts.map((p) => p[1]);
-  return {
-    x0: canvas.x + Math.min(...xs) - pad, y0: canvas.y + Math.min(...ys) - pad,
-    x1: canvas.x + Math.max(...xs) + pad, y1: canvas.y + Math.max(...ys) + pad,
-  };
-}
-
-async function boxSelect(page, b) {
-  await page.mouse.move(b.x0, b.y0);
-  await page.mouse.down();
-  await page.mouse.move(b.x1, b.y1, { steps: 5 });
-  await page.mouse.up();
-}
+const startServer = (addr) => start(dataDir, addr);
 
 async function main() {
   let { proc, base } = await startServer();
   log('server at', base);
-  const browser = await chromium.launch({
-    executablePath: chromiumPath,
-    args: ['--headless', '--no-sandbox', '--disable-gpu', '--disable-background-networking',
-      '--disable-component-update', '--disable-sync', '--disable-quic', '--no-first-run'],
-  });
+  const browser = await launch();
   const pageErrors = [];
   try {
     const ctx = await browser.newContext({ viewport: { width: 1200, height: 760 } });

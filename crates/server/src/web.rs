@@ -22,16 +22,27 @@ pub const FILES: &[(&str, &[u8])] = &[
     ("js/api.js", include_bytes!("../../../web/js/api.js")),
     ("js/app.js", include_bytes!("../../../web/js/app.js")),
     ("js/camera.js", include_bytes!("../../../web/js/camera.js")),
+    ("js/gizmo.js", include_bytes!("../../../web/js/gizmo.js")),
     (
         "js/interact.js",
         include_bytes!("../../../web/js/interact.js"),
     ),
+    ("js/keys.js", include_bytes!("../../../web/js/keys.js")),
     ("js/mesh.js", include_bytes!("../../../web/js/mesh.js")),
+    (
+        "js/regions.js",
+        include_bytes!("../../../web/js/regions.js"),
+    ),
     (
         "js/renderer.js",
         include_bytes!("../../../web/js/renderer.js"),
     ),
     ("js/select.js", include_bytes!("../../../web/js/select.js")),
+    ("js/socket.js", include_bytes!("../../../web/js/socket.js")),
+    (
+        "js/zbuffer.js",
+        include_bytes!("../../../web/js/zbuffer.js"),
+    ),
 ];
 
 fn content_type(path: &str) -> &'static str {

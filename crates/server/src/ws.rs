@@ -133,6 +133,12 @@ pub enum ServerMsg {
         /// Who.
         client: ClientId,
     },
+    /// A stage of the factor build started (`assembly`, `symbolic`,
+    /// `numeric`, in that order; `ready` follows).
+    BuildProgress {
+        /// The stage.
+        stage: crate::session::BuildStage,
+    },
     /// Answer to `ping`.
     Pong {
         /// The ping's nonce.
@@ -354,6 +360,7 @@ where
                     Ok(Event::HandleReleased { handle, client }) => ServerMsg::HandleReleased { handle, client },
                     Ok(Event::PeerJoined { client }) => ServerMsg::PeerJoined { client },
                     Ok(Event::PeerLeft { client }) => ServerMsg::PeerLeft { client },
+                    Ok(Event::BuildProgress { stage }) => ServerMsg::BuildProgress { stage },
                     Ok(Event::State) | Err(RecvError::Lagged(_)) => ServerMsg::state(me, &s.info()),
                 };
                 send(sink, msg.text()).await?;

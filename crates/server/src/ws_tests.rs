@@ -260,3 +260,45 @@ async fn rate_limit_answers_with_an_error_event() {
     }
     assert_eq!(c.event("error").await["code"], "rate_limited");
 }
+
+/// The factor build's stages reach the client as `build_progress` events,
+/// in order, before `ready`; the session info carries the stage under way
+/// and none once ready. The same set again is a cache hit: no stages.
+#[tokio::test]
+async fn factor_build_stages_are_reported_in_order() {
+    let s = session();
+    let mut c = connect(&s, true, 1000);
+    assert_eq!(
+        c.event("state").await["build_stage"],
+        serde_json::Value::Null
+    );
+    for round in 0..2 {
+        c.send(serde_json::json!({"type": "set_constraints", "constraints": constraints()}))
+            .await;
+        let mut stages = Vec::new();
+        loop {
+            let WsMsg::Text(t) = c.next().await else {
+                continue;
+            };
+            let v: serde_json::Value = serde_json::from_str(&t).expect("json");
+            match v["type"].as_str() {
+                Some("build_progress") => {
+                    stages.push(v["stage"].as_str().expect("stage").to_owned())
+                }
+                Some("ready") => break,
+                Some("error") => panic!("error event {v}"),
+                _ => {}
+            }
+        }
+        if round == 0 {
+            assert_eq!(
+                stages,
+                ["assembly", "symbolic", "numeric"],
+                "a build reports its stages in order"
+            );
+        } else {
+            assert!(stages.is_empty(), "a cache hit builds nothing: {stages:?}");
+        }
+        assert_eq!(s.info().build_stage, None, "no stage once ready");
+    }
+}

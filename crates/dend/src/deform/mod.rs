@@ -39,7 +39,9 @@ pub use dend_linalg::ordering::{FillOrdering, NESTED_DISSECTION_MIN_UNKNOWNS};
 pub use detail::{local_rotations, Mu, RingWeights};
 pub use elastic::{ElasticOps, ElasticSet};
 pub use factor::FactorCache;
-pub use factor::{Factor, FactorKey, FactorPrecision, FactorTimings, SolveOptions, SolverChoice};
+pub use factor::{
+    BuildStage, Factor, FactorKey, FactorPrecision, FactorTimings, SolveOptions, SolverChoice,
+};
 pub use params::{
     DetailTerm, Energy, Formulation, Mode, Params, DEFAULT_AREA, DEFAULT_BENDING, DEFAULT_LAPLACIAN,
 };

@@ -409,8 +409,11 @@ impl Actor {
         );
         drop(tokio::task::spawn_blocking(move || {
             let t0 = Instant::now();
+            let report = |stage| {
+                let _ = tx.send(Internal::Stage { generation, stage });
+            };
             let result = cache
-                .get_or_build(&rest, &params, &constraints)
+                .get_or_build_reporting(&rest, &params, &constraints, &report)
                 .map(|_| ())
                 .map_err(SessionError::from);
             let _ = tx.send(Internal::Built {

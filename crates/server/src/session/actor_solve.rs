@@ -100,11 +100,20 @@ impl Actor {
 
     pub(super) fn on_internal(&mut self, msg: Internal) {
         match msg {
+            Internal::Stage { generation, stage } => {
+                if generation == self.generation && self.state == SessionState::Building {
+                    self.inner.shared.lock().build_stage = Some(stage);
+                    let _ = self.inner.events.send(Event::BuildProgress { stage });
+                }
+            }
             Internal::Built {
                 generation,
                 result,
                 seconds,
             } => {
+                if generation == self.generation {
+                    self.inner.shared.lock().build_stage = None;
+                }
                 if result.is_ok() {
                     self.opts.observer.factor_ready(seconds);
                 }

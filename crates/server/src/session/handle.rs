@@ -13,7 +13,7 @@ use super::shared::{Cmd, Grabs, Inner, Restore, Shared};
 use super::{
     ClientId, Delta, Event, Frame, HandleRef, PoseSnapshot, Recovered, SessionError, SessionState,
 };
-use dend::deform::{ConstraintsSpec, Params, Rest};
+use dend::deform::{BuildStage, ConstraintsSpec, Params, Rest};
 
 /// A snapshot of a session's public state.
 #[derive(Debug, Clone, serde::Serialize)]
@@ -49,6 +49,10 @@ pub struct SessionInfo {
     /// (`component`, `vertices`), `stray_vertices` (`count`, `vertices`),
     /// each with a readable `message`.
     pub warnings: Vec<serde_json::Value>,
+    /// While the state is `building` and the factor is being built (not
+    /// found in the cache): the stage under way, `assembly`, `symbolic` or
+    /// `numeric` (in that order; `build_progress` events announce each).
+    pub build_stage: Option<BuildStage>,
 }
 
 /// A cloneable handle to a running session actor.
@@ -89,6 +93,7 @@ impl SessionHandle {
                 constraints: None,
                 constraints_revision: 0,
                 warnings: Arc::default(),
+                build_stage: None,
             }),
             started: Instant::now(),
             last_active_ms: AtomicU64::new(0),
@@ -149,6 +154,7 @@ impl SessionHandle {
             constraints: s.constraints.as_deref().cloned(),
             constraints_revision: s.constraints_revision,
             warnings: s.warnings.to_vec(),
+            build_stage: s.build_stage,
         }
     }
 

@@ -30,6 +30,7 @@ use nalgebra::UnitQuaternion;
 use serde::{Deserialize, Serialize};
 
 use crate::store::StoreError;
+pub use dend::deform::BuildStage;
 use dend::deform::DeformError;
 
 #[allow(unused_imports)] // doc links
@@ -202,6 +203,11 @@ pub enum Event {
     PeerLeft {
         /// Who.
         client: ClientId,
+    },
+    /// A stage of the constraint set's factor build started.
+    BuildProgress {
+        /// The stage.
+        stage: BuildStage,
     },
     /// The session was closed (deleted or expired).
     Closed,

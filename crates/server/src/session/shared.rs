@@ -14,7 +14,7 @@ use tokio::sync::oneshot;
 
 use super::{ClientId, Delta, Event, Frame, Observer, PoseSnapshot, SessionError, SessionState};
 use crate::store::Store;
-use dend::deform::{Constraints, ConstraintsSpec, Deformer, StepReport};
+use dend::deform::{BuildStage, Constraints, ConstraintsSpec, Deformer, StepReport};
 
 use super::frame::FrameBody;
 use dend::deform::{FactorCache, Params, Rest};
@@ -50,6 +50,8 @@ pub(super) struct Shared {
     /// The installed set's warnings (`Constraints::warnings`), each with
     /// its `code`, details and a `message`.
     pub warnings: Arc<Vec<serde_json::Value>>,
+    /// The factor build's stage under way (`SessionInfo::build_stage`).
+    pub build_stage: Option<BuildStage>,
 }
 
 pub(super) struct Inner {
@@ -211,6 +213,9 @@ pub(super) enum Internal {
         /// The constraint generation it was started in.
         generation: u64,
     },
+    /// A stage of the factor build of constraint generation `generation`
+    /// started.
+    Stage { generation: u64, stage: BuildStage },
     Built {
         generation: u64,
         result: Result<(), SessionError>,

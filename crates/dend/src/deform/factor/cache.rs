@@ -7,7 +7,7 @@ use std::sync::Arc;
 
 use parking_lot::Mutex;
 
-use super::{Factor, FactorKey, SolveOptions};
+use super::{BuildStage, Factor, FactorKey, SolveOptions};
 use crate::deform::constraints::Constraints;
 use crate::deform::params::Params;
 use crate::deform::rest::Rest;
@@ -66,6 +66,19 @@ impl FactorCache {
         params: &Params,
         constraints: &Constraints,
     ) -> Result<Arc<Factor>, DeformError> {
+        self.get_or_build_reporting(rest, params, constraints, &|_| {})
+    }
+
+    /// [`FactorCache::get_or_build`] calling `progress` as each stage of a
+    /// build starts ([`Factor::build_reporting`]); a cache hit reports
+    /// nothing.
+    pub fn get_or_build_reporting(
+        &self,
+        rest: &Rest,
+        params: &Params,
+        constraints: &Constraints,
+        progress: &dyn Fn(BuildStage),
+    ) -> Result<Arc<Factor>, DeformError> {
         let key = FactorKey::new(rest, params, constraints);
         let lookup = |inner: &mut CacheInner| {
             inner.tick += 1;
@@ -92,7 +105,7 @@ impl FactorCache {
             return Ok(f);
         }
         let t0 = std::time::Instant::now();
-        let built = Factor::build_with(rest, params, constraints, &self.options);
+        let built = Factor::build_reporting(rest, params, constraints, &self.options, progress);
         if let Ok(f) = &built {
             let t = f.timings();
             let ms = |d: std::time::Duration| (d.as_secs_f64() * 1e4).round() / 10.0;

@@ -30,6 +30,21 @@ use crate::mesh::{Point, Real};
 
 mod cache;
 mod options;
+
+/// A stage of a factor build, reported as it starts
+/// ([`Factor::build_reporting`]; the editor shows it while a large mesh's
+/// factor builds).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum BuildStage {
+    /// Assembling the normal matrix (eq. (24): with its symbolic analysis
+    /// at the same time).
+    Assembly,
+    /// The sparse Cholesky's symbolic analysis (ordering, elimination tree).
+    Symbolic,
+    /// The numeric factorisation.
+    Numeric,
+}
 #[cfg(test)]
 pub(super) mod tests;
 
@@ -158,6 +173,20 @@ impl Factor {
         constraints: &Constraints,
         options: &SolveOptions,
     ) -> Result<Factor, DeformError> {
+        Self::build_reporting(rest, params, constraints, options, &|_| {})
+    }
+
+    /// [`Factor::build_with`] calling `progress` as each [`BuildStage`]
+    /// starts, in order (stages a build does not have are skipped: a CG
+    /// solver has no numeric factorisation; eq. (24)'s symbolic analysis
+    /// runs inside [`BuildStage::Assembly`], at the same time).
+    pub fn build_reporting(
+        rest: &Rest,
+        params: &Params,
+        constraints: &Constraints,
+        options: &SolveOptions,
+        progress: &dyn Fn(BuildStage),
+    ) -> Result<Factor, DeformError> {
         params.validate()?;
         let key = FactorKey::new(rest, params, constraints);
         let ops = rest.operators();
@@ -185,6 +214,7 @@ impl Factor {
             });
         }
         let t0 = Instant::now();
+        progress(BuildStage::Assembly);
         // eq. (24) to factorise: M's pattern first, then its values and the
         // symbolic analysis (which needs the pattern only) at the same time
         let mut analysed = None;
@@ -240,6 +270,7 @@ impl Factor {
             let mat = SparseColMat::new(sym, v.to_vec());
             let t2 = Instant::now();
             symbolic_time = t2 - t1;
+            progress(BuildStage::Numeric);
             lu = Some(
                 mat.sp_lu()
                     .map_err(|_| DeformError::NotPositiveDefinite { pivot: 0 })?,
@@ -255,6 +286,7 @@ impl Factor {
                     symbolic?
                 }
                 None => {
+                    progress(BuildStage::Symbolic);
                     let t = Instant::now();
                     let (col_ptr, row_idx) = csr_arrays(&sys.m);
                     let symbolic = analyse(&col_ptr, row_idx, options.ordering)?;
@@ -290,6 +322,7 @@ impl Factor {
                     },
                 });
             }
+            progress(BuildStage::Numeric);
             let values = cholesky::factorise(&symbolic, &sys.m)?;
             (Some(symbolic), values, t2)
         };

@@ -1,0 +1,136 @@
+// The session socket's messages: pose frames (drawn, latency measured),
+// JSON events (state, constraint sets of collaborators, warnings, errors,
+// grabs, peers) and reconnection after the socket drops.
+
+import { ApiError } from './api.js';
+import {
+  app, progress, setState, showConstraints, showWarnings, showError, updateStats, uploadPose, refreshCurvature,
+} from './app.js';
+
+const $ = (id) => document.getElementById(id);
+
+function onFrame(f) {
+  if (!app.positions || f.positions.length !== app.positions.length) return;
+  const now = performance.now();
+  for (const [s, t] of app.sent) {
+    if (s <= f.ackSeq) {
+      app.latencies.push(now - t);
+      if (app.latencies.length > 100) app.latencies.shift();
+      app.sent.delete(s);
+    }
+  }
+  app.positions = new Float32Array(f.positions);
+  app.frames++;
+  app.last = f;
+  uploadPose();
+  updateStats();
+  if (f.settled) refreshCurvature();
+}
+
+const STAGES = { assembly: 'assembling the system', symbolic: 'symbolic analysis', numeric: 'numeric factorisation' };
+
+/** The factor build's stage (a `build_progress` event, or a state's
+ * `build_stage` for a tab that joins mid-build) on the progress line. */
+function showStage(stage) {
+  progress(stage ? `factor: ${STAGES[stage] || stage}…` : '');
+}
+
+function onEvent(e) {
+  // the last events, for the browser test's failure messages
+  app.eventLog.push(e.type === 'state' ? `state:${e.state}:${e.constraints_revision}` : e.type === 'build_progress' ? `build_progress:${e.stage}` : e.type);
+  if (app.eventLog.length > 40) app.eventLog.shift();
+  switch (e.type) {
+    case 'state':
+      if (e.you !== undefined) app.you = e.you;
+      setState(e.state);
+      $('stPeers').textContent = String(e.peers);
+      $('undo').disabled = !e.can_undo;
+      $('redo').disabled = !e.can_redo;
+      // another client's constraint edit (or undo to another set): show it,
+      // unless this tab has strokes of its own not applied yet
+      if (e.constraints_revision !== undefined && e.constraints_revision !== app.constraintsRevision && !app.dirtyLabels) {
+        showConstraints(e);
+      }
+      showWarnings(e.warnings || []);
+      if (e.state === 'building') showStage(e.build_stage);
+      else showStage(null);
+      break;
+    case 'build_progress':
+      showStage(e.stage);
+      break;
+    case 'ready':
+      setState('ready');
+      showStage(null);
+      break;
+    case 'error':
+      // a refused drag never gets a frame: not a latency sample
+      if (e.seq !== undefined && e.seq !== null) app.sent.delete(e.seq);
+      if ((e.code === 'unknown_handle' || e.code === 'not_ready') && (app.dirtyLabels || !app.applied)) {
+        showError({ code: e.code, message: `${e.message} — the painted regions are not applied yet: paint a fixed region and press “Apply constraints”` });
+      } else {
+        showError(e);
+      }
+      if (app.state === 'building') {
+        setState('failed');
+        showStage(null);
+      }
+      break;
+    case 'handle_grabbed':
+      if (e.client !== app.you) $('stState').textContent = `handle ${e.handle} held by client ${e.client}`;
+      break;
+    case 'handle_released':
+      if (e.client !== app.you) setState(app.state);
+      break;
+    case 'peer_joined':
+    case 'peer_left':
+      if (e.client !== app.you) {
+        const n = (+$('stPeers').textContent || 1) + (e.type === 'peer_joined' ? 1 : -1);
+        $('stPeers').textContent = String(Math.max(1, n));
+      }
+      break;
+    default:
+      break;
+  }
+}
+
+function onClose(code, reason) {
+  app.ws = null;
+  setState('disconnected');
+  if (code === 1000) return;
+  // 4004: the session closed here (deleted, expired, or moved to another
+  // instance: its owner died or handed it over); 1001/1006/1011/1012: the
+  // server went away. Reopen it while the server says it exists.
+  if (app.session && [4004, 1001, 1006, 1011, 1012].includes(code)) {
+    reconnect(app.session, 250);
+    return;
+  }
+  showError({ code: `closed_${code}`, message: reason || 'the session socket closed' });
+}
+
+/** Reopens `session`'s socket after `delay` ms, doubling up to 2 s while
+ * the session is not reachable yet (409 `session_owned_elsewhere` while a
+ * failover or hand-over is under way, 503 while the store is down, no
+ * answer while the load balancer re-routes); a 404 or another error ends
+ * it. Stops when another session was opened meanwhile. */
+function reconnect(session, delay) {
+  setTimeout(async () => {
+    if (app.session !== session || app.ws) return;
+    const again = () => reconnect(session, Math.min(2 * delay, 2000));
+    try {
+      await app.api.json('GET', `/v1/sessions/${session.id}`, undefined, session.token);
+    } catch (e) {
+      const transient = !(e instanceof ApiError) || ['session_owned_elsewhere', 'store_unavailable'].includes(e.code) || e.status >= 502;
+      if (transient) again();
+      else showError(e);
+      return;
+    }
+    try {
+      app.ws = await app.api.connect(session.id, session.token, socketHandlers);
+    } catch (e) {
+      again();
+    }
+  }, delay);
+}
+
+/** The callbacks of `Api.connect`. */
+export const socketHandlers = { frame: onFrame, event: onEvent, close: onClose };
