@@ -157,7 +157,7 @@ impl Deformer {
         let nu = factor.sys.unknowns.len();
         if nu == 0 {
             report.converged = true;
-            self.sync_pose();
+            self.sync_pose(factor, constraints);
             return Ok(report);
         }
         for _ in 0..max_iters {
@@ -236,7 +236,7 @@ impl Deformer {
                 aa_backoff,
             });
         }
-        self.sync_pose();
+        self.sync_pose(factor, constraints);
         Ok(report)
     }
     /// The Anderson candidate from the current iterate (`scratch.y_prev`)

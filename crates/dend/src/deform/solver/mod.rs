@@ -211,10 +211,25 @@ impl Deformer {
         Ok(moved)
     }
 
-    fn sync_pose(&mut self) {
+    /// The mesh-unit pose from `Y`. Hard-constrained vertices get their
+    /// targets as given, not through the normalisation's round trip
+    /// (`denormalise(normalise(p))` can differ from `p` in the last bit): a
+    /// fixed vertex keeps its stored bits, so an asset export leaves what
+    /// did not move byte for byte.
+    fn sync_pose(&mut self, factor: &Factor, constraints: &Constraints) {
         let ops = &self.rest.ops;
         for (p, &y) in self.pose.iter_mut().zip(&self.y) {
             *p = ops.denormalise(y);
+        }
+        if factor.sys.lambda1 == 0.0 {
+            for (&v, &p) in constraints.fixed.iter().zip(&constraints.fixed_at) {
+                self.pose[v as usize] = p;
+            }
+            for h in &constraints.handles {
+                for (v, p) in h.target_positions() {
+                    self.pose[v as usize] = p;
+                }
+            }
         }
     }
 }
