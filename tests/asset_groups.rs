@@ -8,13 +8,13 @@ use std::collections::BTreeSet;
 use std::path::Path;
 use std::process::Command;
 
-use dend_testkit::assets::{banded_tube_obj, AROUND, RINGS};
 use dend::deform::{ConstraintsSpec, DeformError};
 use dend::mesh::asset::groups::GroupKind;
 use dend::mesh::asset::sample::{self, TubeOptions};
 use dend::mesh::asset::Asset;
 use dend::mesh::io::gltf::{self as g, Container, Sidecars};
 use dend::mesh::io::Format;
+use dend_testkit::assets::{banded_tube_obj, AROUND, RINGS};
 use serde_json::{json, Value};
 
 /// Welded vertices whose `z` is in `[lo, hi]`: the rings a band of the
@@ -259,7 +259,10 @@ fn dend_deform_poses_an_obj_by_group_and_refuses_unknown_groups() {
             p0[v as usize][1],
             p0[v as usize][2],
         ];
-        assert!(dend_testkit::max_dist(&[p1[v as usize]], &[want]) < 1e-6, "{v}");
+        assert!(
+            dend_testkit::max_dist(&[p1[v as usize]], &[want]) < 1e-6,
+            "{v}"
+        );
     }
     assert!(dend_testkit::max_dist(p1, p0) > 1.4);
     // the group list in `dend info`
@@ -320,7 +323,10 @@ fn dend_deform_poses_a_glb_by_node_and_the_result_validates() {
         }
     }
     assert_eq!((held, pulled), (2 * 16 + 2, 16));
-    for (name, b) in [("two.glb", bytes), ("posed.glb", std::fs::read(&out).unwrap())] {
+    for (name, b) in [
+        ("two.glb", bytes),
+        ("posed.glb", std::fs::read(&out).unwrap()),
+    ] {
         if let Some(r) = dend_testkit::gltf_validator::validate(&b, name) {
             assert_eq!((r.errors, r.warnings), (0, 0), "{name}: {}", r.messages);
         }

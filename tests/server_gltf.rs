@@ -5,12 +5,12 @@
 use std::sync::Arc;
 use std::time::Duration;
 
-use dend_testkit::assets::{banded_tube_obj, AROUND, RINGS};
 use dend::mesh::asset::sample::{self, TubeOptions};
 use dend::mesh::io::gltf::{Container, GltfAsset, Sidecars};
 use dend_client::{Client, ClientError};
 use dend_server::store::SqliteStore;
 use dend_server::Config;
+use dend_testkit::assets::{banded_tube_obj, AROUND, RINGS};
 use dend_testkit::server::{start, start_with_store};
 use serde_json::json;
 
@@ -244,11 +244,17 @@ async fn constraints_by_group_resolve_on_the_uploaded_asset() -> Result<(), Clie
     let (mut held, mut moved) = (0, 0);
     for (v, (q, r)) in p.positions.iter().zip(rest).enumerate() {
         if r[2] <= 1.0 {
-            assert!(dend_testkit::max_dist(&[*q], &[*r]) < 1e-9, "base vertex {v}");
+            assert!(
+                dend_testkit::max_dist(&[*q], &[*r]) < 1e-9,
+                "base vertex {v}"
+            );
             held += 1;
         } else if r[2] >= top - 1.0 {
             let want = [r[0] + 1.5, r[1], r[2]];
-            assert!(dend_testkit::max_dist(&[*q], &[want]) < 1e-6, "tip vertex {v}");
+            assert!(
+                dend_testkit::max_dist(&[*q], &[want]) < 1e-6,
+                "tip vertex {v}"
+            );
             moved += 1;
         }
     }
