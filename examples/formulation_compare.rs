@@ -94,19 +94,28 @@ fn main() {
         .and_then(|i| args.get(i + 1))
         .and_then(|v| v.parse().ok())
         .unwrap_or(100);
-    let forms = [
-        Formulation::LeastSquares,
-        Formulation::Square,
-        Formulation::SquareLu,
-    ];
     println!("energy {energy:?}, max_iters {max_iters}, default parameters otherwise; ms/it = full solve time / iterations\n");
     println!("| set-up | formulation | figure | iterations | converged / diverged | ms/it | factor nnz |");
     println!("|---|---|---|---|---|---|---|");
     let bar = generate(&ShapeSpec::default_for(Shape::Bar)).expect("bar");
+    twist_rows(&bar, energy, max_iters);
+    cylinder_rows(energy, max_iters);
+    invariance_table(&bar, energy);
+}
+
+/// The three formulations compared.
+const FORMS: [Formulation; 3] = [
+    Formulation::LeastSquares,
+    Formulation::Square,
+    Formulation::SquareLu,
+];
+
+/// The bar twists' rows (generated, and the survey's when present).
+fn twist_rows(bar: &Mesh, energy: Energy, max_iters: usize) {
     let mut twists = vec![(
         "generated bar 135°",
         bar.clone(),
-        example(&bar, "bar-twist-135.json"),
+        example(bar, "bar-twist-135.json"),
         135.0,
     )];
     if let Some((m, c)) = survey_bar() {
@@ -115,7 +124,7 @@ fn main() {
     }
     for (label, m, c, deg) in &twists {
         let (z0, z1) = free_span(m, c);
-        for f in forms {
+        for f in FORMS {
             let r = run(
                 m,
                 Params {
@@ -135,10 +144,14 @@ fn main() {
             println!("{}", line(&format!("{label} | {f:?}"), figure, &r));
         }
     }
+}
+
+/// The generated cylinder's bend rows.
+fn cylinder_rows(energy: Energy, max_iters: usize) {
     let cyl = generate(&ShapeSpec::default_for(Shape::Cylinder)).expect("cylinder");
     let c = example(&cyl, "cylinder-bend-120.json");
     let (z0, z1) = free_span(&cyl, &c);
-    for f in forms {
+    for f in FORMS {
         let r = run(
             &cyl,
             Params {
@@ -159,7 +172,10 @@ fn main() {
             )
         );
     }
-    // invariances: both ends of the bar moved by one motion
+}
+
+/// The invariance table: both ends of the bar moved by one motion.
+fn invariance_table(bar: &Mesh, energy: Energy) {
     let (lo, hi) = bar.bounding_box();
     let z = |v: usize| bar.positions()[v][2];
     let n = bar.num_vertices();
@@ -186,7 +202,7 @@ fn main() {
     println!("|---|---|---|---|");
     for (label, rot, t) in cases {
         let mut c = Constraints::new(
-            &bar,
+            bar,
             vec![],
             vec![
                 ("bottom".into(), bottom.clone(), None),
@@ -209,7 +225,7 @@ fn main() {
                 [v.x, v.y, v.z]
             })
             .collect();
-        for f in forms {
+        for f in FORMS {
             let params = Params {
                 energy,
                 formulation: f,
@@ -217,7 +233,7 @@ fn main() {
                 max_iters: 300,
                 ..Params::default()
             };
-            let r = run(&bar, params, &c);
+            let r = run(bar, params, &c);
             let err = dend_testkit::max_dist(&r.pose, &want) / bar.diagonal();
             println!("| {label} | {f:?} | {err:.2e} | {} |", r.rep.iterations);
         }

@@ -82,9 +82,9 @@ fn write_vec3(doc: &Value, bin: &mut [u8], i: usize, values: &[Point]) {
     let start =
         (v["byteOffset"].as_u64().unwrap_or(0) + a["byteOffset"].as_u64().unwrap_or(0)) as usize;
     for (k, p) in values.iter().enumerate() {
-        for c in 0..3 {
+        for (c, x) in p.iter().enumerate() {
             let at = start + k * stride + 4 * c;
-            bin[at..at + 4].copy_from_slice(&(p[c] as f32).to_le_bytes());
+            bin[at..at + 4].copy_from_slice(&(*x as f32).to_le_bytes());
         }
     }
 }
@@ -207,9 +207,9 @@ fn a_bent_asset_gets_angle_weighted_normals_with_its_hard_edges() {
     // positions, grouped by the *file's* normals
     let want = brute_normals(posed.positions(), rest.triangles(), &key_of(rest.normals()));
     let mut worst: f64 = 0.0;
-    for v in 0..rest.positions().len() {
+    for (v, want) in want.iter().enumerate().take(rest.positions().len()) {
         let got = posed.normals()[v].unwrap();
-        worst = worst.max(angle(got, want[v].unwrap()));
+        worst = worst.max(angle(got, want.unwrap()));
         // tangents: unit, orthogonal to the new normal, handedness kept
         if let Some(t) = posed.tangents()[v] {
             assert!(dot(t, got).abs() < 1e-5, "tangent {v} ⟂ normal");

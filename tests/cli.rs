@@ -153,3 +153,46 @@ fn a_missing_file_is_named_once() {
         assert_eq!(err.matches("os error").count(), 1, "{args:?}: {err}");
     }
 }
+
+/// An invalid mesh is reported once: the validation's reason appears a
+/// single time and "invalid mesh" is not repeated by the layers it passes
+/// through (the reader's error, the command's own context).
+#[test]
+fn an_invalid_mesh_says_why_once() {
+    let dir = tempfile::tempdir().unwrap();
+    // a triangle referring to a vertex the file does not have
+    let bad_off = dir.path().join("bad.off");
+    std::fs::write(&bad_off, "OFF\n3 1 0\n0 0 0\n1 0 0\n0 1 0\n3 0 1 7\n").unwrap();
+    // a zero-area triangle, and an index past the vertices, as OBJs (read
+    // as assets by `deform`)
+    let flat_obj = dir.path().join("flat.obj");
+    std::fs::write(&flat_obj, "v 0 0 0\nv 1 0 0\nv 2 0 0\nf 1 2 3\n").unwrap();
+    let bad_obj = dir.path().join("bad.obj");
+    std::fs::write(&bad_obj, "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 9\n").unwrap();
+    let out = dir.path().join("out.obj");
+    let (bad_off, flat_obj, bad_obj, out) = (
+        bad_off.to_str().unwrap(),
+        flat_obj.to_str().unwrap(),
+        bad_obj.to_str().unwrap(),
+        out.to_str().unwrap(),
+    );
+    let constraints = "examples/bar-twist-135.json";
+    for (args, cause) in [
+        (vec!["info", bad_off], "refers to vertex 7"),
+        (vec!["info", flat_obj], "has zero area"),
+        (vec!["info", bad_obj], "refers to vertex 8"),
+        (
+            vec!["deform", bad_off, "--constraints", constraints, "-o", out],
+            "refers to vertex 7",
+        ),
+        (
+            vec!["deform", bad_obj, "--constraints", constraints, "-o", out],
+            "refers to vertex 8",
+        ),
+    ] {
+        let (code, _, err) = dend(&args);
+        assert_eq!(code, 2, "{args:?}: {err}");
+        assert_eq!(err.matches(cause).count(), 1, "{args:?}: {err}");
+        assert!(err.matches("invalid mesh").count() <= 1, "{args:?}: {err}");
+    }
+}

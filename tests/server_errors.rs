@@ -261,3 +261,52 @@ async fn a_wrong_token_on_a_stored_session_starts_no_work() -> Result<(), Client
     assert_eq!(second.metric("dend_sessions").await?, Some(1.0));
     Ok(())
 }
+
+/// An invalid upload says why once: the validation's or the reader's reason
+/// appears a single time in the message, and the message does not repeat
+/// what the code `invalid_mesh` says ("invalid mesh: invalid mesh: …").
+#[tokio::test]
+async fn an_invalid_upload_says_why_once() -> Result<(), ClientError> {
+    let (base, _state) = start(Config::default()).await;
+    let http = reqwest::Client::new();
+    for (path, body, ct, cause) in [
+        (
+            "/v1/meshes",
+            r#"{"positions": [[0,0,0],[1,0,0],[0,1,0]], "triangles": [[0,1,7]]}"#,
+            "application/json",
+            "refers to vertex 7",
+        ),
+        (
+            "/v1/meshes?format=off",
+            "OFF\n3 1 0\n0 0 0\n1 0 0\n0 1 0\n3 0 1 7\n",
+            "application/octet-stream",
+            "refers to vertex 7",
+        ),
+        (
+            "/v1/meshes?format=obj",
+            "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 9\n",
+            "application/octet-stream",
+            "refers to vertex 8",
+        ),
+        (
+            "/v1/meshes?format=off",
+            "OFF\n3 1 0\n0 0 0\n",
+            "application/octet-stream",
+            "unexpected end of file",
+        ),
+    ] {
+        let r = http
+            .post(format!("{base}{path}"))
+            .header("content-type", ct)
+            .body(body)
+            .send()
+            .await?;
+        assert_eq!(r.status().as_u16(), 422, "{path} {body}");
+        let e: Value = r.json().await.expect("JSON error body");
+        assert_eq!(e["code"], "invalid_mesh", "{e}");
+        let message = e["message"].as_str().unwrap_or_default();
+        assert_eq!(message.matches(cause).count(), 1, "{e}");
+        assert!(!message.contains("invalid mesh"), "{e}");
+    }
+    Ok(())
+}

@@ -8,27 +8,18 @@ use axum::http::{Method, Request};
 use dend_server::{app, AppState, Config, ROUTES};
 use tower::ServiceExt;
 
-/// (method, path) pairs under `paths:` of api/openapi.yaml.
+/// (method, path) pairs under `paths:` of api/openapi.yaml, read by the
+/// YAML parser.
 fn openapi_routes() -> BTreeSet<(String, String)> {
-    let path = concat!(env!("CARGO_MANIFEST_DIR"), "/api/openapi.yaml");
-    let text = std::fs::read_to_string(path).expect("api/openapi.yaml");
-    let mut in_paths = false;
-    let mut current = None;
+    let doc = openapi_doc();
+    let paths = doc["paths"].as_hash().expect("paths: a mapping");
     let mut out = BTreeSet::new();
-    for line in text.lines() {
-        if !line.starts_with(' ') && !line.is_empty() {
-            in_paths = line.trim_end() == "paths:";
-            continue;
-        }
-        if !in_paths {
-            continue;
-        }
-        if let Some(p) = line.strip_prefix("  /") {
-            current = Some(format!("/{}", p.trim_end().trim_end_matches(':')));
-        } else if let Some(m) = line.strip_prefix("    ").filter(|l| !l.starts_with(' ')) {
-            let m = m.trim_end().trim_end_matches(':');
-            if ["get", "post", "put", "delete", "patch"].contains(&m) {
-                out.insert((m.to_owned(), current.clone().expect("method under a path")));
+    for (path, item) in paths {
+        let path = path.as_str().expect("a path string");
+        for method in item.as_hash().expect("a path item").keys() {
+            let method = method.as_str().expect("a method");
+            if ["get", "post", "put", "delete", "patch"].contains(&method) {
+                out.insert((method.to_owned(), path.to_owned()));
             }
         }
     }
@@ -211,4 +202,262 @@ fn pose_schema_matches_the_pose_json() {
         .cloned()
         .collect();
     assert_eq!(documented, fields);
+}
+
+/// The JSON keys of a serialised value (an object).
+fn json_keys(v: serde_json::Value) -> BTreeSet<String> {
+    v.as_object().expect("an object").keys().cloned().collect()
+}
+
+/// A schema's `required` list.
+fn required(y: &yaml_rust2::Yaml) -> BTreeSet<String> {
+    y["required"]
+        .as_vec()
+        .map(|v| {
+            v.iter()
+                .map(|s| s.as_str().expect("a name").to_owned())
+                .collect()
+        })
+        .unwrap_or_default()
+}
+
+/// A schema's `enum` list.
+fn enum_names(y: &yaml_rust2::Yaml) -> BTreeSet<String> {
+    y["enum"]
+        .as_vec()
+        .expect("an enum")
+        .iter()
+        .map(|s| s.as_str().expect("a name").to_owned())
+        .collect()
+}
+
+/// The MeshInfo schema documents exactly the fields of the wire type
+/// (`dend_protocol::MeshInfo`, its asset summary and groups, each with
+/// every optional field present), the groups' required fields are the ones
+/// never omitted, and the group kinds are the core's `GroupKind`s.
+#[test]
+fn mesh_info_schema_matches_the_wire_type() {
+    use dend::mesh::asset::groups::GroupKind;
+    use dend_protocol::{AssetGroup, AssetSummary, MeshInfo};
+    let doc = openapi_doc();
+    let schema = &doc["components"]["schemas"]["MeshInfo"];
+    let group = AssetGroup {
+        kind: "node".into(),
+        name: Some("Arm".into()),
+        index: Some(1),
+        primitive: Some(0),
+        triangles: 2,
+        vertices: 3,
+    };
+    let info = MeshInfo {
+        id: "m".into(),
+        vertices: 3,
+        triangles: 1,
+        bbox: [[0.0; 3]; 2],
+        asset: Some(AssetSummary {
+            format: "glb".into(),
+            name: Some("tube".into()),
+            asset_vertices: 4,
+            attributes: vec!["TEXCOORD_0".into()],
+            groups: vec![group.clone()],
+        }),
+    };
+    let json = serde_json::to_value(&info).expect("json");
+    assert_eq!(
+        keys(&schema["properties"]),
+        json_keys(json.clone()),
+        "MeshInfo"
+    );
+    let asset = &schema["properties"]["asset"];
+    assert_eq!(
+        keys(&asset["properties"]),
+        json_keys(json["asset"].clone()),
+        "MeshInfo.asset"
+    );
+    let items = &asset["properties"]["groups"]["items"];
+    assert_eq!(
+        keys(&items["properties"]),
+        json_keys(serde_json::to_value(&group).expect("json")),
+        "MeshInfo.asset.groups"
+    );
+    let bare = AssetGroup {
+        name: None,
+        index: None,
+        primitive: None,
+        ..group
+    };
+    assert_eq!(
+        required(items),
+        json_keys(serde_json::to_value(&bare).expect("json")),
+        "the groups' required fields"
+    );
+    let kinds = [
+        GroupKind::G,
+        GroupKind::O,
+        GroupKind::Node,
+        GroupKind::Mesh,
+        GroupKind::Primitive,
+    ];
+    for k in kinds {
+        match k {
+            GroupKind::G
+            | GroupKind::O
+            | GroupKind::Node
+            | GroupKind::Mesh
+            | GroupKind::Primitive => {}
+        }
+    }
+    assert_eq!(
+        enum_names(&items["properties"]["kind"]),
+        kinds.iter().map(|k| k.name().to_owned()).collect()
+    );
+}
+
+/// The Session schema documents exactly the fields of `GET
+/// /v1/sessions/{id}` (`SessionInfo`), and its states are `SessionState`'s.
+#[test]
+fn session_schema_matches_the_session_info() {
+    use dend_server::session::{SessionInfo, SessionState};
+    let doc = openapi_doc();
+    let schema = &doc["components"]["schemas"]["Session"];
+    let states = [
+        SessionState::Empty,
+        SessionState::Building,
+        SessionState::Ready,
+        SessionState::Failed,
+    ];
+    for s in states {
+        match s {
+            SessionState::Empty
+            | SessionState::Building
+            | SessionState::Ready
+            | SessionState::Failed => {}
+        }
+    }
+    let info = SessionInfo {
+        id: "s".into(),
+        mesh_id: "m".into(),
+        state: SessionState::Ready,
+        revision: 1,
+        handles: vec!["h".into()],
+        peers: 0,
+        can_undo: false,
+        can_redo: false,
+        vertices: 3,
+        constraints: None,
+        constraints_revision: 0,
+        warnings: vec![],
+        build_stage: Some(dend_server::session::BuildStage::Numeric),
+    };
+    let json = serde_json::to_value(&info).expect("json");
+    assert_eq!(keys(&schema["properties"]), json_keys(json), "Session");
+    assert_eq!(
+        enum_names(&schema["properties"]["state"]),
+        states
+            .iter()
+            .map(|s| serde_json::to_value(s)
+                .expect("json")
+                .as_str()
+                .expect("a name")
+                .to_owned())
+            .collect()
+    );
+}
+
+/// The Error schema documents the error body's fields, and its description
+/// names every code the API answers with.
+#[test]
+fn error_schema_matches_the_error_body() {
+    let doc = openapi_doc();
+    let schema = &doc["components"]["schemas"]["Error"];
+    let body = dend_server::ApiError::Internal(String::new()).body();
+    let json = serde_json::to_value(&body).expect("json");
+    assert_eq!(keys(&schema["properties"]), json_keys(json), "Error");
+    assert_eq!(required(schema), keys(&schema["properties"]), "Error");
+    let described = schema["description"].as_str().expect("a description");
+    use dend_server::ApiError::*;
+    let s = String::new;
+    let all = [
+        InvalidJson(s()),
+        InvalidMesh(s()),
+        UnsupportedFormat(s()),
+        InvalidParams(s()),
+        InvalidConstraints(s()),
+        VertexOutOfRange(s()),
+        UnknownGroup(s()),
+        NonFinite(s()),
+        MeshNotFound(s()),
+        SessionNotFound(s()),
+        UnknownHandle(s()),
+        RouteNotFound(s()),
+        MissingToken,
+        WrongToken,
+        NotReady(s()),
+        MeshInUse {
+            mesh: s(),
+            sessions: 1,
+        },
+        HandleGrabbed(s()),
+        NothingToUndo(s()),
+        NothingToRedo(s()),
+        StaleConstraints(s()),
+        SolveFailed(s()),
+        PayloadTooLarge(1),
+        TooManyVertices { got: 2, limit: 1 },
+        RateLimited(1),
+        TooManySessions(1),
+        TooManyMeshes(1),
+        Timeout,
+        SessionClosed,
+        StoreUnavailable(s()),
+        SessionOwnedElsewhere {
+            session: s(),
+            owner: s(),
+            retry_after_ms: 1,
+        },
+        Internal(s()),
+    ];
+    for e in &all {
+        // a new variant fails to compile here until it is listed above
+        match e {
+            InvalidJson(_)
+            | InvalidMesh(_)
+            | UnsupportedFormat(_)
+            | InvalidParams(_)
+            | InvalidConstraints(_)
+            | VertexOutOfRange(_)
+            | UnknownGroup(_)
+            | NonFinite(_)
+            | MeshNotFound(_)
+            | SessionNotFound(_)
+            | UnknownHandle(_)
+            | RouteNotFound(_)
+            | MissingToken
+            | WrongToken
+            | NotReady(_)
+            | MeshInUse { .. }
+            | HandleGrabbed(_)
+            | NothingToUndo(_)
+            | NothingToRedo(_)
+            | StaleConstraints(_)
+            | SolveFailed(_)
+            | PayloadTooLarge(_)
+            | TooManyVertices { .. }
+            | RateLimited(_)
+            | TooManySessions(_)
+            | TooManyMeshes(_)
+            | Timeout
+            | SessionClosed
+            | StoreUnavailable(_)
+            | SessionOwnedElsewhere { .. }
+            | Internal(_) => {}
+        }
+        let (code, status) = e.code_status();
+        let status = status.as_u16().to_string();
+        assert!(
+            described.contains(code),
+            "the Error schema does not list {code}"
+        );
+        assert!(described.contains(&status), "no status {status} listed");
+    }
 }

@@ -8,8 +8,9 @@ use std::time::{Duration, Instant};
 use anyhow::{bail, Context};
 use dend::deform::{
     Constraints, ConstraintsSpec, Deformer, DetailTerm, Energy, Factor, Formulation, Levels, Mode,
-    Params, Rest, RigidTransform,
+    Params, Rest, RigidTransform, StepReport,
 };
+use dend::mesh::asset::Asset;
 use dend::mesh::io::{self, survey};
 
 /// Arguments of `dend deform`.
@@ -102,7 +103,8 @@ pub struct Args {
     report: Option<PathBuf>,
 }
 
-/// Runs `dend deform`.
+/// Runs `dend deform`: read, build the factor, solve the increments,
+/// report, write.
 pub fn run(args: Args) -> anyhow::Result<()> {
     let asset = dend::mesh::asset::Asset::read_path(&args.mesh)?;
     let mesh = asset.mesh().clone();
@@ -112,25 +114,90 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             mesh.unreferenced_vertices().len()
         );
     }
-    let mut constraints = if let Some(path) = &args.constraints {
+    let mut constraints = read_constraints(&args, &asset)?;
+    let params = params_of(&args)?;
+    if args.steps == 0 {
+        bail!("--steps must be at least 1");
+    }
+    let t0 = Instant::now();
+    let rest = Arc::new(Rest::new(mesh.clone())?);
+    let precompute = t0.elapsed();
+    let factor = Factor::build(&rest, &params, &constraints)?;
+    let ft = factor.timings();
+    eprintln!(
+        "mesh: {} vertices, {} triangles; free unknowns {}",
+        mesh.num_vertices(),
+        mesh.num_triangles(),
+        factor.num_unknowns()
+    );
+    eprintln!(
+        "precompute (operators + STEP 1): {:.1} ms; factor: assembly {:.1} ms, symbolic {:.1} ms, numeric {:.1} ms ({} nonzeros, {:.1} MB)",
+        ms(precompute),
+        ms(ft.assembly),
+        ms(ft.symbolic),
+        ms(ft.numeric),
+        factor.factor_nnz(),
+        factor.memory_bytes() as f64 / 1e6
+    );
+    let mut deformer = Deformer::new(rest, params);
+    deformer.set_levels(if args.levels == 1 {
+        Levels::One
+    } else {
+        Levels::Two
+    });
+    let t1 = Instant::now();
+    let solved = solve(&args, &mut deformer, &factor, &mut constraints)?;
+    let solve = t1.elapsed();
+    eprintln!(
+        "iterations: {} in {:.1} ms ({:.2} ms per iteration)",
+        solved.iterations,
+        ms(solve),
+        ms(solve) / solved.iterations.max(1) as f64
+    );
+    if let Some(path) = &args.report {
+        let (operators, solve) = (ms(precompute), ms(solve));
+        let report = solved.report(
+            deformer.params(),
+            &factor,
+            mesh.num_vertices(),
+            (operators, solve),
+        );
+        std::fs::write(path, serde_json::to_string_pretty(&report)?)
+            .with_context(|| format!("writing {}", path.display()))?;
+    }
+    let format = io::Format::from_path(&args.output)?;
+    let bytes = asset.export(deformer.pose(), format)?;
+    std::fs::write(&args.output, bytes)
+        .with_context(|| format!("writing {}", args.output.display()))?;
+    Ok(())
+}
+
+/// The constraints of `--constraints` (groups resolved on the asset) or of
+/// the survey's `--sel`/`--def` pair, resolved on the asset's mesh.
+fn read_constraints(args: &Args, asset: &Asset) -> anyhow::Result<Constraints> {
+    let mesh = asset.mesh();
+    if let Some(path) = &args.constraints {
         let text =
             std::fs::read_to_string(path).with_context(|| format!("reading {}", path.display()))?;
         let spec: ConstraintsSpec =
             serde_json::from_str(&text).with_context(|| format!("parsing {}", path.display()))?;
         // `{"group": …}` sets name the asset's parts: index lists from here on
-        asset.resolve_groups(&spec)?.resolve(&mesh)?
-    } else {
-        let (sel_path, def_path) = (args.sel.as_ref().unwrap(), args.def.as_ref().unwrap());
-        let sel = survey::read_sel(sel_path)?;
-        sel.check_len(mesh.num_vertices())?;
-        let def = survey::read_def(def_path)?;
-        let fixed = sel.indices(survey::VertexStatus::Fixed);
-        let handle = sel.indices(survey::VertexStatus::Handle);
-        let mut c = Constraints::new(&mesh, fixed, vec![("handle".into(), handle, None)])?;
-        let pivot = c.handles[0].rest_centroid;
-        c.handles[0].target = RigidTransform::from_matrix(&def.matrix, pivot)?;
-        c
-    };
+        return Ok(asset.resolve_groups(&spec)?.resolve(mesh)?);
+    }
+    let (sel_path, def_path) = (args.sel.as_ref().unwrap(), args.def.as_ref().unwrap());
+    let sel = survey::read_sel(sel_path)?;
+    sel.check_len(mesh.num_vertices())?;
+    let def = survey::read_def(def_path)?;
+    let fixed = sel.indices(survey::VertexStatus::Fixed);
+    let handle = sel.indices(survey::VertexStatus::Handle);
+    let mut c = Constraints::new(mesh, fixed, vec![("handle".into(), handle, None)])?;
+    let pivot = c.handles[0].rest_centroid;
+    c.handles[0].target = RigidTransform::from_matrix(&def.matrix, pivot)?;
+    Ok(c)
+}
+
+/// The solver parameters of the arguments, validated.
+fn params_of(args: &Args) -> anyhow::Result<Params> {
     let energy = match &args.energy {
         Some(name) if name == "combined" => Energy::Combined {
             ks: args.ks,
@@ -174,87 +241,42 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         },
     };
     params.validate()?;
-    if args.steps == 0 {
-        bail!("--steps must be at least 1");
-    }
-    let t0 = Instant::now();
-    let rest = Arc::new(Rest::new(mesh.clone())?);
-    let precompute = t0.elapsed();
-    let factor = Factor::build(&rest, &params, &constraints)?;
-    let ft = factor.timings();
-    eprintln!(
-        "mesh: {} vertices, {} triangles; free unknowns {}",
-        mesh.num_vertices(),
-        mesh.num_triangles(),
-        factor.num_unknowns()
-    );
-    eprintln!(
-        "precompute (operators + STEP 1): {:.1} ms; factor: assembly {:.1} ms, symbolic {:.1} ms, numeric {:.1} ms ({} nonzeros, {:.1} MB)",
-        ms(precompute),
-        ms(ft.assembly),
-        ms(ft.symbolic),
-        ms(ft.numeric),
-        factor.factor_nnz(),
-        factor.memory_bytes() as f64 / 1e6
-    );
+    Ok(params)
+}
+
+/// What the increments' iterations did (the `--report`'s figures).
+#[derive(Default)]
+struct Solved {
+    iterations: usize,
+    coarse_iterations: usize,
+    coarse_ms: f64,
+    objectives: Vec<f64>,
+    iteration_ms: Vec<f64>,
+    steps: Vec<serde_json::Value>,
+    converged: bool,
+    diverged: bool,
+    objective_first: Option<f64>,
+}
+
+/// Solves `--steps` equal increments of the handle transforms, each up to
+/// `--max-iters` iterations, printing each increment's outcome.
+fn solve(
+    args: &Args,
+    deformer: &mut Deformer,
+    factor: &Factor,
+    constraints: &mut Constraints,
+) -> anyhow::Result<Solved> {
     let full: Vec<RigidTransform> = constraints.handles.iter().map(|h| h.target).collect();
-    let mut deformer = Deformer::new(rest, params);
-    deformer.set_levels(if args.levels == 1 {
-        Levels::One
-    } else {
-        Levels::Two
-    });
-    let (mut coarse_iterations, mut coarse_ms) = (0, 0.0);
-    let mut iterations = 0;
-    let mut objectives = Vec::new();
-    let mut iteration_ms = Vec::new();
-    let mut steps = Vec::new();
-    let (mut converged, mut diverged) = (false, false);
-    let mut objective_first = None;
-    let t1 = Instant::now();
+    let mut solved = Solved::default();
     for s in 1..=args.steps {
         for (h, t) in constraints.handles.iter_mut().zip(&full) {
             h.target = t.fraction(s as f64 / args.steps as f64);
         }
-        // one iteration per call: the iteration state (Anderson history,
-        // rotations, safeguard) carries over between calls on unchanged
-        // targets, so this is the same sequence as one call
-        let mut rep = None;
-        let mut step_iterations = 0;
-        while step_iterations < args.max_iters {
-            let t = Instant::now();
-            let r = deformer.step(&factor, &constraints, 1)?;
-            iteration_ms.push(ms(t.elapsed()));
-            if objective_first.is_none() {
-                objective_first = Some(r.initial_objective);
-            }
-            step_iterations += r.iterations;
-            coarse_iterations += r.coarse_iterations;
-            coarse_ms += r.coarse_ms;
-            if r.coarse_iterations > 0 {
-                eprintln!(
-                    "  coarse level: {} coarse iterations in {:.1} ms",
-                    r.coarse_iterations, r.coarse_ms
-                );
-            }
-            objectives.push(r.objective);
-            if args.verbose {
-                eprintln!(
-                    "  iteration {step_iterations}: objective {:.9e}, update {:.2e}",
-                    r.objective, r.last_update
-                );
-            }
-            let done = r.converged || r.diverged || r.iterations == 0;
-            rep = Some(r);
-            if done {
-                break;
-            }
-        }
-        let rep = rep.context("no iteration ran (--max-iters 0)")?;
-        iterations += step_iterations;
-        converged = rep.converged;
-        diverged |= rep.diverged;
-        steps.push(serde_json::json!({
+        let (rep, step_iterations) = solved.increment(args, deformer, factor, constraints)?;
+        solved.iterations += step_iterations;
+        solved.converged = rep.converged;
+        solved.diverged |= rep.diverged;
+        solved.steps.push(serde_json::json!({
             "iterations": step_iterations,
             "converged": rep.converged,
             "diverged": rep.diverged,
@@ -277,44 +299,92 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             eprintln!("warning: the iteration stopped because its objective kept growing; try --steps or a larger --lambda2");
         }
     }
-    let solve = t1.elapsed();
-    eprintln!(
-        "iterations: {iterations} in {:.1} ms ({:.2} ms per iteration)",
-        ms(solve),
-        ms(solve) / iterations.max(1) as f64
-    );
-    if let Some(path) = &args.report {
-        let mut sorted = iteration_ms.clone();
+    Ok(solved)
+}
+
+impl Solved {
+    /// One increment: iterations until converged, stopped or `--max-iters`;
+    /// its last report and its iteration count.
+    fn increment(
+        &mut self,
+        args: &Args,
+        deformer: &mut Deformer,
+        factor: &Factor,
+        constraints: &Constraints,
+    ) -> anyhow::Result<(StepReport, usize)> {
+        // one iteration per call: the iteration state (Anderson history,
+        // rotations, safeguard) carries over between calls on unchanged
+        // targets, so this is the same sequence as one call
+        let mut rep = None;
+        let mut step_iterations = 0;
+        while step_iterations < args.max_iters {
+            let t = Instant::now();
+            let r = deformer.step(factor, constraints, 1)?;
+            self.iteration_ms.push(ms(t.elapsed()));
+            if self.objective_first.is_none() {
+                self.objective_first = Some(r.initial_objective);
+            }
+            step_iterations += r.iterations;
+            self.coarse_iterations += r.coarse_iterations;
+            self.coarse_ms += r.coarse_ms;
+            if r.coarse_iterations > 0 {
+                eprintln!(
+                    "  coarse level: {} coarse iterations in {:.1} ms",
+                    r.coarse_iterations, r.coarse_ms
+                );
+            }
+            self.objectives.push(r.objective);
+            if args.verbose {
+                eprintln!(
+                    "  iteration {step_iterations}: objective {:.9e}, update {:.2e}",
+                    r.objective, r.last_update
+                );
+            }
+            let done = r.converged || r.diverged || r.iterations == 0;
+            rep = Some(r);
+            if done {
+                break;
+            }
+        }
+        let rep = rep.context("no iteration ran (--max-iters 0)")?;
+        Ok((rep, step_iterations))
+    }
+
+    /// The `--report` JSON (times in ms: `operators` the rest operators,
+    /// `solve` all increments).
+    fn report(
+        &self,
+        params: &Params,
+        factor: &Factor,
+        vertices: usize,
+        (operators, solve): (f64, f64),
+    ) -> serde_json::Value {
+        let ft = factor.timings();
+        let mut sorted = self.iteration_ms.clone();
         sorted.sort_by(f64::total_cmp);
         let median = sorted.get(sorted.len() / 2).copied().unwrap_or(0.0);
-        let report = serde_json::json!({
+        let factor_ms = ms(ft.assembly) + ms(ft.symbolic) + ms(ft.numeric);
+        serde_json::json!({
             "formulation": params.formulation,
-            "vertices": mesh.num_vertices(),
+            "vertices": vertices,
             "unknowns": factor.num_unknowns(),
-            "iterations": iterations,
-            "coarse_iterations": coarse_iterations,
-            "coarse_ms": coarse_ms,
-            "converged": converged,
-            "diverged": diverged,
-            "objective_first": objective_first,
-            "objective_last": objectives.last(),
-            "objectives": objectives,
-            "precompute_ms": ms(precompute) + ms(ft.assembly) + ms(ft.symbolic) + ms(ft.numeric),
-            "operators_ms": ms(precompute),
-            "factor_ms": ms(ft.assembly) + ms(ft.symbolic) + ms(ft.numeric),
+            "iterations": self.iterations,
+            "coarse_iterations": self.coarse_iterations,
+            "coarse_ms": self.coarse_ms,
+            "converged": self.converged,
+            "diverged": self.diverged,
+            "objective_first": self.objective_first,
+            "objective_last": self.objectives.last(),
+            "objectives": self.objectives,
+            "precompute_ms": operators + factor_ms,
+            "operators_ms": operators,
+            "factor_ms": factor_ms,
             "factor_nnz": factor.factor_nnz(),
             "iteration_ms_median": median,
-            "solve_ms": ms(solve),
-            "steps": steps,
-        });
-        std::fs::write(path, serde_json::to_string_pretty(&report)?)
-            .with_context(|| format!("writing {}", path.display()))?;
+            "solve_ms": solve,
+            "steps": self.steps,
+        })
     }
-    let format = io::Format::from_path(&args.output)?;
-    let bytes = asset.export(deformer.pose(), format)?;
-    std::fs::write(&args.output, bytes)
-        .with_context(|| format!("writing {}", args.output.display()))?;
-    Ok(())
 }
 
 fn ms(d: Duration) -> f64 {

@@ -9,7 +9,7 @@ use std::path::PathBuf;
 use std::time::{Duration, Instant};
 
 use anyhow::Context;
-use dend_client::{Client, WsEvent};
+use dend_client::{Client, MeshInfo, WsEvent};
 use dend_server::{self as server, AppState, Config};
 use serde_json::json;
 
@@ -91,45 +91,11 @@ struct SessionStats {
 async fn run_async(args: LoadtestArgs) -> anyhow::Result<()> {
     let base = match &args.url {
         Some(u) => u.clone(),
-        None => {
-            let config = Config {
-                addr: ([127, 0, 0, 1], 0).into(),
-                iters_per_frame: args.iters_per_frame,
-                ws_max_messages_per_sec: 1_000_000,
-                factor_cache_bytes: args.factor_cache_bytes,
-                max_sessions: (args.sessions + args.idle + 8).max(256),
-                in_memory: args.data_dir.is_none(),
-                data_dir: args.data_dir.clone().unwrap_or_default(),
-                ..Config::default()
-            };
-            let listener = tokio::net::TcpListener::bind(config.addr).await?;
-            let addr = listener.local_addr()?;
-            let store = server::recover::open_store(&config)?;
-            let app = server::app(AppState::with_store(config, store)?);
-            drop(tokio::spawn(async move {
-                server::serve_on(listener, app).await
-            }));
-            format!("http://{addr}")
-        }
+        None => in_process_server(&args).await?,
     };
     let client = Client::new(&base);
     let uploaded = Instant::now();
-    let mesh = match &args.mesh {
-        Some(path) => {
-            let bytes =
-                std::fs::read(path).with_context(|| format!("reading {}", path.display()))?;
-            let ext = path
-                .extension()
-                .and_then(|e| e.to_str())
-                .unwrap_or("")
-                .to_ascii_lowercase();
-            client.upload_file(bytes, &ext).await?
-        }
-        None => {
-            let (p, t) = grid(args.grid.max(2));
-            client.upload_json(&p, &t).await?
-        }
-    };
+    let mesh = upload(&client, &args).await?;
     let upload = uploaded.elapsed();
     let [lo, hi] = mesh.bbox;
     let ext: Vec<f64> = (0..3).map(|k| hi[k] - lo[k]).collect();
@@ -230,6 +196,49 @@ async fn run_async(args: LoadtestArgs) -> anyhow::Result<()> {
         peak_rss_kib() as f64 / 1024.0
     );
     Ok(())
+}
+
+/// Starts a server in this process (in memory, or on `--data-dir`) and
+/// returns its URL.
+async fn in_process_server(args: &LoadtestArgs) -> anyhow::Result<String> {
+    let config = Config {
+        addr: ([127, 0, 0, 1], 0).into(),
+        iters_per_frame: args.iters_per_frame,
+        ws_max_messages_per_sec: 1_000_000,
+        factor_cache_bytes: args.factor_cache_bytes,
+        max_sessions: (args.sessions + args.idle + 8).max(256),
+        in_memory: args.data_dir.is_none(),
+        data_dir: args.data_dir.clone().unwrap_or_default(),
+        ..Config::default()
+    };
+    let listener = tokio::net::TcpListener::bind(config.addr).await?;
+    let addr = listener.local_addr()?;
+    let store = server::recover::open_store(&config)?;
+    let app = server::app(AppState::with_store(config, store)?);
+    drop(tokio::spawn(async move {
+        server::serve_on(listener, app).await
+    }));
+    Ok(format!("http://{addr}"))
+}
+
+/// Uploads `--mesh`, or the generated `--grid`.
+async fn upload(client: &Client, args: &LoadtestArgs) -> anyhow::Result<MeshInfo> {
+    Ok(match &args.mesh {
+        Some(path) => {
+            let bytes =
+                std::fs::read(path).with_context(|| format!("reading {}", path.display()))?;
+            let ext = path
+                .extension()
+                .and_then(|e| e.to_str())
+                .unwrap_or("")
+                .to_ascii_lowercase();
+            client.upload_file(bytes, &ext).await?
+        }
+        None => {
+            let (p, t) = grid(args.grid.max(2));
+            client.upload_json(&p, &t).await?
+        }
+    })
 }
 
 /// The `p`-quantile (0..=1, nearest rank) of sorted durations; zero when

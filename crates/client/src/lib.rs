@@ -23,8 +23,9 @@ use dend_protocol::{decode_frame, FrameError, FrameHeader};
 /// Client errors.
 #[derive(Debug, thiserror::Error)]
 pub enum ClientError {
-    /// Transport failure.
-    #[error("http: {0}")]
+    /// Transport failure (reqwest's message, its causes as the `source`
+    /// chain: each said once).
+    #[error(transparent)]
     Http(#[from] reqwest::Error),
     /// The server answered with an error body.
     #[error("{status}: {code}: {message}")]
@@ -36,15 +37,22 @@ pub enum ClientError {
         /// Message.
         message: String,
     },
-    /// WebSocket failure.
-    #[error("websocket: {0}")]
+    /// WebSocket failure (tungstenite's message and causes, each once).
+    #[error(transparent)]
     Ws(#[from] Box<tokio_tungstenite::tungstenite::Error>),
-    /// A bad frame.
+    /// A bad frame (its message here, not as a `source`: chained reports
+    /// would print it twice).
     #[error("frame: {0}")]
-    Frame(#[from] FrameError),
+    Frame(FrameError),
     /// Unexpected message or closed connection.
     #[error("protocol: {0}")]
     Protocol(String),
+}
+
+impl From<FrameError> for ClientError {
+    fn from(e: FrameError) -> Self {
+        ClientError::Frame(e)
+    }
 }
 
 /// A mesh as the API describes it (the server's own type).

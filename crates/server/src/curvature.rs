@@ -28,7 +28,7 @@ pub struct CurvatureJson {
 pub async fn curvature(Authed(s): Authed) -> Result<Json<CurvatureJson>, ApiError> {
     let pose = s.pose().await?;
     let rest = s.rest().clone();
-    let revision = pose.revision;
+    let revision = pose.header.revision;
     let out = tokio::task::spawn_blocking(move || {
         let mesh = rest
             .mesh()

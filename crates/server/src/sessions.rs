@@ -368,13 +368,14 @@ pub struct DragRequest {
 pub use dend_protocol::PoseJson;
 
 fn pose_json(p: PoseSnapshot) -> Json<PoseJson> {
+    let h = p.header;
     Json(PoseJson {
-        revision: p.revision,
-        ack_seq: p.ack_seq,
-        iteration: p.iteration,
-        converged: p.converged,
-        settled: p.settled,
-        objective: p.objective.is_finite().then_some(p.objective),
+        revision: h.revision,
+        ack_seq: h.ack_seq,
+        iteration: h.iteration,
+        converged: h.converged,
+        settled: h.settled,
+        objective: h.objective.is_finite().then_some(h.objective),
         positions: p.positions.to_vec(),
     })
 }
@@ -414,7 +415,7 @@ pub async fn pose(Authed(s): Authed, headers: HeaderMap) -> Result<Response, Api
             (header::CONTENT_TYPE, "application/octet-stream".to_owned()),
             (
                 header::HeaderName::from_static("x-dend-revision"),
-                p.revision.to_string(),
+                p.header.revision.to_string(),
             ),
             (
                 header::HeaderName::from_static("x-dend-vertex-count"),

@@ -20,7 +20,7 @@ use super::error::ApiError;
 use super::metrics::Metrics;
 use super::sessions::{check_token, find, parse_json, DeltaJson};
 use super::AppState;
-use crate::session::{ClientId, Event, HandleRef, SessionHandle, SessionInfo};
+use crate::session::{ClientId, Event, HandleRef, PeerEvent, SessionHandle, SessionInfo};
 
 /// Close code: no token (neither `?token=` nor a first `auth` message).
 pub const CLOSE_MISSING_TOKEN: u16 = 4001;
@@ -109,30 +109,6 @@ pub enum ServerMsg {
         #[serde(default, skip_serializing_if = "Option::is_none")]
         seq: Option<u64>,
     },
-    /// A handle was grabbed.
-    HandleGrabbed {
-        /// Handle index.
-        handle: usize,
-        /// By whom.
-        client: ClientId,
-    },
-    /// A handle was released.
-    HandleReleased {
-        /// Handle index.
-        handle: usize,
-        /// By whom.
-        client: ClientId,
-    },
-    /// Someone joined.
-    PeerJoined {
-        /// Who.
-        client: ClientId,
-    },
-    /// Someone left.
-    PeerLeft {
-        /// Who.
-        client: ClientId,
-    },
     /// A stage of the factor build started (`assembly`, `symbolic`,
     /// `numeric`, in that order; `ready` follows).
     BuildProgress {
@@ -153,6 +129,10 @@ pub enum ServerMsg {
         #[serde(flatten)]
         session: serde_json::Value,
     },
+    /// A handle grabbed or released, a client joined or left: the
+    /// session's [`PeerEvent`] as it is (its own `type` tag).
+    #[serde(untagged)]
+    Peer(PeerEvent),
 }
 
 impl ServerMsg {
@@ -356,10 +336,7 @@ where
                     }
                     Ok(Event::Ready { revision }) => ServerMsg::Ready { revision },
                     Ok(Event::Error(e)) => ServerMsg::error(&ApiError::from(&*e), None),
-                    Ok(Event::HandleGrabbed { handle, client }) => ServerMsg::HandleGrabbed { handle, client },
-                    Ok(Event::HandleReleased { handle, client }) => ServerMsg::HandleReleased { handle, client },
-                    Ok(Event::PeerJoined { client }) => ServerMsg::PeerJoined { client },
-                    Ok(Event::PeerLeft { client }) => ServerMsg::PeerLeft { client },
+                    Ok(Event::Peer(p)) => ServerMsg::Peer(p),
                     Ok(Event::BuildProgress { stage }) => ServerMsg::BuildProgress { stage },
                     Ok(Event::State) | Err(RecvError::Lagged(_)) => ServerMsg::state(me, &s.info()),
                 };

@@ -302,3 +302,36 @@ async fn factor_build_stages_are_reported_in_order() {
         assert_eq!(s.info().build_stage, None, "no stage once ready");
     }
 }
+
+#[test]
+fn peer_events_are_sent_as_their_own_json() {
+    let cases = [
+        (
+            PeerEvent::HandleGrabbed {
+                handle: 1,
+                client: 7,
+            },
+            serde_json::json!({"type": "handle_grabbed", "handle": 1, "client": 7}),
+        ),
+        (
+            PeerEvent::HandleReleased {
+                handle: 0,
+                client: 2,
+            },
+            serde_json::json!({"type": "handle_released", "handle": 0, "client": 2}),
+        ),
+        (
+            PeerEvent::PeerJoined { client: 3 },
+            serde_json::json!({"type": "peer_joined", "client": 3}),
+        ),
+        (
+            PeerEvent::PeerLeft { client: 4 },
+            serde_json::json!({"type": "peer_left", "client": 4}),
+        ),
+    ];
+    for (event, want) in cases {
+        let msg = ServerMsg::Peer(event);
+        assert_eq!(serde_json::to_value(&msg).unwrap(), want);
+        assert_eq!(serde_json::from_value::<ServerMsg>(want).unwrap(), msg);
+    }
+}

@@ -35,27 +35,37 @@ pub fn under_ci() -> bool {
 
 /// The public meshes folder (`$DEND_MESHES`, default `../shared/meshes`
 /// beside the repository), or `None` after recording that the caller skips
-/// ([`record_skip`]). The README makes these meshes optional: their tests
-/// skip (listed at the end of `scripts/test.sh`), also under CI, and each
-/// has a generated-mesh counterpart that always runs.
+/// ([`record_skip`]). Under `CI=true` a missing folder is a failure (a
+/// panic naming it): `.ci/run` provides the meshes, so CI never skips their
+/// tests silently. Elsewhere the README makes them optional: their tests
+/// skip (listed at the end of `scripts/test.sh`), and each has a
+/// generated-mesh counterpart that always runs.
 pub fn shared_meshes() -> Option<PathBuf> {
     let dir = std::env::var_os("DEND_MESHES")
         .map(PathBuf::from)
         .unwrap_or_else(|| repo_root().join("../shared/meshes"));
     if dir.is_dir() {
-        Some(dir)
-    } else {
-        record_skip(&format!("shared meshes not found at {}", dir.display()));
-        None
+        return Some(dir);
     }
+    let why = format!("shared meshes not found at {}", dir.display());
+    if under_ci() {
+        panic!("{why} (CI=true: set DEND_MESHES to the public meshes)");
+    }
+    record_skip(&why);
+    None
 }
 
 /// The public mesh `name`, read by the library, or `None` after a recorded
-/// skip when the folder or the file is missing.
+/// skip when the folder or the file is missing (a panic under `CI=true`,
+/// as [`shared_meshes`]).
 pub fn shared_mesh(name: &str) -> Option<Mesh> {
     let path = shared_meshes()?.join(name);
     if !path.is_file() {
-        record_skip(&format!("shared mesh {} not found", path.display()));
+        let why = format!("shared mesh {} not found", path.display());
+        if under_ci() {
+            panic!("{why} (CI=true)");
+        }
+        record_skip(&why);
         return None;
     }
     Some(read_mesh(&path))

@@ -117,9 +117,16 @@ pub enum GenError {
         /// The requirement.
         why: &'static str,
     },
-    /// The generated mesh failed validation (should not happen).
+    /// The generated mesh failed validation (should not happen). (The
+    /// validation's message is in this one, not a `source`.)
     #[error("generated mesh is invalid: {0}")]
-    Mesh(#[from] MeshError),
+    Mesh(MeshError),
+}
+
+impl From<MeshError> for GenError {
+    fn from(e: MeshError) -> Self {
+        GenError::Mesh(e)
+    }
 }
 
 const MAX_RES: u32 = 4096;

@@ -8,7 +8,9 @@ use std::time::Instant;
 use tokio::sync::{mpsc, watch};
 
 use super::shared::{off_worker, Cmd, Inner, Internal, Reply, Restore, SessionOptions};
-use super::{Delta, Event, Frame, PoseSnapshot, SessionError, SessionState};
+use super::{
+    Delta, Event, Frame, FrameHeader, PeerEvent, PoseSnapshot, SessionError, SessionState,
+};
 use crate::store::JournalEntry;
 use dend::deform::{Constraints, ConstraintsSpec, Deformer, RigidTransform};
 
@@ -161,14 +163,19 @@ impl Actor {
     }
 
     fn snapshot(&self) -> PoseSnapshot {
-        PoseSnapshot {
+        self.snapshot_for(&self.header())
+    }
+
+    /// The header of a frame of the current pose.
+    fn header(&self) -> FrameHeader {
+        FrameHeader {
             revision: self.revision,
             ack_seq: self.applied_seq,
             iteration: self.iters_since_change as u32,
             converged: self.converged,
             settled: self.settled,
             objective: self.objective,
-            positions: self.pose.clone(),
+            vertex_count: self.pose.len() as u32,
         }
     }
 
@@ -368,7 +375,7 @@ impl Actor {
             let _ = self
                 .inner
                 .events
-                .send(Event::HandleReleased { handle, client });
+                .send(Event::Peer(PeerEvent::HandleReleased { handle, client }));
         }
         self.journal.clear();
         self.dirty = false;

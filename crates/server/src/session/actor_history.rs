@@ -6,7 +6,7 @@ use std::sync::atomic::Ordering;
 use std::sync::Arc;
 
 use super::{Actor, AfterBuild, InstalledSet, Snapshot, HISTORY_LIMIT};
-use crate::session::frame::{FrameBody, FrameHeader};
+use crate::session::frame::FrameBody;
 use crate::session::shared::off_worker;
 use crate::session::{Event, Frame, PoseSnapshot, SessionError, SessionState};
 use crate::store::{Checkpoint, StoreError, StoredTransform};
@@ -102,15 +102,8 @@ impl Actor {
             let _ = w.send(Err(SessionError::NotReady { state: self.state }));
         }
         self.revision += 1;
-        let header = FrameHeader {
-            revision: self.revision,
-            ack_seq: self.applied_seq,
-            iteration: 0,
-            converged: true,
-            settled: true,
-            objective: f64::NAN,
-            vertex_count: self.pose.len() as u32,
-        };
+        // iteration 0, converged and settled, no objective (set above)
+        let header = self.header();
         let bytes = FrameBody::from_pose(&self.pose).finish(&header);
         self.frames_tx.send_replace(Some(Frame { header, bytes }));
         Ok(self.snapshot_for(&header))

@@ -183,15 +183,7 @@ impl Actor {
                     }
                 };
                 self.revision += 1;
-                let header = FrameHeader {
-                    revision: self.revision,
-                    ack_seq: self.applied_seq,
-                    iteration: self.iters_since_change as u32,
-                    converged: self.converged,
-                    settled: self.settled,
-                    objective: self.objective,
-                    vertex_count: self.pose.len() as u32,
-                };
+                let header = self.header();
                 let bytes = body.finish(&header);
                 self.frames_tx.send_replace(Some(Frame { header, bytes }));
                 for w in std::mem::take(&mut self.inflight) {
@@ -239,12 +231,7 @@ impl Actor {
 
     pub(super) fn snapshot_for(&self, h: &FrameHeader) -> PoseSnapshot {
         PoseSnapshot {
-            revision: h.revision,
-            ack_seq: h.ack_seq,
-            iteration: h.iteration,
-            converged: h.converged,
-            settled: h.settled,
-            objective: h.objective,
+            header: *h,
             positions: self.pose.clone(),
         }
     }

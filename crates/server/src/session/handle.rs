@@ -11,7 +11,8 @@ use super::actor::Actor;
 pub use super::shared::SessionOptions;
 use super::shared::{Cmd, Grabs, Inner, Restore, Shared};
 use super::{
-    ClientId, Delta, Event, Frame, HandleRef, PoseSnapshot, Recovered, SessionError, SessionState,
+    ClientId, Delta, Event, Frame, HandleRef, PeerEvent, PoseSnapshot, Recovered, SessionError,
+    SessionState,
 };
 use dend::deform::{BuildStage, ConstraintsSpec, Params, Rest};
 
@@ -361,7 +362,10 @@ impl SessionHandle {
     pub fn join(&self) -> ClientId {
         let id = self.inner.next_client.fetch_add(1, Ordering::Relaxed);
         let _ = self.inner.clients.fetch_add(1, Ordering::Relaxed);
-        let _ = self.inner.events.send(Event::PeerJoined { client: id });
+        let _ = self
+            .inner
+            .events
+            .send(Event::Peer(PeerEvent::PeerJoined { client: id }));
         self.touch();
         id
     }
@@ -376,10 +380,13 @@ impl SessionHandle {
             let _ = self
                 .inner
                 .events
-                .send(Event::HandleReleased { handle, client });
+                .send(Event::Peer(PeerEvent::HandleReleased { handle, client }));
         }
         let _ = self.inner.clients.fetch_sub(1, Ordering::Relaxed);
-        let _ = self.inner.events.send(Event::PeerLeft { client });
+        let _ = self
+            .inner
+            .events
+            .send(Event::Peer(PeerEvent::PeerLeft { client }));
         self.touch();
     }
 
@@ -394,7 +401,7 @@ impl SessionHandle {
         let _ = self
             .inner
             .events
-            .send(Event::HandleGrabbed { handle, client });
+            .send(Event::Peer(PeerEvent::HandleGrabbed { handle, client }));
         Ok(handle)
     }
 
@@ -408,7 +415,7 @@ impl SessionHandle {
             let _ = self
                 .inner
                 .events
-                .send(Event::HandleReleased { handle, client });
+                .send(Event::Peer(PeerEvent::HandleReleased { handle, client }));
         }
         Ok(handle)
     }

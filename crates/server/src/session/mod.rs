@@ -137,21 +137,13 @@ pub enum SessionError {
     Closed,
 }
 
-/// A pose as returned to HTTP callers.
+/// A pose as returned to HTTP callers: the header of the frame that
+/// carried it (revision, acknowledged seq, iteration, convergence, objective;
+/// `vertex_count` is `positions.len()`) and its positions.
 #[derive(Debug, Clone)]
 pub struct PoseSnapshot {
-    /// Session revision of this pose.
-    pub revision: u64,
-    /// Last applied client sequence number.
-    pub ack_seq: u64,
-    /// Iterations since the targets last changed.
-    pub iteration: u32,
-    /// Whether the solve had converged.
-    pub converged: bool,
-    /// Whether the server stopped iterating until the next change.
-    pub settled: bool,
-    /// The solver's objective at this pose (NaN when unknown).
-    pub objective: f64,
+    /// The pose's frame header.
+    pub header: FrameHeader,
     /// Vertex positions (mesh units), `#V×3`.
     pub positions: Arc<Vec<[f64; 3]>>,
 }
@@ -168,18 +160,12 @@ pub struct Frame {
 /// Client id within a session (assigned by [`SessionHandle::join`]).
 pub type ClientId = u64;
 
-/// Events pushed to every client of a session.
-#[derive(Debug, Clone)]
-pub enum Event {
-    /// The factor is ready; drags are accepted.
-    Ready {
-        /// Revision at that moment.
-        revision: u64,
-    },
-    /// The state changed (constraints set, build failed, undo...).
-    State,
-    /// A failure not tied to one request (factor build, solve).
-    Error(Arc<SessionError>),
+/// What one client of a session did, told to every client: the event and
+/// its WebSocket JSON (`{"type": "handle_grabbed", "handle": 0, "client": 3}`,
+/// sent as it is by the connection loop).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(tag = "type", rename_all = "snake_case")]
+pub enum PeerEvent {
     /// A client grabbed a handle.
     HandleGrabbed {
         /// Handle index.
@@ -204,6 +190,22 @@ pub enum Event {
         /// Who.
         client: ClientId,
     },
+}
+
+/// Events pushed to every client of a session.
+#[derive(Debug, Clone)]
+pub enum Event {
+    /// The factor is ready; drags are accepted.
+    Ready {
+        /// Revision at that moment.
+        revision: u64,
+    },
+    /// The state changed (constraints set, build failed, undo...).
+    State,
+    /// A failure not tied to one request (factor build, solve).
+    Error(Arc<SessionError>),
+    /// A client grabbed or released a handle, joined or left.
+    Peer(PeerEvent),
     /// A stage of the constraint set's factor build started.
     BuildProgress {
         /// The stage.

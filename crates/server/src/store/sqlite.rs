@@ -20,7 +20,7 @@ use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
 use parking_lot::Mutex;
-use rusqlite::{params, Connection, OptionalExtension, TransactionBehavior};
+use rusqlite::{params, Connection, OptionalExtension, Transaction, TransactionBehavior};
 
 use super::codec::{
     corrupt, decode_checkpoint, decode_entry, decode_points, decode_triangles, encode_entry,
@@ -157,6 +157,23 @@ fn record_row(r: &rusqlite::Row<'_>) -> rusqlite::Result<RecordRow> {
         constraints: r.get(4)?,
         created_unix: r.get(5)?,
     })
+}
+
+/// An immediate (write-locked) transaction on session `id`'s rows, after
+/// checking that the session exists and that `fence` still holds its lease.
+fn fenced<'c>(
+    conn: &'c mut Connection,
+    id: &str,
+    fence: Fence,
+) -> Result<Transaction<'c>, StoreError> {
+    let tx = conn
+        .transaction_with_behavior(TransactionBehavior::Immediate)
+        .map_err(backend)?;
+    if !session_exists(&tx, id)? {
+        return Err(missing(id));
+    }
+    sqlite_leases::check_fence(&tx, id, fence)?;
+    Ok(tx)
 }
 
 fn session_exists(conn: &Connection, id: &str) -> Result<bool, StoreError> {
@@ -309,13 +326,7 @@ impl Store for SqliteStore {
 
     fn append(&self, id: &str, fence: Fence, entries: &[JournalEntry]) -> Result<(), StoreError> {
         let mut conn = self.conn.lock();
-        let tx = conn
-            .transaction_with_behavior(TransactionBehavior::Immediate)
-            .map_err(backend)?;
-        if !session_exists(&tx, id)? {
-            return Err(missing(id));
-        }
-        sqlite_leases::check_fence(&tx, id, fence)?;
+        let tx = fenced(&mut conn, id, fence)?;
         {
             let mut stmt = tx
                 .prepare_cached("INSERT INTO journal (session, entry) VALUES (?1, ?2)")
@@ -351,13 +362,7 @@ impl Store for SqliteStore {
         let revision = i64::try_from(cp.revision).unwrap_or(i64::MAX);
         let ack_seq = cp.ack_seq as i64; // the u64's bits, cast back on read
         let mut conn = self.conn.lock();
-        let tx = conn
-            .transaction_with_behavior(TransactionBehavior::Immediate)
-            .map_err(backend)?;
-        if !session_exists(&tx, id)? {
-            return Err(missing(id));
-        }
-        sqlite_leases::check_fence(&tx, id, fence)?;
+        let tx = fenced(&mut conn, id, fence)?;
         let _ = tx
             .execute(
                 "INSERT OR REPLACE INTO checkpoints (session, revision, ack_seq, pose, targets)

@@ -12,12 +12,11 @@ use std::sync::Arc;
 use std::time::{Duration, Instant};
 
 use faer::dyn_stack::{MemStack, StackReq};
-use faer::sparse::linalg::cholesky::{LltRef, SymbolicCholesky, SymbolicCholeskyRaw};
-use faer::sparse::{SparseColMat, SymbolicSparseColMat};
+use faer::sparse::linalg::cholesky::{LltRef, SymbolicCholeskyRaw};
 use faer::{Conj, MatMut, Par};
 
 use crate::deform::cg::Cg;
-use crate::deform::cholesky::{self, analyse, csr_arrays};
+use crate::deform::cholesky::analyse;
 use crate::deform::constraints::Constraints;
 use crate::deform::elastic::{ElasticOps, ElasticSet};
 use crate::deform::params::{Energy, Formulation, Mode, Params};
@@ -28,6 +27,7 @@ use crate::deform::trisolve;
 use crate::deform::DeformError;
 use crate::mesh::{Point, Real};
 
+mod backend;
 mod cache;
 mod options;
 
@@ -49,6 +49,7 @@ pub enum BuildStage {
 pub(super) mod tests;
 
 use crate::deform::elastic::elastic_system;
+use backend::{symbolic_flops, Backend, Values};
 pub use cache::FactorCache;
 pub use options::{FactorPrecision, SolveOptions, SolverChoice};
 
@@ -123,18 +124,8 @@ pub struct Factor {
     /// The elastic formulation's operators and system
     /// ([`Formulation::Elastic`]; then `sys.m` is `Q_UU`).
     pub(crate) elastic: Option<(Arc<ElasticOps>, ElasticSet)>,
-    symbolic: Option<SymbolicCholesky<usize>>,
-    /// Factor values in double precision (empty when kept in single).
-    values: Vec<Real>,
-    /// Factor values rounded to single precision
-    /// ([`FactorPrecision::Single`]; empty otherwise).
-    values32: Vec<f32>,
-    /// The two-thread split of the supernodal solves (large factors).
-    plan: Option<trisolve::SolvePlan>,
-    /// The sparse LU of `K_UU` ([`Formulation::SquareLu`]).
-    lu: Option<faer::sparse::linalg::solvers::Lu<usize, Real>>,
-    /// Set when `M` is solved by preconditioned CG instead of a factor.
-    cg: Option<Cg>,
+    /// How `M X = B` is solved.
+    backend: Backend,
     cg_iterations: AtomicU64,
     timings: FactorTimings,
 }
@@ -189,163 +180,28 @@ impl Factor {
     ) -> Result<Factor, DeformError> {
         params.validate()?;
         let key = FactorKey::new(rest, params, constraints);
-        let ops = rest.operators();
-        let mesh = rest.mesh();
-        // Every component needs a constrained vertex, or M is singular.
-        let mut pinned = vec![false; mesh.topology().num_components()];
-        for &c in &key.constrained {
-            if c as usize >= mesh.num_vertices() {
-                return Err(DeformError::UnknownVertex {
-                    index: c as u64,
-                    vertices: mesh.num_vertices(),
-                });
-            }
-            if let Some(k) = mesh.topology().component(c as usize) {
-                pinned[k as usize] = true;
-            }
-        }
-        if let Some(k) = pinned.iter().position(|&p| !p) {
-            let vertex = (0..mesh.num_vertices())
-                .find(|&v| mesh.topology().component(v) == Some(k as u32))
-                .unwrap_or(0) as u32;
-            return Err(DeformError::Unconstrained {
-                component: k,
-                vertex,
-            });
-        }
+        check_components(rest.mesh(), &key.constrained)?;
         let t0 = Instant::now();
         progress(BuildStage::Assembly);
-        // eq. (24) to factorise: M's pattern first, then its values and the
-        // symbolic analysis (which needs the pattern only) at the same time
-        let mut analysed = None;
-        let mut elastic = None;
-        let (sys, square, ax) = match params.formulation {
-            Formulation::LeastSquares => {
-                let energy = rest.energy(params.energy);
-                let prep = Prepared::new(ops, &energy.a, params, &key.constrained, rest.active());
-                let values = if options.solver != SolverChoice::Cg && prep.num_unknowns() > 0 {
-                    let (values, symbolic) = rayon::join(
-                        || prep.values(),
-                        || {
-                            let t = Instant::now();
-                            let (col_ptr, row_idx) = prep.pattern();
-                            (analyse(col_ptr, row_idx, options.ordering), t.elapsed())
-                        },
-                    );
-                    analysed = Some(symbolic);
-                    values
-                } else {
-                    prep.values()
-                };
-                (prep.into_system(values), None, energy.ax.clone())
-            }
-            Formulation::Square | Formulation::SquareLu => {
-                let (sys, sq, ax) = square::assemble(ops, params, &key.constrained, rest.active())?;
-                (sys, Some(sq), ax)
-            }
-            Formulation::Elastic => {
-                let el = rest.elastic(params);
-                let set = el.system(ops, &key.constrained);
-                let sys = elastic_system(&set, params, &key.constrained, rest.active());
-                elastic = Some((el, set));
-                (sys, None, Vec::new())
-            }
-        };
+        let assembled = assemble(rest, params, &key.constrained, options)?;
         let t1 = Instant::now();
-        let n = sys.unknowns.len();
-        let cg_of = |sys: &System| Some(Cg::new(&sys.m, options.cg_tol, options.cg_max_iters));
-        let mut cg = None;
-        let mut lu = None;
-        let mut symbolic_time = Duration::ZERO;
-        let (symbolic, values, t2) = if n == 0 {
-            (None, Vec::new(), Instant::now())
-        } else if let (Formulation::SquareLu, Some(k_uu)) = (
+        let Assembled {
+            sys,
+            square,
+            ax,
+            elastic,
+            analysed,
+        } = assembled;
+        let single_ok = square.is_none() && elastic.is_none();
+        let built = Backend::build(
+            &sys,
             params.formulation,
-            square.as_ref().and_then(|s| s.k_uu.as_ref()),
-        ) {
-            let csc = k_uu.to_csc();
-            let (p, i, v) = (csc.indptr(), csc.indices(), csc.data());
-            let col_ptr: Vec<usize> = (0..=n).map(|j| p.index(j)).collect();
-            let sym = SymbolicSparseColMat::new_unsorted_checked(n, n, col_ptr, None, i.to_vec());
-            let mat = SparseColMat::new(sym, v.to_vec());
-            let t2 = Instant::now();
-            symbolic_time = t2 - t1;
-            progress(BuildStage::Numeric);
-            lu = Some(
-                mat.sp_lu()
-                    .map_err(|_| DeformError::NotPositiveDefinite { pivot: 0 })?,
-            );
-            (None, Vec::new(), t2)
-        } else if options.solver == SolverChoice::Cg {
-            cg = cg_of(&sys);
-            (None, Vec::new(), Instant::now())
-        } else {
-            let symbolic = match analysed {
-                Some((symbolic, time)) => {
-                    symbolic_time = time;
-                    symbolic?
-                }
-                None => {
-                    progress(BuildStage::Symbolic);
-                    let t = Instant::now();
-                    let (col_ptr, row_idx) = csr_arrays(&sys.m);
-                    let symbolic = analyse(&col_ptr, row_idx, options.ordering)?;
-                    symbolic_time = t.elapsed();
-                    symbolic
-                }
-            };
-            let t2 = Instant::now();
-            if options.solver == SolverChoice::Auto
-                && estimated_factor_bytes(&symbolic, options.precision)
-                    > options.factor_budget_bytes
-            {
-                cg = cg_of(&sys);
-                return Ok(Factor {
-                    id: NEXT_FACTOR_ID.fetch_add(1, Ordering::Relaxed),
-                    key,
-                    sys,
-                    energy: params.energy,
-                    square,
-                    ax,
-                    elastic,
-                    symbolic: None,
-                    values: Vec::new(),
-                    values32: Vec::new(),
-                    plan: None,
-                    lu: None,
-                    cg,
-                    cg_iterations: AtomicU64::new(0),
-                    timings: FactorTimings {
-                        assembly: t1 - t0,
-                        symbolic: symbolic_time,
-                        numeric: Duration::ZERO,
-                    },
-                });
-            }
-            progress(BuildStage::Numeric);
-            let values = cholesky::factorise(&symbolic, &sys.m)?;
-            (Some(symbolic), values, t2)
-        };
-        // A supernodal factor is solved by `trisolve` (on two threads if
-        // there are; eq. (24)'s in `f32` if asked) unless it preconditions
-        // eq. (23)'s GMRES, which uses faer's solve in `f64`.
-        let mut values = values;
-        let mut values32 = Vec::new();
-        let mut plan = None;
-        if let (Some(SymbolicCholeskyRaw::Supernodal(sn)), false) = (
-            symbolic.as_ref().map(|s| s.raw()),
-            preconditions_gmres(&square),
-        ) {
-            if options.precision == FactorPrecision::Single && square.is_none() && elastic.is_none()
-            {
-                values32 = values.iter().map(|&v| v as f32).collect();
-                values = Vec::new();
-            }
-            if rayon::current_num_threads() > 1 {
-                plan = trisolve::SolvePlan::new(sn);
-            }
-        }
-        let t3 = Instant::now();
+            square.as_ref(),
+            single_ok,
+            options,
+            analysed,
+            progress,
+        )?;
         Ok(Factor {
             id: NEXT_FACTOR_ID.fetch_add(1, Ordering::Relaxed),
             key,
@@ -354,17 +210,12 @@ impl Factor {
             square,
             ax,
             elastic,
-            symbolic,
-            values,
-            values32,
-            plan,
-            lu,
-            cg,
+            backend: built.backend,
             cg_iterations: AtomicU64::new(0),
             timings: FactorTimings {
                 assembly: t1 - t0,
-                symbolic: symbolic_time,
-                numeric: t3 - t2,
+                symbolic: built.symbolic,
+                numeric: built.numeric,
             },
         })
     }
@@ -373,15 +224,17 @@ impl Factor {
     /// [`trisolve`]; small systems get faer's simplicial factor).
     pub fn is_supernodal(&self) -> bool {
         matches!(
-            self.symbolic.as_ref().map(|s| s.raw()),
+            self.backend.symbolic().map(|s| s.raw()),
             Some(SymbolicCholeskyRaw::Supernodal(_))
         )
     }
 
     /// The symbolic Cholesky factorisation (none for CG or LU).
     #[cfg(test)]
-    pub(crate) fn symbolic(&self) -> Option<&SymbolicCholesky<usize>> {
-        self.symbolic.as_ref()
+    pub(crate) fn symbolic(
+        &self,
+    ) -> Option<&faer::sparse::linalg::cholesky::SymbolicCholesky<usize>> {
+        self.backend.symbolic()
     }
 
     /// A process-unique id of this factor.
@@ -406,18 +259,13 @@ impl Factor {
 
     /// Nonzeros of the Cholesky factor (0 when solved by CG).
     pub fn factor_nnz(&self) -> usize {
-        self.values.len().max(self.values32.len())
+        self.backend.factor_nnz()
     }
 
     /// Bytes of the Cholesky factor: values (8 or 4 per nonzero, see
     /// [`FactorPrecision`]) and its row indices.
     pub fn factor_bytes(&self) -> usize {
-        let indices = match self.symbolic.as_ref().map(|s| s.raw()) {
-            Some(SymbolicCholeskyRaw::Supernodal(sn)) => sn.row_idx().len() * 8,
-            Some(SymbolicCholeskyRaw::Simplicial(_)) => self.values.len() * 8,
-            None => 0,
-        };
-        self.values.len() * 8 + self.values32.len() * 4 + indices
+        self.backend.factor_bytes()
     }
 
     /// Floating-point operations of the numeric factorisation, counting a
@@ -425,12 +273,12 @@ impl Factor {
     /// nonzeros of column `j` on and below the diagonal (George & Liu 1981,
     /// §2.2). 0 for a simplicial factor or CG.
     pub fn factor_flops(&self) -> f64 {
-        self.symbolic.as_ref().map_or(0.0, symbolic_flops)
+        self.backend.symbolic().map_or(0.0, symbolic_flops)
     }
 
     /// Whether solves run preconditioned CG instead of a Cholesky factor.
     pub fn uses_cg(&self) -> bool {
-        self.cg.is_some()
+        matches!(self.backend, Backend::Cg(_))
     }
 
     /// CG iterations run so far by all solves with this factor (0 for a
@@ -442,12 +290,16 @@ impl Factor {
     /// Approximate heap bytes held: factor values and indices, `M`.
     pub fn memory_bytes(&self) -> usize {
         let csr = |m: &sprs::CsMat<Real>| m.nnz() * 16 + (m.rows() + 1) * 8;
+        let backend = match &self.backend {
+            Backend::Supernodal { plan, .. } => plan.as_ref().map_or(0, |p| p.memory_bytes()),
+            Backend::Cg(_) => self.sys.unknowns.len() * 8,
+            _ => 0,
+        };
         self.factor_bytes()
-            + self.plan.as_ref().map_or(0, |p| p.memory_bytes())
+            + backend
             + csr(&self.sys.m)
             + self.ax.len() * 24
             + self.sys.col_of.len() * 4
-            + self.cg.as_ref().map_or(0, |_| self.sys.unknowns.len() * 8)
             + self.square.as_ref().map_or(0, Square::memory_bytes)
             // the constraint set's Q and row masks (the ElasticOps are the
             // rest mesh's, shared)
@@ -459,109 +311,158 @@ impl Factor {
 
     /// Scratch needed by [`Factor::solve_in_place`] for `k` right-hand sides.
     pub(crate) fn solve_scratch(&self, k: usize) -> StackReq {
-        match (&self.symbolic, &self.cg) {
-            (Some(s), _) => match (s.raw(), preconditions_gmres(&self.square)) {
-                (SymbolicCholeskyRaw::Supernodal(sn), false) => {
-                    trisolve::scratch(sn, self.plan.as_ref())
-                }
-                // simplicial, or eq. (23)'s preconditioner: faer's solve
-                _ => s.solve_in_place_scratch::<Real>(k, Par::Seq),
+        match &self.backend {
+            Backend::Supernodal { symbolic, plan, .. } => match symbolic.raw() {
+                SymbolicCholeskyRaw::Supernodal(sn) => trisolve::scratch(sn, plan.as_ref()),
+                SymbolicCholeskyRaw::Simplicial(_) => unreachable!("a supernodal backend"),
             },
-            (None, Some(_)) => Cg::scratch(self.sys.unknowns.len()),
-            (None, None) => StackReq::EMPTY, // LU allocates its own
+            // simplicial, or eq. (23)'s preconditioner: faer's solve
+            Backend::Simplicial { symbolic, .. } | Backend::Gmres { symbolic, .. } => {
+                symbolic.solve_in_place_scratch::<Real>(k, Par::Seq)
+            }
+            Backend::Cg(_) => Cg::scratch(self.sys.unknowns.len()),
+            Backend::Empty | Backend::Lu(_) => StackReq::EMPTY, // LU allocates its own
         }
     }
 
     /// Solves `M X = B` in place for a column-major `|U| × k` block `b`.
     pub(crate) fn solve_in_place(&self, b: MatMut<'_, Real>, stack: &mut MemStack) {
-        if let (Some(s), Some(k_uu)) = (
-            &self.symbolic,
-            self.square.as_ref().and_then(|q| q.k_uu.as_ref()),
-        ) {
-            // eq. (23): GMRES on the exact K_UU, preconditioned by N's Cholesky
-            let llt = LltRef::new(s, &self.values);
-            let mut b = b;
-            for j in 0..b.ncols() {
-                let mut col: Vec<Real> = (0..b.nrows()).map(|i| b[(i, j)]).collect();
-                let precond = |v: &mut [Real]| {
-                    let m = MatMut::from_column_major_slice_mut(v, v.len(), 1);
-                    llt.solve_in_place_with_conj(Conj::No, m, Par::Seq, stack);
+        match &self.backend {
+            Backend::Empty => {}
+            Backend::Gmres { symbolic, values } => {
+                let k_uu = self.square.as_ref().and_then(|q| q.k_uu.as_ref());
+                let k_uu = k_uu.expect("a GMRES backend has eq. (23)'s K_UU");
+                // eq. (23): GMRES on the exact K_UU, preconditioned by N's Cholesky
+                let llt = LltRef::new(symbolic, values);
+                let mut b = b;
+                for j in 0..b.ncols() {
+                    let mut col: Vec<Real> = (0..b.nrows()).map(|i| b[(i, j)]).collect();
+                    let precond = |v: &mut [Real]| {
+                        let m = MatMut::from_column_major_slice_mut(v, v.len(), 1);
+                        llt.solve_in_place_with_conj(Conj::No, m, Par::Seq, stack);
+                    };
+                    square::gmres(k_uu, &mut col, precond, 1e-6, 60);
+                    for (i, v) in col.into_iter().enumerate() {
+                        b[(i, j)] = v;
+                    }
+                }
+            }
+            Backend::Supernodal {
+                symbolic,
+                values,
+                plan,
+            } => {
+                let SymbolicCholeskyRaw::Supernodal(sn) = symbolic.raw() else {
+                    unreachable!("a supernodal backend")
                 };
-                square::gmres(k_uu, &mut col, precond, 1e-6, 60);
-                for (i, v) in col.into_iter().enumerate() {
-                    b[(i, j)] = v;
+                let (perm, plan) = (symbolic.perm(), plan.as_ref());
+                match values {
+                    Values::Single(v) => trisolve::solve_in_place(sn, perm, v, plan, b, stack),
+                    Values::Double(v) => trisolve::solve_in_place(sn, perm, v, plan, b, stack),
                 }
             }
-        } else if let Some(s) = &self.symbolic {
-            match s.raw() {
-                SymbolicCholeskyRaw::Supernodal(sn) if self.values.is_empty() => {
-                    let plan = self.plan.as_ref();
-                    trisolve::solve_in_place(sn, s.perm(), &self.values32, plan, b, stack)
-                }
-                SymbolicCholeskyRaw::Supernodal(sn) => {
-                    let plan = self.plan.as_ref();
-                    trisolve::solve_in_place(sn, s.perm(), &self.values, plan, b, stack)
-                }
-                SymbolicCholeskyRaw::Simplicial(_) => LltRef::new(s, &self.values)
-                    .solve_in_place_with_conj(Conj::No, b, Par::Seq, stack),
+            Backend::Simplicial { symbolic, values } => {
+                LltRef::new(symbolic, values).solve_in_place_with_conj(Conj::No, b, Par::Seq, stack)
             }
-        } else if let Some(lu) = &self.lu {
-            use faer::linalg::solvers::SolveCore;
-            lu.solve_in_place_with_conj(Conj::No, b);
-        } else if let Some(cg) = &self.cg {
-            let stats = cg.solve_in_place(&self.sys.m, b, stack);
-            self.cg_iterations
-                .fetch_add(stats.iterations as u64, Ordering::Relaxed);
+            Backend::Lu(lu) => {
+                use faer::linalg::solvers::SolveCore;
+                lu.solve_in_place_with_conj(Conj::No, b);
+            }
+            Backend::Cg(cg) => {
+                let stats = cg.solve_in_place(&self.sys.m, b, stack);
+                self.cg_iterations
+                    .fetch_add(stats.iterations as u64, Ordering::Relaxed);
+            }
         }
     }
 }
 
-/// Whether the factor is eq. (23)'s `N`, the preconditioner of GMRES on the
-/// exact `K_UU`, rather than a matrix solved directly.
-fn preconditions_gmres(square: &Option<Square>) -> bool {
-    square.as_ref().is_some_and(|q| q.k_uu.is_some())
+/// Errors unless every connected component of `mesh` has a vertex of
+/// `constrained` (else `M` is singular), and every index is a vertex.
+fn check_components(mesh: &crate::mesh::Mesh, constrained: &[u32]) -> Result<(), DeformError> {
+    let mut pinned = vec![false; mesh.topology().num_components()];
+    for &c in constrained {
+        if c as usize >= mesh.num_vertices() {
+            return Err(DeformError::UnknownVertex {
+                index: c as u64,
+                vertices: mesh.num_vertices(),
+            });
+        }
+        if let Some(k) = mesh.topology().component(c as usize) {
+            pinned[k as usize] = true;
+        }
+    }
+    if let Some(k) = pinned.iter().position(|&p| !p) {
+        let vertex = (0..mesh.num_vertices())
+            .find(|&v| mesh.topology().component(v) == Some(k as u32))
+            .unwrap_or(0) as u32;
+        return Err(DeformError::Unconstrained {
+            component: k,
+            vertex,
+        });
+    }
+    Ok(())
 }
 
-/// Bytes a factor with this symbolic structure will hold: 8 (or 4, single
-/// precision, supernodal only) per value, plus the row indices (one per
-/// value for a simplicial factor, one per supernode row otherwise).
-pub(crate) fn estimated_factor_bytes(
-    symbolic: &SymbolicCholesky<usize>,
-    precision: FactorPrecision,
-) -> usize {
-    let values = symbolic.len_val();
-    match symbolic.raw() {
-        SymbolicCholeskyRaw::Supernodal(sn) => {
-            let value_bytes = match precision {
-                FactorPrecision::Double => 8,
-                FactorPrecision::Single => 4,
+/// `M` assembled for a formulation, with what the factor keeps beside it.
+struct Assembled {
+    sys: System,
+    square: Option<Square>,
+    ax: Vec<Point>,
+    elastic: Option<(Arc<ElasticOps>, ElasticSet)>,
+    /// The symbolic analysis, when run beside `M`'s values.
+    analysed: Option<backend::Analysed>,
+}
+
+/// Assembles `M` (eq. (24), (23) or the elastic `Q_UU`). For eq. (24) `M`'s
+/// pattern comes first, then its values and the symbolic analysis (which
+/// needs the pattern only) at the same time.
+fn assemble(
+    rest: &Rest,
+    params: &Params,
+    constrained: &[u32],
+    options: &SolveOptions,
+) -> Result<Assembled, DeformError> {
+    let ops = rest.operators();
+    let mut analysed = None;
+    let mut elastic = None;
+    let (sys, square, ax) = match params.formulation {
+        Formulation::LeastSquares => {
+            let energy = rest.energy(params.energy);
+            let prep = Prepared::new(ops, &energy.a, params, constrained, rest.active());
+            let values = if options.solver != SolverChoice::Cg && prep.num_unknowns() > 0 {
+                let (values, symbolic) = rayon::join(
+                    || prep.values(),
+                    || {
+                        let t = Instant::now();
+                        let (col_ptr, row_idx) = prep.pattern();
+                        (analyse(col_ptr, row_idx, options.ordering), t.elapsed())
+                    },
+                );
+                analysed = Some(symbolic);
+                values
+            } else {
+                prep.values()
             };
-            values
-                .saturating_mul(value_bytes)
-                .saturating_add(sn.row_idx().len().saturating_mul(8))
+            (prep.into_system(values), None, energy.ax.clone())
         }
-        SymbolicCholeskyRaw::Simplicial(_) => values.saturating_mul(16),
-    }
-}
-
-/// Floating-point operations of the numeric factorisation of a supernodal
-/// factor ([`Factor::factor_flops`]); 0 for a simplicial one.
-fn symbolic_flops(symbolic: &SymbolicCholesky<usize>) -> f64 {
-    let SymbolicCholeskyRaw::Supernodal(sn) = symbolic.raw() else {
-        return 0.0;
+        Formulation::Square | Formulation::SquareLu => {
+            let (sys, sq, ax) = square::assemble(ops, params, constrained, rest.active())?;
+            (sys, Some(sq), ax)
+        }
+        Formulation::Elastic => {
+            let el = rest.elastic(params);
+            let set = el.system(ops, constrained);
+            let sys = elastic_system(&set, params, constrained, rest.active());
+            elastic = Some((el, set));
+            (sys, None, Vec::new())
+        }
     };
-    let (begin, end, cpr) = (
-        sn.supernode_begin(),
-        sn.supernode_end(),
-        sn.col_ptr_for_row_idx(),
-    );
-    (0..sn.n_supernodes())
-        .map(|s| {
-            let w = end[s] - begin[s];
-            let below = cpr[s + 1] - cpr[s];
-            (0..w)
-                .map(|k| ((w - k + below) as f64).powi(2))
-                .sum::<f64>()
-        })
-        .sum()
+    Ok(Assembled {
+        sys,
+        square,
+        ax,
+        elastic,
+        analysed,
+    })
 }

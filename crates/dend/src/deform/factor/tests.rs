@@ -205,7 +205,7 @@ fn a_single_precision_factor_halves_the_values_and_keeps_the_deformation() {
         (&f64_, FactorPrecision::Double),
         (&f32_, FactorPrecision::Single),
     ] {
-        let est = super::estimated_factor_bytes(f.symbolic().unwrap(), p);
+        let est = super::backend::estimated_factor_bytes(f.symbolic().unwrap(), p);
         assert_eq!(est, f.factor_bytes());
     }
     let n = f64_.num_unknowns();

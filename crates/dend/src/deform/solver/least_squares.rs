@@ -161,26 +161,12 @@ impl Deformer {
             return Ok(report);
         }
         for _ in 0..max_iters {
-            self.right_hand_side(factor);
-            {
-                let s = &mut self.scratch;
-                let b = MatMut::from_column_major_slice_mut(&mut s.rhs, nu, 3);
-                let mem = s.mem.as_mut().expect("scratch sized in prepare");
-                factor.solve_in_place(b, MemStack::new(mem));
-            }
-            if self.scratch.rhs.iter().any(|v| !v.is_finite()) {
+            let Some(max_dx) = self.global_step(factor, nu) else {
                 self.y.clone_from(&self.scratch.best);
                 evaluated = false;
                 report.diverged = true;
                 break;
-            }
-            self.scratch.y_prev.clone_from(&self.y);
-            let max_dx = (0..nu)
-                .map(|k| {
-                    let r = &self.scratch.rhs;
-                    (r[k] * r[k] + r[nu + k] * r[nu + k] + r[2 * nu + k] * r[2 * nu + k]).sqrt()
-                })
-                .fold(0.0, Real::max);
+            };
             // acceleration: a candidate kept only if it lowers the objective
             let accepted = if accelerate {
                 self.anderson_candidate(factor, f, (&mut aa_skip, &mut aa_backoff))
@@ -239,6 +225,31 @@ impl Deformer {
         self.sync_pose(factor, constraints);
         Ok(report)
     }
+
+    /// The global step's solve: the update of the `nu` unknowns into
+    /// `scratch.rhs` (the current iterate kept in `scratch.y_prev`) and its
+    /// largest vertex move, or `None` when the solve is not finite.
+    fn global_step(&mut self, factor: &Factor, nu: usize) -> Option<Real> {
+        self.right_hand_side(factor);
+        {
+            let s = &mut self.scratch;
+            let b = MatMut::from_column_major_slice_mut(&mut s.rhs, nu, 3);
+            let mem = s.mem.as_mut().expect("scratch sized in prepare");
+            factor.solve_in_place(b, MemStack::new(mem));
+        }
+        if self.scratch.rhs.iter().any(|v| !v.is_finite()) {
+            return None;
+        }
+        self.scratch.y_prev.clone_from(&self.y);
+        let max_dx = (0..nu)
+            .map(|k| {
+                let r = &self.scratch.rhs;
+                (r[k] * r[k] + r[nu + k] * r[nu + k] + r[2 * nu + k] * r[2 * nu + k]).sqrt()
+            })
+            .fold(0.0, Real::max);
+        Some(max_dx)
+    }
+
     /// The Anderson candidate from the current iterate (`scratch.y_prev`)
     /// and its update (`scratch.rhs`): written to `y` and kept (returns its
     /// objective and largest move) only if its objective is at most `f`;

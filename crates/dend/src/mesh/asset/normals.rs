@@ -379,8 +379,8 @@ mod tests {
             .collect();
         let n = weighted_normals(&p, &tris, &corner, 2)[0].unwrap();
         let s = -1.0 / 3f64.sqrt();
-        for k in 0..3 {
-            assert_relative_eq!(n[k], s, epsilon = 1e-12);
+        for c in n {
+            assert_relative_eq!(c, s, epsilon = 1e-12);
         }
         // a group whose triangles are all degenerate has no normal
         let flat = [[0.0; 3], [1.0, 0.0, 0.0], [2.0, 0.0, 0.0]];

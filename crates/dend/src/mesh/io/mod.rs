@@ -208,8 +208,10 @@ pub enum IoError {
         message: String,
     },
     /// The file parsed but the mesh is invalid (NaN, bad index, non-manifold, …).
+    /// (The validation's message is in this one, not a `source`: chained
+    /// reports would print it twice.)
     #[error("invalid mesh: {0}")]
-    Mesh(#[from] MeshError),
+    Mesh(MeshError),
     /// The JSON form `{positions, triangles}` is malformed.
     #[error("JSON mesh parse error at line {line}, column {column}: {message}")]
     Json {
@@ -220,6 +222,12 @@ pub enum IoError {
         /// What is wrong.
         message: String,
     },
+}
+
+impl From<MeshError> for IoError {
+    fn from(e: MeshError) -> Self {
+        IoError::Mesh(e)
+    }
 }
 
 impl IoError {
@@ -460,4 +468,22 @@ pub(crate) fn bounded_capacity(count: usize, input_len: usize, min_bytes: usize)
 /// Formats an `f64` so that parsing it gives the same value.
 pub(crate) fn fmt_real(x: f64) -> String {
     format!("{x:?}")
+}
+
+/// The vertex and face lines OFF and ASCII PLY share: `x y z` (exact
+/// round trip) per vertex, then `3 a b c` per triangle.
+pub(crate) fn write_ascii_body(s: &mut String, positions: &[Point], triangles: &[[u32; 3]]) {
+    use std::fmt::Write;
+    for p in positions {
+        let _ = writeln!(
+            s,
+            "{} {} {}",
+            fmt_real(p[0]),
+            fmt_real(p[1]),
+            fmt_real(p[2])
+        );
+    }
+    for t in triangles {
+        let _ = writeln!(s, "3 {} {} {}", t[0], t[1], t[2]);
+    }
 }

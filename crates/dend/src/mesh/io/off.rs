@@ -7,8 +7,8 @@
 use std::fmt::Write;
 
 use super::{
-    bounded_capacity, fan, fmt_real, index_u32, parse_count, parse_real, text_lines, ParseError,
-    Position, RawMesh,
+    bounded_capacity, fan, index_u32, parse_count, parse_real, text_lines, write_ascii_body,
+    ParseError, Position, RawMesh,
 };
 use crate::mesh::Point;
 
@@ -113,18 +113,7 @@ pub(super) fn parse(bytes: &[u8]) -> Result<RawMesh, ParseError> {
 pub(super) fn write(positions: &[Point], triangles: &[[u32; 3]]) -> Vec<u8> {
     let mut s = String::with_capacity(positions.len() * 40 + triangles.len() * 20);
     let _ = writeln!(s, "OFF\n{} {} 0", positions.len(), triangles.len());
-    for p in positions {
-        let _ = writeln!(
-            s,
-            "{} {} {}",
-            fmt_real(p[0]),
-            fmt_real(p[1]),
-            fmt_real(p[2])
-        );
-    }
-    for t in triangles {
-        let _ = writeln!(s, "3 {} {} {}", t[0], t[1], t[2]);
-    }
+    write_ascii_body(&mut s, positions, triangles);
     s.into_bytes()
 }
 

@@ -9,7 +9,9 @@
 
 use std::fmt::Write;
 
-use super::{bounded_capacity, fan, fmt_real, index_u32, Encoding, ParseError, Position, RawMesh};
+use super::{
+    bounded_capacity, fan, index_u32, write_ascii_body, Encoding, ParseError, Position, RawMesh,
+};
 use crate::mesh::Point;
 
 /// A PLY scalar type.
@@ -282,131 +284,191 @@ pub(crate) fn parse_located(
         tok: 0,
     };
     let mut raw = RawMesh::default();
-    let mut saw_vertex = false;
     let mut poly: Vec<u32> = Vec::new();
     for el in &elements {
         if el.props.is_empty() {
             continue;
         }
-        let min_bytes = el.props.len();
-        let is_vertex = el.name == "vertex";
-        let is_face = el.name == "face";
-        let mut xyz = [usize::MAX; 3];
-        if is_vertex {
-            saw_vertex = true;
-            for (k, axis) in ["x", "y", "z"].iter().enumerate() {
-                xyz[k] = el
-                    .props
-                    .iter()
-                    .position(|p| matches!(p, Prop::Scalar(n, _) if n == axis))
-                    .ok_or_else(|| {
-                        ParseError::line(1, format!("vertex element has no {axis} property"))
-                    })?;
+        let plan = ElementPlan::new(el, &mut raw, layout.as_deref_mut(), bytes.len())?;
+        for k in 0..el.count {
+            let rec = plan.read_record(&mut r, el, k, &mut poly, &mut raw.triangles)?;
+            if plan.is_vertex {
+                raw.positions.push(rec.position);
+                if let Some(l) = layout.as_deref_mut() {
+                    l.xyz.push(rec.locs);
+                    if plan.nxyz[0] != usize::MAX {
+                        l.normals.push(rec.normal);
+                    }
+                }
             }
-            raw.positions
-                .reserve(bounded_capacity(el.count, bytes.len(), min_bytes));
         }
+    }
+    if !elements
+        .iter()
+        .any(|el| el.name == "vertex" && !el.props.is_empty())
+    {
+        return Err(ParseError::line(1, "no vertex element in the header"));
+    }
+    Ok(raw)
+}
+
+/// Which of an element's properties are read as what.
+struct ElementPlan {
+    /// The `vertex` element (with properties).
+    is_vertex: bool,
+    /// The property indices of x, y, z (vertex element; else `usize::MAX`).
+    xyz: [usize; 3],
+    /// The property indices of nx, ny, nz (vertex element with all three;
+    /// else `usize::MAX`).
+    nxyz: [usize; 3],
+    /// The property index of the face element's vertex index list.
+    face_list: Option<usize>,
+}
+
+/// One record's vertex values, and where they are in the file.
+struct Record {
+    position: Point,
+    locs: [Loc; 3],
+    normal: ([Loc; 3], Point),
+}
+
+impl ElementPlan {
+    /// The plan of `el`; reserves `raw`'s vertices or triangles and records
+    /// the vertex element's other properties and the other elements in
+    /// `layout`.
+    fn new(
+        el: &Element,
+        raw: &mut RawMesh,
+        layout: Option<&mut Layout>,
+        len: usize,
+    ) -> Result<ElementPlan, ParseError> {
+        let none = ElementPlan {
+            is_vertex: false,
+            xyz: [usize::MAX; 3],
+            nxyz: [usize::MAX; 3],
+            face_list: None,
+        };
+        let min_bytes = el.props.len();
         let named = |axis: &str| {
             el.props
                 .iter()
                 .position(|p| matches!(p, Prop::Scalar(n, _) if n == axis))
         };
-        let nxyz = match (named("nx"), named("ny"), named("nz")) {
-            (Some(a), Some(b), Some(c)) if is_vertex => [a, b, c],
-            _ => [usize::MAX; 3],
-        };
-        if let Some(l) = layout.as_deref_mut() {
-            if is_vertex {
-                l.extra = el
+        match el.name.as_str() {
+            "vertex" => {
+                let mut xyz = [usize::MAX; 3];
+                for (k, axis) in ["x", "y", "z"].iter().enumerate() {
+                    xyz[k] = named(axis).ok_or_else(|| {
+                        ParseError::line(1, format!("vertex element has no {axis} property"))
+                    })?;
+                }
+                raw.positions
+                    .reserve(bounded_capacity(el.count, len, min_bytes));
+                let nxyz = match (named("nx"), named("ny"), named("nz")) {
+                    (Some(a), Some(b), Some(c)) => [a, b, c],
+                    _ => [usize::MAX; 3],
+                };
+                if let Some(l) = layout {
+                    l.extra = el
+                        .props
+                        .iter()
+                        .enumerate()
+                        .filter(|(j, _)| !xyz.contains(j) && !nxyz.contains(j))
+                        .map(|(_, p)| match p {
+                            Prop::Scalar(n, _) | Prop::List(n, ..) => n.clone(),
+                        })
+                        .collect();
+                }
+                Ok(ElementPlan {
+                    is_vertex: true,
+                    xyz,
+                    nxyz,
+                    face_list: None,
+                })
+            }
+            "face" => {
+                let i = el
                     .props
                     .iter()
-                    .enumerate()
-                    .filter(|(j, _)| !xyz.contains(j) && !nxyz.contains(j))
-                    .map(|(_, p)| match p {
-                        Prop::Scalar(n, _) | Prop::List(n, ..) => n.clone(),
-                    })
-                    .collect();
-            } else if !is_face {
-                l.other_elements.push(el.name.clone());
+                    .position(|p| matches!(p, Prop::List(n, ..) if n == "vertex_indices" || n == "vertex_index"))
+                    .ok_or_else(|| ParseError::line(1, "face element has no vertex_indices list"))?;
+                raw.triangles
+                    .reserve(bounded_capacity(el.count, len, min_bytes * 4));
+                Ok(ElementPlan {
+                    face_list: Some(i),
+                    ..none
+                })
+            }
+            _ => {
+                if let Some(l) = layout {
+                    l.other_elements.push(el.name.clone());
+                }
+                Ok(none)
             }
         }
-        let face_list = if is_face {
-            let i = el
-                .props
-                .iter()
-                .position(|p| matches!(p, Prop::List(n, ..) if n == "vertex_indices" || n == "vertex_index"))
-                .ok_or_else(|| ParseError::line(1, "face element has no vertex_indices list"))?;
-            raw.triangles
-                .reserve(bounded_capacity(el.count, bytes.len(), min_bytes * 4));
-            Some(i)
-        } else {
-            None
+    }
+
+    /// Reads record `k` of `el`: its vertex values (a vertex element), its
+    /// polygon fanned into `triangles` (the face element), or skips it.
+    fn read_record(
+        &self,
+        r: &mut Reader,
+        el: &Element,
+        k: usize,
+        poly: &mut Vec<u32>,
+        triangles: &mut Vec<[u32; 3]>,
+    ) -> Result<Record, ParseError> {
+        let mut rec = Record {
+            position: [0.0; 3],
+            locs: [Loc::Token(0, 0, Scalar::F64); 3],
+            normal: ([Loc::Token(0, 0, Scalar::F64); 3], [0.0; 3]),
         };
-        for k in 0..el.count {
-            let mut p = [0.0; 3];
-            let mut locs = [Loc::Token(0, 0, Scalar::F64); 3];
-            let mut n = ([Loc::Token(0, 0, Scalar::F64); 3], [0.0; 3]);
-            for (j, prop) in el.props.iter().enumerate() {
-                match prop {
-                    Prop::Scalar(_, ty) => {
-                        let at = r.pos;
-                        let v = r.read(*ty)?;
-                        let loc = match body {
-                            Body::Ascii => Loc::Token(r.line - 1, r.tok - 1, *ty),
-                            _ => Loc::Byte(at, *ty),
-                        };
-                        if let Some(c) = xyz.iter().position(|&x| x == j) {
-                            p[c] = v;
-                            locs[c] = loc;
-                        }
-                        if let Some(c) = nxyz.iter().position(|&x| x == j) {
-                            n.0[c] = loc;
-                            n.1[c] = v;
-                        }
+        for (j, prop) in el.props.iter().enumerate() {
+            match prop {
+                Prop::Scalar(_, ty) => {
+                    let at = r.pos;
+                    let v = r.read(*ty)?;
+                    let loc = match r.body {
+                        Body::Ascii => Loc::Token(r.line - 1, r.tok - 1, *ty),
+                        _ => Loc::Byte(at, *ty),
+                    };
+                    if let Some(c) = self.xyz.iter().position(|&x| x == j) {
+                        rec.position[c] = v;
+                        rec.locs[c] = loc;
                     }
-                    Prop::List(_, ct, it) => {
-                        let n = r.read_uint(*ct, "a list count")?;
-                        let is_faces = face_list == Some(j);
-                        if is_faces && n < 3 {
-                            return Err(
-                                r.err(format!("face {k} has {n} corners, at least 3 needed"))
-                            );
-                        }
-                        poly.clear();
-                        for _ in 0..n {
-                            if is_faces {
-                                let at = r.pos;
-                                let i = r.read_uint(*it, "a vertex index")?;
-                                let pos = match body {
-                                    Body::Ascii => Position::Line(r.line),
-                                    _ => Position::Byte(at),
-                                };
-                                poly.push(index_u32(i, pos)?);
-                            } else {
-                                r.read(*it)?;
-                            }
-                        }
-                        if is_faces {
-                            fan(&poly, &mut raw.triangles);
-                        }
+                    if let Some(c) = self.nxyz.iter().position(|&x| x == j) {
+                        rec.normal.0[c] = loc;
+                        rec.normal.1[c] = v;
                     }
                 }
-            }
-            if is_vertex {
-                raw.positions.push(p);
-                if let Some(l) = layout.as_deref_mut() {
-                    l.xyz.push(locs);
-                    if nxyz[0] != usize::MAX {
-                        l.normals.push(n);
+                Prop::List(_, ct, it) => {
+                    let n = r.read_uint(*ct, "a list count")?;
+                    let is_faces = self.face_list == Some(j);
+                    if is_faces && n < 3 {
+                        return Err(r.err(format!("face {k} has {n} corners, at least 3 needed")));
+                    }
+                    poly.clear();
+                    for _ in 0..n {
+                        if is_faces {
+                            let at = r.pos;
+                            let i = r.read_uint(*it, "a vertex index")?;
+                            let pos = match r.body {
+                                Body::Ascii => Position::Line(r.line),
+                                _ => Position::Byte(at),
+                            };
+                            poly.push(index_u32(i, pos)?);
+                        } else {
+                            r.read(*it)?;
+                        }
+                    }
+                    if is_faces {
+                        fan(poly, triangles);
                     }
                 }
             }
         }
+        Ok(rec)
     }
-    if !saw_vertex {
-        return Err(ParseError::line(1, "no vertex element in the header"));
-    }
-    Ok(raw)
 }
 
 /// Writes PLY: `double` x y z and a `uchar`/`uint` `vertex_indices` list.
@@ -429,18 +491,7 @@ pub(super) fn write(positions: &[Point], triangles: &[[u32; 3]], enc: Encoding) 
     match enc {
         Encoding::Ascii => {
             let mut s = String::new();
-            for p in positions {
-                let _ = writeln!(
-                    s,
-                    "{} {} {}",
-                    fmt_real(p[0]),
-                    fmt_real(p[1]),
-                    fmt_real(p[2])
-                );
-            }
-            for t in triangles {
-                let _ = writeln!(s, "3 {} {} {}", t[0], t[1], t[2]);
-            }
+            write_ascii_body(&mut s, positions, triangles);
             out.extend_from_slice(s.as_bytes());
         }
         Encoding::BinaryLittleEndian | Encoding::BinaryBigEndian => {

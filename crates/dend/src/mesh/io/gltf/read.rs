@@ -212,22 +212,7 @@ fn add_mesh(
         }
         asset.summary.primitives += 1;
         asset.summary.morph_targets += prim.morph_targets().len();
-        for (semantic, acc) in prim.attributes() {
-            check_bounds(&acc, &asset.buffers)?;
-            let name = semantic.to_string();
-            if !asset.summary.attributes.contains(&name) {
-                asset.summary.attributes.push(name);
-            }
-        }
-        // (after the bounds, so an accessor past its buffer says so)
-        // the spec: every attribute accessor of a primitive has the same
-        // count (the vertex count); the layout code relies on it
-        let counts: Vec<usize> = prim.attributes().map(|(_, a)| a.count()).collect();
-        if counts.windows(2).any(|w| w[0] != w[1]) {
-            return Err(GltfError::Invalid {
-                message: format!("{at}: its attributes have different counts {counts:?}"),
-            });
-        }
+        check_attributes(asset, &prim, &at)?;
         let pos = prim
             .get(&gltf::Semantic::Positions)
             .ok_or_else(|| GltfError::Invalid {
@@ -266,32 +251,7 @@ fn add_mesh(
             .transpose()?;
         let block = block_for(asset, node.index(), pos, normal, tangent, world, inverse)?;
         let (first, count) = (asset.blocks[block].first, pos.count);
-        let indices = match prim.indices() {
-            Some(a) => {
-                let loc = locate(
-                    &a,
-                    &asset.buffers,
-                    Dimensions::Scalar,
-                    &[DataType::U8, DataType::U16, DataType::U32],
-                    "indices",
-                )?;
-                read_indices(&loc, &asset.buffers)
-            }
-            None => (0..count as u32).collect(),
-        };
-        if indices.len() % 3 != 0 {
-            return Err(GltfError::Invalid {
-                message: format!("{at}: {} indices is not a multiple of 3", indices.len()),
-            });
-        }
-        if let Some(&bad) = indices.iter().find(|&&i| i as usize >= count) {
-            return Err(GltfError::IndexOutOfRange {
-                mesh: mesh.index(),
-                primitive: prim.index(),
-                index: bad,
-                vertices: count,
-            });
-        }
+        let indices = primitive_indices(asset, mesh, &prim, &at, count)?;
         let start = asset.triangles.len();
         for t in indices.chunks_exact(3) {
             let g = |k: usize| (first + t[k] as usize) as u32;
@@ -311,6 +271,70 @@ fn add_mesh(
         });
     }
     Ok(())
+}
+
+/// Checks a primitive's attribute accessors (in their buffers, one count)
+/// and lists their names in the asset's summary.
+fn check_attributes(
+    asset: &mut GltfAsset,
+    prim: &gltf::Primitive<'_>,
+    at: &str,
+) -> Result<(), GltfError> {
+    for (semantic, acc) in prim.attributes() {
+        check_bounds(&acc, &asset.buffers)?;
+        let name = semantic.to_string();
+        if !asset.summary.attributes.contains(&name) {
+            asset.summary.attributes.push(name);
+        }
+    }
+    // (after the bounds, so an accessor past its buffer says so)
+    // the spec: every attribute accessor of a primitive has the same
+    // count (the vertex count); the layout code relies on it
+    let counts: Vec<usize> = prim.attributes().map(|(_, a)| a.count()).collect();
+    if counts.windows(2).any(|w| w[0] != w[1]) {
+        return Err(GltfError::Invalid {
+            message: format!("{at}: its attributes have different counts {counts:?}"),
+        });
+    }
+    Ok(())
+}
+
+/// A primitive's triangle corners, indices into its `count` vertices (its
+/// index accessor, or `0..count` without one), checked.
+fn primitive_indices(
+    asset: &GltfAsset,
+    mesh: &gltf::Mesh<'_>,
+    prim: &gltf::Primitive<'_>,
+    at: &str,
+    count: usize,
+) -> Result<Vec<u32>, GltfError> {
+    let indices = match prim.indices() {
+        Some(a) => {
+            let loc = locate(
+                &a,
+                &asset.buffers,
+                Dimensions::Scalar,
+                &[DataType::U8, DataType::U16, DataType::U32],
+                "indices",
+            )?;
+            read_indices(&loc, &asset.buffers)
+        }
+        None => (0..count as u32).collect(),
+    };
+    if indices.len() % 3 != 0 {
+        return Err(GltfError::Invalid {
+            message: format!("{at}: {} indices is not a multiple of 3", indices.len()),
+        });
+    }
+    if let Some(&bad) = indices.iter().find(|&&i| i as usize >= count) {
+        return Err(GltfError::IndexOutOfRange {
+            mesh: mesh.index(),
+            primitive: prim.index(),
+            index: bad,
+            vertices: count,
+        });
+    }
+    Ok(indices)
 }
 
 /// The block of `(node, POSITION accessor)`, created on first use.

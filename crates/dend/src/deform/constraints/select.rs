@@ -1,0 +1,124 @@
+//! Vertex selectors of the constraints JSON ([`VertexSet`]: index lists,
+//! boxes, spheres, asset groups) and [`select`], which picks them on the
+//! rest mesh.
+
+use serde::{Deserialize, Serialize};
+
+use crate::deform::DeformError;
+use crate::mesh::asset::groups::GroupSel;
+use crate::mesh::Mesh;
+use crate::mesh::Point;
+
+/// A set of vertices, as written in the constraints JSON: an index list, a box
+/// or a sphere (selected on the rest mesh, in the mesh's own units), or a
+/// named part of the asset file (resolved by
+/// [`Asset::resolve_groups`](crate::mesh::asset::Asset::resolve_groups)).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(untagged)]
+pub enum VertexSet {
+    /// Explicit indices `[0, 5, 9]`.
+    Indices(Vec<u64>),
+    /// `{"box": {"min": [x,y,z], "max": [x,y,z]}}` (inclusive).
+    Box {
+        /// The box.
+        #[serde(rename = "box")]
+        bbox: BoxSel,
+    },
+    /// `{"sphere": {"center": [x,y,z], "radius": r}}` (inclusive).
+    Sphere {
+        /// The sphere.
+        sphere: SphereSel,
+    },
+    /// `{"group": "LeftArm"}`, `{"group": {"node": "Arm"}}`, … : a named
+    /// part of the asset (see [`crate::mesh::asset::groups`]).
+    Group(GroupSel),
+}
+
+/// An axis-aligned box selector.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct BoxSel {
+    /// Lower corner.
+    pub min: Point,
+    /// Upper corner.
+    pub max: Point,
+}
+
+/// A ball selector.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SphereSel {
+    /// Centre.
+    pub center: Point,
+    /// Radius (≥ 0).
+    pub radius: f64,
+}
+
+/// The vertices a [`VertexSet`] selects on the rest mesh, sorted; errors on
+/// indices out of range and on NaN in selectors. Unreferenced vertices are
+/// never selected by a box or a sphere.
+pub fn select(set: &VertexSet, mesh: &Mesh) -> Result<Vec<u32>, DeformError> {
+    let n = mesh.num_vertices();
+    let referenced = |v: usize| !mesh.topology().ring(v).is_empty();
+    let mut out: Vec<u32> = match set {
+        VertexSet::Indices(ix) => {
+            let mut out = Vec::with_capacity(ix.len().min(n));
+            for &i in ix {
+                if i >= n as u64 {
+                    return Err(DeformError::UnknownVertex {
+                        index: i,
+                        vertices: n,
+                    });
+                }
+                out.push(i as u32);
+            }
+            out
+        }
+        VertexSet::Box { bbox } => {
+            if bbox.min.iter().chain(&bbox.max).any(|v| !v.is_finite()) {
+                return Err(DeformError::NonFinite {
+                    what: "box selector",
+                });
+            }
+            (0..n)
+                .filter(|&v| {
+                    let p = mesh.positions()[v];
+                    referenced(v) && (0..3).all(|k| p[k] >= bbox.min[k] && p[k] <= bbox.max[k])
+                })
+                .map(|v| v as u32)
+                .collect()
+        }
+        VertexSet::Sphere { sphere } => {
+            if !sphere
+                .center
+                .iter()
+                .chain([&sphere.radius])
+                .all(|v| v.is_finite())
+                || sphere.radius < 0.0
+            {
+                return Err(DeformError::NonFinite {
+                    what: "sphere selector",
+                });
+            }
+            let r2 = sphere.radius * sphere.radius;
+            (0..n)
+                .filter(|&v| {
+                    let p = mesh.positions()[v];
+                    let d2: f64 = (0..3).map(|k| (p[k] - sphere.center[k]).powi(2)).sum();
+                    referenced(v) && d2 <= r2
+                })
+                .map(|v| v as u32)
+                .collect()
+        }
+        // a group needs the asset: resolved before, by Asset::resolve_groups
+        VertexSet::Group(GroupSel { group }) => {
+            return Err(DeformError::UnknownGroup {
+                group: group.to_string(),
+                available: Vec::new(),
+            })
+        }
+    };
+    out.sort_unstable();
+    out.dedup();
+    Ok(out)
+}

@@ -1,0 +1,284 @@
+//! The constraints JSON (`api/constraints.schema.json`) as written
+//! ([`ConstraintsSpec`], [`HandleSpec`]), its resolution against a mesh
+//! into a validated [`Constraints`] (at rest or anchored at a pose), and
+//! the anchored spec a session stores after a constraint edit.
+
+use nalgebra::UnitQuaternion;
+use serde::{Deserialize, Serialize};
+
+use super::{centroid, select, Constraints, HandleGroup, RigidTransform, RotationSpec, VertexSet};
+use crate::deform::DeformError;
+use crate::mesh::{Mesh, Point};
+
+/// One handle in the constraints JSON.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct HandleSpec {
+    /// Name (defaults to `handle<k>`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub name: Option<String>,
+    /// The handle's vertices.
+    pub vertices: VertexSet,
+    /// Translation (default zero).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub translate: Option<Point>,
+    /// Rotation (default identity).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub rotate: Option<RotationSpec>,
+    /// Rotation centre (default: the handle's rest centroid).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub pivot: Option<Point>,
+    /// Explicit target positions, one per handle vertex in increasing index
+    /// order; the rigid transform then applies to these instead of the rest
+    /// positions.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub positions: Option<Vec<Point>>,
+}
+
+/// The constraints JSON: `{"fixed": VERTEX_SET, "handles": [HANDLE...]}`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ConstraintsSpec {
+    /// Vertices that stay where they are: at their rest positions, or at
+    /// `fixed_positions`.
+    #[serde(default = "empty_set")]
+    pub fixed: VertexSet,
+    /// Explicit positions of the fixed vertices, one per fixed vertex in
+    /// increasing index order (default: their rest positions). A constraint
+    /// edit on a posed session pins the new set where the pose has it
+    /// ([`ConstraintsSpec::resolve_at`], [`ConstraintsSpec::anchored`]).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub fixed_positions: Option<Vec<Point>>,
+    /// Handle groups.
+    #[serde(default)]
+    pub handles: Vec<HandleSpec>,
+}
+
+fn empty_set() -> VertexSet {
+    VertexSet::Indices(Vec::new())
+}
+
+impl ConstraintsSpec {
+    /// Selects the vertex sets on the rest mesh and validates the result.
+    pub fn resolve(&self, mesh: &Mesh) -> Result<Constraints, DeformError> {
+        self.resolve_at(mesh, None)
+    }
+
+    /// [`resolve`](Self::resolve), with the constrained vertices held where
+    /// `pose` has them instead of at rest: fixed vertices stay at their
+    /// posed positions, and handle transforms act on the posed positions
+    /// (default pivot: their posed centroid). Explicit `fixed_positions`
+    /// and handle `positions` still win. Vertex sets (boxes, spheres) are
+    /// always selected on the rest mesh. This is how a constraint edit keeps
+    /// the pose.
+    pub fn resolve_at(
+        &self,
+        mesh: &Mesh,
+        pose: Option<&[Point]>,
+    ) -> Result<Constraints, DeformError> {
+        if let Some(p) = pose {
+            check_positions("(anchoring pose)", "anchoring pose", mesh.num_vertices(), p)?;
+        }
+        let fixed = select(&self.fixed, mesh)?;
+        let mut handles = Vec::with_capacity(self.handles.len());
+        for (k, h) in self.handles.iter().enumerate() {
+            let name = h.name.clone().unwrap_or_else(|| format!("handle{k}"));
+            handles.push((name, select(&h.vertices, mesh)?, None));
+        }
+        // one group per spec handle, in the spec's order
+        let mut c = Constraints::new(mesh, fixed, handles)?;
+        if let Some(pos) = &self.fixed_positions {
+            check_positions("(fixed)", "fixed positions", c.fixed.len(), pos)?;
+            c.fixed_at = pos.clone();
+        } else if let Some(p) = pose {
+            c.fixed_at = c.fixed.iter().map(|&v| p[v as usize]).collect();
+        }
+        for (g, spec) in c.handles.iter_mut().zip(&self.handles) {
+            spec.place(g, pose)?;
+        }
+        Ok(c)
+    }
+}
+
+impl HandleSpec {
+    /// Sets a resolved group's base positions (explicit `positions`, else
+    /// the pose's, else the rest ones `g` has) and its target transform.
+    fn place(&self, g: &mut HandleGroup, pose: Option<&[Point]>) -> Result<(), DeformError> {
+        if let Some(pos) = &self.positions {
+            check_positions(&g.name, "handle positions", g.vertices.len(), pos)?;
+            g.base = pos.clone();
+            g.rest_centroid = centroid(&g.base);
+        } else if let Some(p) = pose {
+            g.base = g.vertices.iter().map(|&v| p[v as usize]).collect();
+            g.rest_centroid = centroid(&g.base);
+        }
+        let pivot = self.pivot.unwrap_or(g.rest_centroid);
+        let translation = self.translate.unwrap_or([0.0; 3]);
+        if pivot.iter().chain(&translation).any(|v| !v.is_finite()) {
+            return Err(DeformError::NonFinite {
+                what: "handle transform",
+            });
+        }
+        let rotation = match &self.rotate {
+            Some(r) => r.to_quaternion()?,
+            None => UnitQuaternion::identity(),
+        };
+        g.target = RigidTransform {
+            rotation,
+            translation,
+            pivot,
+        };
+        Ok(())
+    }
+}
+
+/// Explicit positions for `expected` vertices of `handle` (or of the fixed
+/// set, or of the whole mesh): one each, all finite.
+fn check_positions(
+    handle: &str,
+    what: &'static str,
+    expected: usize,
+    pos: &[Point],
+) -> Result<(), DeformError> {
+    if pos.len() != expected {
+        return Err(DeformError::PositionsMismatch {
+            handle: handle.into(),
+            expected,
+            got: pos.len(),
+        });
+    }
+    if pos.iter().flatten().any(|v| !v.is_finite()) {
+        return Err(DeformError::NonFinite { what });
+    }
+    Ok(())
+}
+
+impl ConstraintsSpec {
+    /// This spec with the positions `c` holds its vertices at written out
+    /// wherever they differ from the rest mesh's (`fixed_positions`, each
+    /// handle's `positions`), so that [`resolve`](Self::resolve) on the rest
+    /// mesh gives `c`'s vertex sets and bases again: what a session stores
+    /// after a constraint edit that kept the pose. `c` must be this spec
+    /// resolved on `mesh` (same vertex sets, same handle order).
+    pub fn anchored(&self, mesh: &Mesh, c: &Constraints) -> ConstraintsSpec {
+        let rest = mesh.positions();
+        let differs =
+            |vs: &[u32], at: &[Point]| vs.iter().zip(at).any(|(&v, p)| rest[v as usize] != *p);
+        let mut out = self.clone();
+        out.fixed_positions = differs(&c.fixed, &c.fixed_at).then(|| c.fixed_at.clone());
+        for (h, g) in out.handles.iter_mut().zip(&c.handles) {
+            if differs(&g.vertices, &g.base) {
+                h.positions = Some(g.base.clone());
+                // the pivot the resolution chose, kept explicit: a default
+                // pivot is the centroid of the positions it acts on
+                h.pivot.get_or_insert(g.target.pivot);
+            }
+        }
+        out
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn constraints_json_parses_all_selector_forms() {
+        let j = r#"{"fixed": {"box": {"min": [0,0,0], "max": [1,1,1]}},
+                    "handles": [{"name": "top", "vertices": [3, 4],
+                                 "translate": [0,0,1], "rotate": {"axis": [0,0,1], "degrees": 90}},
+                                {"vertices": {"sphere": {"center": [0,0,0], "radius": 2}},
+                                 "rotate": {"quaternion": [1,0,0,0]}}]}"#;
+        let s: ConstraintsSpec = serde_json::from_str(j).unwrap();
+        assert!(matches!(s.fixed, VertexSet::Box { .. }));
+        assert_eq!(s.handles.len(), 2);
+        assert!(matches!(s.handles[1].vertices, VertexSet::Sphere { .. }));
+        let bad = r#"{"fixed": [0], "handles": [], "oops": 1}"#;
+        assert!(serde_json::from_str::<ConstraintsSpec>(bad).is_err());
+    }
+
+    /// A posed grid (sheared, bent) to anchor on.
+    fn posed_grid() -> (Mesh, Vec<Point>) {
+        let mesh = crate::deform::factor::tests::grid(8);
+        let pose = mesh
+            .positions()
+            .iter()
+            .map(|p| [p[0] + 0.1 * p[1], p[1], p[2] + 0.05 * p[0] * p[0]])
+            .collect();
+        (mesh, pose)
+    }
+
+    fn spec(j: &str) -> ConstraintsSpec {
+        serde_json::from_str(j).unwrap()
+    }
+
+    #[test]
+    fn resolving_at_a_pose_holds_the_sets_where_the_pose_has_them() {
+        let (mesh, pose) = posed_grid();
+        let s = spec(
+            r#"{"fixed": [0, 1, 2], "handles": [{"name": "h", "vertices": [40, 41],
+                         "translate": [0, 0, 1]}]}"#,
+        );
+        let c = s.resolve_at(&mesh, Some(&pose)).unwrap();
+        for (&v, p) in c.fixed.iter().zip(&c.fixed_at) {
+            assert_eq!(*p, pose[v as usize]);
+        }
+        for (v, p) in c.handles[0].target_positions() {
+            let q = pose[v as usize];
+            assert_eq!(p, [q[0], q[1], q[2] + 1.0]);
+        }
+        // the default pivot is the posed centroid
+        let b = &c.handles[0].base;
+        let mid = [
+            (b[0][0] + b[1][0]) / 2.0,
+            (b[0][1] + b[1][1]) / 2.0,
+            (b[0][2] + b[1][2]) / 2.0,
+        ];
+        assert_eq!(c.handles[0].target.pivot, mid);
+        // resolved at rest, the same spec holds them at rest
+        let r = s.resolve(&mesh).unwrap();
+        assert_eq!(r.fixed_at[2], mesh.positions()[2]);
+        assert_ne!(r.fixed_at[2], c.fixed_at[2]);
+    }
+
+    #[test]
+    fn an_anchored_spec_resolves_to_the_same_constraints_on_the_rest_mesh() {
+        let (mesh, pose) = posed_grid();
+        let s = spec(
+            r#"{"fixed": [0, 1, 2, 3], "handles": [{"name": "h", "vertices": [40, 41, 47],
+                         "rotate": {"axis": [0, 0, 1], "degrees": 30}},
+                         {"name": "g", "vertices": [20], "pivot": [1, 2, 3]}]}"#,
+        );
+        let c = s.resolve_at(&mesh, Some(&pose)).unwrap();
+        let stored = s.anchored(&mesh, &c);
+        assert!(stored.fixed_positions.is_some());
+        assert_eq!(stored.handles[1].pivot, Some([1.0, 2.0, 3.0]));
+        // through JSON, as a store keeps it
+        let json = serde_json::to_string(&stored).unwrap();
+        let back: ConstraintsSpec = serde_json::from_str(&json).unwrap();
+        assert_eq!(back.resolve(&mesh).unwrap(), c);
+        // anchored at rest, nothing is written out
+        let r = s.resolve(&mesh).unwrap();
+        assert_eq!(s.anchored(&mesh, &r), s);
+    }
+
+    #[test]
+    fn bad_anchors_are_typed_errors() {
+        let (mesh, mut pose) = posed_grid();
+        let s = spec(r#"{"fixed": [0, 1], "fixed_positions": [[0, 0, 0]]}"#);
+        assert!(matches!(
+            s.resolve(&mesh),
+            Err(DeformError::PositionsMismatch { .. })
+        ));
+        let s = spec(r#"{"fixed": [0, 1]}"#);
+        assert!(matches!(
+            s.resolve_at(&mesh, Some(&pose[1..])),
+            Err(DeformError::PositionsMismatch { .. })
+        ));
+        pose[3][1] = f64::NAN;
+        assert!(matches!(
+            s.resolve_at(&mesh, Some(&pose)),
+            Err(DeformError::NonFinite { .. })
+        ));
+    }
+}
