@@ -425,29 +425,6 @@ def judge(row):
     row["verdict"] = "PASS" if not fails else "FAIL"
 
 
-def render(path, case, poses, view, panel=360, ss=2):
-    rest, f = case["v"], case["f"]
-    col = RP.face_colours(rest, f)
-    r = RP.view_matrix(*view)
-    views = [m @ r.T for m in [rest] + poses]
-    w = h = panel * ss
-    ext = max(max(np.ptp(q[:, 0]) / w, np.ptp(q[:, 2]) / h) for q in views)
-    scale = 0.9 / ext
-    out = []
-    for q in views:
-        c = ((q[:, 0].max() + q[:, 0].min()) / 2, (q[:, 2].max() + q[:, 2].min()) / 2)
-        img = RP.rasterise(q, f, col, w, h, scale, c)
-        out.append(img.reshape(panel, ss, panel, ss, 3).mean(axis=(1, 3)))
-        out.append(np.full((panel, 4, 3), 0.85))
-    img = np.concatenate(out[:-1], axis=1)
-    # Flat shading of 50k-face meshes compresses badly: fewer colour levels
-    # until the file is under PNG_LIMIT (31 levels is hard to tell by eye).
-    for levels in (None, 31, 15, 7):
-        RP.write_png(path, img if levels is None else np.round(img * levels) / levels)
-        if os.path.getsize(path) <= PNG_LIMIT:
-            break
-
-
 def fmt(x, spec=".3g"):
     if x is None or (isinstance(x, float) and not math.isfinite(x)):
         return "-"
@@ -533,7 +510,8 @@ def run_case(name, dend, args, tmp):
             try:
                 os.makedirs(IMG_DIR, exist_ok=True)
                 row["png"] = os.path.relpath(os.path.join(IMG_DIR, f"{name}.png"), ROOT)
-                render(os.path.join(ROOT, row["png"]), case, poses, case["view"])
+                RP.render_panels(os.path.join(ROOT, row["png"]), case["v"], case["f"], poses, case["view"],
+                                 png_limit=PNG_LIMIT)
             except Exception as e:  # noqa: BLE001
                 row["render_error"] = str(e)
     return row, case

@@ -17,6 +17,7 @@ The panels (rest first, then the poses in order) are laid side by side in one
 image, all at the same scale.
 """
 import argparse
+import os
 import struct
 import zlib
 
@@ -105,6 +106,31 @@ def write_png(path, img):
         fh.write(chunk(b"IHDR", struct.pack(">IIBBBBB", w, h, 8, 2, 0, 0, 0)))
         fh.write(chunk(b"IDAT", zlib.compress(raw, 9)))
         fh.write(chunk(b"IEND", b""))
+
+
+def render_panels(path, rest, f, poses, view, panel=360, ss=2, png_limit=150_000):
+    """Rest and posed meshes side by side (same view and scale), supersampled
+    `ss` times, written as a PNG of at most `png_limit` bytes where fewer
+    colour levels allow (the posing suite's renders)."""
+    col = face_colours(rest, f)
+    r = view_matrix(*view)
+    views = [m @ r.T for m in [rest] + poses]
+    w = h = panel * ss
+    ext = max(max(np.ptp(q[:, 0]) / w, np.ptp(q[:, 2]) / h) for q in views)
+    scale = 0.9 / ext
+    out = []
+    for q in views:
+        c = ((q[:, 0].max() + q[:, 0].min()) / 2, (q[:, 2].max() + q[:, 2].min()) / 2)
+        img = rasterise(q, f, col, w, h, scale, c)
+        out.append(img.reshape(panel, ss, panel, ss, 3).mean(axis=(1, 3)))
+        out.append(np.full((panel, 4, 3), 0.85))
+    img = np.concatenate(out[:-1], axis=1)
+    # Flat shading of 50k-face meshes compresses badly: fewer colour levels
+    # until the file is under png_limit (31 levels is hard to tell by eye).
+    for levels in (None, 31, 15, 7):
+        write_png(path, img if levels is None else np.round(img * levels) / levels)
+        if os.path.getsize(path) <= png_limit:
+            break
 
 
 def main():
