@@ -17,6 +17,7 @@ pub mod gen;
 pub mod io;
 mod topology;
 
+pub(crate) use topology::corner_offsets;
 pub use topology::Topology;
 
 use thiserror::Error;

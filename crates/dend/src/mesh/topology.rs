@@ -94,22 +94,13 @@ impl Topology {
         let has_half = |a: u32, b: u32| half.binary_search_by_key(&dkey(a, b), |&(k, _)| k).is_ok();
 
         // Corners per vertex (CSR): for vertex i in face (i, j, k): j -> k.
-        let mut deg = vec![0u32; nv + 1];
-        for t in triangles {
-            for &v in t {
-                deg[v as usize + 1] += 1;
-            }
-        }
-        for i in 0..nv {
-            deg[i + 1] += deg[i];
-        }
-        let corner_off = deg;
+        let corner_off = corner_offsets(nv, triangles);
         let mut fill = corner_off.clone();
         let mut corners = vec![(0u32, 0u32); triangles.len() * 3];
         for t in triangles {
             for k in 0..3 {
                 let (i, j, l) = (t[k], t[(k + 1) % 3], t[(k + 2) % 3]);
-                corners[fill[i as usize] as usize] = (j, l);
+                corners[fill[i as usize]] = (j, l);
                 fill[i as usize] += 1;
             }
         }
@@ -119,7 +110,7 @@ impl Topology {
         let mut boundary = vec![false; nv];
         ring_offsets.push(0u32);
         for i in 0..nv {
-            let cs = &corners[corner_off[i] as usize..corner_off[i + 1] as usize];
+            let cs = &corners[corner_off[i]..corner_off[i + 1]];
             if !cs.is_empty() {
                 // A fan starts at a `j` that is no corner's `l` (boundary vertex).
                 let start = cs
@@ -259,6 +250,22 @@ impl Topology {
 
 /// Number of fans the corners `(j, l)` of one vertex form (connected groups
 /// of faces sharing an edge at that vertex).
+/// The CSR offsets of the triangle corners at each vertex: vertex `v`'s
+/// corners are `offsets[v]..offsets[v + 1]` in any list that stores them
+/// grouped by vertex in triangle order (`#V + 1` entries).
+pub(crate) fn corner_offsets(num_vertices: usize, triangles: &[[u32; 3]]) -> Vec<usize> {
+    let mut offsets = vec![0usize; num_vertices + 1];
+    for t in triangles {
+        for &v in t {
+            offsets[v as usize + 1] += 1;
+        }
+    }
+    for i in 0..num_vertices {
+        offsets[i + 1] += offsets[i];
+    }
+    offsets
+}
+
 fn count_fans(cs: &[(u32, u32)]) -> usize {
     let n = cs.len();
     let mut group: Vec<usize> = (0..n).collect();

@@ -4,7 +4,7 @@
 use rayon::prelude::*;
 use sprs::CsMat;
 
-use crate::mesh::{cross, dot, norm, sub, Point, Real};
+use crate::mesh::{corner_offsets, cross, dot, norm, sub, Point, Real};
 
 /// The symmetric cotangent matrix `Lbar`, `#V×#V`, CSR.
 ///
@@ -30,15 +30,7 @@ use crate::mesh::{cross, dot, norm, sub, Point, Real};
 pub fn cotmatrix(positions: &[Point], triangles: &[[u32; 3]]) -> CsMat<Real> {
     let n = positions.len();
     // vertex -> incident (face, corner) as CSR
-    let mut start = vec![0usize; n + 1];
-    for t in triangles {
-        for &v in t {
-            start[v as usize + 1] += 1;
-        }
-    }
-    for i in 0..n {
-        start[i + 1] += start[i];
-    }
+    let start = corner_offsets(n, triangles);
     let mut fill = start.clone();
     let mut corners = vec![(0u32, 0u8); triangles.len() * 3];
     for (f, t) in triangles.iter().enumerate() {
