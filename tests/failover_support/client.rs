@@ -79,9 +79,14 @@ pub async fn drive(
     let mut seq_next;
     let mut down_since: Option<Instant> = None;
     'connect: while !shared.stop.load(Ordering::Relaxed) {
-        let mut ws = match s.connect().await {
-            Ok(ws) => ws,
-            Err(_) => {
+        // a frozen instance (SIGSTOP) still completes TCP handshakes from
+        // its listen backlog but never answers the upgrade, and HAProxy
+        // waits `timeout server` (60 s) for it: give up after 5 s, as a
+        // real client would, and go through HAProxy again (by then it has
+        // marked the instance down)
+        let mut ws = match tokio::time::timeout(Duration::from_secs(5), s.connect()).await {
+            Ok(Ok(ws)) => ws,
+            Ok(Err(_)) | Err(_) => {
                 down_since.get_or_insert_with(Instant::now);
                 tokio::time::sleep(Duration::from_millis(50)).await;
                 continue;
