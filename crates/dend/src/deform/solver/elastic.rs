@@ -160,7 +160,7 @@ impl Deformer {
         };
         if nu == 0 {
             report.converged = true;
-            self.sync_pose(factor, constraints);
+            self.sync_pose(factor);
             return Ok(report);
         }
         let accelerate = fit && self.params.anderson > 0;
@@ -238,7 +238,7 @@ impl Deformer {
         }
         report.objective = e;
         self.elastic.chain = Some((factor.id(), e));
-        self.sync_pose(factor, constraints);
+        self.sync_pose(factor);
         Ok(report)
     }
 

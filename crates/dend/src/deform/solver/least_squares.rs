@@ -63,7 +63,10 @@ pub(super) struct Scratch {
     rhs: Vec<Real>,
     y_prev: Vec<Point>,
     best: Vec<Point>,
+    /// The constrained vertices and their normalised targets, and the
+    /// same targets in mesh units as given (`load_targets`).
     pub(super) targets: Vec<(u32, Point)>,
+    pub(super) targets_given: Vec<Point>,
     /// Anderson history and flat `3|U|` buffers (current iterate, candidate).
     anderson: Anderson,
     x_flat: Vec<Real>,
@@ -157,7 +160,7 @@ impl Deformer {
         let nu = factor.sys.unknowns.len();
         if nu == 0 {
             report.converged = true;
-            self.sync_pose(factor, constraints);
+            self.sync_pose(factor);
             return Ok(report);
         }
         for _ in 0..max_iters {
@@ -222,7 +225,7 @@ impl Deformer {
                 aa_backoff,
             });
         }
-        self.sync_pose(factor, constraints);
+        self.sync_pose(factor);
         Ok(report)
     }
 

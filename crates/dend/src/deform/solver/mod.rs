@@ -181,6 +181,7 @@ impl Deformer {
         let ops = &self.rest.ops;
         let s = &mut self.scratch;
         s.targets.clear();
+        s.targets_given.clear();
         for (&v, &p) in constraints.fixed.iter().zip(&constraints.fixed_at) {
             if p.iter().any(|c| !c.is_finite()) {
                 return Err(DeformError::NonFinite {
@@ -188,6 +189,7 @@ impl Deformer {
                 });
             }
             s.targets.push((v, ops.normalise(p)));
+            s.targets_given.push(p);
         }
         for h in &constraints.handles {
             for (v, p) in h.target_positions() {
@@ -197,6 +199,7 @@ impl Deformer {
                     });
                 }
                 s.targets.push((v, ops.normalise(p)));
+                s.targets_given.push(p);
             }
         }
         let hard = factor.sys.lambda1 == 0.0;
@@ -212,23 +215,19 @@ impl Deformer {
     }
 
     /// The mesh-unit pose from `Y`. Hard-constrained vertices get their
-    /// targets as given, not through the normalisation's round trip
-    /// (`denormalise(normalise(p))` can differ from `p` in the last bit): a
-    /// fixed vertex keeps its stored bits, so an asset export leaves what
-    /// did not move byte for byte.
-    fn sync_pose(&mut self, factor: &Factor, constraints: &Constraints) {
+    /// targets as given (kept by `load_targets`), not through the
+    /// normalisation's round trip (`denormalise(normalise(p))` can differ
+    /// from `p` in the last bit): a fixed vertex keeps its stored bits, so
+    /// an asset export leaves what did not move byte for byte.
+    fn sync_pose(&mut self, factor: &Factor) {
         let ops = &self.rest.ops;
         for (p, &y) in self.pose.iter_mut().zip(&self.y) {
             *p = ops.denormalise(y);
         }
         if factor.sys.lambda1 == 0.0 {
-            for (&v, &p) in constraints.fixed.iter().zip(&constraints.fixed_at) {
+            let s = &self.scratch;
+            for (&(v, _), &p) in s.targets.iter().zip(&s.targets_given) {
                 self.pose[v as usize] = p;
-            }
-            for h in &constraints.handles {
-                for (v, p) in h.target_positions() {
-                    self.pose[v as usize] = p;
-                }
             }
         }
     }
