@@ -304,6 +304,18 @@ mod tests {
     use proptest::prelude::*;
     use sprs::TriMat;
 
+    /// A reproducible stream of pseudo-random `usize`s (Knuth's MMIX linear
+    /// congruential generator, high bits) for the tests' random matrices.
+    fn lcg(seed: u64) -> impl FnMut() -> usize {
+        let mut state = seed;
+        move || {
+            state = state
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            (state >> 33) as usize
+        }
+    }
+
     fn random(rows: usize, cols: usize, entries: &[(usize, usize, f64)]) -> CsMat<f64> {
         let mut t = TriMat::new((rows, cols));
         for &(r, c, v) in entries {
@@ -357,13 +369,7 @@ mod tests {
     #[test]
     fn parallel_blocks_match_sprs() {
         let (r, k, c) = (3 * ROW_BLOCK + 17, 900, 800);
-        let mut state = 12345u64;
-        let mut next = || {
-            state = state
-                .wrapping_mul(6364136223846793005)
-                .wrapping_add(1442695040888963407);
-            (state >> 33) as usize
-        };
+        let mut next = lcg(12345u64);
         let ea: Vec<_> = (0..40 * r)
             .map(|_| (next() % r, next() % k, (next() % 1000) as f64 / 500.0 - 1.0))
             .collect();
@@ -405,13 +411,7 @@ mod tests {
     #[test]
     fn mul_columns_matches_dense_products() {
         let (rows, cols) = (PARALLEL_MIN_ROWS + 33, 700);
-        let mut state = 99u64;
-        let mut next = || {
-            state = state
-                .wrapping_mul(6364136223846793005)
-                .wrapping_add(1442695040888963407);
-            (state >> 33) as usize
-        };
+        let mut next = lcg(99u64);
         let entries: Vec<_> = (0..8 * rows)
             .map(|_| {
                 (
@@ -450,13 +450,7 @@ mod tests {
     #[test]
     fn pattern_then_values_equal_the_product() {
         let (r, k) = (3 * ROW_BLOCK + 5, 700);
-        let mut state = 99u64;
-        let mut next = || {
-            state = state
-                .wrapping_mul(6364136223846793005)
-                .wrapping_add(1442695040888963407);
-            (state >> 33) as usize
-        };
+        let mut next = lcg(99u64);
         let e: Vec<_> = (0..30 * r)
             .map(|_| (next() % r, next() % k, (next() % 1000) as f64 / 500.0 - 1.0))
             .collect();
