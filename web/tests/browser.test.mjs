@@ -19,7 +19,7 @@ import { join } from 'node:path';
 import assert from 'node:assert/strict';
 import {
   root, artifacts, log, launch, startServer as start, waitFor, waitForPose, serverPose, maxDiff,
-  pixelDiff, colourCount, screenBox, boxSelect,
+  pixelDiff, pngStats, screenBox, boxSelect,
 } from './lib.mjs';
 
 /** The server's store (SQLite), kept across its restart below. */
@@ -150,7 +150,7 @@ async function main() {
     assert.ok(maxDiff(clientPose, after, all) < 1e-6, 'the client draws the server pose');
     await page.waitForTimeout(200);
     const shotB = await page.locator('#view').screenshot({ path: join(artifacts, '2-after-drag.png') });
-    const colours = await colourCount(page, shotA);
+    const colours = (await pngStats(page, shotA)).colours;
     const changed = await pixelDiff(page, shotA, shotB);
     log('distinct colours', colours, 'changed pixels', (100 * changed).toFixed(1) + '%');
     assert.ok(colours > 20, `WebGL drew a shaded mesh (${colours} colours)`);

@@ -108,8 +108,11 @@ export async function pixelDiff(page, pngA, pngB) {
   }, [pngA.toString('base64'), pngB.toString('base64')]);
 }
 
-/** Distinct colours in a PNG (checks WebGL really drew something). */
-export async function colourCount(page, png) {
+/** Pixel statistics of a PNG, decoded by the browser: `colours`, the
+ * distinct colours (5 bits a channel, every 4th pixel; checks WebGL really
+ * drew something), and `dark`, the pixels darker than 70 in every channel
+ * (the region hatch's stripes). */
+export async function pngStats(page, png) {
   return page.evaluate(async (b64) => {
     const img = new Image();
     img.src = `data:image/png;base64,${b64}`;
@@ -120,8 +123,12 @@ export async function colourCount(page, png) {
     g.drawImage(img, 0, 0);
     const d = g.getImageData(0, 0, c.width, c.height).data;
     const s = new Set();
-    for (let i = 0; i < d.length; i += 16) s.add((d[i] >> 3) * 1024 + (d[i + 1] >> 3) * 32 + (d[i + 2] >> 3));
-    return s.size;
+    let dark = 0;
+    for (let i = 0; i < d.length; i += 4) {
+      if (i % 16 === 0) s.add((d[i] >> 3) * 1024 + (d[i + 1] >> 3) * 32 + (d[i + 2] >> 3));
+      if (d[i] < 70 && d[i + 1] < 70 && d[i + 2] < 70) dark++;
+    }
+    return { colours: s.size, dark };
   }, png.toString('base64'));
 }
 

@@ -16,7 +16,7 @@ import { mkdtempSync, rmSync } from 'node:fs';
 import { tmpdir } from 'node:os';
 import { join } from 'node:path';
 import assert from 'node:assert/strict';
-import { artifacts, log, launch, startServer, waitFor, waitForPose, serverPose, screenBox, boxSelect } from './lib.mjs';
+import { artifacts, log, launch, startServer, waitFor, waitForPose, serverPose, screenBox, boxSelect, pngStats } from './lib.mjs';
 
 const dataDir = mkdtempSync(join(tmpdir(), 'dend-web-tools-'));
 
@@ -174,23 +174,6 @@ async function lassoSelect(page) {
   await page.click('#clearSel');
 }
 
-/** Dark pixels (the hatch's stripes) in a PNG, decoded by the browser. */
-async function darkPixels(page, png) {
-  return page.evaluate(async (b64) => {
-    const img = new Image();
-    img.src = `data:image/png;base64,${b64}`;
-    await img.decode();
-    const c = document.createElement('canvas');
-    [c.width, c.height] = [img.width, img.height];
-    const g = c.getContext('2d');
-    g.drawImage(img, 0, 0);
-    const d = g.getImageData(0, 0, c.width, c.height).data;
-    let k = 0;
-    for (let i = 0; i < d.length; i += 4) if (d[i] < 70 && d[i + 1] < 70 && d[i + 2] < 70) k++;
-    return k;
-  }, png.toString('base64'));
-}
-
 async function strayVertex(page) {
   // The bar (from lassoSelect), side view; one vertex in the middle of the
   // +x side painted fixed with the smallest brush: the faces around it
@@ -222,7 +205,7 @@ async function strayVertex(page) {
   assert.deepEqual(mixed, around, 'exactly the faces around the stray vertex are marked');
   await page.waitForTimeout(100);
   const after = await page.screenshot({ clip, path: join(artifacts, 't3-stray-vertex.png') });
-  const [d0, d1] = [await darkPixels(page, before), await darkPixels(page, after)];
+  const [d0, d1] = [(await pngStats(page, before)).dark, (await pngStats(page, after)).dark];
   log('dark (hatch) pixels around it:', d0, 'before,', d1, 'after');
   assert.ok(d1 > d0 + 40, `the hatch is drawn around the stray vertex (${d0} → ${d1} dark pixels)`);
   await page.click('#clearSel');
