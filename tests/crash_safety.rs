@@ -22,7 +22,7 @@ use dend::deform::{ConstraintsSpec, RigidTransform};
 use dend::mesh::Mesh;
 use dend_client::{Client, WsClient, WsEvent};
 use dend_server::session::Recovered;
-use dend_server::store::{JournalEntry, SqliteStore, Store};
+use dend_server::store::{SqliteStore, Store};
 use nalgebra::{Quaternion, UnitQuaternion};
 use parking_lot::Mutex;
 use rand::rngs::StdRng;
@@ -252,19 +252,7 @@ async fn kill_9_loses_no_acknowledged_drag() -> Res<()> {
             let journal = store.journal(&s.id)?;
             let checkpoint = store.get_checkpoint(&s.id)?;
             journaled_total += journal.len();
-            let journaled_seq = journal
-                .iter()
-                .map(|JournalEntry::Drag { seq, .. }| *seq)
-                .max()
-                .unwrap_or(0);
-            let rec = Recovered {
-                ack_seq: checkpoint
-                    .as_ref()
-                    .map_or(0, |c| c.ack_seq)
-                    .max(journaled_seq),
-                checkpoint,
-                journal,
-            };
+            let rec = Recovered::new(checkpoint, journal);
             let mut constraints =
                 serde_json::from_value::<ConstraintsSpec>(stored_spec)?.resolve(&mesh)?;
             rec.apply(&mut constraints)?;

@@ -18,7 +18,7 @@ use subtle::ConstantTimeEq;
 use super::error::ApiError;
 use super::{rest_for, AppState, Config};
 use crate::session::{Recovered, SessionHandle, SessionOptions};
-use crate::store::{JournalEntry, MemoryStore, PgStore, SqliteStore, Store};
+use crate::store::{MemoryStore, PgStore, SqliteStore, Store};
 use dend::deform::Params;
 
 /// Opens the store `config` asks for (PostgreSQL with `store`, SQLite in
@@ -163,19 +163,7 @@ async fn restore(
     let (checkpoint, journal) = st
         .store_call(move |s| Ok((s.get_checkpoint(&key)?, s.journal(&key)?)))
         .await?;
-    let journaled_seq = journal
-        .iter()
-        .map(|JournalEntry::Drag { seq, .. }| *seq)
-        .max()
-        .unwrap_or(0);
-    let recovered = Recovered {
-        ack_seq: checkpoint
-            .as_ref()
-            .map_or(0, |c| c.ack_seq)
-            .max(journaled_seq),
-        checkpoint,
-        journal,
-    };
+    let recovered = Recovered::new(checkpoint, journal);
     tracing::info!(
         session = handle.id(),
         drags = recovered.journal.len(),

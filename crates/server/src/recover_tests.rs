@@ -10,6 +10,7 @@ use std::time::{Duration, Instant};
 
 use super::*;
 use crate::session::SessionState;
+use crate::store::JournalEntry;
 use crate::store::{
     Checkpoint, Fence, LeaseGrant, MemoryStore, SessionRecord, StoreError, StoredAsset,
 };

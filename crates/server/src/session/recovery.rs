@@ -49,6 +49,25 @@ pub fn transform(t: &StoredTransform) -> Result<RigidTransform, StoreError> {
 }
 
 impl Recovered {
+    /// The state from what the store holds: the last checkpoint and the
+    /// journal after it; `ack_seq` is the highest sequence number either
+    /// includes.
+    pub fn new(checkpoint: Option<Checkpoint>, journal: Vec<JournalEntry>) -> Self {
+        let journaled_seq = journal
+            .iter()
+            .map(|JournalEntry::Drag { seq, .. }| *seq)
+            .max()
+            .unwrap_or(0);
+        Recovered {
+            ack_seq: checkpoint
+                .as_ref()
+                .map_or(0, |c| c.ack_seq)
+                .max(journaled_seq),
+            checkpoint,
+            journal,
+        }
+    }
+
     /// Sets `constraints`' handle targets to the recovered ones (checkpoint
     /// targets, then the journal's deltas); a count or index that does not
     /// fit the constraints is [`StoreError::Corrupt`].
