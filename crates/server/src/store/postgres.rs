@@ -40,6 +40,35 @@ pub const POOL_TIMEOUT: Duration = Duration::from_secs(2);
 /// How long the readiness ping waits for a connection.
 pub const PING_TIMEOUT: Duration = Duration::from_millis(500);
 
+/// How long the server lets one of our connections sit idle inside a
+/// transaction before it ends that connection
+/// (`idle_in_transaction_session_timeout`). Our transactions are a few
+/// statements sent back to back, so only a frozen or stalled instance
+/// (SIGSTOP, a long GC-like pause, a half-dead network) ever reaches it;
+/// without it, a fenced write frozen after its `FOR SHARE` would hold the
+/// lease row, and every other instance's takeover would wait for the frozen
+/// one to wake up: the lease would not protect against a frozen owner.
+pub const IDLE_IN_TRANSACTION_TIMEOUT: Duration = Duration::from_secs(5);
+
+/// How long a statement waits for a row lock (`lock_timeout`) before it
+/// fails as [`StoreError::Unavailable`] (SQLSTATE 55P03) and the caller
+/// retries: a backstop above [`IDLE_IN_TRANSACTION_TIMEOUT`].
+pub const LOCK_TIMEOUT: Duration = Duration::from_secs(15);
+
+/// The server settings every pooled connection starts with, appended to
+/// the `options` the URL may already carry.
+fn session_options(existing: Option<&str>) -> String {
+    let ours = format!(
+        "-c idle_in_transaction_session_timeout={} -c lock_timeout={}",
+        IDLE_IN_TRANSACTION_TIMEOUT.as_millis(),
+        LOCK_TIMEOUT.as_millis()
+    );
+    match existing {
+        Some(o) if !o.trim().is_empty() => format!("{o} {ours}"),
+        _ => ours,
+    }
+}
+
 /// The migrations, in order: `(version, SQL)`.
 pub const MIGRATIONS: &[(i32, &str)] = &[
     (
@@ -84,8 +113,14 @@ pub(super) fn pg_err(e: postgres::Error) -> StoreError {
         || e.code().is_some_and(|c| {
             let c = c.code();
             // 08: connection exception; 57P0x: shutdown / cannot connect now;
-            // 53: insufficient resources
-            c.starts_with("08") || c.starts_with("57P0") || c.starts_with("53")
+            // 53: insufficient resources; 55P03: lock wait over
+            // LOCK_TIMEOUT; 25P03: this connection idled in a transaction
+            // past IDLE_IN_TRANSACTION_TIMEOUT and was ended
+            c.starts_with("08")
+                || c.starts_with("57P0")
+                || c.starts_with("53")
+                || c == "55P03"
+                || c == "25P03"
         });
     if unavailable {
         StoreError::Unavailable(e.to_string())
@@ -117,6 +152,8 @@ impl PgStore {
             let _ = config.connect_timeout(POOL_TIMEOUT);
         }
         let _ = config.application_name("dend");
+        let options = session_options(config.get_options());
+        let _ = config.options(&options);
         let manager = PostgresConnectionManager::new(config, NoTls);
         let pool = r2d2::Pool::builder()
             .max_size(max_connections.max(1))

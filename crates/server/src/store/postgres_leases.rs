@@ -4,7 +4,10 @@
 //! not agree. A fenced write reads the lease row `FOR SHARE` in its own
 //! transaction and a takeover updates it (`FOR UPDATE`): a takeover waits
 //! for a fenced write in flight, and a write that starts after a takeover
-//! sees the new revision and is refused. A released lease keeps its row
+//! sees the new revision and is refused. If the writer froze inside its
+//! transaction, the server ends that connection after
+//! [`super::postgres::IDLE_IN_TRANSACTION_TIMEOUT`], which lets the
+//! takeover through and makes the frozen write fail when it wakes. A released lease keeps its row
 //! (expired, `expires` NULL), so revisions only grow. The rule itself is
 //! [`super::lease_rule`]'s, shared with the other backends.
 

@@ -67,3 +67,55 @@ fn damaged_rows_are_corrupt_errors() -> Result<(), StoreError> {
     ));
     Ok(())
 }
+
+/// An owner frozen inside a fenced write (SIGSTOP after its `FOR SHARE` on
+/// the lease row, before its commit) must not hold the lease forever: the
+/// server ends its connection after IDLE_IN_TRANSACTION_TIMEOUT, another
+/// instance's takeover goes through, and the frozen write fails when it
+/// wakes instead of landing. Before the timeout was set, the takeover
+/// waited on the row lock for as long as the owner stayed frozen (the
+/// failover test's frozen-owner step hung on it).
+#[test]
+fn a_frozen_fenced_write_does_not_block_a_takeover() -> Result<(), StoreError> {
+    let Some(cfg) = fresh_pg_database() else {
+        return Ok(());
+    };
+    let a = PgStore::open_config(cfg.clone(), 2)?;
+    let b = PgStore::open_config(cfg, 2)?;
+    a.put_session(&record("s"))?;
+    let ttl = Duration::from_millis(200);
+    let LeaseGrant::Granted { revision, .. } = a.acquire_lease("s", "a", ttl)? else {
+        panic!("a free lease is granted");
+    };
+    // instance a's write, frozen between its fence check and its commit
+    let mut frozen = a.conn()?;
+    let mut tx = frozen.transaction().map_err(pg_err)?;
+    postgres_leases::check_fence(&mut tx, "s", revision)?;
+    std::thread::sleep(ttl * 2); // the lease expires meanwhile
+    let (done_tx, done) = std::sync::mpsc::channel();
+    let taker = std::thread::spawn(move || {
+        let _ = done_tx.send(b.acquire_lease("s", "b", Duration::from_secs(10)));
+    });
+    let waited = IDLE_IN_TRANSACTION_TIMEOUT + LOCK_TIMEOUT + Duration::from_secs(10);
+    let grant = done
+        .recv_timeout(waited)
+        .expect("the takeover waited on the frozen write's row lock");
+    let _ = taker.join();
+    match grant? {
+        LeaseGrant::Granted {
+            revision: r,
+            taken_over,
+        } => assert!(taken_over && r > revision, "taken over: {r} > {revision}"),
+        other => panic!("an expired lease is taken over, got {other:?}"),
+    }
+    // the frozen write wakes: its connection is gone, nothing lands
+    let woke = tx.execute("SELECT 1", &[]).map_err(pg_err);
+    assert!(
+        matches!(woke, Err(StoreError::Unavailable(_))),
+        "the frozen write's connection was ended: {woke:?}"
+    );
+    drop(tx);
+    assert!(a.append("s", revision, &[drag(1)]).is_err(), "fenced");
+    assert!(a.journal("s")?.is_empty());
+    Ok(())
+}
