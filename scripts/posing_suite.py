@@ -49,7 +49,9 @@ bend cases are also measured with `dend measure` (--bar / --bend over the rest
 z span between the fixed and handle regions, as tests/paper_reproduction.rs).
 
 PASS rules (our pose): mean distortion <= 1.5 x ARAP's, max distortion <= 2 x
-ARAP's; every step converged within 30 iterations; the objectives monotone
+ARAP's; time to settle at least 5 x shorter than ARAP's (measured in the same
+run, or ARAP's from --arap-cache); every step converged within 30 iterations;
+the objectives monotone
 (objectives[k+1] <= objectives[k] * (1 + 1e-9), checked within each step);
 not diverged; bar-135 and survey-bar: min area >= 0.92 and twist dev <= 3
 degrees; bar-300: min area >= 0.8; cylinder-120: bend CV <= 0.15. A case
@@ -408,6 +410,8 @@ def judge(row):
         fails.append(f"mean distortion x{rm:.2f} ARAP")
     if not rx <= 2.0:
         fails.append(f"max distortion x{rx:.2f} ARAP")
+    if not row["settle_ratio"] >= 5.0:
+        fails.append(f"settle only x{row['settle_ratio']:.1f} faster than ARAP")
     for k, s in enumerate(o["steps"], 1):
         if not s.get("converged"):
             fails.append(f"step {k}: not converged in {s.get('iterations')} it")
