@@ -7,9 +7,10 @@
 //! sees the new revision and is refused. If the writer froze inside its
 //! transaction, the server ends that connection after
 //! [`super::postgres::IDLE_IN_TRANSACTION_TIMEOUT`], which lets the
-//! takeover through and makes the frozen write fail when it wakes. A released lease keeps its row
-//! (expired, `expires` NULL), so revisions only grow. The rule itself is
-//! [`super::lease_rule`]'s, shared with the other backends.
+//! takeover through and makes the frozen write fail when it wakes. A
+//! released lease keeps its row (expired, `expires` NULL), so revisions
+//! only grow. The rule itself is [`super::lease_rule`]'s, shared with the
+//! other backends.
 
 use std::time::Duration;
 
