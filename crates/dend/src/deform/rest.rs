@@ -42,7 +42,7 @@ pub struct Rest {
 }
 
 /// What an [`ElasticOps`] depends on besides the rest mesh.
-type ElasticKey = (bool, u64, u64, u64, u64);
+type ElasticKey = (bool, u64, u64, u64, u64, u64);
 
 /// Energy matrices a [`Rest`] keeps (sessions rarely switch energies).
 const ENERGY_CACHE: usize = 4;
@@ -149,6 +149,7 @@ impl Rest {
             params.bending.to_bits(),
             params.lambda2.to_bits(),
             params.area.to_bits(),
+            params.laplacian.to_bits(),
         );
         cached(&self.elastics, key, || {
             ElasticOps::new(&self.mesh, &self.ops, params)

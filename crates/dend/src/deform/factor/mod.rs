@@ -66,6 +66,7 @@ pub struct FactorKey {
     stretch: u64,
     bending: u64,
     area: u64,
+    laplacian: u64,
     constrained: Vec<u32>,
 }
 
@@ -89,6 +90,7 @@ impl FactorKey {
             stretch: params.stretch.to_bits(),
             bending: params.bending.to_bits(),
             area: params.area.to_bits(),
+            laplacian: params.laplacian.to_bits(),
             constrained: constraints.constrained(),
         }
     }

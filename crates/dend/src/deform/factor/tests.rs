@@ -273,3 +273,73 @@ fn both_orderings_factor_and_solve_the_same_system() {
         .fold(0.0f64, |m, (a, b)| m.max((a - b).abs()));
     assert!(diff < 1e-8 * scale, "diff {diff} scale {scale}");
 }
+
+/// Every top-level number of [`Params`] (a weight, a tolerance, a window),
+/// changed by half its value on a rest state and a [`FactorCache`] that
+/// have already served the defaults, gives the pose a fresh rest state
+/// gives: a parameter that shapes the energy but is missing from the
+/// cache keys (the factor's or the rest state's elastic operators) would
+/// reuse the defaults' matrix and fail here. Found with `laplacian`, which
+/// both keys lacked: two sessions on one mesh with different `k_L` shared
+/// the first one's energy.
+#[test]
+fn every_numeric_parameter_reaches_the_cached_energy() {
+    use crate::deform::FactorCache;
+    let k = 9;
+    let mesh = grid(k);
+    let constraints = edit(&mesh, k);
+    let base = Params::default();
+    let pose = |rest: &Arc<Rest>, factor: &Factor, params: Params| {
+        let mut d = Deformer::new(rest.clone(), params);
+        d.step(factor, &constraints, 8).expect("step");
+        d.pose().to_vec()
+    };
+    let serde_json::Value::Object(fields) = serde_json::to_value(base).expect("params to json")
+    else {
+        panic!("Params is not a JSON object");
+    };
+    let mut tried = Vec::new();
+    for (name, value) in &fields {
+        let Some(x) = value.as_f64() else { continue };
+        let changed = if value.is_u64() {
+            serde_json::json!(value.as_u64().unwrap_or(0) + 1)
+        } else if x == 0.0 {
+            serde_json::json!(0.5)
+        } else {
+            serde_json::json!(1.5 * x)
+        };
+        let mut v = serde_json::Value::Object(fields.clone());
+        v[name] = changed;
+        let params: Params = serde_json::from_value(v).expect("params from json");
+        if params.validate().is_err() {
+            continue;
+        }
+        tried.push(name.clone());
+        let rest = Arc::new(Rest::new(mesh.clone()).unwrap());
+        let cache = FactorCache::new(1 << 30);
+        let warm = cache.get_or_build(&rest, &base, &constraints).unwrap();
+        let _ = pose(&rest, &warm, base);
+        let cached = cache.get_or_build(&rest, &params, &constraints).unwrap();
+        let fresh_rest = Arc::new(Rest::new(mesh.clone()).unwrap());
+        let fresh = Factor::build(&fresh_rest, &params, &constraints).unwrap();
+        let (a, b) = (
+            pose(&rest, &cached, params),
+            pose(&fresh_rest, &fresh, params),
+        );
+        let worst = a
+            .iter()
+            .zip(&b)
+            .flat_map(|(p, q)| (0..3).map(move |c| (p[c] - q[c]).abs()))
+            .fold(0.0, f64::max);
+        assert!(
+            worst < 1e-9,
+            "{name}: the cached pose is {worst:.3e} off the fresh one"
+        );
+    }
+    for name in ["laplacian", "stretch", "bending", "area", "lambda2"] {
+        assert!(
+            tried.iter().any(|t| t == name),
+            "{name} was not tried: {tried:?}"
+        );
+    }
+}
