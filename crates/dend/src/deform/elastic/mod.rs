@@ -254,7 +254,61 @@ impl ElasticOps {
     }
 
     /// `Q` assembled from its terms for the rows where `free` is true.
+    ///
+    /// With the Laplacian term, `Lbar diag(·) L` has the widest pattern (the
+    /// 2-ring, which holds the spokes' and `Lbar`'s 1-ring) and its product
+    /// is computed first; the spokes and the area term are then added into
+    /// its entries in place ([`ElasticOps::add_into_product`]): no triplets
+    /// to sort and no sparse sums, which halved the factor's assembly time
+    /// (camel 9770: 51 → 28 ms, feline 50k: 322 → 159 ms, best of 8 runs
+    /// each on one loaded host).
     fn assemble_q(&self, ops: &Operators, free: &[bool]) -> CsMat<Real> {
+        if self.kbl > 0.0 {
+            let mut q = matmul(&ops.lbar, &self.scaled_l(ops, free));
+            if self.add_into_product(ops, free, &mut q).is_some() {
+                return q;
+            }
+        }
+        self.assemble_q_from_triplets(ops, free)
+    }
+
+    /// `diag(kbl [free]) L`, the right factor of the Laplacian term.
+    fn scaled_l(&self, ops: &Operators, free: &[bool]) -> CsMat<Real> {
+        let mut right = ops.l.clone();
+        for (i, mut row) in right.outer_iterator_mut().enumerate() {
+            let s = if free[i] { self.kbl } else { 0.0 };
+            row.iter_mut().for_each(|(_, v)| *v *= s);
+        }
+        right
+    }
+
+    /// Adds `K_c` (the kept spokes) and `−k_a Lbar` into `q`'s stored
+    /// entries, or `None` (with `q` part-updated) when one is not stored.
+    fn add_into_product(&self, ops: &Operators, free: &[bool], q: &mut CsMat<Real>) -> Option<()> {
+        for i in (0..free.len()).filter(|&i| free[i]) {
+            for s in self.ptr[i]..self.ptr[i + 1] {
+                let (j, w) = (self.nbr[s] as usize, self.c[s]);
+                if w != 0.0 {
+                    *q.get_mut(i, i)? += w;
+                    *q.get_mut(j, j)? += w;
+                    *q.get_mut(i, j)? -= w;
+                    *q.get_mut(j, i)? -= w;
+                }
+            }
+        }
+        if self.ka > 0.0 {
+            for (i, row) in ops.lbar.outer_iterator().enumerate() {
+                for (j, &v) in row.iter() {
+                    *q.get_mut(i, j)? -= self.ka * v;
+                }
+            }
+        }
+        Some(())
+    }
+
+    /// [`ElasticOps::assemble_q`] from triplets and sparse sums, for any
+    /// weights (the reference the in-place assembly is tested against).
+    fn assemble_q_from_triplets(&self, ops: &Operators, free: &[bool]) -> CsMat<Real> {
         let n = free.len();
         // K_c: each kept spoke adds c to both diagonals, −c off them
         let mut k = TriMat::new((n, n));
@@ -272,12 +326,7 @@ impl ElasticOps {
         let mut q: CsMat<Real> = k.to_csr();
         if self.kbl > 0.0 {
             // Lᵀ diag(b ∘ free) L = Lbar diag(kbl [free] / A) Lbar
-            let mut right = ops.l.clone();
-            for (i, mut row) in right.outer_iterator_mut().enumerate() {
-                let s = if free[i] { self.kbl } else { 0.0 };
-                row.iter_mut().for_each(|(_, v)| *v *= s);
-            }
-            q = &q + &matmul(&ops.lbar, &right);
+            q = &q + &matmul(&ops.lbar, &self.scaled_l(ops, free));
         }
         if self.ka > 0.0 {
             let mut area = ops.lbar.clone();
