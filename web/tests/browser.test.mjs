@@ -433,6 +433,23 @@ async function main() {
     await waitFor(page, () => window.dend.app.positions && window.dend.app.positions.length === 48 && window.dend.app.ws, null, 'the uploaded grid');
     assert.match(await page.locator('#meshinfo').textContent(), /^16 vertices, 18 triangles/);
 
+    // Weights "characters": the new session is asked for k_s 2 and k_L ½
+    // with the elastic formulation, and the server takes them.
+    await page.selectOption('#weights', 'characters');
+    const [req] = await Promise.all([
+      page.waitForRequest((r) => r.method() === 'POST' && new URL(r.url()).pathname === '/v1/sessions'),
+      page.click('#applyParams'),
+    ]);
+    const sent = JSON.parse(req.postData()).params;
+    assert.equal(sent.formulation, 'elastic');
+    assert.equal(sent.stretch, 2);
+    assert.equal(sent.laplacian, 0.5);
+    const created = await req.response();
+    assert.ok(created && created.ok(), `the server takes the characters' weights (${created && created.status()})`);
+    const newId = (await created.json()).id;
+    await waitFor(page, (id) => window.dend.app.session && window.dend.app.session.id === id && window.dend.app.ws, newId, 'the session with the characters\' weights');
+    log('weights "characters" sent and taken:', JSON.stringify({ stretch: sent.stretch, laplacian: sent.laplacian }));
+
     assert.deepEqual(pageErrors, [], 'no page or console errors');
     writeFileSync(join(artifacts, 'result.txt'), `ok\nlatencies_ms ${stats.latencies.join(' ')}\n`);
     log('ok');
