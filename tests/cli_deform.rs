@@ -219,3 +219,52 @@ fn formulation_flag_selects_the_square_system_and_rejects_unknown_names() {
     assert_eq!(o.status.code(), Some(2), "{stderr}");
     assert!(stderr.contains("unknown formulation"), "{stderr}");
 }
+
+/// `--weights characters` is `--stretch 2 --laplacian 0.5` (the same pose
+/// to the last written digit), differs from the defaults, and yields to an
+/// explicit `--stretch`.
+#[test]
+fn characters_weights_are_the_documented_stretch_and_laplacian() {
+    let dir = tempfile::tempdir().unwrap();
+    let bar = dir.path().join("bar.obj");
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let example = root.join("examples/bar-twist-135.json");
+    assert!(dend(&["gen", "bar", "-o", bar.to_str().unwrap()])
+        .status
+        .success());
+    let pose = |name: &str, extra: &[&str]| {
+        let out = dir.path().join(name);
+        let mut args = vec![
+            "deform",
+            bar.to_str().unwrap(),
+            "--constraints",
+            example.to_str().unwrap(),
+            "-o",
+            out.to_str().unwrap(),
+        ];
+        args.extend_from_slice(extra);
+        let o = dend(&args);
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        std::fs::read_to_string(&out).unwrap()
+    };
+    let preset = pose("preset.obj", &["--weights", "characters"]);
+    let explicit = pose("explicit.obj", &["--stretch", "2", "--laplacian", "0.5"]);
+    let defaults = pose("defaults.obj", &[]);
+    let overridden = pose(
+        "overridden.obj",
+        &["--weights", "characters", "--stretch", "1"],
+    );
+    let laplacian_only = pose("laplacian.obj", &["--laplacian", "0.5"]);
+    assert_eq!(preset, explicit);
+    assert_ne!(preset, defaults);
+    assert_eq!(overridden, laplacian_only);
+    let o = dend(&[
+        "deform",
+        bar.to_str().unwrap(),
+        "-o",
+        "x.obj",
+        "--weights",
+        "cartoon",
+    ]);
+    assert_eq!(o.status.code(), Some(2));
+}

@@ -43,18 +43,21 @@ pub struct Args {
     /// Bending weight k_b of the combined energy (least_squares, square).
     #[arg(long, default_value_t = 1.0)]
     kb: f64,
-    /// Elastic formulation: stretch weight k_s (ARAP's spokes), dimensionless.
-    #[arg(long, default_value_t = 1.0)]
-    stretch: f64,
+    /// Elastic formulation: weight set, general (the defaults) or characters (stretch 2, Laplacian share ½: closer to ARAP's edge lengths on characters, less area kept in twisted bars; docs/posing.md). --stretch and --laplacian override it.
+    #[arg(long, default_value = "general", value_parser = ["general", "characters"])]
+    weights: String,
+    /// Elastic formulation: stretch weight k_s (ARAP's spokes), dimensionless [default: 1, or 2 with --weights characters].
+    #[arg(long)]
+    stretch: Option<f64>,
     /// Elastic formulation: bending weight β (E_T weighted β × surface area), dimensionless.
     #[arg(long, default_value_t = dend::deform::DEFAULT_BENDING)]
     bending: f64,
     /// Elastic formulation: area-preservation weight k_a, dimensionless.
     #[arg(long, default_value_t = dend::deform::DEFAULT_AREA)]
     area: f64,
-    /// Elastic formulation: weight k_L of the Laplacian part of the bending energy (the rotated detail rows), dimensionless; 1 with λ2 = 1 is E_T exactly.
-    #[arg(long, default_value_t = dend::deform::DEFAULT_LAPLACIAN)]
-    laplacian: f64,
+    /// Elastic formulation: weight k_L of the Laplacian part of the bending energy (the rotated detail rows), dimensionless; 1 with λ2 = 1 is E_T exactly [default: 1, or 0.5 with --weights characters].
+    #[arg(long)]
+    laplacian: Option<f64>,
     /// Linear detail term (δ̂ = δ, paper eq. 15) instead of the nonlinear one.
     #[arg(long)]
     linear: bool,
@@ -209,6 +212,11 @@ fn params_of(args: &Args) -> anyhow::Result<Params> {
         None if args.paper => Energy::TotalCurvaturePaper,
         None => Energy::TotalCurvature,
     };
+    let weights = if args.weights == "characters" {
+        Params::default().for_characters()
+    } else {
+        Params::default()
+    };
     let params = Params {
         energy,
         lambda1: args.soft.unwrap_or(0.0),
@@ -226,9 +234,9 @@ fn params_of(args: &Args) -> anyhow::Result<Params> {
         tol: args.tol,
         max_iters: args.max_iters,
         anderson: args.anderson,
-        stretch: args.stretch,
+        stretch: args.stretch.unwrap_or(weights.stretch),
         bending: args.bending,
-        laplacian: args.laplacian,
+        laplacian: args.laplacian.unwrap_or(weights.laplacian),
         area: args.area,
         formulation: match &args.formulation {
             Some(name) => Formulation::from_name(name).with_context(|| {
