@@ -214,7 +214,7 @@ impl Params {
     /// meet every rule against 7 with the defaults, every character's edge
     /// distortion is closer to ARAP's and the armadillo's standard edit
     /// converges in 22 iterations instead of 44; the defaults keep twisted
-    /// bars' cross-sections better (300° bar min area 0.80 against 0.76).
+    /// bars' cross-sections better (300° bar min area 0.80 against 0.72).
     pub fn for_characters(self) -> Params {
         Params {
             stretch: CHARACTERS_STRETCH,
