@@ -220,9 +220,10 @@ fn formulation_flag_selects_the_square_system_and_rejects_unknown_names() {
     assert!(stderr.contains("unknown formulation"), "{stderr}");
 }
 
-/// `--weights characters` is `--stretch 2 --laplacian 0.5` (the same pose
-/// to the last written digit), differs from the defaults, and yields to an
-/// explicit `--stretch`.
+/// `--weights characters` is `--stretch 2 --laplacian 0.5 --coarse-ratio
+/// 3` (the same pose to the last written digit), differs from the
+/// defaults, and yields to an explicit `--stretch`; a coarse ratio under 2
+/// is refused with exit code 2.
 #[test]
 fn characters_weights_are_the_documented_stretch_and_laplacian() {
     let dir = tempfile::tempdir().unwrap();
@@ -248,7 +249,17 @@ fn characters_weights_are_the_documented_stretch_and_laplacian() {
         std::fs::read_to_string(&out).unwrap()
     };
     let preset = pose("preset.obj", &["--weights", "characters"]);
-    let explicit = pose("explicit.obj", &["--stretch", "2", "--laplacian", "0.5"]);
+    let explicit = pose(
+        "explicit.obj",
+        &[
+            "--stretch",
+            "2",
+            "--laplacian",
+            "0.5",
+            "--coarse-ratio",
+            "3",
+        ],
+    );
     let defaults = pose("defaults.obj", &[]);
     let overridden = pose(
         "overridden.obj",
@@ -267,4 +278,17 @@ fn characters_weights_are_the_documented_stretch_and_laplacian() {
         "cartoon",
     ]);
     assert_eq!(o.status.code(), Some(2));
+    let o = dend(&[
+        "deform",
+        bar.to_str().unwrap(),
+        "--constraints",
+        example.to_str().unwrap(),
+        "-o",
+        dir.path().join("r1.obj").to_str().unwrap(),
+        "--coarse-ratio",
+        "1",
+    ]);
+    let stderr = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(2), "{stderr}");
+    assert!(stderr.contains("coarse_ratio"), "{stderr}");
 }

@@ -43,7 +43,7 @@ pub struct Args {
     /// Bending weight k_b of the combined energy (least_squares, square).
     #[arg(long, default_value_t = 1.0)]
     kb: f64,
-    /// Elastic formulation: weight set, general (the defaults) or characters (stretch 2, Laplacian share ½: closer to ARAP's edge lengths on characters, less area kept in twisted bars; docs/posing.md). --stretch and --laplacian override it.
+    /// Elastic formulation: weight set, general (the defaults) or characters (stretch 2, Laplacian share ½, coarse ratio 3: closer to ARAP's edge lengths on characters and faster on their limbs, less area kept in twisted bars; docs/posing.md). --stretch, --laplacian and --coarse-ratio override it.
     #[arg(long, default_value = "general", value_parser = ["general", "characters"])]
     weights: String,
     /// Elastic formulation: stretch weight k_s (ARAP's spokes), dimensionless [default: 1, or 2 with --weights characters].
@@ -58,6 +58,9 @@ pub struct Args {
     /// Elastic formulation: weight k_L of the Laplacian part of the bending energy (the rotated detail rows), dimensionless; 1 with λ2 = 1 is E_T exactly [default: 1, or 0.5 with --weights characters].
     #[arg(long)]
     laplacian: Option<f64>,
+    /// Elastic formulation: most fine vertices per coarse vertex of the two-level iteration, at least 2 [default: 8, or 3 with --weights characters].
+    #[arg(long)]
+    coarse_ratio: Option<usize>,
     /// Linear detail term (δ̂ = δ, paper eq. 15) instead of the nonlinear one.
     #[arg(long)]
     linear: bool,
@@ -237,6 +240,7 @@ fn params_of(args: &Args) -> anyhow::Result<Params> {
         stretch: args.stretch.unwrap_or(weights.stretch),
         bending: args.bending,
         laplacian: args.laplacian.unwrap_or(weights.laplacian),
+        coarse_ratio: args.coarse_ratio.unwrap_or(weights.coarse_ratio),
         area: args.area,
         formulation: match &args.formulation {
             Some(name) => Formulation::from_name(name).with_context(|| {

@@ -36,9 +36,10 @@ pub struct Rest {
     /// The elastic formulation's operators built so far, by weights (most
     /// recent last), at most [`ENERGY_CACHE`].
     elastics: Mutex<Vec<(ElasticKey, Arc<ElasticOps>)>>,
-    /// The coarse level of the elastic solver's start (`deform::coarse`),
-    /// built on first use; set to `None` on a coarse level itself.
-    coarse: std::sync::OnceLock<Option<Arc<CoarseLevel>>>,
+    /// The coarse levels of the elastic solver (`deform::coarse`) by
+    /// simplification ratio, built on first use; `None` (no level at any
+    /// ratio) on a coarse level itself.
+    coarse: Mutex<Option<Vec<(usize, Option<Arc<CoarseLevel>>)>>>,
 }
 
 /// What an [`ElasticOps`] depends on besides the rest mesh.
@@ -81,7 +82,7 @@ impl Rest {
             active,
             energies: Mutex::new(Vec::new()),
             elastics: Mutex::new(Vec::new()),
-            coarse: std::sync::OnceLock::new(),
+            coarse: Mutex::new(Some(Vec::new())),
         })
     }
 
@@ -89,7 +90,7 @@ impl Rest {
     /// state: two levels, not more).
     pub(super) fn single_level(mesh: Mesh) -> Result<Rest, DeformError> {
         let rest = Rest::new(mesh)?;
-        let _ = rest.coarse.set(None);
+        *rest.coarse.lock().unwrap_or_else(|e| e.into_inner()) = None;
         Ok(rest)
     }
 
@@ -97,10 +98,34 @@ impl Rest {
     /// call (about the cost of one `Rest::new` of the fine mesh and a
     /// simplification) and kept; `None` for meshes under
     /// `coarse::MIN_VERTICES` vertices or whose simplification failed.
-    pub(crate) fn coarse(&self) -> Option<&Arc<CoarseLevel>> {
-        self.coarse
-            .get_or_init(|| CoarseLevel::new(self).map(Arc::new))
-            .as_ref()
+    pub(crate) fn coarse(&self) -> Option<Arc<CoarseLevel>> {
+        self.coarse_at_most(super::coarse::RATIO)
+    }
+
+    /// [`Rest::coarse`] simplified at most `max_ratio` times
+    /// ([`Params::coarse_ratio`]); levels are kept by their actual ratio,
+    /// so small meshes share one.
+    ///
+    /// [`Params::coarse_ratio`]: super::Params::coarse_ratio
+    pub(crate) fn coarse_at_most(&self, max_ratio: usize) -> Option<Arc<CoarseLevel>> {
+        let ratio = super::coarse::ratio_at_most(self.mesh.num_vertices(), max_ratio);
+        {
+            let guard = self.coarse.lock().unwrap_or_else(|e| e.into_inner());
+            let levels = guard.as_ref()?;
+            if let Some((_, level)) = levels.iter().find(|(r, _)| *r == ratio) {
+                return level.clone();
+            }
+        }
+        // built outside the lock (as long as a fine `Rest::new`); a racing
+        // build of the same ratio is dropped in favour of the first stored
+        let built = CoarseLevel::new(self, ratio).map(Arc::new);
+        let mut guard = self.coarse.lock().unwrap_or_else(|e| e.into_inner());
+        let levels = guard.as_mut()?;
+        if let Some((_, level)) = levels.iter().find(|(r, _)| *r == ratio) {
+            return level.clone();
+        }
+        levels.push((ratio, built.clone()));
+        built
     }
 
     /// Builds the coarse level now if the mesh has one (it is otherwise

@@ -47,12 +47,15 @@ pub const MIN_COARSE_VERTICES: usize = 500;
 
 /// Fine vertices per coarse vertex, at most (meshes of `8 × 500 = 4000`
 /// vertices or more); smaller meshes use `#V / 500`.
-pub const RATIO: usize = 8;
+pub const RATIO: usize = crate::deform::params::DEFAULT_COARSE_RATIO;
 
 /// The simplification ratio of a mesh with `n >= MIN_VERTICES` vertices:
-/// `clamp(n / MIN_COARSE_VERTICES, 2, RATIO)`.
-pub fn ratio_for(n: usize) -> usize {
-    (n / MIN_COARSE_VERTICES).clamp(2, RATIO)
+/// `clamp(n / MIN_COARSE_VERTICES, 2, max_ratio)`, `max_ratio` being
+/// [`RATIO`] by default ([`Params::coarse_ratio`]).
+///
+/// [`Params::coarse_ratio`]: crate::deform::Params::coarse_ratio
+pub fn ratio_at_most(n: usize, max_ratio: usize) -> usize {
+    (n / MIN_COARSE_VERTICES).clamp(2, max_ratio.max(2))
 }
 
 /// Smallest number of coarse vertices a constraint group (each handle,
@@ -81,15 +84,16 @@ pub struct CoarseLevel {
 }
 
 impl CoarseLevel {
-    /// The coarse level of `rest`, or `None` when the mesh is small
+    /// The coarse level of `rest` simplified `ratio` times (see
+    /// [`ratio_at_most`]), or `None` when the mesh is small
     /// (< [`MIN_VERTICES`]) or its simplification is not a valid mesh.
-    pub fn new(rest: &Rest) -> Option<CoarseLevel> {
+    pub fn new(rest: &Rest, ratio: usize) -> Option<CoarseLevel> {
         let mesh = rest.mesh();
         let n = mesh.num_vertices();
         if n < MIN_VERTICES {
             return None;
         }
-        let (coarse, fine_of) = coarse_mesh(mesh, ratio_for(n))?;
+        let (coarse, fine_of) = coarse_mesh(mesh, ratio)?;
         let rest_c = Rest::single_level(coarse).ok()?;
         let mut coarse_of = vec![u32::MAX; n];
         for (c, &v) in fine_of.iter().enumerate() {

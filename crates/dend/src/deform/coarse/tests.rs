@@ -96,11 +96,11 @@ fn the_level_of_a_limb_is_a_valid_vertex_subset() {
 
 #[test]
 fn smaller_meshes_keep_at_least_500_coarse_vertices() {
-    assert_eq!(ratio_for(MIN_VERTICES), 2);
-    assert_eq!(ratio_for(1502), 3);
-    assert_eq!(ratio_for(3999), 7);
-    assert_eq!(ratio_for(4000), RATIO);
-    assert_eq!(ratio_for(50_000), RATIO);
+    assert_eq!(ratio_at_most(MIN_VERTICES, RATIO), 2);
+    assert_eq!(ratio_at_most(1502, RATIO), 3);
+    assert_eq!(ratio_at_most(3999, RATIO), 7);
+    assert_eq!(ratio_at_most(4000, RATIO), RATIO);
+    assert_eq!(ratio_at_most(50_000, RATIO), RATIO);
     // a 24 × 64 = 1536-vertex tube: ratio 3, about 512 coarse vertices
     let mesh = generate(&ShapeSpec {
         shape: Shape::Cylinder,
@@ -402,5 +402,64 @@ fn prolongation_keeps_a_constant_field_away_from_the_fixed_part() {
     let want = [n as Real, 2.0 * n as Real, -(n as Real)];
     for k in 0..3 {
         assert!((total[k] - want[k]).abs() < 1e-8 * n as Real, "{total:?}");
+    }
+}
+
+/// `Params::coarse_ratio` picks the level: the 4160-vertex limb gets about
+/// `#V / 8` coarse vertices by default and about `#V / 3` at ratio 3, the
+/// rest state keeps both, and a deformer whose ratio changes between two
+/// steps (same fine factor) solves with the new level: its pose equals a
+/// fresh deformer's at that ratio, and differs from the default ratio's
+/// on this swing. A ratio under 2 is refused.
+#[test]
+fn the_coarse_ratio_parameter_picks_the_level() {
+    let mesh = limb();
+    let n = mesh.num_vertices();
+    let rest = Arc::new(Rest::new(mesh.clone()).unwrap());
+    let coarse8 = rest.coarse_at_most(8).unwrap();
+    let coarse3 = rest.coarse_at_most(3).unwrap();
+    assert!(coarse8.num_vertices() < n / 6, "{}", coarse8.num_vertices());
+    assert!(coarse3.num_vertices() > n / 4, "{}", coarse3.num_vertices());
+    assert!(Arc::ptr_eq(&coarse3, &rest.coarse_at_most(3).unwrap()));
+    assert!(Arc::ptr_eq(&coarse8, &rest.coarse().unwrap()));
+    let c = limb_constraints(&mesh, swing);
+    let base = Params {
+        tol: 1e-2,
+        ..Params::default()
+    };
+    let at3 = Params {
+        coarse_ratio: 3,
+        ..base
+    };
+    let factor = Factor::build(&rest, &base, &c).unwrap();
+    let mut switched = Deformer::new(rest.clone(), base);
+    switched.step(&factor, &c, 3).unwrap();
+    switched.set_params(at3).unwrap();
+    switched.reset();
+    switched.step(&factor, &c, 3).unwrap();
+    let mut fresh = Deformer::new(Arc::new(Rest::new(mesh.clone()).unwrap()), at3);
+    let fresh_factor = Factor::build(fresh.rest(), &at3, &c).unwrap();
+    fresh.step(&fresh_factor, &c, 3).unwrap();
+    let mut default = Deformer::new(rest.clone(), base);
+    default.step(&factor, &c, 3).unwrap();
+    let gap = |a: &Deformer, b: &Deformer| {
+        a.pose()
+            .iter()
+            .zip(b.pose())
+            .flat_map(|(p, q)| (0..3).map(move |k| (p[k] - q[k]).abs()))
+            .fold(0.0, f64::max)
+    };
+    assert!(gap(&switched, &fresh) < 1e-9, "{}", gap(&switched, &fresh));
+    assert!(
+        gap(&switched, &default) > 1e-6,
+        "{}",
+        gap(&switched, &default)
+    );
+    for bad in [0, 1] {
+        let p = Params {
+            coarse_ratio: bad,
+            ..Params::default()
+        };
+        assert!(p.validate().is_err());
     }
 }

@@ -81,9 +81,10 @@ pub(super) struct CoarseProblem {
     coarse_fixed: Vec<bool>,
 }
 
-/// The coarse problem of the fine factor with id `.0`, `None` when the set
-/// does not survive restriction or the coarse factorisation failed.
-pub(super) type CoarseSlot = (u64, Option<Box<CoarseProblem>>);
+/// The coarse problem of the fine factor with id `.0 .0` at the coarse
+/// ratio `.0 .1`, `None` when the set does not survive restriction or the
+/// coarse factorisation failed.
+pub(super) type CoarseSlot = ((u64, usize), Option<Box<CoarseProblem>>);
 
 /// What a coarse start or correction did.
 #[derive(Debug, Clone, Copy, Default)]
@@ -125,8 +126,9 @@ impl Deformer {
         if self.levels == Levels::One {
             return None;
         }
+        let key = (factor.id(), self.params.coarse_ratio);
         let mut problem = match self.coarse.take() {
-            Some((id, p)) if id == factor.id() => p,
+            Some((k, p)) if k == key => p,
             _ => self.coarse_problem(constraints).map(Box::new),
         };
         let out = match problem.as_deref_mut() {
@@ -143,13 +145,13 @@ impl Deformer {
             },
             None => None,
         };
-        self.coarse = Some((factor.id(), problem));
+        self.coarse = Some((key, problem));
         out
     }
 
     /// Builds the coarse problem of `constraints`' set (module docs).
     fn coarse_problem(&self, constraints: &Constraints) -> Option<CoarseProblem> {
-        let level: Arc<CoarseLevel> = self.rest.coarse()?.clone();
+        let level: Arc<CoarseLevel> = self.rest.coarse_at_most(self.params.coarse_ratio)?;
         let cc = level.restrict(constraints)?;
         let factor = Arc::new(Factor::build(&level.rest, &self.params, &cc).ok()?);
         let mut fine_fixed = vec![false; self.y.len()];
