@@ -39,8 +39,11 @@ pub struct Rest {
     /// The coarse levels of the elastic solver (`deform::coarse`) by
     /// simplification ratio, built on first use; `None` (no level at any
     /// ratio) on a coarse level itself.
-    coarse: Mutex<Option<Vec<(usize, Option<Arc<CoarseLevel>>)>>>,
+    coarse: Mutex<Option<Vec<CoarseEntry>>>,
 }
+
+/// A coarse level by its simplification ratio (`None`: the mesh has none).
+type CoarseEntry = (usize, Option<Arc<CoarseLevel>>);
 
 /// What an [`ElasticOps`] depends on besides the rest mesh.
 type ElasticKey = (bool, u64, u64, u64, u64, u64);
