@@ -132,7 +132,14 @@ pub async fn create(
         }
         None
     } else {
-        Some(rest_for(&st, &req.mesh_id).await?)
+        let rest = rest_for(&st, &req.mesh_id).await?;
+        if params.coarse_ratio != dend::deform::DEFAULT_COARSE_RATIO {
+            // this ratio's coarse level, off the first settle's path (the
+            // default one is built when the mesh's rest state is)
+            let (rest, params) = (rest.clone(), params);
+            tokio::task::spawn_blocking(move || rest.prepare_coarse_level_for(&params));
+        }
+        Some(rest)
     };
     let id = new_id();
     let token = hex::encode(rand::random::<[u8; 32]>());

@@ -139,6 +139,15 @@ impl Rest {
         self.coarse().is_some()
     }
 
+    /// [`Rest::prepare_coarse_level`] for `params`' coarse ratio
+    /// ([`Params::coarse_ratio`]; a server calls it when a session with a
+    /// non-default ratio opens).
+    ///
+    /// [`Params::coarse_ratio`]: super::Params::coarse_ratio
+    pub fn prepare_coarse_level_for(&self, params: &super::Params) -> bool {
+        self.coarse_at_most(params.coarse_ratio).is_some()
+    }
+
     /// A process-unique id (factor cache keys refer to it).
     pub fn id(&self) -> u64 {
         self.id
