@@ -14,16 +14,22 @@ fn dend(args: &[&str]) -> std::process::Output {
         .unwrap()
 }
 
-#[test]
-fn readme_bar_twist_meets_the_handle_targets_and_keeps_the_section() {
-    let dir = tempfile::tempdir().unwrap();
-    let bar = dir.path().join("bar.obj");
-    let out = dir.path().join("out.obj");
+/// A generated bar in `dir` and the README's 135° twist constraints for it.
+fn bar_and_twist(dir: &Path) -> (std::path::PathBuf, std::path::PathBuf) {
+    let bar = dir.join("bar.obj");
     let root = Path::new(env!("CARGO_MANIFEST_DIR"));
     let example = root.join("examples/bar-twist-135.json");
     assert!(dend(&["gen", "bar", "-o", bar.to_str().unwrap()])
         .status
         .success());
+    (bar, example)
+}
+
+#[test]
+fn readme_bar_twist_meets_the_handle_targets_and_keeps_the_section() {
+    let dir = tempfile::tempdir().unwrap();
+    let (bar, example) = bar_and_twist(dir.path());
+    let out = dir.path().join("out.obj");
     let o = dend(&[
         "deform",
         bar.to_str().unwrap(),
@@ -227,12 +233,7 @@ fn formulation_flag_selects_the_square_system_and_rejects_unknown_names() {
 #[test]
 fn characters_weights_are_the_documented_stretch_and_laplacian() {
     let dir = tempfile::tempdir().unwrap();
-    let bar = dir.path().join("bar.obj");
-    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
-    let example = root.join("examples/bar-twist-135.json");
-    assert!(dend(&["gen", "bar", "-o", bar.to_str().unwrap()])
-        .status
-        .success());
+    let (bar, example) = bar_and_twist(dir.path());
     let pose = |name: &str, extra: &[&str]| {
         let out = dir.path().join(name);
         let mut args = vec![
