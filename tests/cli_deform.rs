@@ -226,10 +226,10 @@ fn formulation_flag_selects_the_square_system_and_rejects_unknown_names() {
     assert!(stderr.contains("unknown formulation"), "{stderr}");
 }
 
-/// `--weights characters` is `--stretch 2 --laplacian 0.5 --coarse-ratio
-/// 3` (the same pose to the last written digit), differs from the
-/// defaults, and yields to an explicit `--stretch`; a coarse ratio under 2
-/// is refused with exit code 2.
+/// `--weights characters` is `--stretch 3 --laplacian 0.1 --coarse-ratio 3
+/// --corrections while-gaining` (the same pose to the last written digit),
+/// differs from the defaults, and yields to an explicit `--stretch`; a
+/// coarse ratio under 2 is refused with exit code 2.
 #[test]
 fn characters_weights_are_the_documented_stretch_and_laplacian() {
     let dir = tempfile::tempdir().unwrap();
@@ -254,11 +254,13 @@ fn characters_weights_are_the_documented_stretch_and_laplacian() {
         "explicit.obj",
         &[
             "--stretch",
-            "2",
+            "3",
             "--laplacian",
-            "0.5",
+            "0.1",
             "--coarse-ratio",
             "3",
+            "--corrections",
+            "while-gaining",
         ],
     );
     let defaults = pose("defaults.obj", &[]);
@@ -266,7 +268,17 @@ fn characters_weights_are_the_documented_stretch_and_laplacian() {
         "overridden.obj",
         &["--weights", "characters", "--stretch", "1"],
     );
-    let laplacian_only = pose("laplacian.obj", &["--laplacian", "0.5"]);
+    let laplacian_only = pose(
+        "laplacian.obj",
+        &[
+            "--laplacian",
+            "0.1",
+            "--coarse-ratio",
+            "3",
+            "--corrections",
+            "while-gaining",
+        ],
+    );
     assert_eq!(preset, explicit);
     assert_ne!(preset, defaults);
     assert_eq!(overridden, laplacian_only);

@@ -100,7 +100,7 @@ fn keys(y: &yaml_rust2::Yaml) -> BTreeSet<String> {
 /// accepts (it would have caught `square_lu` and `elastic` missing).
 #[test]
 fn params_schema_matches_the_params_type() {
-    use dend::deform::{DetailTerm, Formulation, Mode, Params};
+    use dend::deform::{Corrections, DetailTerm, Formulation, Mode, Params};
     let doc = openapi_doc();
     let props = &doc["components"]["schemas"]["Params"]["properties"];
     let documented = keys(props);
@@ -175,6 +175,21 @@ fn params_schema_matches_the_params_type() {
             [Mode::Default, Mode::Paper]
                 .iter()
                 .map(|m| serde_json::to_value(m).expect("json"))
+                .collect()
+        )
+    );
+    let corrections = [Corrections::WhileFaster, Corrections::WhileGaining];
+    for c in corrections {
+        match c {
+            Corrections::WhileFaster | Corrections::WhileGaining => {}
+        }
+    }
+    assert_eq!(
+        enum_of("corrections"),
+        names(
+            corrections
+                .iter()
+                .map(|c| serde_json::to_value(c).expect("json"))
                 .collect()
         )
     );

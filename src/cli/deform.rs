@@ -7,8 +7,8 @@ use std::time::{Duration, Instant};
 
 use anyhow::{bail, Context};
 use dend::deform::{
-    Constraints, ConstraintsSpec, Deformer, DetailTerm, Energy, Factor, Formulation, Levels, Mode,
-    Params, Rest, RigidTransform, StepReport,
+    Constraints, ConstraintsSpec, Corrections, Deformer, DetailTerm, Energy, Factor, Formulation,
+    Levels, Mode, Params, Rest, RigidTransform, StepReport,
 };
 use dend::mesh::asset::Asset;
 use dend::mesh::io::{self, survey};
@@ -43,10 +43,10 @@ pub struct Args {
     /// Bending weight k_b of the combined energy (least_squares, square).
     #[arg(long, default_value_t = 1.0)]
     kb: f64,
-    /// Elastic formulation: weight set, general (the defaults) or characters (stretch 2, Laplacian share ½, coarse ratio 3: closer to ARAP's edge lengths on characters and faster on their limbs, less area kept in twisted bars; docs/posing.md). --stretch, --laplacian and --coarse-ratio override it.
+    /// Elastic formulation: weight set, general (the defaults) or characters (stretch 3, Laplacian share 0.1, coarse ratio 3, corrections while-gaining: ARAP-like edge lengths on characters and faster limbs, far less area kept in twisted bars; docs/posing.md). --stretch, --laplacian, --coarse-ratio and --corrections override it.
     #[arg(long, default_value = "general", value_parser = ["general", "characters"])]
     weights: String,
-    /// Elastic formulation: stretch weight k_s (ARAP's spokes), dimensionless [default: 1, or 2 with --weights characters].
+    /// Elastic formulation: stretch weight k_s (ARAP's spokes), dimensionless [default: 1, or 3 with --weights characters].
     #[arg(long)]
     stretch: Option<f64>,
     /// Elastic formulation: bending weight β (E_T weighted β × surface area), dimensionless.
@@ -55,12 +55,15 @@ pub struct Args {
     /// Elastic formulation: area-preservation weight k_a, dimensionless.
     #[arg(long, default_value_t = dend::deform::DEFAULT_AREA)]
     area: f64,
-    /// Elastic formulation: weight k_L of the Laplacian part of the bending energy (the rotated detail rows), dimensionless; 1 with λ2 = 1 is E_T exactly [default: 1, or 0.5 with --weights characters].
+    /// Elastic formulation: weight k_L of the Laplacian part of the bending energy (the rotated detail rows), dimensionless; 1 with λ2 = 1 is E_T exactly [default: 1, or 0.1 with --weights characters].
     #[arg(long)]
     laplacian: Option<f64>,
     /// Elastic formulation: most fine vertices per coarse vertex of the two-level iteration, at least 2 [default: 8, or 3 with --weights characters].
     #[arg(long)]
     coarse_ratio: Option<usize>,
+    /// Elastic formulation: when a sequence's coarse corrections stop, while-faster (once one gains less than the fine iterations before it) or while-gaining (once one gains nothing) [default: while-faster, or while-gaining with --weights characters].
+    #[arg(long, value_parser = ["while-faster", "while-gaining"])]
+    corrections: Option<String>,
     /// Linear detail term (δ̂ = δ, paper eq. 15) instead of the nonlinear one.
     #[arg(long)]
     linear: bool,
@@ -241,6 +244,11 @@ fn params_of(args: &Args) -> anyhow::Result<Params> {
         bending: args.bending,
         laplacian: args.laplacian.unwrap_or(weights.laplacian),
         coarse_ratio: args.coarse_ratio.unwrap_or(weights.coarse_ratio),
+        corrections: match args.corrections.as_deref() {
+            Some("while-gaining") => Corrections::WhileGaining,
+            Some(_) => Corrections::WhileFaster,
+            None => weights.corrections,
+        },
         area: args.area,
         formulation: match &args.formulation {
             Some(name) => Formulation::from_name(name).with_context(|| {

@@ -433,8 +433,9 @@ async function main() {
     await waitFor(page, () => window.dend.app.positions && window.dend.app.positions.length === 48 && window.dend.app.ws, null, 'the uploaded grid');
     assert.match(await page.locator('#meshinfo').textContent(), /^16 vertices, 18 triangles/);
 
-    // Weights "characters": the new session is asked for k_s 2, k_L ½ and
-    // coarse ratio 3 with the elastic formulation, and the server takes them.
+    // Weights "characters": the new session is asked for the characters'
+    // parameters (Params::for_characters) with the elastic formulation, and
+    // the server takes them.
     await page.selectOption('#weights', 'characters');
     const [req] = await Promise.all([
       page.waitForRequest((r) => r.method() === 'POST' && new URL(r.url()).pathname === '/v1/sessions'),
@@ -442,9 +443,10 @@ async function main() {
     ]);
     const sent = JSON.parse(req.postData()).params;
     assert.equal(sent.formulation, 'elastic');
-    assert.equal(sent.stretch, 2);
-    assert.equal(sent.laplacian, 0.5);
+    assert.equal(sent.stretch, 3);
+    assert.equal(sent.laplacian, 0.1);
     assert.equal(sent.coarse_ratio, 3);
+    assert.equal(sent.corrections, 'while-gaining');
     const created = await req.response();
     assert.ok(created && created.ok(), `the server takes the characters' weights (${created && created.status()})`);
     const newId = (await created.json()).id;

@@ -43,8 +43,9 @@ pub use factor::{
     BuildStage, Factor, FactorKey, FactorPrecision, FactorTimings, SolveOptions, SolverChoice,
 };
 pub use params::{
-    DetailTerm, Energy, Formulation, Mode, Params, CHARACTERS_COARSE_RATIO, CHARACTERS_LAPLACIAN,
-    CHARACTERS_STRETCH, DEFAULT_AREA, DEFAULT_BENDING, DEFAULT_COARSE_RATIO, DEFAULT_LAPLACIAN,
+    Corrections, DetailTerm, Energy, Formulation, Mode, Params, CHARACTERS_COARSE_RATIO,
+    CHARACTERS_LAPLACIAN, CHARACTERS_STRETCH, DEFAULT_AREA, DEFAULT_BENDING, DEFAULT_COARSE_RATIO,
+    DEFAULT_LAPLACIAN,
 };
 pub use rest::Rest;
 pub use rotation::{best_rotation, fit_rotation, fit_rotation_quat, rotation_from_covariance};

@@ -28,8 +28,12 @@
 //!   first `α ∈ {1, ½, ¼}` where `E_f(Y + αD)` is below the current energy
 //!   (so the objective still never grows), else dropped. Corrections stop
 //!   for the sequence once one gains less than the fine iterations before
-//!   it did, or when the coarse solve does not converge within
-//!   [`CORRECTION_MAX_ITERS`].
+//!   it did ([`Corrections::WhileFaster`], the default; with
+//!   [`Corrections::WhileGaining`] once one gains nothing), or when the
+//!   coarse solve does not converge within [`CORRECTION_MAX_ITERS`].
+//!
+//! [`Corrections::WhileFaster`]: crate::deform::Corrections::WhileFaster
+//! [`Corrections::WhileGaining`]: crate::deform::Corrections::WhileGaining
 
 use std::sync::Arc;
 use std::time::Instant;

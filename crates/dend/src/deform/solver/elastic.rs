@@ -37,7 +37,7 @@ use crate::deform::anderson::Anderson;
 use crate::deform::constraints::Constraints;
 use crate::deform::elastic::{ElasticOps, ElasticSet};
 use crate::deform::factor::Factor;
-use crate::deform::params::DetailTerm;
+use crate::deform::params::{Corrections, DetailTerm};
 use crate::deform::stacked::mul_l;
 use crate::deform::DeformError;
 use crate::mesh::{Point, Real};
@@ -334,7 +334,8 @@ impl Deformer {
 
     /// A coarse correction (`solver/coarse.rs`) of the pose with energy
     /// `e`; returns the energy after it. Corrections stop for the sequence
-    /// once one gains less than the fine iterations since the last one.
+    /// once one gains less than the fine iterations since the last one
+    /// (`Params::corrections`: or once one gains nothing).
     fn correct(
         &mut self,
         factor: &Factor,
@@ -361,7 +362,10 @@ impl Deformer {
         report.coarse_ms += run.ms;
         let st = &mut self.elastic;
         st.since_correction = 0;
-        st.corrections = gain >= gain_before;
+        st.corrections = match self.params.corrections {
+            Corrections::WhileFaster => gain >= gain_before,
+            Corrections::WhileGaining => gain > 0.0,
+        };
         st.e_mark = e;
         e
     }
