@@ -37,13 +37,12 @@ pub struct Rest {
     /// recent last), at most [`ENERGY_CACHE`].
     elastics: Mutex<Vec<(ElasticKey, Arc<ElasticOps>)>>,
     /// The coarse levels of the elastic solver (`deform::coarse`) by
-    /// simplification ratio, built on first use; `None` (no level at any
-    /// ratio) on a coarse level itself.
-    coarse: Mutex<Option<Vec<CoarseEntry>>>,
+    /// simplification ratio (`None`: the mesh has none), built on first
+    /// use, at most [`ENERGY_CACHE`].
+    coarse: Mutex<Vec<(usize, Option<Arc<CoarseLevel>>)>>,
+    /// Whether this is a coarse level itself (two levels, not more).
+    single_level: bool,
 }
-
-/// A coarse level by its simplification ratio (`None`: the mesh has none).
-type CoarseEntry = (usize, Option<Arc<CoarseLevel>>);
 
 /// What an [`ElasticOps`] depends on besides the rest mesh.
 type ElasticKey = (bool, u64, u64, u64, u64, u64);
@@ -85,16 +84,18 @@ impl Rest {
             active,
             energies: Mutex::new(Vec::new()),
             elastics: Mutex::new(Vec::new()),
-            coarse: Mutex::new(Some(Vec::new())),
+            coarse: Mutex::new(Vec::new()),
+            single_level: false,
         })
     }
 
     /// [`Rest::new`] without a coarse level (the coarse level's own rest
     /// state: two levels, not more).
     pub(super) fn single_level(mesh: Mesh) -> Result<Rest, DeformError> {
-        let rest = Rest::new(mesh)?;
-        *rest.coarse.lock().unwrap_or_else(|e| e.into_inner()) = None;
-        Ok(rest)
+        Ok(Rest {
+            single_level: true,
+            ..Rest::new(mesh)?
+        })
     }
 
     /// The coarse level of this mesh (`deform::coarse`), built on first
@@ -111,24 +112,13 @@ impl Rest {
     ///
     /// [`Params::coarse_ratio`]: super::Params::coarse_ratio
     pub(crate) fn coarse_at_most(&self, max_ratio: usize) -> Option<Arc<CoarseLevel>> {
+        if self.single_level {
+            return None;
+        }
         let ratio = super::coarse::ratio_at_most(self.mesh.num_vertices(), max_ratio);
-        {
-            let guard = self.coarse.lock().unwrap_or_else(|e| e.into_inner());
-            let levels = guard.as_ref()?;
-            if let Some((_, level)) = levels.iter().find(|(r, _)| *r == ratio) {
-                return level.clone();
-            }
-        }
-        // built outside the lock (as long as a fine `Rest::new`); a racing
-        // build of the same ratio is dropped in favour of the first stored
-        let built = CoarseLevel::new(self, ratio).map(Arc::new);
-        let mut guard = self.coarse.lock().unwrap_or_else(|e| e.into_inner());
-        let levels = guard.as_mut()?;
-        if let Some((_, level)) = levels.iter().find(|(r, _)| *r == ratio) {
-            return level.clone();
-        }
-        levels.push((ratio, built.clone()));
-        built
+        cached(&self.coarse, ratio, || {
+            CoarseLevel::new(self, ratio).map(Arc::new)
+        })
     }
 
     /// Builds the coarse level now if the mesh has one (it is otherwise
@@ -173,7 +163,7 @@ impl Rest {
         cached(&self.energies, energy, || {
             let a = super::system::energy_matrix(&self.ops, energy);
             let ax = crate::operators::laplacian_coordinates(&a, &self.ops.positions);
-            EnergyOperator { a, ax }
+            Arc::new(EnergyOperator { a, ax })
         })
     }
 
@@ -189,7 +179,7 @@ impl Rest {
             params.laplacian.to_bits(),
         );
         cached(&self.elastics, key, || {
-            ElasticOps::new(&self.mesh, &self.ops, params)
+            Arc::new(ElasticOps::new(&self.mesh, &self.ops, params))
         })
     }
 
@@ -210,17 +200,18 @@ impl Rest {
 
 /// The value of `key` in a small most-recent-last cache of at most
 /// [`ENERGY_CACHE`] entries, built by `build` (outside the lock) when
-/// missing; a value another thread stored meanwhile wins.
-fn cached<K: PartialEq + Copy, V>(
-    cache: &Mutex<Vec<(K, Arc<V>)>>,
+/// missing; a value another thread stored meanwhile wins. Values are
+/// cheap clones (`Arc`s).
+fn cached<K: PartialEq + Copy, V: Clone>(
+    cache: &Mutex<Vec<(K, V)>>,
     key: K,
     build: impl FnOnce() -> V,
-) -> Arc<V> {
-    let find = |v: &[(K, Arc<V>)]| v.iter().find(|(k, _)| *k == key).map(|(_, op)| op.clone());
+) -> V {
+    let find = |v: &[(K, V)]| v.iter().find(|(k, _)| *k == key).map(|(_, op)| op.clone());
     if let Some(op) = cache.lock().ok().and_then(|v| find(&v)) {
         return op;
     }
-    let op = Arc::new(build());
+    let op = build();
     if let Ok(mut v) = cache.lock() {
         if let Some(found) = find(&v) {
             return found;
