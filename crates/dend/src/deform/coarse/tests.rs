@@ -209,27 +209,21 @@ fn the_fine_objective_never_grows_through_the_coarse_start_and_corrections() {
     let mut prev = first.initial_objective;
     assert!(first.objective <= prev * (1.0 + 1e-12));
     prev = first.objective;
+    let (reports, converged) = steps_until_converged(&mut d, &factor, &c, prev, 199);
     let mut corrections = 0;
-    for k in 2..=200 {
-        let r = d.step(&factor, &c, 1).unwrap();
+    for (k, r) in (2..).zip(&reports) {
         if r.coarse_iterations > 0 {
             // a correction follows every CORRECTION_EVERY-th fine iteration
             assert_eq!(k % CORRECTION_EVERY, 0, "correction after iteration {k}");
             corrections += 1;
         }
+    }
+    if converged {
+        let k = reports.len() + 1;
         assert!(
-            r.objective <= prev * (1.0 + 1e-12),
-            "iteration {k}: {} > {prev}",
-            r.objective
+            k > CORRECTION_EVERY,
+            "converged in {k}: no correction tried"
         );
-        prev = r.objective;
-        if r.converged {
-            assert!(
-                k > CORRECTION_EVERY,
-                "converged in {k}: no correction tried"
-            );
-            break;
-        }
     }
     assert!(corrections > 0, "no coarse correction ran");
     // a drag of the solved pose: no coarse work in the frame that answers
@@ -242,21 +236,38 @@ fn the_fine_objective_never_grows_through_the_coarse_start_and_corrections() {
         !first.converged && first.coarse_iterations == 0,
         "{first:?}"
     );
-    let mut prev = first.objective;
+    let prev = first.objective;
     assert!(prev <= first.initial_objective * (1.0 + 1e-12));
-    for _ in 0..200 {
-        let r = d.step(&factor, &dragged, 1).unwrap();
+    let (_, converged) = steps_until_converged(&mut d, &factor, &dragged, prev, 200);
+    assert!(converged, "the drag did not converge in 200 iterations");
+}
+
+/// Steps `d` one iteration per call, at most `limit` times, until it
+/// converges, checking that the objective never grows from `prev` on;
+/// the reports, and whether the last one converged.
+fn steps_until_converged(
+    d: &mut Deformer,
+    factor: &Factor,
+    c: &Constraints,
+    mut prev: Real,
+    limit: usize,
+) -> (Vec<crate::deform::StepReport>, bool) {
+    let mut reports = Vec::new();
+    for k in 1..=limit {
+        let r = d.step(factor, c, 1).unwrap();
         assert!(
             r.objective <= prev * (1.0 + 1e-12),
-            "{} > {prev}",
+            "step {k}: {} > {prev}",
             r.objective
         );
         prev = r.objective;
-        if r.converged {
-            return;
+        let converged = r.converged;
+        reports.push(r);
+        if converged {
+            return (reports, true);
         }
     }
-    panic!("the drag did not converge in 200 iterations");
+    (reports, false)
 }
 
 #[test]
@@ -474,22 +485,10 @@ fn corrections_until_converged(params: Params) -> (usize, usize) {
     let factor = Factor::build(&rest, &params, &c).unwrap();
     let mut d = Deformer::new(rest, params);
     let first = d.step(&factor, &c, 1).unwrap();
-    let mut prev = first.objective;
-    let mut corrections = 0;
-    for k in 2..=300 {
-        let r = d.step(&factor, &c, 1).unwrap();
-        corrections += usize::from(r.coarse_iterations > 0);
-        assert!(
-            r.objective <= prev * (1.0 + 1e-12),
-            "iteration {k}: {} > {prev}",
-            r.objective
-        );
-        prev = r.objective;
-        if r.converged {
-            return (corrections, k);
-        }
-    }
-    panic!("not converged in 300 iterations ({params:?})");
+    let (reports, converged) = steps_until_converged(&mut d, &factor, &c, first.objective, 299);
+    assert!(converged, "not converged in 300 iterations ({params:?})");
+    let corrections = reports.iter().filter(|r| r.coarse_iterations > 0).count();
+    (corrections, reports.len() + 1)
 }
 
 /// `Corrections::WhileGaining` corrects at least as often as the default
