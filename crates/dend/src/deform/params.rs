@@ -82,8 +82,8 @@ pub enum Corrections {
     WhileFaster,
     /// Once one gains nothing (it is dropped or no coarse problem exists):
     /// near ARAP's energy (small `k_L`) the fine iterations slow down and
-    /// later corrections still pay (camel limb 32 → 25 iterations at
-    /// `k_L` 0.1, [`Params::for_characters`]).
+    /// later corrections still pay (camel limb 32 → 27 iterations at
+    /// `k_L` 0.1, `k_s` 2, coarse ratio 3).
     WhileGaining,
 }
 
@@ -171,8 +171,9 @@ pub struct Params {
     /// under 4000 vertices use fewer, never under 500 coarse vertices), at
     /// least 2. Default [`DEFAULT_COARSE_RATIO`]; 3 in
     /// [`Params::for_characters`]: a finer coarse mesh keeps thin parts
-    /// (the camel's neck) and captures a body's swing (camel limb 44 → 25
-    /// iterations), at 30–50 % more time to settle on large meshes.
+    /// (the camel's neck) and captures a body's swing (camel limb 40 → 21
+    /// iterations with the default weights), at 30–50 % more time to settle
+    /// on large meshes.
     pub coarse_ratio: usize,
     /// Elastic formulation only: when the coarse corrections of a sequence
     /// stop. Default [`Corrections::WhileFaster`].
@@ -200,11 +201,9 @@ pub const CHARACTERS_COARSE_RATIO: usize = 3;
 /// every character's distortion lower) but the 300° bar's min area falls
 /// to 0.782 (0.789–0.792 with `k_a` 20–25), below the 0.8 that
 /// `tests/elastic.rs` holds the default to, so the default stays 1.
-/// Stop 27: with `k_s = 2` as well (`--stretch 2 --laplacian 0.5`) 9 of
-/// the 12 character edits meet every rule against 7 with the defaults
-/// (dino limb 1.31× ARAP's mean, feline standard 1.66×, armadillo
-/// standard 22 iterations); that is the setting for characters, and the
-/// default keeps the bars' area (docs/posing.md).
+/// Stop 27: a small `k_L` with a larger `k_s` is the setting for
+/// characters ([`Params::for_characters`], `k_L` 0.1), and the default
+/// keeps the bars' area (docs/posing.md).
 pub const DEFAULT_LAPLACIAN: f64 = 1.0;
 
 /// The stretch weight `k_s` of the elastic weights for posing characters
@@ -253,7 +252,7 @@ impl Params {
     /// 7 with the defaults: every character's mean edge distortion within
     /// 0.92–1.38× ARAP's (feline standard 1.38×, 1.75× with the defaults),
     /// camel limb 25 iterations (40), armadillo standard 24 (44); the hand's
-    /// standard edit still settles only 2.2× sooner than ARAP. The defaults
+    /// standard edit still settles only 2.2–2.5× sooner than ARAP. The defaults
     /// keep twisted bars' cross-sections far better (docs/posing.md).
     pub fn for_characters(self) -> Params {
         Params {
