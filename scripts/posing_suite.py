@@ -47,6 +47,13 @@ Edge distortion = |l'/l - 1| over the mesh's edges (mean and max), computed
 here for both poses. Time to settle = precompute + all iterations. Twist and
 bend cases are also measured with `dend measure` (--bar / --bend over the rest
 z span between the fixed and handle regions, as tests/paper_reproduction.rs).
+For the generated bars and cylinders and the survey bar, a second table shows
+the *even pose* (`even_pose`): the twist spread evenly along the bar, or the
+free span laid on a circular arc, every cross-section kept and every
+constrained vertex exactly on its target. Its edge distortion against ARAP's
+is what the area, twist and bend rules cost by themselves: where it is above
+1.5 x ARAP's (bar-300 2.10, survey-bar 2.03, cylinder-120 1.78, cylinder-180
+2.62) the distortion rule and the shape rules pull against each other.
 
 PASS rules (our pose): mean distortion <= 1.5 x ARAP's, max distortion <= 2 x
 ARAP's; time to settle at least 5 x shorter than ARAP's (measured in the same
@@ -395,6 +402,78 @@ def cached_arap(case, args):
     return u, row
 
 
+# --- the even reference pose ----------------------------------------------------
+
+def even_pose(case):
+    """The bar's or cylinder's pose that meets the rules' intent exactly, or
+    None. A twist about `z` (the target a turn about a line along `z`):
+    every vertex turned about that line by `θ × ramp(z)`, `ramp` from the
+    fixed vertices' highest `z` to the handle's lowest. A bend about an axis
+    across `z`: the span between two heights `z0 < z1` laid along a circular
+    arc of the same length from `z0` with tangent `z`, each rest ring carried
+    rigidly, the part above `z1` rigidly with the arc's end; `z0, z1` are
+    solved so that the arc ends where the target puts the handle's axis
+    point, and must span the free part. The pose is kept only when it puts every constrained vertex
+    exactly on its target (within 1e-6 of the diagonal). It keeps every
+    cross-section and twists or bends evenly: its edge distortion is what
+    the area, twist and bend rules cost."""
+    if case["kind"] not in ("bar", "bend"):
+        return None
+    v, t = case["v"], case["target"]
+    fixed, handle = case["fixed"], case["handle"]
+    top, bottom = float(v[fixed, 2].max()), float(v[handle, 2].min())
+    if not bottom > top:
+        return None
+    axis = t.axis / np.linalg.norm(t.axis)
+    ez = np.array([0.0, 0.0, 1.0])
+    theta = math.radians(t.degrees)
+    rot = AREF.rotation_matrix(t.axis, t.degrees)
+    k = t.pivot - rot @ t.pivot + t.translate      # T(p) = rot p + k
+    if abs(abs(axis @ ez) - 1.0) < 1e-9:
+        # the line the turn leaves in place: (I − rot) c = k in the xy plane
+        centre = np.zeros(3)
+        centre[:2] = np.linalg.lstsq(np.eye(2) - rot[:2, :2], k[:2], rcond=None)[0]
+        s = np.clip((v[:, 2] - top) / (bottom - top), 0.0, 1.0)
+        phi = s * theta * float(np.sign(axis @ ez))
+        c, sn = np.cos(phi), np.sin(phi)
+        d = v - centre
+        u = np.c_[centre[0] + c * d[:, 0] - sn * d[:, 1],
+                  centre[1] + sn * d[:, 0] + c * d[:, 1], v[:, 2]]
+    elif abs(axis @ ez) < 1e-9 and theta != 0.0:
+        b = np.cross(axis, ez)                     # rot ez = cos θ ez + sin θ b
+        centre = v[fixed].mean(axis=0)
+        centre[2] = 0.0
+        # arc end E(z0, z1) = centre + z0 ez + (z1 − z0)/θ ((1 − cos θ) b + sin θ ez)
+        # equals T(centre + z1 ez): linear in (z0, z1), b and z components
+        g = ((1 - math.cos(theta)) * b + math.sin(theta) * ez) / theta
+        rez = rot @ ez
+        lhs = np.c_[ez - g, g - rez]               # columns: z0, z1
+        rhs = rot @ centre + k - centre
+        (z0, z1), *_ = np.linalg.lstsq(lhs, rhs, rcond=None)
+        # the arc must span the free part (within a tenth of it at each end):
+        # a target that fits only a shorter arc has no even bend of the span
+        slack = 0.1 * (bottom - top)
+        if not (top - 1e-9 <= z0 <= top + slack and bottom - slack <= z1 <= bottom + 1e-9):
+            return None
+        radius = (z1 - z0) / theta
+        phi = np.clip((v[:, 2] - z0) / (z1 - z0), 0.0, 1.0) * theta
+        w = (v - centre) @ b
+        a = (v - centre) @ axis
+        past = np.maximum(v[:, 2] - z1, 0.0)
+        along_b = radius - (radius - w) * np.cos(phi) + past * np.sin(phi)
+        along_z = z0 + (radius - w) * np.sin(phi) + past * np.cos(phi)
+        u = centre + np.outer(along_b, b) + np.outer(along_z, ez) + np.outer(a, axis)
+        low = v[:, 2] <= z0
+        u[low] = v[low]
+    else:
+        return None
+    tol = 1e-6 * diagonal(v)
+    if (np.abs(u[handle] - t.apply(v[handle])).max() > tol
+            or np.abs(u[fixed] - v[fixed]).max() > tol):
+        return None
+    return u
+
+
 # --- verdict, render, table ----------------------------------------------------
 
 def judge(row):
@@ -470,6 +549,29 @@ def print_table(rows):
               f"| {fmt(a.get('settle_ms'), '.0f')} | {fmt(od.get('mean_ratio'), '.2f')} "
               f"| {fmt(od.get('max_ratio'), '.2f')} | {fmt(r.get('settle_ratio'), '.2f')} "
               f"| {figures(o, a)} | {verdict} |")
+    even = [r for r in rows if "even" in r]
+    if even:
+        print("\nThe even pose (`even_pose`: every cross-section kept, the twist or bend "
+              "spread evenly, the handle on its target): what the area, twist and bend "
+              "rules cost in edge distortion.\n")
+        print("| case | even dist mean/max | even mean ÷ ARAP | ours mean ÷ ARAP "
+              "| figures even/ours/ARAP |")
+        print("|" + "---|" * 5)
+        for r in even:
+            e, o, a = r["even"], r.get("ours", {}), r.get("arap", {})
+            ed, ad = e["distortion"], a.get("distortion", {})
+            ratio = ed["mean"] / ad["mean"] if ad.get("mean") else float("nan")
+            em, om, am = e.get("measure", {}), o.get("measure", {}), a.get("measure", {})
+            if "bend_cv" in em:
+                fig = (f"CV {fmt(em.get('bend_cv'))}/{fmt(om.get('bend_cv'))}"
+                       f"/{fmt(am.get('bend_cv'))}")
+            else:
+                fig = (f"area {fmt(em.get('min_area'))}/{fmt(om.get('min_area'))}"
+                       f"/{fmt(am.get('min_area'))}, dev "
+                       f"{fmt(em.get('twist_dev_deg'), '.1f')}/{fmt(om.get('twist_dev_deg'), '.1f')}"
+                       f"/{fmt(am.get('twist_dev_deg'), '.1f')}°")
+            print(f"| {r['case']} | {fmt(ed['mean'])}/{fmt(ed['max'])} | {fmt(ratio, '.2f')} "
+                  f"| {fmt(o.get('distortion', {}).get('mean_ratio'), '.2f')} | {fig} |")
 
 
 def run_case(name, dend, args, tmp):
@@ -502,6 +604,15 @@ def run_case(name, dend, args, tmp):
         row["arap"]["measure"] = measure(dend, case, pose)
     except Exception as e:  # noqa: BLE001
         errors.append(f"ARAP: {e}")
+    try:
+        u_even = even_pose(case)
+        if u_even is not None:
+            row["even"] = {"distortion": edge_distortion(case, u_even)}
+            pose = os.path.join(tmp, f"{name}_even.off")
+            write_off(pose, u_even, case["f"])
+            row["even"]["measure"] = measure(dend, case, pose)
+    except Exception as e:  # noqa: BLE001
+        errors.append(f"even pose: {e}")
     if errors:
         row["error"] = "; ".join(errors)
     try:
