@@ -78,6 +78,20 @@ fn constraint_error(rest: &Mesh, pose: &Mesh, file: &str) -> (f64, (f64, f64)) {
     (err, (z0, z1))
 }
 
+/// The even pose of `case` (constraints from examples/`file`), its every
+/// constrained vertex checked on its target: (rest, pose, free `z` span).
+fn checked_even_pose(py: &Path, tmp: &Path, case: &str, file: &str) -> (Mesh, Mesh, (f64, f64)) {
+    let dir = tmp.join(case);
+    std::fs::create_dir_all(&dir).unwrap();
+    let (rest, pose) = even_pose(py, case, &dir);
+    let (err, span) = constraint_error(&rest, &pose, file);
+    assert!(
+        err < 1e-9,
+        "{case}: a constrained vertex {err} off its target"
+    );
+    (rest, pose, span)
+}
+
 #[test]
 fn the_even_pose_keeps_the_constraints_and_twists_and_bends_evenly() {
     let Some(py) = python_with(&["numpy", "igl"]) else {
@@ -88,14 +102,7 @@ fn the_even_pose_keeps_the_constraints_and_twists_and_bends_evenly() {
         ("bar-135", "bar-twist-135.json", 135.0),
         ("bar-300", "bar-twist-300.json", 300.0),
     ] {
-        let dir = tmp.path().join(case);
-        std::fs::create_dir_all(&dir).unwrap();
-        let (rest, pose) = even_pose(&py, case, &dir);
-        let (err, (z0, z1)) = constraint_error(&rest, &pose, file);
-        assert!(
-            err < 1e-9,
-            "{case}: a constrained vertex {err} off its target"
-        );
+        let (rest, pose, (z0, z1)) = checked_even_pose(&py, tmp.path(), case, file);
         let fig = bar_slabs(rest.positions(), pose.positions(), z0, z1, 20);
         let dev = fig.twist_deviation(z0, z1, degrees);
         assert!(dev < 0.05, "{case}: twist deviation {dev}°");
@@ -109,14 +116,7 @@ fn the_even_pose_keeps_the_constraints_and_twists_and_bends_evenly() {
         ("cylinder-120", "cylinder-bend-120.json"),
         ("cylinder-180", "cylinder-bend-180.json"),
     ] {
-        let dir = tmp.path().join(case);
-        std::fs::create_dir_all(&dir).unwrap();
-        let (rest, pose) = even_pose(&py, case, &dir);
-        let (err, (z0, z1)) = constraint_error(&rest, &pose, file);
-        assert!(
-            err < 1e-9,
-            "{case}: a constrained vertex {err} off its target"
-        );
+        let (rest, pose, (z0, z1)) = checked_even_pose(&py, tmp.path(), case, file);
         // the measure's own floor on an exact arc of this cylinder is 0.06
         // (slab centroids of two or three rings); a kink or an uneven
         // spread measures 0.3 and more
