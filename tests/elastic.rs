@@ -304,7 +304,8 @@ fn a_pulled_limb_grows_no_spike() {
         area: 0.0,
         ..Params::default()
     });
-    eprintln!("limb stretch mean/max: default {mean:.3}/{worst:.3}, spokes only {arap_mean:.3}/{arap_worst:.3}");
+    let (ch_mean, ch_worst) = stretch(Params::default().for_characters());
+    eprintln!("limb stretch mean/max: default {mean:.3}/{worst:.3}, characters {ch_mean:.3}/{ch_worst:.3}, spokes only {arap_mean:.3}/{arap_worst:.3}");
     assert!(
         worst <= arap_worst,
         "a spike: largest stretch {worst} > {arap_worst}"
@@ -312,6 +313,16 @@ fn a_pulled_limb_grows_no_spike() {
     assert!(
         mean <= 1.5 * arap_mean,
         "mean stretch {mean} > 1.5 × {arap_mean}"
+    );
+    // the characters' preset (stiffer spokes, a tenth of the Laplacian
+    // part) is held to the same: no spike, stretch near the spokes'
+    assert!(
+        ch_worst <= arap_worst,
+        "characters: a spike: largest stretch {ch_worst} > {arap_worst}"
+    );
+    assert!(
+        ch_mean <= 1.5 * arap_mean,
+        "characters: mean stretch {ch_mean} > 1.5 × {arap_mean}"
     );
 }
 

@@ -247,13 +247,16 @@ impl Params {
     /// These parameters with the elastic weights for posing characters:
     /// `k_s` [`CHARACTERS_STRETCH`], `k_L` [`CHARACTERS_LAPLACIAN`], the
     /// coarse ratio [`CHARACTERS_COARSE_RATIO`] and corrections
-    /// [`Corrections::WhileGaining`]. On the posing suite (stop 27,
+    /// [`Corrections::WhileGaining`]. On the posing suite (stop 28,
     /// docs/posing.md) 11 of the 12 character edits meet every rule against
-    /// 7 with the defaults: every character's mean edge distortion within
-    /// 0.92–1.38× ARAP's (feline standard 1.38×, 1.75× with the defaults),
-    /// camel limb 25 iterations (40), armadillo standard 24 (44); the hand's
-    /// standard edit still settles only 2.2–2.5× sooner than ARAP. The defaults
-    /// keep twisted bars' cross-sections far better (docs/posing.md).
+    /// 7 with the defaults (13 of its 20 edits against 8, every edit the
+    /// defaults pass among them): every character's mean edge distortion
+    /// within 0.92–1.38× ARAP's (feline standard 1.38×, 1.75× with the
+    /// defaults), camel limb 27 iterations (40), armadillo standard 24 (44);
+    /// the hand's standard edit still settles only 2.6–3.5× sooner than
+    /// ARAP. The defaults keep twisted bars' cross-sections and even twists
+    /// far better (300° bar min area 0.80 against 0.60, survey bar 0.6°
+    /// from its ramp against 9.2°: docs/posing.md).
     pub fn for_characters(self) -> Params {
         Params {
             stretch: CHARACTERS_STRETCH,
