@@ -66,8 +66,9 @@ that cannot run is an ERROR row. Exit code 0 when every case passes, 1
 otherwise, 2 without a dend binary.
 
 Renders (unless --no-render): docs/img/posing/<case>.png, three 360x360
-panels side by side: rest, ours, ARAP (scripts/render_poses.py's rasteriser;
-faces coloured by rest normal direction and banded along rest z).
+panels side by side: rest, ours, ARAP, and a fourth, the even pose, where the
+case has one (scripts/render_poses.py's rasteriser; faces coloured by rest
+normal direction and banded along rest z).
 """
 
 import argparse
@@ -604,6 +605,7 @@ def run_case(name, dend, args, tmp):
         row["arap"]["measure"] = measure(dend, case, pose)
     except Exception as e:  # noqa: BLE001
         errors.append(f"ARAP: {e}")
+    u_even = None
     try:
         u_even = even_pose(case)
         if u_even is not None:
@@ -620,7 +622,7 @@ def run_case(name, dend, args, tmp):
     except Exception as e:  # noqa: BLE001
         row.update(verdict="ERROR", error=f"judging: {e}")
     if not args.no_render:
-        poses = [u_ours, u_arap]
+        poses = [u_ours, u_arap] + ([u_even] if u_even is not None else [])
         if all(p is not None and np.all(np.isfinite(p)) for p in poses):
             try:
                 os.makedirs(IMG_DIR, exist_ok=True)
