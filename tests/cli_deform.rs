@@ -1,22 +1,23 @@
 //! `dend deform` end to end: the README's commands, the survey format, and
 //! errors with exit code 2.
 
-use std::path::Path;
-use std::process::Command;
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
 
 use dend::deform::ConstraintsSpec;
 use dend::mesh::io;
 
-fn dend(args: &[&str]) -> std::process::Output {
+fn dend(args: &[&str]) -> Output {
     Command::new(env!("CARGO_BIN_EXE_dend"))
         .args(args)
         .output()
         .unwrap()
 }
 
-/// A generated bar in `dir` and the README's 135° twist constraints for it.
-fn bar_and_twist(dir: &Path) -> (std::path::PathBuf, std::path::PathBuf) {
-    let bar = dir.join("bar.obj");
+/// A generated bar in `dir` (written as `file`) and the README's 135°
+/// twist constraints for it.
+fn bar_and_twist(dir: &Path, file: &str) -> (PathBuf, PathBuf) {
+    let bar = dir.join(file);
     let root = Path::new(env!("CARGO_MANIFEST_DIR"));
     let example = root.join("examples/bar-twist-135.json");
     assert!(dend(&["gen", "bar", "-o", bar.to_str().unwrap()])
@@ -25,19 +26,26 @@ fn bar_and_twist(dir: &Path) -> (std::path::PathBuf, std::path::PathBuf) {
     (bar, example)
 }
 
-#[test]
-fn readme_bar_twist_meets_the_handle_targets_and_keeps_the_section() {
-    let dir = tempfile::tempdir().unwrap();
-    let (bar, example) = bar_and_twist(dir.path());
-    let out = dir.path().join("out.obj");
-    let o = dend(&[
+/// `dend deform BAR --constraints EXAMPLE -o OUT EXTRA…`.
+fn deform_bar(bar: &Path, example: &Path, out: &Path, extra: &[&str]) -> Output {
+    let mut args = vec![
         "deform",
         bar.to_str().unwrap(),
         "--constraints",
         example.to_str().unwrap(),
         "-o",
         out.to_str().unwrap(),
-    ]);
+    ];
+    args.extend_from_slice(extra);
+    dend(&args)
+}
+
+#[test]
+fn readme_bar_twist_meets_the_handle_targets_and_keeps_the_section() {
+    let dir = tempfile::tempdir().unwrap();
+    let (bar, example) = bar_and_twist(dir.path(), "bar.obj");
+    let out = dir.path().join("out.obj");
+    let o = deform_bar(&bar, &example, &out, &[]);
     let stderr = String::from_utf8_lossy(&o.stderr);
     assert!(o.status.success(), "{stderr}");
     assert!(stderr.contains("converged"), "{stderr}");
@@ -195,25 +203,9 @@ fn bad_inputs_exit_with_code_2_and_a_message() {
 #[test]
 fn formulation_flag_selects_the_square_system_and_rejects_unknown_names() {
     let dir = tempfile::tempdir().unwrap();
-    let bar = dir.path().join("bar.off");
+    let (bar, example) = bar_and_twist(dir.path(), "bar.off");
     let out = dir.path().join("out.off");
-    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
-    let example = root.join("examples/bar-twist-135.json");
-    assert!(dend(&["gen", "bar", "-o", bar.to_str().unwrap()])
-        .status
-        .success());
-    let run = |formulation: &str| {
-        dend(&[
-            "deform",
-            bar.to_str().unwrap(),
-            "--constraints",
-            example.to_str().unwrap(),
-            "--formulation",
-            formulation,
-            "-o",
-            out.to_str().unwrap(),
-        ])
-    };
+    let run = |formulation: &str| deform_bar(&bar, &example, &out, &["--formulation", formulation]);
     let o = run("square_lu");
     let stderr = String::from_utf8_lossy(&o.stderr);
     assert!(o.status.success(), "{stderr}");
@@ -233,52 +225,33 @@ fn formulation_flag_selects_the_square_system_and_rejects_unknown_names() {
 #[test]
 fn characters_weights_are_the_documented_stretch_and_laplacian() {
     let dir = tempfile::tempdir().unwrap();
-    let (bar, example) = bar_and_twist(dir.path());
+    let (bar, example) = bar_and_twist(dir.path(), "bar.obj");
     let pose = |name: &str, extra: &[&str]| {
         let out = dir.path().join(name);
-        let mut args = vec![
-            "deform",
-            bar.to_str().unwrap(),
-            "--constraints",
-            example.to_str().unwrap(),
-            "-o",
-            out.to_str().unwrap(),
-        ];
-        args.extend_from_slice(extra);
-        let o = dend(&args);
+        let o = deform_bar(&bar, &example, &out, extra);
         assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
         std::fs::read_to_string(&out).unwrap()
     };
+    // the preset's flags but the stretch
+    let rest_of_preset = [
+        "--laplacian",
+        "0.1",
+        "--coarse-ratio",
+        "3",
+        "--corrections",
+        "while-gaining",
+    ];
     let preset = pose("preset.obj", &["--weights", "characters"]);
     let explicit = pose(
         "explicit.obj",
-        &[
-            "--stretch",
-            "3",
-            "--laplacian",
-            "0.1",
-            "--coarse-ratio",
-            "3",
-            "--corrections",
-            "while-gaining",
-        ],
+        &[&["--stretch", "3"][..], &rest_of_preset].concat(),
     );
     let defaults = pose("defaults.obj", &[]);
     let overridden = pose(
         "overridden.obj",
         &["--weights", "characters", "--stretch", "1"],
     );
-    let laplacian_only = pose(
-        "laplacian.obj",
-        &[
-            "--laplacian",
-            "0.1",
-            "--coarse-ratio",
-            "3",
-            "--corrections",
-            "while-gaining",
-        ],
-    );
+    let laplacian_only = pose("laplacian.obj", &rest_of_preset);
     assert_eq!(preset, explicit);
     assert_ne!(preset, defaults);
     assert_eq!(overridden, laplacian_only);
@@ -291,16 +264,12 @@ fn characters_weights_are_the_documented_stretch_and_laplacian() {
         "cartoon",
     ]);
     assert_eq!(o.status.code(), Some(2));
-    let o = dend(&[
-        "deform",
-        bar.to_str().unwrap(),
-        "--constraints",
-        example.to_str().unwrap(),
-        "-o",
-        dir.path().join("r1.obj").to_str().unwrap(),
-        "--coarse-ratio",
-        "1",
-    ]);
+    let o = deform_bar(
+        &bar,
+        &example,
+        &dir.path().join("r1.obj"),
+        &["--coarse-ratio", "1"],
+    );
     let stderr = String::from_utf8_lossy(&o.stderr);
     assert_eq!(o.status.code(), Some(2), "{stderr}");
     assert!(stderr.contains("coarse_ratio"), "{stderr}");
