@@ -14,7 +14,7 @@ use std::process::Command;
 use dend::deform::ConstraintsSpec;
 use dend::measure::{bar_slabs, bend_angles};
 use dend::mesh::Mesh;
-use dend_testkit::{python_with, read_mesh, repo_root};
+use dend_testkit::{max_dist, python_with, read_mesh, repo_root};
 
 /// Runs the suite's `build_case` and `even_pose` on `case`, writing the rest
 /// mesh and the even pose as OFF files into `dir`.
@@ -60,9 +60,7 @@ fn constraint_error(rest: &Mesh, pose: &Mesh, file: &str) -> (f64, (f64, f64)) {
         serde_json::from_str(&std::fs::read_to_string(path).unwrap()).unwrap();
     let c = spec.resolve(rest).unwrap();
     let p = pose.positions();
-    let dist = |a: [f64; 3], b: [f64; 3]| {
-        ((a[0] - b[0]).powi(2) + (a[1] - b[1]).powi(2) + (a[2] - b[2]).powi(2)).sqrt()
-    };
+    let dist = |a: [f64; 3], b: [f64; 3]| max_dist(&[a], &[b]);
     let mut err: f64 = 0.0;
     for (&v, &at) in c.fixed.iter().zip(&c.fixed_at) {
         err = err.max(dist(p[v as usize], at));
@@ -145,11 +143,9 @@ fn the_even_pose_keeps_the_constraints_and_twists_and_bends_evenly() {
             };
             let (cr, cp) = (centroid(r), centroid(p));
             for &i in ix {
-                let d = |q: [f64; 3], c: [f64; 3]| {
-                    ((q[0] - c[0]).powi(2) + (q[1] - c[1]).powi(2) + (q[2] - c[2]).powi(2)).sqrt()
-                };
+                let (rest_d, pose_d) = (max_dist(&[r[i]], &[cr]), max_dist(&[p[i]], &[cp]));
                 assert!(
-                    (d(r[i], cr) - d(p[i], cp)).abs() < 1e-9,
+                    (rest_d - pose_d).abs() < 1e-9,
                     "{case}: vertex {i} moved within its ring"
                 );
             }
