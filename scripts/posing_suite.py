@@ -37,7 +37,8 @@ Edits (cases):
 Per case: `dend deform MESH (--constraints C | --sel S --def D) -o OUT
 --steps N --max-iters K --tol T --report R.json [--formulation F]` (R.json:
 iterations, converged, diverged, objective_first/last, objectives,
-precompute_ms, iteration_ms_median, solve_ms, steps[]), then libigl ARAP:
+precompute_ms (operators + the factor with the coarse start beside it, wall
+time), iteration_ms_median, solve_ms, steps[]), then libigl ARAP:
 `ARAPData(max_iter=1)`, `arap_precomputation(V, F, 3, b, data)` with
 b = fixed + handle, and `arap_solve` repeated from the rest pose until the
 largest vertex move is below tol * mean rest edge length or 1000 iterations;

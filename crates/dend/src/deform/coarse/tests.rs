@@ -511,3 +511,51 @@ fn corrections_while_gaining_go_on_at_least_as_long() {
         "while gaining {gaining} corrections ({its_gaining} iterations), while faster {faster} ({its_faster})"
     );
 }
+
+#[test]
+fn the_coarse_start_solved_beside_the_factor_gives_the_same_sequence() {
+    // `Deformer::build_factor` runs the coarse start while the fine factor
+    // is built; the first step must then be the sequence `Factor::build`
+    // plus `step` gives, iteration for iteration
+    let mesh = limb();
+    let rest = Arc::new(Rest::new(mesh.clone()).unwrap());
+    let c = patch_pull(&mesh, [0.0, 0.1 * mesh.diagonal(), 0.0]);
+    let params = Params::default();
+    let (plain, rp) = solve(&rest, params, &c, Levels::Two);
+    let mut ahead = Deformer::new(rest.clone(), params);
+    let factor = ahead.build_factor(&c).unwrap();
+    let ra = ahead.step(&factor, &c, 2000).unwrap();
+    assert!(rp.converged && ra.converged && rp.coarse_iterations > 0);
+    assert_eq!(ra.iterations, rp.iterations);
+    assert_eq!(ra.coarse_iterations, rp.coarse_iterations);
+    let gap = plain
+        .pose()
+        .iter()
+        .zip(ahead.pose())
+        .map(|(p, q)| crate::mesh::norm(crate::mesh::sub(*p, *q)))
+        .fold(0.0, Real::max);
+    assert!(gap < 1e-9 * mesh.diagonal(), "poses {gap} apart");
+
+    // a start solved for one target is not taken for another: the second
+    // deformer is asked for twice the pull after building for the first
+    let far = patch_pull(&mesh, [0.0, 0.2 * mesh.diagonal(), 0.0]);
+    let (plain_far, rf) = solve(&rest, params, &far, Levels::Two);
+    let mut stale = Deformer::new(rest.clone(), params);
+    let factor = stale.build_factor(&c).unwrap();
+    let rs = stale.step(&factor, &far, 2000).unwrap();
+    assert_eq!(rs.iterations, rf.iterations);
+    let gap = plain_far
+        .pose()
+        .iter()
+        .zip(stale.pose())
+        .map(|(p, q)| crate::mesh::norm(crate::mesh::sub(*p, *q)))
+        .fold(0.0, Real::max);
+    assert!(gap < 1e-9 * mesh.diagonal(), "poses {gap} apart");
+
+    // one level: nothing is solved ahead, and the factor is the same
+    let mut one = Deformer::new(rest.clone(), params);
+    one.set_levels(Levels::One);
+    let factor = one.build_factor(&c).unwrap();
+    let r1 = one.step(&factor, &c, 2000).unwrap();
+    assert_eq!(r1.coarse_iterations, 0);
+}

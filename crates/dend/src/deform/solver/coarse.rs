@@ -42,9 +42,12 @@ use nalgebra::{UnitQuaternion, Vector3};
 
 use super::Deformer;
 use crate::deform::coarse::{CoarseLevel, PROLONGATION_PASSES, RESTRICTION_PASSES};
-use crate::deform::constraints::Constraints;
+use crate::deform::constraints::{Constraints, RigidTransform};
 use crate::deform::elastic::{ElasticOps, ElasticSet};
 use crate::deform::factor::Factor;
+use crate::deform::params::{DetailTerm, Formulation, Params};
+use crate::deform::rest::Rest;
+use crate::deform::DeformError;
 use crate::mesh::{Point, Real};
 
 /// Iteration cap of the coarse solve of a start (the prototype's camel
@@ -83,12 +86,88 @@ pub(super) struct CoarseProblem {
     /// Constrained vertices of the fine and of the coarse mesh.
     fine_fixed: Vec<bool>,
     coarse_fixed: Vec<bool>,
+    /// A coarse start solved ahead, beside the fine factorisation
+    /// ([`Deformer::build_factor`]), for the next sequence from rest.
+    solved_start: Option<SolvedStart>,
+}
+
+/// The coarse start of one set of targets, solved ahead.
+struct SolvedStart {
+    /// The handles' targets it was solved for.
+    targets: Vec<RigidTransform>,
+    /// The coarse rotations it reached.
+    rotations: Vec<UnitQuaternion<Real>>,
+    run: CoarseRun,
 }
 
 /// The coarse problem of the fine factor with id `.0 .0` at the coarse
 /// ratio `.0 .1`, `None` when the set does not survive restriction or the
 /// coarse factorisation failed.
 pub(super) type CoarseSlot = ((u64, usize), Option<Box<CoarseProblem>>);
+
+/// The coarse parameters of a fine problem: the fine ones, with the fine
+/// tolerance in the coarse level's mean edge lengths.
+fn coarse_params(rest: &Rest, params: &Params, level: &CoarseLevel) -> Params {
+    let mut p = *params;
+    p.tol = params.tol * rest.ops.scale / level.rest.ops.scale;
+    p
+}
+
+/// Builds the coarse problem of `constraints`' set (module docs).
+fn coarse_problem(
+    rest: &Arc<Rest>,
+    params: &Params,
+    constraints: &Constraints,
+) -> Option<CoarseProblem> {
+    let level: Arc<CoarseLevel> = rest.coarse_at_most(params.coarse_ratio)?;
+    let cc = level.restrict(constraints)?;
+    let factor = Arc::new(Factor::build(&level.rest, params, &cc).ok()?);
+    let mut fine_fixed = vec![false; rest.mesh.num_vertices()];
+    for v in constraints.constrained() {
+        fine_fixed[v as usize] = true;
+    }
+    let mut coarse_fixed = vec![false; level.num_vertices()];
+    for v in cc.constrained() {
+        coarse_fixed[v as usize] = true;
+    }
+    let mut deformer = Box::new(Deformer::new(level.rest.clone(), *params));
+    deformer.set_levels(Levels::One);
+    Some(CoarseProblem {
+        level,
+        factor,
+        deformer,
+        fine_fixed,
+        coarse_fixed,
+        solved_start: None,
+    })
+}
+
+/// Solves the coarse start of `p` from the coarse rest pose for the
+/// restricted constraints `cc` (the deformer's parameters already set);
+/// `None` when the coarse solve failed.
+fn solve_start(p: &mut CoarseProblem, cc: &Constraints) -> Option<SolvedStart> {
+    let t0 = Instant::now();
+    let coarse = &mut p.deformer;
+    coarse.reset();
+    coarse.elastic.linear.clear();
+    let report = coarse.step(&p.factor, cc, COARSE_MAX_ITERS).ok()?;
+    if !report.objective.is_finite() || coarse.rotations().len() != p.level.num_vertices() {
+        return None;
+    }
+    Some(SolvedStart {
+        targets: targets_of(cc),
+        rotations: coarse.rotations().to_vec(),
+        run: CoarseRun {
+            iterations: report.iterations,
+            ms: t0.elapsed().as_secs_f64() * 1e3,
+        },
+    })
+}
+
+/// The handles' targets of a constraint set, in order.
+fn targets_of(constraints: &Constraints) -> Vec<RigidTransform> {
+    constraints.handles.iter().map(|h| h.target).collect()
+}
 
 /// What a coarse start or correction did.
 #[derive(Debug, Clone, Copy, Default)]
@@ -133,16 +212,12 @@ impl Deformer {
         let key = (factor.id(), self.params.coarse_ratio);
         let mut problem = match self.coarse.take() {
             Some((k, p)) if k == key => p,
-            _ => self.coarse_problem(constraints).map(Box::new),
+            _ => coarse_problem(&self.rest, &self.params, constraints).map(Box::new),
         };
         let out = match problem.as_deref_mut() {
             Some(p) => match p.level.restrict(constraints) {
                 Some(cc) => {
-                    // the fine parameters, the fine tolerance in coarse
-                    // mean edge lengths
-                    let mut params = self.params;
-                    params.tol = params.tol * self.rest.ops.scale / p.level.rest.ops.scale;
-                    p.deformer.params = params;
+                    p.deformer.params = coarse_params(&self.rest, &self.params, &p.level);
                     f(self, p, &cc)
                 }
                 None => None,
@@ -151,30 +226,6 @@ impl Deformer {
         };
         self.coarse = Some((key, problem));
         out
-    }
-
-    /// Builds the coarse problem of `constraints`' set (module docs).
-    fn coarse_problem(&self, constraints: &Constraints) -> Option<CoarseProblem> {
-        let level: Arc<CoarseLevel> = self.rest.coarse_at_most(self.params.coarse_ratio)?;
-        let cc = level.restrict(constraints)?;
-        let factor = Arc::new(Factor::build(&level.rest, &self.params, &cc).ok()?);
-        let mut fine_fixed = vec![false; self.y.len()];
-        for v in constraints.constrained() {
-            fine_fixed[v as usize] = true;
-        }
-        let mut coarse_fixed = vec![false; level.num_vertices()];
-        for v in cc.constrained() {
-            coarse_fixed[v as usize] = true;
-        }
-        let mut deformer = Box::new(Deformer::new(level.rest.clone(), self.params));
-        deformer.set_levels(Levels::One);
-        Some(CoarseProblem {
-            level,
-            factor,
-            deformer,
-            fine_fixed,
-            coarse_fixed,
-        })
     }
 
     /// Sets the rotations of the vertices with `set.fit` (and the area
@@ -189,22 +240,63 @@ impl Deformer {
     ) -> Option<CoarseRun> {
         let t0 = Instant::now();
         self.with_coarse(factor, constraints, |fine, p, cc| {
-            let coarse = &mut p.deformer;
-            coarse.reset();
-            coarse.elastic.linear.clear();
-            let report = coarse.step(&p.factor, cc, COARSE_MAX_ITERS).ok()?;
-            if !report.objective.is_finite() || coarse.rotations().len() != p.level.num_vertices() {
-                return None;
-            }
+            let solved = p
+                .solved_start
+                .take()
+                .filter(|s| targets_of(constraints) == s.targets);
+            let solved = match solved {
+                Some(s) => s,
+                None => {
+                    let mut s = solve_start(p, cc)?;
+                    s.run.ms = t0.elapsed().as_secs_f64() * 1e3;
+                    s
+                }
+            };
             let st = &mut fine.elastic;
             p.level
-                .prolongate_rotations(&fine.rest, coarse.rotations(), &set.fit, &mut st.rot);
+                .prolongate_rotations(&fine.rest, &solved.rotations, &set.fit, &mut st.rot);
             el.rotated_rest_projections(&fine.rest.ops.positions, &st.rot, &mut st.proj);
-            Some(CoarseRun {
-                iterations: report.iterations,
-                ms: t0.elapsed().as_secs_f64() * 1e3,
-            })
+            Some(solved.run)
         })
+    }
+
+    /// Builds `constraints`' factor ([`Factor::build`]) for this deformer's
+    /// parameters. Where the next step will start on the coarse level (a
+    /// sequence from the rest pose, two levels, the elastic formulation),
+    /// the coarse problem is built and its start solved on another thread
+    /// at the same time: the coarse start needs the rest operators and the
+    /// constraints but not the fine factor, so the two overlap and the
+    /// first step only carries the coarse rotations over. The pose
+    /// reached is the same as with [`Factor::build`] (the coarse solve is
+    /// the same one, run earlier).
+    pub fn build_factor(&mut self, constraints: &Constraints) -> Result<Factor, DeformError> {
+        let ahead = self.levels == Levels::Two
+            && self.params.formulation == Formulation::Elastic
+            && self.params.detail == DetailTerm::Nonlinear
+            && self.elastic.starts_from_rest();
+        let (rest, params) = (&self.rest, &self.params);
+        let (factor, solved) = rayon::join(
+            || Factor::build(rest, params, constraints),
+            || {
+                if !ahead {
+                    return None;
+                }
+                let t0 = Instant::now();
+                let mut p = coarse_problem(rest, params, constraints)?;
+                let cc = p.level.restrict(constraints)?;
+                p.deformer.params = coarse_params(rest, params, &p.level);
+                let mut s = solve_start(&mut p, &cc)?;
+                s.targets = targets_of(constraints);
+                s.run.ms = t0.elapsed().as_secs_f64() * 1e3;
+                p.solved_start = Some(s);
+                Some(Box::new(p))
+            },
+        );
+        let factor = factor?;
+        if let Some(p) = solved {
+            self.coarse = Some(((factor.id(), self.params.coarse_ratio), Some(p)));
+        }
+        Ok(factor)
     }
 
     /// One coarse correction of the current pose, whose energy is `e`

@@ -104,6 +104,11 @@ enum Start {
 }
 
 impl State {
+    /// Whether the next sequence starts from the rest pose.
+    pub(super) fn starts_from_rest(&self) -> bool {
+        self.start == Start::Rest
+    }
+
     /// Forgets the continued sequence (the pose or parameters changed):
     /// the next step refits the rotations.
     pub(super) fn invalidate(&mut self) {
