@@ -8,8 +8,8 @@ Usage (from the crate root):
         [--formulation elastic|least_squares|square]
 
 MESH is a file or ``tube:N`` (a generated tube of about N vertices); the
-default list is tube:10000, camel_9770.off, armadillo_43k.obj, feline_50k.off
-and igea_134k.ply from ``$DEND_MESHES`` (default ``../shared/meshes``).
+default list is tube:10000, camel_9770.off, eth_hand_14k.off (the meshes issue
+#18 asks for), armadillo_43k.obj, feline_50k.off and igea_134k.ply from ``$DEND_MESHES`` (default ``../shared/meshes``).
 The libigl side runs in ``$DEND_PYTHON`` (default ``.venv/bin/python``, then
 ``/work/main/.venv/bin/python``); this script itself only needs the standard
 library.
@@ -91,8 +91,8 @@ def resolve(spec):
 def main():
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("meshes", nargs="*", default=[
-        "tube:10000", "camel_9770.off", "armadillo_43k.obj", "feline_50k.off",
-        "igea_134k.ply"])
+        "tube:10000", "camel_9770.off", "eth_hand_14k.off", "armadillo_43k.obj",
+        "feline_50k.off", "igea_134k.ply"])
     ap.add_argument("--iters", type=int, default=30)
     ap.add_argument("--rounds", type=int, default=3,
                     help="alternating dend/ARAP runs per mesh (medians reported)")
