@@ -247,11 +247,12 @@ impl From<StoreError> for ApiError {
 
 impl From<&StoreError> for ApiError {
     /// Unreachable store → 503 `store_unavailable`; a fenced write (the
-    /// lease was taken over) → 409 `session_owned_elsewhere`; the rest is
-    /// internal.
+    /// lease was taken over) → 409 `session_owned_elsewhere`; a session the
+    /// store does not hold → 404 `session_not_found`; the rest is internal.
     fn from(e: &StoreError) -> Self {
         match e {
             StoreError::Unavailable(m) => ApiError::StoreUnavailable(m.clone()),
+            StoreError::Missing(id) => ApiError::SessionNotFound(id.clone()),
             StoreError::Fenced { session, owner, .. } => ApiError::SessionOwnedElsewhere {
                 session: session.clone(),
                 owner: owner.clone().unwrap_or_else(|| "none".into()),

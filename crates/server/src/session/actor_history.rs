@@ -57,11 +57,19 @@ impl Actor {
             targets: self.targets().iter().map(StoredTransform::from).collect(),
         };
         let (store, id, fence) = (&self.opts.store, &self.inner.id, self.opts.fence);
-        if let Err(e) = off_worker(|| store.checkpoint(id, fence, &cp)) {
-            // the journal stays as it was: a recovery still replays every
-            // acknowledged drag onto the previous checkpoint
-            tracing::error!(session = %self.inner.id, error = %e, "checkpoint failed");
-            self.on_store_error(&e);
+        match off_worker(|| store.checkpoint(id, fence, &cp)) {
+            Ok(()) => {}
+            // the session was deleted while this checkpoint was on its way
+            // (a settle frame racing a close): there is nothing to keep
+            Err(StoreError::Missing(_)) => {
+                tracing::debug!(session = %self.inner.id, "checkpoint skipped: the session was deleted");
+            }
+            Err(e) => {
+                // the journal stays as it was: a recovery still replays every
+                // acknowledged drag onto the previous checkpoint
+                tracing::error!(session = %self.inner.id, error = %e, "checkpoint failed");
+                self.on_store_error(&e);
+            }
         }
     }
 

@@ -63,7 +63,7 @@ impl MemoryStore {
 }
 
 fn missing(id: &str) -> StoreError {
-    StoreError::Backend(format!("no session `{id}`"))
+    StoreError::Missing(id.to_string())
 }
 
 impl MemoryStore {

@@ -69,6 +69,10 @@ pub enum StoreError {
         /// Why it could not be decoded.
         reason: String,
     },
+    /// The store holds no session with this id (never created, or deleted,
+    /// possibly by a request racing this one). Nothing was written.
+    #[error("no session `{0}` in the store")]
+    Missing(String),
     /// The store cannot be reached (connection refused or lost, server
     /// restarting, pool exhausted). Nothing was written; retry later.
     #[error("store unavailable: {0}")]

@@ -130,7 +130,7 @@ pub(super) fn pg_err(e: postgres::Error) -> StoreError {
 }
 
 fn missing(id: &str) -> StoreError {
-    StoreError::Backend(format!("no session `{id}`"))
+    StoreError::Missing(id.to_string())
 }
 
 impl PgStore {

@@ -80,7 +80,7 @@ fn backend(e: impl std::fmt::Display) -> StoreError {
 }
 
 fn missing(id: &str) -> StoreError {
-    StoreError::Backend(format!("no session `{id}`"))
+    StoreError::Missing(id.to_string())
 }
 
 impl SqliteStore {

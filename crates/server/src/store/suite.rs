@@ -400,6 +400,27 @@ pub(super) fn everything_survives_reopen(b: Backend) -> Result<(), StoreError> {
     Ok(())
 }
 
+/// Writes to a session the store does not hold (deleted while an actor's
+/// checkpoint or journal write was on its way) are the typed `Missing`,
+/// which the actor treats as nothing to keep and the API as 404.
+pub(super) fn writes_to_a_deleted_session_are_missing(b: Backend) -> Result<(), StoreError> {
+    let s = &*b.store;
+    s.put_session(&record("gone"))?;
+    s.append("gone", NO_FENCE, &[drag(1)])?;
+    s.delete_session("gone")?;
+    let missing = |r: Result<(), StoreError>, want: &str| matches!(r, Err(StoreError::Missing(ref id)) if id == want);
+    assert!(missing(
+        s.checkpoint("gone", NO_FENCE, &checkpoint(1, 4)),
+        "gone"
+    ));
+    assert!(missing(s.append("gone", NO_FENCE, &[drag(2)]), "gone"));
+    assert!(missing(
+        s.checkpoint("never", NO_FENCE, &checkpoint(1, 4)),
+        "never"
+    ));
+    Ok(())
+}
+
 /// One `#[test]` per case for a backend constructor.
 macro_rules! store_suite {
     ($backend:ident: $($case:ident),* $(,)?) => {
@@ -428,6 +449,7 @@ macro_rules! every_case {
                 handoff_requests_reach_the_owner,
                 one_winner_when_instances_race_for_a_lease,
                 everything_survives_reopen,
+                writes_to_a_deleted_session_are_missing,
             );
         )*
     };
