@@ -6,10 +6,12 @@ Usage (from the crate root; needs a release build, `cargo build --release`):
 
     python3 scripts/posing_suite.py [--only NAME ...] [--skip-large]
         [--formulation NAME] [--max-iters 100] [--tol 1e-3]
-        [--json out.json] [--no-render] [--list] [--arap-cache DIR]
+        [--json out.json] [--no-render] [--list] [--arap-cache DIR] [--no-arap]
 
 `--only` takes case names or shell patterns (`'camel-*'`, `'*-limb'`);
-`--list` prints the case names. `--skip-large` skips meshes of 40k+
+`--list` prints the case names. `--no-arap` runs only dend and judges only
+its objective (never grows, no edit diverged): `tests/posing_suite_monotone.rs`
+runs it on every edit. `--skip-large` skips meshes of 40k+
 vertices (armadillo, feline, survey bumpy plane). `--formulation` is passed
 to `dend deform` (omitted: dend's default). The binary is `$DEND_BIN` or
 `target/release/dend`; meshes come from `$DEND_MESHES` (default
@@ -257,10 +259,14 @@ def edge_distortion(case, u):
 def monotone(report):
     """Every objectives[k+1] <= objectives[k] * (1 + 1e-9), within each step
     when the per-step iteration counts add up to the list (a new increment's
-    target may raise the objective), else over the whole list."""
+    target may raise the objective), else over the whole list; the first
+    step starts from `objective_first`, the objective before any iteration."""
     obj = report.get("objectives")
     if not isinstance(obj, list):
         return None
+    first = report.get("objective_first")
+    if isinstance(first, (int, float)) and obj and not obj[0] <= first * (1 + 1e-9):
+        return False
     counts = [s.get("iterations", 0) for s in report.get("steps") or []]
     chunks = [obj]
     if counts and sum(counts) == len(obj):
@@ -510,6 +516,21 @@ def judge(row):
     row["verdict"] = "PASS" if not fails else "FAIL"
 
 
+def judge_objective(row):
+    """`--no-arap`'s verdict: only the rules on our objective (it never
+    grows, no edit diverged) and that the run completed."""
+    if row.get("error"):
+        row["verdict"] = "ERROR"
+        return
+    o, fails = row["ours"], []
+    if o["monotone"] is not True:
+        fails.append("objective not monotone" if o["monotone"] is False else "no objectives")
+    if o["diverged"] is not False:
+        fails.append(f"diverged {o['diverged']}")
+    row["failures"] = fails
+    row["verdict"] = "PASS" if not fails else "FAIL"
+
+
 def fmt(x, spec=".3g"):
     if x is None or (isinstance(x, float) and not math.isfinite(x)):
         return "-"
@@ -597,6 +618,11 @@ def run_case(name, dend, args, tmp):
         row["ours"]["measure"] = measure(dend, case, row["ours"].pop("pose_path"))
     except Exception as e:  # noqa: BLE001
         errors.append(f"ours: {e}")
+    if args.no_arap:
+        if errors:
+            row["error"] = "; ".join(errors)
+        judge_objective(row)
+        return row, case
     log(f"{name}: libigl ARAP")
     try:
         u_arap, row["arap"] = cached_arap(case, args)
@@ -652,6 +678,9 @@ def main():
     ap.add_argument("--json", help="write every figure to this file")
     ap.add_argument("--no-render", action="store_true", help="no PNGs")
     ap.add_argument("--list", action="store_true", help="print the case names and exit")
+    ap.add_argument("--no-arap", action="store_true",
+                    help="run only dend (no ARAP, even pose or renders) and judge only "
+                         "the objective: monotone, not diverged (tests/posing_suite_monotone.rs)")
     ap.add_argument("--arap-cache", metavar="DIR",
                     help="reuse libigl ARAP results stored here by an earlier run (for "
                          "solver experiments; the figures' ARAP timings are then that run's)")
@@ -676,7 +705,14 @@ def main():
             row, _ = run_case(name, dend, args, tmp)
             log(f"{name}: {row['verdict']} {row.get('error', '')}")
             rows.append(row)
-    print_table(rows)
+    if args.no_arap:
+        for r in rows:
+            o = r.get("ours", {})
+            print(f"{r['case']}: {r['verdict']} {'; '.join(r.get('failures', []))}"
+                  f"{r.get('error', '')} (iterations {o.get('iterations')}, objective "
+                  f"{fmt(o.get('objective_first'))} -> {fmt(o.get('objective_last'))})")
+    else:
+        print_table(rows)
     ran = [r for r in rows if r["verdict"] != "SKIP"]
     passed = sum(r["verdict"] == "PASS" for r in ran)
     errors = sum(r["verdict"] == "ERROR" for r in ran)
