@@ -219,9 +219,10 @@ fn formulation_flag_selects_the_square_system_and_rejects_unknown_names() {
 }
 
 /// `--weights characters` is `--stretch 3 --laplacian 0.1 --coarse-ratio 3
-/// --corrections while-gaining` (the same pose to the last written digit),
-/// differs from the defaults, and yields to an explicit `--stretch`; a
-/// coarse ratio under 2 is refused with exit code 2.
+/// --corrections while-gaining --correction-period 5` (the same pose to the
+/// last written digit), differs from the defaults, and yields to an
+/// explicit `--stretch`; a coarse ratio under 2 and a correction period of
+/// 0 are refused with exit code 2.
 #[test]
 fn characters_weights_are_the_documented_stretch_and_laplacian() {
     let dir = tempfile::tempdir().unwrap();
@@ -240,6 +241,8 @@ fn characters_weights_are_the_documented_stretch_and_laplacian() {
         "3",
         "--corrections",
         "while-gaining",
+        "--correction-period",
+        "5",
     ];
     let preset = pose("preset.obj", &["--weights", "characters"]);
     let explicit = pose(
@@ -273,4 +276,13 @@ fn characters_weights_are_the_documented_stretch_and_laplacian() {
     let stderr = String::from_utf8_lossy(&o.stderr);
     assert_eq!(o.status.code(), Some(2), "{stderr}");
     assert!(stderr.contains("coarse_ratio"), "{stderr}");
+    let o = deform_bar(
+        &bar,
+        &example,
+        &dir.path().join("p0.obj"),
+        &["--correction-period", "0"],
+    );
+    let stderr = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(2), "{stderr}");
+    assert!(stderr.contains("correction_period"), "{stderr}");
 }

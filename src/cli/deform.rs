@@ -43,7 +43,7 @@ pub struct Args {
     /// Bending weight k_b of the combined energy (least_squares, square).
     #[arg(long, default_value_t = 1.0)]
     kb: f64,
-    /// Elastic formulation: weight set, general (the defaults) or characters (stretch 3, Laplacian share 0.1, coarse ratio 3, corrections while-gaining: ARAP-like edge lengths on characters and faster limbs, far less area kept in twisted bars; docs/posing.md). --stretch, --laplacian, --coarse-ratio and --corrections override it.
+    /// Elastic formulation: weight set, general (the defaults) or characters (stretch 3, Laplacian share 0.1, coarse ratio 3, corrections while-gaining every 5 iterations: ARAP-like edge lengths on characters and faster limbs, far less area kept in twisted bars; docs/posing.md). --stretch, --laplacian, --coarse-ratio, --corrections and --correction-period override it.
     #[arg(long, default_value = "general", value_parser = ["general", "characters"])]
     weights: String,
     /// Elastic formulation: stretch weight k_s (ARAP's spokes), dimensionless [default: 1, or 3 with --weights characters].
@@ -64,6 +64,9 @@ pub struct Args {
     /// Elastic formulation: when a sequence's coarse corrections stop, while-faster (once one gains less than the fine iterations before it) or while-gaining (once one gains nothing) [default: while-faster, or while-gaining with --weights characters].
     #[arg(long, value_parser = ["while-faster", "while-gaining"])]
     corrections: Option<String>,
+    /// Elastic formulation: fine iterations between two coarse corrections, at least 1 [default: 10, or 5 with --weights characters].
+    #[arg(long)]
+    correction_period: Option<usize>,
     /// Linear detail term (δ̂ = δ, paper eq. 15) instead of the nonlinear one.
     #[arg(long)]
     linear: bool,
@@ -252,6 +255,7 @@ fn params_of(args: &Args) -> anyhow::Result<Params> {
             Some(_) => Corrections::WhileFaster,
             None => weights.corrections,
         },
+        correction_period: args.correction_period.unwrap_or(weights.correction_period),
         area: args.area,
         formulation: match &args.formulation {
             Some(name) => Formulation::from_name(name).with_context(|| {

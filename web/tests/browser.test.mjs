@@ -447,6 +447,7 @@ async function main() {
     assert.equal(sent.laplacian, 0.1);
     assert.equal(sent.coarse_ratio, 3);
     assert.equal(sent.corrections, 'while-gaining');
+    assert.equal(sent.correction_period, 5);
     const created = await req.response();
     assert.ok(created && created.ok(), `the server takes the characters' weights (${created && created.status()})`);
     const newId = (await created.json()).id;

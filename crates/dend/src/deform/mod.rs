@@ -44,14 +44,12 @@ pub use factor::{
 };
 pub use params::{
     Corrections, DetailTerm, Energy, Formulation, Mode, Params, CHARACTERS_COARSE_RATIO,
-    CHARACTERS_LAPLACIAN, CHARACTERS_STRETCH, DEFAULT_AREA, DEFAULT_BENDING, DEFAULT_COARSE_RATIO,
-    DEFAULT_LAPLACIAN,
+    CHARACTERS_CORRECTION_PERIOD, CHARACTERS_LAPLACIAN, CHARACTERS_STRETCH, DEFAULT_AREA,
+    DEFAULT_BENDING, DEFAULT_COARSE_RATIO, DEFAULT_CORRECTION_PERIOD, DEFAULT_LAPLACIAN,
 };
 pub use rest::Rest;
 pub use rotation::{best_rotation, fit_rotation, fit_rotation_quat, rotation_from_covariance};
-pub use solver::{
-    Deformer, Levels, StepReport, COARSE_MAX_ITERS, CORRECTION_EVERY, CORRECTION_MAX_ITERS,
-};
+pub use solver::{Deformer, Levels, StepReport, COARSE_MAX_ITERS, CORRECTION_MAX_ITERS};
 pub use system::energy_matrix;
 pub use warnings::{ConstraintWarning, STRAY_LISTED};
 

@@ -197,11 +197,24 @@ fn a_swung_limb_reaches_the_same_pose() {
 
 #[test]
 fn the_fine_objective_never_grows_through_the_coarse_start_and_corrections() {
-    use crate::deform::CORRECTION_EVERY;
+    for period in [crate::deform::DEFAULT_CORRECTION_PERIOD, 5] {
+        let params = Params {
+            correction_period: period,
+            corrections: crate::deform::Corrections::WhileGaining,
+            ..Params::default()
+        };
+        objective_never_grows_through_corrections(params);
+    }
+}
+
+/// The limb swung from rest with `params`: corrections only after every
+/// `params.correction_period`-th fine iteration, the objective never
+/// growing, and a drag of the solved pose after it.
+fn objective_never_grows_through_corrections(params: Params) {
+    let period = params.correction_period;
     let mesh = limb();
     let rest = Arc::new(Rest::new(mesh.clone()).unwrap());
     let c = limb_constraints(&mesh, swing);
-    let params = Params::default();
     let factor = Factor::build(&rest, &params, &c).unwrap();
     let mut d = Deformer::new(rest, params);
     let first = d.step(&factor, &c, 1).unwrap();
@@ -210,22 +223,27 @@ fn the_fine_objective_never_grows_through_the_coarse_start_and_corrections() {
     assert!(first.objective <= prev * (1.0 + 1e-12));
     prev = first.objective;
     let (reports, converged) = steps_until_converged(&mut d, &factor, &c, prev, 199);
-    let mut corrections = 0;
+    let mut corrections = Vec::new();
     for (k, r) in (2..).zip(&reports) {
         if r.coarse_iterations > 0 {
-            // a correction follows every CORRECTION_EVERY-th fine iteration
-            assert_eq!(k % CORRECTION_EVERY, 0, "correction after iteration {k}");
-            corrections += 1;
+            // a correction follows every period-th fine iteration
+            assert_eq!(
+                k % period,
+                0,
+                "period {period}: correction after iteration {k}"
+            );
+            corrections.push(k);
         }
     }
     if converged {
         let k = reports.len() + 1;
-        assert!(
-            k > CORRECTION_EVERY,
-            "converged in {k}: no correction tried"
-        );
+        assert!(k > period, "converged in {k}: no correction tried");
     }
-    assert!(corrections > 0, "no coarse correction ran");
+    assert_eq!(
+        corrections.first(),
+        Some(&period),
+        "period {period}: corrections after {corrections:?}"
+    );
     // a drag of the solved pose: no coarse work in the frame that answers
     // it (its latency), corrections as from rest after that, and the
     // objective still never grows

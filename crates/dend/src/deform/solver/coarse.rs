@@ -6,7 +6,7 @@
 //!   take its rotations to the fine mesh, then iterate on the fine mesh as
 //!   after [`Deformer::propagate_rotations`].
 //! - **Corrections** (a full approximation scheme, Brandt 1977, in rotation
-//!   space; prototype FINDINGS2): every [`CORRECTION_EVERY`] fine
+//!   space; prototype FINDINGS2): every [`Params::correction_period`] fine
 //!   iterations of a sequence (a drag's too, never in the frame that
 //!   answers it), with `r_f = g_f − Q_f Y` the fine residual (`−½ ∇E_f`),
 //!   the fine pose is injected into the coarse mesh (its vertices are fine
@@ -32,6 +32,7 @@
 //!   [`Corrections::WhileGaining`] once one gains nothing), or when the
 //!   coarse solve does not converge within [`CORRECTION_MAX_ITERS`].
 //!
+//! [`Params::correction_period`]: crate::deform::Params::correction_period
 //! [`Corrections::WhileFaster`]: crate::deform::Corrections::WhileFaster
 //! [`Corrections::WhileGaining`]: crate::deform::Corrections::WhileGaining
 
@@ -54,11 +55,6 @@ use crate::mesh::{Point, Real};
 /// limb needed 135; a coarse solve that hits the cap still gives its
 /// rotations).
 pub const COARSE_MAX_ITERS: usize = 300;
-
-/// Fine iterations between two coarse corrections (prototype: 5 let
-/// corrections be rejected on the camel, 15 needed more iterations; 10
-/// was best).
-pub const CORRECTION_EVERY: usize = 10;
 
 /// Iteration cap of a correction's coarse solve: one that needs more is
 /// skipped and ends the corrections (the armadillo's standard edit, whose

@@ -31,7 +31,7 @@ use faer::dyn_stack::{MemBuffer, MemStack};
 use faer::MatMut;
 use nalgebra::{Matrix3, UnitQuaternion, Vector3};
 
-use super::coarse::{CoarseRun, Correction, Levels, CORRECTION_EVERY};
+use super::coarse::{CoarseRun, Correction, Levels};
 use super::{Deformer, StepReport};
 use crate::deform::anderson::Anderson;
 use crate::deform::constraints::Constraints;
@@ -236,7 +236,7 @@ impl Deformer {
             }
             if st.corrections {
                 st.since_correction += 1;
-                if st.since_correction >= CORRECTION_EVERY {
+                if st.since_correction >= self.params.correction_period {
                     e = self.correct(factor, (el, set), constraints, e, &mut report);
                 }
             }

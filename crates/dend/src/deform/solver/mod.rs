@@ -14,7 +14,7 @@ mod elastic;
 mod least_squares;
 mod propagate;
 
-pub use coarse::{Levels, COARSE_MAX_ITERS, CORRECTION_EVERY, CORRECTION_MAX_ITERS};
+pub use coarse::{Levels, COARSE_MAX_ITERS, CORRECTION_MAX_ITERS};
 
 use least_squares::Scratch;
 
