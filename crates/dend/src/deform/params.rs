@@ -279,8 +279,8 @@ impl Params {
     /// 7 with the defaults (14 of its 20 edits against 8, every edit the
     /// defaults pass among them): every character's mean edge distortion
     /// within 0.92–1.38× ARAP's (feline standard 1.38×, 1.75× with the
-    /// defaults), camel limb 22 iterations (40), armadillo standard 18 (44);
-    /// the hand's standard edit still settles only 1.5–3× sooner than
+    /// defaults), camel limb 23 iterations (40), armadillo standard 18 (44);
+    /// the hand's standard edit still settles only 1.5–1.7× sooner than
     /// ARAP. The defaults keep twisted bars' cross-sections and even twists
     /// far better (300° bar min area 0.80 against 0.60, survey bar 0.6°
     /// from its ramp against 9.2°: docs/posing.md).
