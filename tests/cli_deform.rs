@@ -267,22 +267,18 @@ fn characters_weights_are_the_documented_stretch_and_laplacian() {
         "cartoon",
     ]);
     assert_eq!(o.status.code(), Some(2));
-    let o = deform_bar(
-        &bar,
-        &example,
-        &dir.path().join("r1.obj"),
-        &["--coarse-ratio", "1"],
-    );
-    let stderr = String::from_utf8_lossy(&o.stderr);
-    assert_eq!(o.status.code(), Some(2), "{stderr}");
-    assert!(stderr.contains("coarse_ratio"), "{stderr}");
-    let o = deform_bar(
-        &bar,
-        &example,
-        &dir.path().join("p0.obj"),
-        &["--correction-period", "0"],
-    );
-    let stderr = String::from_utf8_lossy(&o.stderr);
-    assert_eq!(o.status.code(), Some(2), "{stderr}");
-    assert!(stderr.contains("correction_period"), "{stderr}");
+    for (flag, value, name) in [
+        ("--coarse-ratio", "1", "coarse_ratio"),
+        ("--correction-period", "0", "correction_period"),
+    ] {
+        let o = deform_bar(
+            &bar,
+            &example,
+            &dir.path().join("refused.obj"),
+            &[flag, value],
+        );
+        let stderr = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(o.status.code(), Some(2), "{flag} {value}: {stderr}");
+        assert!(stderr.contains(name), "{flag} {value}: {stderr}");
+    }
 }

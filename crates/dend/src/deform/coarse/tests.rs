@@ -54,6 +54,16 @@ fn swing(centroid: Point) -> RigidTransform {
     }
 }
 
+/// The largest distance between the two deformers' poses, vertex by
+/// vertex (the dend crate's unit tests cannot use `dend_testkit`).
+fn pose_gap(a: &Deformer, b: &Deformer) -> Real {
+    a.pose()
+        .iter()
+        .zip(b.pose())
+        .map(|(p, q)| crate::mesh::norm(crate::mesh::sub(*p, *q)))
+        .fold(0.0, Real::max)
+}
+
 fn solve(
     rest: &Arc<Rest>,
     params: Params,
@@ -186,12 +196,7 @@ fn a_swung_limb_reaches_the_same_pose() {
     let (b, rb) = solve(&rest, tight, &c, Levels::Two);
     assert!(ra.converged && rb.converged && rb.coarse_iterations > 0);
     let diag = mesh.diagonal();
-    let dist = a
-        .pose()
-        .iter()
-        .zip(b.pose())
-        .map(|(p, q)| crate::mesh::norm(crate::mesh::sub(*p, *q)))
-        .fold(0.0, Real::max);
+    let dist = pose_gap(&a, &b);
     assert!(dist < 1e-3 * diag, "poses {dist} apart, diagonal {diag}");
 }
 
@@ -546,12 +551,7 @@ fn the_coarse_start_solved_beside_the_factor_gives_the_same_sequence() {
     assert!(rp.converged && ra.converged && rp.coarse_iterations > 0);
     assert_eq!(ra.iterations, rp.iterations);
     assert_eq!(ra.coarse_iterations, rp.coarse_iterations);
-    let gap = plain
-        .pose()
-        .iter()
-        .zip(ahead.pose())
-        .map(|(p, q)| crate::mesh::norm(crate::mesh::sub(*p, *q)))
-        .fold(0.0, Real::max);
+    let gap = pose_gap(&plain, &ahead);
     assert!(gap < 1e-9 * mesh.diagonal(), "poses {gap} apart");
 
     // a start solved for one target is not taken for another: the second
@@ -562,12 +562,7 @@ fn the_coarse_start_solved_beside_the_factor_gives_the_same_sequence() {
     let factor = stale.build_factor(&c).unwrap();
     let rs = stale.step(&factor, &far, 2000).unwrap();
     assert_eq!(rs.iterations, rf.iterations);
-    let gap = plain_far
-        .pose()
-        .iter()
-        .zip(stale.pose())
-        .map(|(p, q)| crate::mesh::norm(crate::mesh::sub(*p, *q)))
-        .fold(0.0, Real::max);
+    let gap = pose_gap(&plain_far, &stale);
     assert!(gap < 1e-9 * mesh.diagonal(), "poses {gap} apart");
 
     // one level: nothing is solved ahead, and the factor is the same
