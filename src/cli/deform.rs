@@ -143,7 +143,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     // the factor, and beside it the coarse start of the first increment
     let mut first = constraints.clone();
     for h in &mut first.handles {
-        h.target = h.target.fraction(1.0 / args.steps as f64);
+        h.target = increment(&h.target, 1, args.steps);
     }
     let t_factor = Instant::now();
     let factor = deformer.build_factor(&first)?;
@@ -271,6 +271,13 @@ fn params_of(args: &Args) -> anyhow::Result<Params> {
     Ok(params)
 }
 
+/// The target of increment `s` of `steps` towards `full` (the first one is
+/// also what the coarse start is solved for beside the factor: the two
+/// must be the same bits).
+fn increment(full: &RigidTransform, s: usize, steps: usize) -> RigidTransform {
+    full.fraction(s as f64 / steps as f64)
+}
+
 /// What the increments' iterations did (the `--report`'s figures).
 #[derive(Default)]
 struct Solved {
@@ -297,7 +304,7 @@ fn solve(
     let mut solved = Solved::default();
     for s in 1..=args.steps {
         for (h, t) in constraints.handles.iter_mut().zip(&full) {
-            h.target = t.fraction(s as f64 / args.steps as f64);
+            h.target = increment(t, s, args.steps);
         }
         let (rep, step_iterations) = solved.increment(args, deformer, factor, constraints)?;
         solved.iterations += step_iterations;
