@@ -484,6 +484,16 @@ def even_pose(case):
 
 # --- verdict, render, table ----------------------------------------------------
 
+def objective_failures(o):
+    """The rules on our objective alone: it never grows, no edit diverged."""
+    fails = []
+    if o["monotone"] is not True:
+        fails.append("objective not monotone" if o["monotone"] is False else "no objectives")
+    if o["diverged"] is not False:
+        fails.append(f"diverged {o['diverged']}")
+    return fails
+
+
 def judge(row):
     """Fills row["failures"] and row["verdict"] (PASS / FAIL / ERROR)."""
     if row.get("error"):
@@ -504,10 +514,7 @@ def judge(row):
             fails.append(f"step {k}: not converged in {s.get('iterations')} it")
         elif not (s.get("iterations") or 0) <= MAX_ITERS_PER_STEP:
             fails.append(f"step {k}: {s.get('iterations')} it > {MAX_ITERS_PER_STEP}")
-    if o["monotone"] is not True:
-        fails.append("objective not monotone" if o["monotone"] is False else "no objectives")
-    if o["diverged"] is not False:
-        fails.append(f"diverged {o['diverged']}")
+    fails += objective_failures(o)
     for key, (op, lim) in row["rules"].items():
         x = o["measure"].get(key, float("nan"))
         if not (x >= lim if op == ">=" else x <= lim):
@@ -522,11 +529,7 @@ def judge_objective(row):
     if row.get("error"):
         row["verdict"] = "ERROR"
         return
-    o, fails = row["ours"], []
-    if o["monotone"] is not True:
-        fails.append("objective not monotone" if o["monotone"] is False else "no objectives")
-    if o["diverged"] is not False:
-        fails.append(f"diverged {o['diverged']}")
+    fails = objective_failures(row["ours"])
     row["failures"] = fails
     row["verdict"] = "PASS" if not fails else "FAIL"
 
