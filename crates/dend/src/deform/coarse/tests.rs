@@ -565,7 +565,7 @@ fn the_coarse_start_solved_beside_the_factor_gives_the_same_sequence() {
     let gap = pose_gap(&plain_far, &stale);
     assert!(gap < 1e-9 * mesh.diagonal(), "poses {gap} apart");
 
-    // one level: nothing is solved ahead, and the factor is the same
+    // one level: nothing is solved ahead, and no coarse work is done
     let mut one = Deformer::new(rest.clone(), params);
     one.set_levels(Levels::One);
     let factor = one.build_factor(&c).unwrap();

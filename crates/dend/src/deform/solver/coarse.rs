@@ -139,10 +139,15 @@ fn coarse_problem(
 }
 
 /// Solves the coarse start of `p` from the coarse rest pose for the
-/// restricted constraints `cc` (the deformer's parameters already set);
-/// `None` when the coarse solve failed.
-fn solve_start(p: &mut CoarseProblem, cc: &Constraints) -> Option<SolvedStart> {
-    let t0 = Instant::now();
+/// restricted constraints `cc` of the fine `constraints` (the deformer's
+/// parameters already set), its time counted from `t0`; `None` when the
+/// coarse solve failed.
+fn solve_start(
+    p: &mut CoarseProblem,
+    cc: &Constraints,
+    constraints: &Constraints,
+    t0: Instant,
+) -> Option<SolvedStart> {
     let coarse = &mut p.deformer;
     coarse.reset();
     coarse.elastic.linear.clear();
@@ -151,7 +156,7 @@ fn solve_start(p: &mut CoarseProblem, cc: &Constraints) -> Option<SolvedStart> {
         return None;
     }
     Some(SolvedStart {
-        targets: targets_of(cc),
+        targets: targets_of(constraints),
         rotations: coarse.rotations().to_vec(),
         run: CoarseRun {
             iterations: report.iterations,
@@ -242,11 +247,7 @@ impl Deformer {
                 .filter(|s| targets_of(constraints) == s.targets);
             let solved = match solved {
                 Some(s) => s,
-                None => {
-                    let mut s = solve_start(p, cc)?;
-                    s.run.ms = t0.elapsed().as_secs_f64() * 1e3;
-                    s
-                }
+                None => solve_start(p, cc, constraints, t0)?,
             };
             let st = &mut fine.elastic;
             p.level
@@ -281,10 +282,7 @@ impl Deformer {
                 let mut p = coarse_problem(rest, params, constraints)?;
                 let cc = p.level.restrict(constraints)?;
                 p.deformer.params = coarse_params(rest, params, &p.level);
-                let mut s = solve_start(&mut p, &cc)?;
-                s.targets = targets_of(constraints);
-                s.run.ms = t0.elapsed().as_secs_f64() * 1e3;
-                p.solved_start = Some(s);
+                p.solved_start = Some(solve_start(&mut p, &cc, constraints, t0)?);
                 Some(Box::new(p))
             },
         );
