@@ -162,11 +162,7 @@ fn area_root(s1: Real, s2: Real) -> Real {
         return halley_root(s1, s2, start).unwrap_or_else(|| convex_root(s1, s2, start));
     }
     let f = |d: Real| (d - s1) * (d - s1) + (1.0 / d - s2) * (1.0 / d - s2);
-    // a minimum of f: f'' = 2 + 6/d⁴ − 4 σ2/d³ > 0
-    let local_min = |d: Real| {
-        let d3 = d * d * d;
-        2.0 + 6.0 / (d3 * d) - 4.0 * s2 / d3 > 0.0
-    };
+    let local_min = |d: Real| curvature(s2, d) > 0.0;
     let mut best = (f(1.0), 1.0);
     let first = halley_root(s1, s2, start).filter(|&d| local_min(d));
     let candidates = match first {
@@ -182,6 +178,14 @@ fn area_root(s1: Real, s2: Real) -> Real {
         }
     }
     best.1
+}
+
+/// `f''(d) = 2 + 6/d⁴ − 4σ2/d³` of `f(d) = (d − σ1)² + (1/d − σ2)²`
+/// ([`area_root`]; it does not depend on `σ1`).
+fn curvature(s2: Real, d: Real) -> Real {
+    let id = 1.0 / d;
+    let id3 = id * id * id;
+    2.0 + 6.0 * id3 * id - 4.0 * s2 * id3
 }
 
 /// A positive root of `p(d) = d⁴ − σ1 d³ + σ2 d − 1` by Halley's method
@@ -227,11 +231,6 @@ fn convex_root(s1: Real, s2: Real, start: Real) -> Real {
         let id = 1.0 / d;
         2.0 * (d - s1) - 2.0 * (id - s2) * id * id
     };
-    let fpp = |d: Real| {
-        let id = 1.0 / d;
-        let id3 = id * id * id;
-        2.0 + 6.0 * id3 * id - 4.0 * s2 * id3
-    };
     let (mut lo, mut hi): (Real, Real) = (1e-8, s1.max(1.0) + 1.0);
     let mut d = if start > lo && start < hi {
         start
@@ -245,7 +244,7 @@ fn convex_root(s1: Real, s2: Real, start: Real) -> Real {
         } else {
             hi = d;
         }
-        let newton = d - g / fpp(d);
+        let newton = d - g / curvature(s2, d);
         let next = if newton > lo && newton < hi {
             newton
         } else {
