@@ -75,6 +75,7 @@ normal direction and banded along rest z).
 """
 
 import argparse
+import contextlib
 import fnmatch
 import importlib.util
 import json
@@ -687,6 +688,9 @@ def main():
     ap.add_argument("--arap-cache", metavar="DIR",
                     help="reuse libigl ARAP results stored here by an earlier run (for "
                          "solver experiments; the figures' ARAP timings are then that run's)")
+    ap.add_argument("--keep", metavar="DIR",
+                    help="write the constraint files, poses and reports here and keep them "
+                         "(default: a temporary directory, removed at the end)")
     args = ap.parse_args()
     names = case_names()
     if args.list:
@@ -703,7 +707,10 @@ def main():
         return 2
     rows = []
     t0 = time.perf_counter()
-    with tempfile.TemporaryDirectory(prefix="posing_suite_") as tmp:
+    if args.keep:
+        os.makedirs(args.keep, exist_ok=True)
+    with (contextlib.nullcontext(args.keep) if args.keep
+          else tempfile.TemporaryDirectory(prefix="posing_suite_")) as tmp:
         for name in names:
             row, _ = run_case(name, dend, args, tmp)
             log(f"{name}: {row['verdict']} {row.get('error', '')}")
