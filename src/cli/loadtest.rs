@@ -46,6 +46,21 @@ pub struct LoadtestArgs {
     /// budget, then check each one still answers its pose and a drag.
     #[arg(long, default_value_t = 0)]
     idle: usize,
+    /// The drag sessions' weights: general (the server's defaults) or
+    /// characters (the parameters of `Params::for_characters`, as the web
+    /// editor's *Weights: characters* sends them).
+    #[arg(long, default_value = "general", value_parser = ["general", "characters"])]
+    weights: String,
+}
+
+/// The `params` object of the drag sessions: `{}` (the server's defaults)
+/// or every parameter of the characters' weights.
+fn session_params(weights: &str) -> anyhow::Result<serde_json::Value> {
+    Ok(if weights == "characters" {
+        serde_json::to_value(dend::deform::Params::default().for_characters())?
+    } else {
+        json!({})
+    })
 }
 
 /// Runs the load test and prints its report.
@@ -111,17 +126,23 @@ async fn run_async(args: LoadtestArgs) -> anyhow::Result<()> {
     });
     let mut step = [0.0; 3];
     step[(k + 1) % 3] = 0.3 * ext[k] / args.drags.max(1) as f64;
+    let params = session_params(&args.weights)?;
     println!(
-        "mesh: {} vertices, {} triangles; {} session(s) x {} drags",
-        mesh.vertices, mesh.triangles, args.sessions, args.drags
+        "mesh: {} vertices, {} triangles; {} session(s) x {} drags; weights {}",
+        mesh.vertices, mesh.triangles, args.sessions, args.drags, args.weights
     );
     let t0 = Instant::now();
     let mut tasks = vec![];
     for _ in 0..args.sessions {
-        let (client, mesh_id, spec, drags) =
-            (client.clone(), mesh.id.clone(), spec.clone(), args.drags);
+        let (client, mesh_id, spec, params, drags) = (
+            client.clone(),
+            mesh.id.clone(),
+            spec.clone(),
+            params.clone(),
+            args.drags,
+        );
         tasks.push(tokio::spawn(async move {
-            one_session(client, mesh_id, spec, drags, step).await
+            one_session(client, mesh_id, params, spec, drags, step).await
         }));
     }
     let mut all = vec![];
@@ -331,12 +352,13 @@ async fn idle_sessions(
 async fn one_session(
     client: Client,
     mesh_id: String,
+    params: serde_json::Value,
     spec: serde_json::Value,
     drags: u64,
     step: [f64; 3],
 ) -> anyhow::Result<(SessionStats, Duration)> {
     let created = Instant::now();
-    let s = client.create_session(&mesh_id, json!({})).await?;
+    let s = client.create_session(&mesh_id, params).await?;
     let constrained = Instant::now();
     s.set_constraints(&spec).await?;
     s.wait_ready(Duration::from_secs(600)).await?;
