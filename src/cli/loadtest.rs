@@ -423,3 +423,23 @@ async fn one_session(
     s.delete().await?;
     Ok((stats, elapsed))
 }
+
+#[cfg(test)]
+mod tests {
+    use super::session_params;
+    use dend::deform::Params;
+
+    /// The server reads a session's `params` with serde into `Params`: the
+    /// objects the loadtest sends must read back as the weights they name.
+    #[test]
+    fn session_params_read_back_as_the_named_weights() {
+        let general: Params =
+            serde_json::from_value(session_params("general").expect("general")).expect("parse");
+        assert_eq!(general, Params::default());
+        let characters: Params =
+            serde_json::from_value(session_params("characters").expect("characters"))
+                .expect("parse");
+        assert_eq!(characters, Params::default().for_characters());
+        assert_ne!(characters, general);
+    }
+}
