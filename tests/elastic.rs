@@ -219,7 +219,10 @@ fn subdivision_gap(coarse: Mesh, params: Params) -> f64 {
             translation: [0.8, 0.0, 0.0],
             pivot,
         };
-        let params = Params { tol: 1e-6, ..params };
+        let params = Params {
+            tol: 1e-6,
+            ..params
+        };
         let (_, converged, pose) = objectives(&rest, params, &c, 400);
         assert!(converged);
         pose
