@@ -189,7 +189,7 @@ fn scaling_the_input_scales_the_pose() {
 #[test]
 fn subdivision_does_not_change_the_pose() {
     for (per_side, rings) in [(5, 17), (9, 33)] {
-        let gap = subdivision_gap(square_tube(1.0, 4.0, per_side, rings), Params::default());
+        let gap = subdivision_gap(square_tube(1.0, 4.0, per_side, rings));
         assert!(
             gap < 0.01,
             "tube {per_side}×{rings}: subdivision moved the pose by {:.3} % of the diagonal",
@@ -200,9 +200,10 @@ fn subdivision_does_not_change_the_pose() {
 
 /// The largest distance, over the vertices of `coarse`, between its pose
 /// and its midpoint subdivision's under the same edit (the ends of the
-/// tube fixed and turned 60° about its axis and shifted 0.8 sideways),
-/// over the diagonal. Both poses converged to `tol` 1e-6.
-fn subdivision_gap(coarse: Mesh, params: Params) -> f64 {
+/// tube fixed, the other turned 60° about the axis and shifted 0.8
+/// sideways), over the diagonal; default weights, both poses converged to
+/// `tol` 1e-6.
+fn subdivision_gap(coarse: Mesh) -> f64 {
     let fine = subdivide(&coarse);
     let r = UnitQuaternion::from_axis_angle(&Vector3::z_axis(), 60f64.to_radians());
     let pose = |m: &Mesh| {
@@ -221,7 +222,7 @@ fn subdivision_gap(coarse: Mesh, params: Params) -> f64 {
         };
         let params = Params {
             tol: 1e-6,
-            ..params
+            ..Params::default()
         };
         let (_, converged, pose) = objectives(&rest, params, &c, 400);
         assert!(converged);

@@ -13,6 +13,8 @@ use dend::deform::{
 use dend::mesh::asset::Asset;
 use dend::mesh::io::{self, survey};
 
+use super::Weights;
+
 /// Arguments of `dend deform`.
 #[derive(Debug, clap::Args)]
 pub struct Args {
@@ -44,8 +46,8 @@ pub struct Args {
     #[arg(long, default_value_t = 1.0)]
     kb: f64,
     /// Elastic formulation: weight set, general (the defaults) or characters (stretch 3, Laplacian share 0.1, coarse ratio 3, corrections while-gaining every 5 iterations: ARAP-like edge lengths on characters and faster limbs, far less area kept in twisted bars; docs/posing.md). --stretch, --laplacian, --coarse-ratio, --corrections and --correction-period override it.
-    #[arg(long, default_value = "general", value_parser = ["general", "characters"])]
-    weights: String,
+    #[arg(long, value_enum, default_value_t = Weights::General)]
+    weights: Weights,
     /// Elastic formulation: stretch weight k_s (ARAP's spokes), dimensionless [default: 1, or 3 with --weights characters].
     #[arg(long)]
     stretch: Option<f64>,
@@ -224,11 +226,7 @@ fn params_of(args: &Args) -> anyhow::Result<Params> {
         None if args.paper => Energy::TotalCurvaturePaper,
         None => Energy::TotalCurvature,
     };
-    let weights = if args.weights == "characters" {
-        Params::default().for_characters()
-    } else {
-        Params::default()
-    };
+    let weights = args.weights.params();
     let params = Params {
         energy,
         lambda1: args.soft.unwrap_or(0.0),

@@ -9,9 +9,12 @@ use std::path::PathBuf;
 use std::time::{Duration, Instant};
 
 use anyhow::Context;
+use clap::ValueEnum;
 use dend_client::{Client, MeshInfo, WsEvent};
 use dend_server::{self as server, AppState, Config};
 use serde_json::json;
+
+use super::Weights;
 
 /// Arguments of `dend loadtest`.
 #[derive(Debug, clap::Args)]
@@ -49,17 +52,16 @@ pub struct LoadtestArgs {
     /// The drag sessions' weights: general (the server's defaults) or
     /// characters (the parameters of `Params::for_characters`, as the web
     /// editor's *Weights: characters* sends them).
-    #[arg(long, default_value = "general", value_parser = ["general", "characters"])]
-    weights: String,
+    #[arg(long, value_enum, default_value_t = Weights::General)]
+    weights: Weights,
 }
 
 /// The `params` object of the drag sessions: `{}` (the server's defaults)
 /// or every parameter of the characters' weights.
-fn session_params(weights: &str) -> anyhow::Result<serde_json::Value> {
-    Ok(if weights == "characters" {
-        serde_json::to_value(dend::deform::Params::default().for_characters())?
-    } else {
-        json!({})
+fn session_params(weights: Weights) -> anyhow::Result<serde_json::Value> {
+    Ok(match weights {
+        Weights::General => json!({}),
+        Weights::Characters => serde_json::to_value(weights.params())?,
     })
 }
 
@@ -126,10 +128,17 @@ async fn run_async(args: LoadtestArgs) -> anyhow::Result<()> {
     });
     let mut step = [0.0; 3];
     step[(k + 1) % 3] = 0.3 * ext[k] / args.drags.max(1) as f64;
-    let params = session_params(&args.weights)?;
+    let params = session_params(args.weights)?;
     println!(
         "mesh: {} vertices, {} triangles; {} session(s) x {} drags; weights {}",
-        mesh.vertices, mesh.triangles, args.sessions, args.drags, args.weights
+        mesh.vertices,
+        mesh.triangles,
+        args.sessions,
+        args.drags,
+        args.weights
+            .to_possible_value()
+            .expect("no skipped variant")
+            .get_name()
     );
     let t0 = Instant::now();
     let mut tasks = vec![];
@@ -426,7 +435,7 @@ async fn one_session(
 
 #[cfg(test)]
 mod tests {
-    use super::session_params;
+    use super::{session_params, Weights};
     use dend::deform::Params;
 
     /// The server reads a session's `params` with serde into `Params`: the
@@ -434,10 +443,11 @@ mod tests {
     #[test]
     fn session_params_read_back_as_the_named_weights() {
         let general: Params =
-            serde_json::from_value(session_params("general").expect("general")).expect("parse");
+            serde_json::from_value(session_params(Weights::General).expect("general"))
+                .expect("parse");
         assert_eq!(general, Params::default());
         let characters: Params =
-            serde_json::from_value(session_params("characters").expect("characters"))
+            serde_json::from_value(session_params(Weights::Characters).expect("characters"))
                 .expect("parse");
         assert_eq!(characters, Params::default().for_characters());
         assert_ne!(characters, general);

@@ -5,7 +5,8 @@
 
 use std::process::ExitCode;
 
-use clap::{Parser, Subcommand};
+use clap::{Parser, Subcommand, ValueEnum};
+use dend::deform::Params;
 
 mod curvature;
 mod deform;
@@ -14,6 +15,27 @@ mod info;
 mod loadtest;
 mod measure;
 mod serve;
+
+/// A named set of the elastic formulation's weights (`--weights` of
+/// `deform` and `loadtest`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+enum Weights {
+    /// The defaults (`Params::default()`).
+    General,
+    /// `Params::for_characters()`, as the web editor's *Weights:
+    /// characters* sends them.
+    Characters,
+}
+
+impl Weights {
+    /// The parameters this set names.
+    fn params(self) -> Params {
+        match self {
+            Weights::General => Params::default(),
+            Weights::Characters => Params::default().for_characters(),
+        }
+    }
+}
 
 /// Deform triangle meshes with Discrete Elastica Nonlinear Deformation.
 #[derive(Debug, Parser)]
