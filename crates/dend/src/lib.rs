@@ -1,12 +1,12 @@
 //! # dend — Discrete Elastica Nonlinear Deformation of triangle meshes
 //!
-//! Layers, bottom-up (see `README.md` and the design notes):
+//! Layers, bottom-up (see `README.md` and `docs/design.md`):
 //! - [`mesh`]: the validated triangle mesh, adjacency, readers/writers and
 //!   the paper's procedural test shapes;
 //! - [`operators`]: cotangent Laplacian, mixed Voronoi areas, curvatures
-//!   (dend.md §2);
+//!   (design.md §2);
 //! - [`deform`]: energies, constraints, the factor cache and the DEND
-//!   iteration (dend.md §3–6). Pure and synchronous: no I/O, no async.
+//!   iteration (design.md §3–9). Pure and synchronous: no I/O, no async.
 //! - [`measure`]: what the tests and the posing suite measure on a pose.
 //!
 //! The sparse linear algebra (orderings, Cholesky, solves) is the

@@ -1,5 +1,5 @@
 //! Measurements of deformation quality used by the paper-reproduction tests
-//! and reports (dend.md §7): cross-section area and twist along a bar, and
+//! and reports (design.md §10): cross-section area and twist along a bar, and
 //! the bending angle along a bent cylinder.
 
 use crate::mesh::{sub, Point};

@@ -1,5 +1,5 @@
-//! The detail term's target `δ̂` (dend.md §5; paper eqs. 25–28) and the
-//! local rotations `T_i` (dend.md §8.2).
+//! The detail term's target `δ̂` (design.md §6; paper eqs. 25–28) and the
+//! local rotations `T_i` (design.md §6.4).
 //!
 //! STEP 1 ([`Mu::new`]) runs once per rest mesh; STEP 2 ([`Mu::delta_hat`])
 //! and [`local_rotations`] run every iteration and allocate nothing.
@@ -21,7 +21,7 @@ const PARALLEL_MIN: usize = 4096;
 ///   `n_t = (X_{j_t} - X_i) × (X_{j_{t+1}} - X_i)` (the paper's
 ///   `(X_j - X_i) ⊗ (X_{j-1} - X_i)` up to sign, which `μ` absorbs), divided
 ///   by the ring's mean rest edge length `ℓ̄_i` in [`Mode::Default`];
-/// - [`Mode::Default`] only (dend.md §8.3): one per ring neighbour, the edge
+/// - [`Mode::Default`] only (design.md §6.1): one per ring neighbour, the edge
 ///   `X_j - X_i`. These make `d_i(X) = δ_i` exact at rest even where `δ_i` has
 ///   tangential parts and the ring is nearly planar.
 ///
@@ -248,7 +248,7 @@ fn column(mode: Mode, topo: &Topology, p: &[Point], i: usize, inv_len: Real, k: 
     }
 }
 
-/// The local rotations `T_i` (dend.md §8.2), one per vertex, fitted by
+/// The local rotations `T_i` (design.md §6.4), one per vertex, fitted by
 /// Procrustes on the 1-ring edges (the ARAP local step, Sorkine & Alexa 2007):
 /// `T_i = argmin_{R ∈ SO(3)} Σ_j w_ij |(Y_j - Y_i) - R (X_j - X_i)|²`, with
 /// `w_ij = max(cot α_ij + cot β_ij, 0)` (negative cotangents clamped) plus a
@@ -442,7 +442,7 @@ mod tests {
 
     #[test]
     fn cross_product_mu_misses_tangential_delta() {
-        // dend.md §8.3: the paper's columns cannot reproduce δ on irregular rings
+        // design.md §6.1: the paper's columns cannot reproduce δ on irregular rings
         let m = saddle();
         let ops = Operators::new(&m);
         let mu = Mu::new(Mode::Paper, m.topology(), &ops.positions, &ops.delta);

@@ -1,5 +1,5 @@
 //! Energies, constraints, the factor cache and the DEND iteration
-//! (dend.md §3–6). Pure and synchronous: no I/O, no async.
+//! (design.md §3–9). Pure and synchronous: no I/O, no async.
 //!
 //! ```text
 //!   Rest::new(mesh)                      operators + STEP 1 μ      once per mesh
@@ -9,7 +9,7 @@
 //!                                        STEP 2 + one 3-RHS solve  per iteration
 //! ```
 //!
-//! The objective (dend.md §4), with `W = diag(√A_i)` and `R` the free rows:
+//! The objective (design.md §4.1), with `W = diag(√A_i)` and `R` the free rows:
 //! `|| W R (A X' - P T δ) ||² + λ1 || S X' - C ||² + λ2 || W R (L X' - δ̂) ||²`
 //! where, in the default [`Mode`], `P T δ` is the rest Laplacian rotated per
 //! vertex by the local rotations `T_i` and mapped through the energy's

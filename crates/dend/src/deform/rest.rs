@@ -16,8 +16,8 @@ use crate::operators::Operators;
 
 static NEXT_REST_ID: AtomicU64 = AtomicU64::new(1);
 
-/// Everything computed once per rest mesh: the operators (dend.md §2), STEP 1
-/// `μ` for both modes (§5) and the Procrustes weights. Share as `Arc<Rest>`.
+/// Everything computed once per rest mesh: the operators (design.md §2), STEP 1
+/// `μ` for both modes (§6.1) and the Procrustes weights. Share as `Arc<Rest>`.
 #[derive(Debug)]
 pub struct Rest {
     id: u64,
@@ -50,7 +50,7 @@ type ElasticKey = (bool, u64, u64, u64, u64, u64);
 /// Energy matrices a [`Rest`] keeps (sessions rarely switch energies).
 const ENERGY_CACHE: usize = 4;
 
-/// An energy's matrix `A` (dend.md §3) and its rest-state image `A X`:
+/// An energy's matrix `A` (design.md §3) and its rest-state image `A X`:
 /// they depend on the rest mesh and the energy only, not on the
 /// constraint set.
 #[derive(Debug)]

@@ -1,4 +1,4 @@
-//! The paper's eq. (23) as a *square* system (dend.md §4), beside the eq. (24)
+//! The paper's eq. (23) as a *square* system (design.md §5), beside the eq. (24)
 //! least-squares rows of [`super::system`].
 //!
 //! With `L = D Lbar`, `D = diag(1/A_i)`, the residual on the unknown rows `U`
@@ -27,7 +27,7 @@
 //! `T`, `δ̂` frozen). The merit is `Σ_u |r_u|² / A_u` (the squared L² norm of
 //! the strong-form residual `D F`).
 //!
-//! `F` has the invariances of dend.md §7: `Y = X` at rest gives `T = I`,
+//! `F` has the invariances of design.md §10: `Y = X` at rest gives `T = I`,
 //! `δ̂ = δ`, `F = 0`; `K 1 = 0` (translation); a rigid motion `R` of every
 //! constraint gives `T = R`, `δ̂ = R δ`, `F(R X) = R F(X) = 0`.
 

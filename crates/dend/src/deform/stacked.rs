@@ -7,7 +7,7 @@
 //!       [ √λ2 W R L ]                    [ √λ2 W (δ̂ - L Y)_R   ]
 //! ```
 //!
-//! Every energy's `A` (dend.md §3) is a product of `L` with a factor made of
+//! Every energy's `A` (design.md §3) is a product of `L` with a factor made of
 //! `I`, `L` and the diagonal `G`: `A = P L` with `P = c_I I + c_L L − 2 g G`
 //! (membrane `P = I`, thin plate `P = L`, combined `k_s I + k_b L`, total
 //! curvature `L − 2G`), or, for the paper's literal `L² − 2 L G`,

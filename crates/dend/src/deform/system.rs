@@ -1,4 +1,4 @@
-//! Assembly of the stacked least-squares rows of dend.md §4 and their normal
+//! Assembly of the stacked least-squares rows of design.md §4.1 and their normal
 //! matrix.
 //!
 //! For the free rows `R` (vertices not fixed, not in a handle), with
@@ -21,11 +21,11 @@ use crate::mesh::{Point, Real};
 use crate::operators::Operators;
 use dend_linalg::sparse::{matmul, product_pattern, product_values, scale_and_shift_diagonal};
 
-/// The energy matrix `A` of dend.md §3 (paper table, §5), `#V×#V`, CSR.
+/// The energy matrix `A` of design.md §3 (paper table, §5), `#V×#V`, CSR.
 ///
 /// Each `A` with `L²` in it is one sparse product `P L` (or `L P`), never
 /// a sum of products: `k_s L + k_b L² = (k_s I + k_b L) L`,
-/// `L² − 2GL = (L − 2G) L` (eq. (12) as dend.md reads it) and the paper's
+/// `L² − 2GL = (L − 2G) L` (eq. (12) as design.md §3 reads it) and the paper's
 /// literal `L² − 2LG = L (L − 2G)`. A product keeps every structural
 /// entry of the sum, also where its terms cancel.
 pub fn energy_matrix(ops: &Operators, energy: Energy) -> CsMat<Real> {

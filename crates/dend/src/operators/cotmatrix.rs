@@ -1,4 +1,4 @@
-//! The cotangent Laplacian `Lbar` (dend.md §2; Pinkall & Polthier 1993,
+//! The cotangent Laplacian `Lbar` (design.md §2; Pinkall & Polthier 1993,
 //! Meyer et al. 2003 eq. 8).
 
 use rayon::prelude::*;

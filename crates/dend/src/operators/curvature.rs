@@ -1,5 +1,5 @@
 //! Angle-defect Gaussian curvature, signed mean curvature and `G = H² - K`
-//! (dend.md §2; paper eqs. 17 and 19).
+//! (design.md §2; paper eqs. 17 and 19).
 
 use std::f64::consts::PI;
 

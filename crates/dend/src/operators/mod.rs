@@ -1,4 +1,4 @@
-//! Discrete differential operators on the rest mesh (dend.md §2).
+//! Discrete differential operators on the rest mesh (design.md §2).
 //!
 //! [`Operators::new`] normalises a copy of the mesh (centroid at the origin,
 //! mean edge length 1), and builds every operator on that copy once:

@@ -1,5 +1,5 @@
 //! Constraint sets: fixed vertices and handle groups with rigid targets
-//! (dend.md §1), and the constraints JSON format (`api/constraints.schema.json`).
+//! (design.md §1), and the constraints JSON format (`api/constraints.schema.json`).
 //!
 //! - `transform.rs`: a handle's rigid target ([`RigidTransform`]) and the
 //!   JSON's rotations ([`RotationSpec`]);

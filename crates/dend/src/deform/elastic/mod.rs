@@ -1,4 +1,4 @@
-//! The elastic formulation (dend.md §9, [`Formulation::Elastic`], the
+//! The elastic formulation (design.md §7, [`Formulation::Elastic`], the
 //! default): total curvature `E_T` minimised as an *energy* in rotated
 //! frames, plus ARAP's stretch term and an area-preservation term, so that
 //! a local step (one rotation per free vertex, one projection per

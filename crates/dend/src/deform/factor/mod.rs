@@ -1,4 +1,4 @@
-//! The factor cache (dend.md §4): one sparse Cholesky factor of the normal
+//! The factor cache (design.md §4.4): one sparse Cholesky factor of the normal
 //! matrix `M` per (rest mesh, energy, λs, mode, constrained vertex set),
 //! reused for every drag and every iteration.
 //!

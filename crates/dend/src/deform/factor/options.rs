@@ -40,7 +40,7 @@ pub struct SolveOptions {
 /// How a Cholesky factor is stored between solves.
 ///
 /// The factorisation always runs in `f64`. Each DEND iteration solves for
-/// an *update* from a residual computed in `f64` (dend.md §4), so a factor
+/// an *update* from a residual computed in `f64` (design.md §4.5), so a factor
 /// rounded to `f32` changes the step of an iteration by the solve's
 /// relative error (measured 1e-5 to 2e-4 on the benchmark meshes), not the
 /// fixed point the iteration converges to. Single precision halves the

@@ -1,5 +1,5 @@
 //! The best rotation of a 3×3 covariance (orthogonal Procrustes), the kernel
-//! of the local rotations `T_i` (dend.md §8.2).
+//! of the local rotations `T_i` (design.md §6.4).
 //!
 //! Two solvers of the same problem, `max_{R ∈ SO(3)} tr(Rᵀ A)`:
 //! - [`rotation_from_covariance`] / [`best_rotation`]: the closed form

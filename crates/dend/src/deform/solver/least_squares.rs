@@ -101,7 +101,7 @@ pub(super) struct Chain {
 
 impl Deformer {
     /// [`Deformer::step`] for eq. (24) and eq. (23): up to `max_iters`
-    /// DEND iterations, warm-started from the current pose (dend.md §6):
+    /// DEND iterations, warm-started from the current pose (design.md §4.6, §9):
     /// each iteration is STEP 2 (and the local rotations) on the pose, then
     /// one 3-column solve with the cached factor. Each step is safeguarded:
     /// if the objective grows, the step is halved (up to 5 times); after
@@ -374,7 +374,7 @@ impl Deformer {
         } else {
             s.dhat.copy_from_slice(&ops.delta);
         }
-        // Internal target: P (T δ) in the default mode (dend.md §8.2), A X otherwise.
+        // Internal target: P (T δ) in the default mode (design.md §4.3), A X otherwise.
         if rotated {
             local_rotations(topo, &rest.weights, &ops.positions, &self.y, &mut s.rot);
             let base = if factor.energy == Energy::TotalCurvaturePaper {

@@ -1,4 +1,4 @@
-//! The DEND iteration ([`Deformer::step`], dend.md §6).
+//! The DEND iteration ([`Deformer::step`], design.md §8).
 
 use std::sync::Arc;
 
@@ -142,7 +142,7 @@ impl Deformer {
     }
 
     /// Runs up to `max_iters` iterations towards the handle targets of
-    /// `constraints`, warm-started from the current pose (dend.md §6), with
+    /// `constraints`, warm-started from the current pose (design.md §9), with
     /// the formulation `factor` was built for: the elastic one
     /// (`elastic.rs`: exact local and global steps, the objective never
     /// grows) or the paper's (`least_squares.rs`: STEP 2 and one solve per
