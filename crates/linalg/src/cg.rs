@@ -1,5 +1,5 @@
 //! Jacobi-preconditioned conjugate gradient on the normal matrix `M`
-//! (dend.md §4): the paper's own solver ("conjugate gradient", no
+//! (design.md §4.4): the paper's own solver ("conjugate gradient", no
 //! factorisation), kept as a benchmark baseline and as the fallback when the
 //! Cholesky factor of `M` would exceed the memory budget.
 //!

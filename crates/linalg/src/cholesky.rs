@@ -1,4 +1,4 @@
-//! The sparse Cholesky factorisation of a normal matrix `M` (dend.md §4):
+//! The sparse Cholesky factorisation of a normal matrix `M` (design.md §4.4):
 //! fill-reducing ordering and symbolic analysis ([`analyse`], from `M`'s
 //! pattern alone), numeric factorisation ([`factorise`]).
 //!

@@ -1,7 +1,7 @@
 //! Supernodal triangular solves `L Lᵀ x = b` for a few right-hand sides.
 //!
 //! A DEND iteration solves the factor cache's `M = L Lᵀ` for the three
-//! coordinates at once (dend.md §4). faer's general solve calls a packed
+//! coordinates at once (design.md §4.4). faer's general solve calls a packed
 //! GEMM per supernode, which pays off for wide right-hand sides; with three
 //! columns it spends its time packing the factor and in per-call overhead
 //! (measured on tube:10000: 11.8 ms per solve for 2.65 M factor nonzeros,
