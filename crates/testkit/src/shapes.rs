@@ -344,7 +344,7 @@ pub fn irregular_saddle(k: usize, seed: u64) -> Mesh {
 
 /// A random Delaunay patch: `n` random points in the unit disc (plus a ring
 /// of boundary points), triangulated by Delaunay, lifted onto a saddle. Its
-/// hull triangles are skinny, as in dend.md §8.4's failing case.
+/// hull triangles are skinny, as in design.md §4.5's failing case.
 pub fn random_delaunay_patch(n: usize, seed: u64) -> Mesh {
     let mut state = seed ^ 0x9E37_79B9_7F4A_7C15;
     let mut rnd = || {
