@@ -94,7 +94,7 @@ pub struct Args {
     /// Convergence tolerance (largest vertex move, in mean edge lengths).
     #[arg(long, default_value_t = 1e-3)]
     tol: f64,
-    /// System solved: elastic (dend.md §9: E_T as an energy in rotated
+    /// System solved: elastic (design.md §7: E_T as an energy in rotated
     /// frames + stretch + area, monotone; default), least_squares (paper
     /// eq. 24, the default before), square or square_lu (paper eq. 23).
     /// Default: elastic, or least_squares with --paper or an energy the

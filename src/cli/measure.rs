@@ -1,5 +1,5 @@
 //! `dend measure`: the paper-reproduction figures of a deformed pose
-//! (dend.md §7), printed as JSON on stdout, so poses made by other programs
+//! (design.md §10), printed as JSON on stdout, so poses made by other programs
 //! (libigl ARAP in `scripts/arap_reference.py`) are measured by the same code
 //! as the tests.
 
