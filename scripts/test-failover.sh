@@ -7,6 +7,6 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 export DEND_FAILOVER_REPORT="${DEND_FAILOVER_REPORT:-$(mktemp)}"
-cargo test --test failover -- --nocapture
+cargo test --test system failover -- --nocapture
 echo "== failover figures ($DEND_FAILOVER_REPORT):"
 cat "$DEND_FAILOVER_REPORT"

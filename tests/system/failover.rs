@@ -24,7 +24,7 @@
 //! server binaries: skipped (logged to `$DEND_SKIP_LOG`) when they are
 //! missing, a failure under `CI=true`.
 
-mod failover_support;
+use crate::failover_support;
 
 use std::collections::HashMap;
 use std::sync::atomic::{AtomicBool, Ordering};

@@ -1,0 +1,37 @@
+//! The product's integration tests, one binary (issue #34: one linked test
+//! binary instead of one per file). Each module is one concern; shared fixtures
+//! live in `dend-testkit`. The slow system tests (failover, crash safety, the
+//! posing suite, process-memory measurements) are the `system` binary
+//! (`tests/system/main.rs`).
+
+mod asset_groups;
+mod asset_normals;
+mod broken_files;
+mod cli;
+mod cli_curvature;
+mod cli_deform;
+mod cli_gltf;
+mod constraint_edits;
+mod constraints_schema;
+mod deform_props;
+mod elastic;
+mod factor_cache;
+mod fuzz_replay;
+mod generators;
+mod gltf_assets;
+mod libigl_oracle;
+mod mesh_io;
+mod no_panic;
+mod operators;
+mod operators_invariance;
+mod paper_reproduction;
+mod server_e2e;
+mod server_errors;
+mod server_gltf;
+mod server_leases;
+mod server_limits;
+mod server_openapi;
+mod server_posing;
+mod shared_meshes;
+mod slow_store;
+mod square_formulation;
