@@ -3,7 +3,7 @@
 
 Runs libigl's as-rigid-as-possible deformation (`igl.arap_precomputation`,
 `igl.arap_solve`, default spokes-and-rims energy) on the same set-ups as
-tests/paper_reproduction.rs -- the same constrained set `b` (fixed + handle
+tests/it/paper_reproduction.rs -- the same constrained set `b` (fixed + handle
 vertices) and the same targets (fixed: rest; handle: the rigid transform,
 applied in the same number of equal steps) -- at 10 and at 100 iterations per
 step, writes each pose as an OFF file, and measures it with the Rust code

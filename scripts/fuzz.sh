@@ -8,7 +8,7 @@
 # Needs the nightly toolchain and cargo-fuzz (`cargo install cargo-fuzz`).
 # Each target's working corpus lives in fuzz/corpus/<target>/ (gitignored),
 # seeded from tests/data/fuzz/<target>/ and its minimised corpus/ (both
-# replayed by tests/fuzz_replay.rs) and, for the mesh readers, from
+# replayed by tests/it/fuzz_replay.rs) and, for the mesh readers, from
 # tests/data/broken/*.<ext>. Crash, timeout and OOM reproducers land in
 # fuzz/artifacts/<target>/; full logs in fuzz/logs/.
 set -euo pipefail

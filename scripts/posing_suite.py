@@ -10,7 +10,7 @@ Usage (from the crate root; needs a release build, `cargo build --release`):
 
 `--only` takes case names or shell patterns (`'camel-*'`, `'*-limb'`);
 `--list` prints the case names. `--no-arap` runs only dend and judges only
-its objective (never grows, no edit diverged): `tests/posing_suite_monotone.rs`
+its objective (never grows, no edit diverged): `tests/system/posing_suite_monotone.rs`
 runs it on every edit. `--skip-large` skips meshes of 40k+
 vertices (armadillo, feline, survey bumpy plane). `--formulation` is passed
 to `dend deform` (omitted: dend's default). The binary is `$DEND_BIN` or
@@ -49,7 +49,7 @@ translation scaled linearly about the same pivot), each step to convergence.
 Edge distortion = |l'/l - 1| over the mesh's edges (mean and max), computed
 here for both poses. Time to settle = precompute + all iterations. Twist and
 bend cases are also measured with `dend measure` (--bar / --bend over the rest
-z span between the fixed and handle regions, as tests/paper_reproduction.rs).
+z span between the fixed and handle regions, as tests/it/paper_reproduction.rs).
 For the generated bars and cylinders and the survey bar, a second table shows
 the *even pose* (`even_pose`): the twist spread evenly along the bar, or the
 free span laid on a circular arc, every cross-section kept and every
@@ -684,7 +684,7 @@ def main():
     ap.add_argument("--list", action="store_true", help="print the case names and exit")
     ap.add_argument("--no-arap", action="store_true",
                     help="run only dend (no ARAP, even pose or renders) and judge only "
-                         "the objective: monotone, not diverged (tests/posing_suite_monotone.rs)")
+                         "the objective: monotone, not diverged (tests/system/posing_suite_monotone.rs)")
     ap.add_argument("--arap-cache", metavar="DIR",
                     help="reuse libigl ARAP results stored here by an earlier run (for "
                          "solver experiments; the figures' ARAP timings are then that run's)")

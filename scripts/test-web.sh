@@ -38,7 +38,7 @@ fi
 [ -x "$CHROMIUM" ] || skip_or_fail "no chromium at $CHROMIUM"
 
 # web/package.json's dev dependencies: playwright-core (this test) and
-# gltf-validator (the Khronos glTF validator, run by tests/cli_gltf.rs)
+# gltf-validator (the Khronos glTF validator, run by tests/it/cli_gltf.rs)
 if [ ! -f web/node_modules/playwright-core/package.json ] || [ ! -f web/node_modules/gltf-validator/package.json ]; then
   (cd web && npm ci --no-audit --no-fund --loglevel=error) || skip_or_fail "npm ci (playwright-core, gltf-validator) failed"
 fi

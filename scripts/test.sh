@@ -14,7 +14,7 @@ cargo clippy --workspace --all-targets -- -D warnings
 # tests that cannot run here (no ../shared/meshes) record why in this file
 export DEND_SKIP_LOG="$(mktemp)"
 # a throw-away PostgreSQL for the store suite's PostgreSQL backend
-# (DEND_TEST_POSTGRES); tests/failover.rs starts its own, with HAProxy
+# (DEND_TEST_POSTGRES); tests/system/failover.rs starts its own, with HAProxy
 PG_TMP="$(mktemp -d)"
 cleanup() { bash scripts/pg-temp.sh stop "$PG_TMP/pg" || true; rm -rf "$PG_TMP" "$DEND_SKIP_LOG"; }
 trap cleanup EXIT

@@ -1,5 +1,5 @@
 //! Fuzzes the Obj reader and the mesh validation after it: any bytes give
-//! a mesh or a typed error, never a panic (replayed by `tests/fuzz_replay.rs`).
+//! a mesh or a typed error, never a panic (replayed by `tests/it/fuzz_replay.rs`).
 #![no_main]
 use dend::mesh::io::Format;
 use libfuzzer_sys::fuzz_target;

@@ -1,5 +1,5 @@
 //! Fuzzes the survey .sel reader: any bytes parse or give a typed error,
-//! never a panic (replayed by `tests/fuzz_replay.rs`).
+//! never a panic (replayed by `tests/it/fuzz_replay.rs`).
 #![no_main]
 use libfuzzer_sys::fuzz_target;
 

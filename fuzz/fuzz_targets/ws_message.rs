@@ -1,5 +1,5 @@
 //! Fuzzes the WebSocket message decoder (JSON → `ClientMsg` → validated
-//! drag delta); never a panic (replayed by `tests/fuzz_replay.rs`).
+//! drag delta); never a panic (replayed by `tests/it/fuzz_replay.rs`).
 #![no_main]
 use libfuzzer_sys::fuzz_target;
 

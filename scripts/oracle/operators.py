@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""libigl oracle for dend's discrete operators (tests/libigl_oracle.rs).
+"""libigl oracle for dend's discrete operators (tests/it/libigl_oracle.rs).
 
 Usage: operators.py MESH.off
 

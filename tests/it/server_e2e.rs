@@ -254,7 +254,7 @@ async fn factor_ready_times_are_exported() -> Result<(), ClientError> {
 /// frame to frame (the default formulation's Anderson history carries
 /// across the loop's one-iteration steps), and the last frame says
 /// settled and converged. (That the objective is monotone across the
-/// iterations themselves is tests/elastic.rs's job.)
+/// iterations themselves is tests/it/elastic.rs's job.)
 #[tokio::test]
 async fn settle_frames_report_a_falling_objective_and_end_settled() -> Result<(), ClientError> {
     let (base, _state) = start(Config::default()).await;

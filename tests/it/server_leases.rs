@@ -1,5 +1,5 @@
 //! Session leases and an unreachable store, in process (docs/deployment.md;
-//! tests/failover.rs runs the same rules with real processes, PostgreSQL
+//! tests/system/failover.rs runs the same rules with real processes, PostgreSQL
 //! and HAProxy):
 //! - two instances sharing one store: a session leased by one is refused
 //!   by the other with 409 `session_owned_elsewhere` naming the owner; when

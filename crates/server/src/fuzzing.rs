@@ -1,5 +1,5 @@
 //! Entry points shared by the cargo-fuzz targets (`fuzz/`) and the test
-//! that replays their corpus (`tests/fuzz_replay.rs`): each takes arbitrary
+//! that replays their corpus (`tests/it/fuzz_replay.rs`): each takes arbitrary
 //! bytes and must return (an error is fine), never panic.
 
 use std::sync::OnceLock;

@@ -1,5 +1,5 @@
 //! A generated OBJ with named groups, for the tests of constraints by group
-//! (`tests/asset_groups.rs`, `tests/server_gltf.rs`).
+//! (`tests/it/asset_groups.rs`, `tests/it/server_gltf.rs`).
 
 /// Columns around the tube.
 pub const AROUND: usize = 12;

@@ -22,7 +22,7 @@ pub fn max_dist(a: &[Point], b: &[Point]) -> f64 {
 
 /// Eq. (24) least squares (the default before the elastic formulation),
 /// the parameters of the tests of that formulation's properties; the
-/// elastic default's are in tests/elastic.rs.
+/// elastic default's are in tests/it/elastic.rs.
 pub fn ls() -> Params {
     Params {
         formulation: Formulation::LeastSquares,

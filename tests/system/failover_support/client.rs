@@ -1,4 +1,4 @@
-//! The clients of the failover test (tests/failover.rs): each drags one
+//! The clients of the failover test (tests/system/failover.rs): each drags one
 //! session over WebSocket through HAProxy and keeps a [`Tally`] of what the
 //! servers acknowledged, reconnecting whenever its connection fails.
 
