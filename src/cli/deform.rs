@@ -13,7 +13,7 @@ use dend::deform::{
 use dend::mesh::asset::Asset;
 use dend::mesh::io::{self, survey};
 
-use super::Weights;
+use super::PresetArg;
 
 /// Arguments of `dend deform`.
 #[derive(Debug, clap::Args)]
@@ -45,10 +45,10 @@ pub struct Args {
     /// Bending weight k_b of the combined energy (least_squares, square).
     #[arg(long, default_value_t = 1.0)]
     kb: f64,
-    /// Elastic formulation: weight set, general (the defaults) or characters (stretch 3, Laplacian share 0.1, coarse ratio 3, corrections while-gaining every 5 iterations: ARAP-like edge lengths on characters and faster limbs, far less area kept in twisted bars; docs/posing.md). --stretch, --laplacian, --coarse-ratio, --corrections and --correction-period override it.
-    #[arg(long, value_enum, default_value_t = Weights::General)]
-    weights: Weights,
-    /// Elastic formulation: stretch weight k_s (ARAP's spokes), dimensionless [default: 1, or 3 with --weights characters].
+    /// Elastic formulation: parameter preset, characters (the default: stretch 3, Laplacian share 0.1, coarse ratio 3, corrections while-gaining every 5 iterations; ARAP-like edge lengths on characters) or elastica (stretch 1, Laplacian share 1, coarse ratio 8, corrections while-faster every 10: the paper's even bend and twist, the same pose at any resolution; docs/posing.md). --stretch, --laplacian, --coarse-ratio, --corrections and --correction-period override it.
+    #[arg(long, visible_alias = "weights", value_enum, default_value_t = PresetArg::Characters)]
+    preset: PresetArg,
+    /// Elastic formulation: stretch weight k_s (ARAP's spokes), dimensionless [default: 3, or 1 with --preset elastica].
     #[arg(long)]
     stretch: Option<f64>,
     /// Elastic formulation: bending weight β (E_T weighted β × surface area), dimensionless.
@@ -57,16 +57,16 @@ pub struct Args {
     /// Elastic formulation: area-preservation weight k_a, dimensionless.
     #[arg(long, default_value_t = dend::deform::DEFAULT_AREA)]
     area: f64,
-    /// Elastic formulation: weight k_L of the Laplacian part of the bending energy (the rotated detail rows), dimensionless; 1 with λ2 = 1 is E_T exactly [default: 1, or 0.1 with --weights characters].
+    /// Elastic formulation: weight k_L of the Laplacian part of the bending energy (the rotated detail rows), dimensionless; 1 with λ2 = 1 is E_T exactly [default: 0.1, or 1 with --preset elastica].
     #[arg(long)]
     laplacian: Option<f64>,
-    /// Elastic formulation: most fine vertices per coarse vertex of the two-level iteration, at least 2 [default: 8, or 3 with --weights characters].
+    /// Elastic formulation: most fine vertices per coarse vertex of the two-level iteration, at least 2 [default: 3, or 8 with --preset elastica].
     #[arg(long)]
     coarse_ratio: Option<usize>,
-    /// Elastic formulation: when a sequence's coarse corrections stop, while-faster (once one gains less than the fine iterations before it) or while-gaining (once one gains nothing) [default: while-faster, or while-gaining with --weights characters].
+    /// Elastic formulation: when a sequence's coarse corrections stop, while-faster (once one gains less than the fine iterations before it) or while-gaining (once one gains nothing) [default: while-gaining, or while-faster with --preset elastica].
     #[arg(long, value_parser = ["while-faster", "while-gaining"])]
     corrections: Option<String>,
-    /// Elastic formulation: fine iterations between two coarse corrections, at least 1 [default: 10, or 5 with --weights characters].
+    /// Elastic formulation: fine iterations between two coarse corrections, at least 1 [default: 5, or 10 with --preset elastica].
     #[arg(long)]
     correction_period: Option<usize>,
     /// Linear detail term (δ̂ = δ, paper eq. 15) instead of the nonlinear one.
@@ -226,7 +226,7 @@ fn params_of(args: &Args) -> anyhow::Result<Params> {
         None if args.paper => Energy::TotalCurvaturePaper,
         None => Energy::TotalCurvature,
     };
-    let weights = args.weights.params();
+    let weights = args.preset.params();
     let params = Params {
         energy,
         lambda1: args.soft.unwrap_or(0.0),

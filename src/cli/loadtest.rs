@@ -14,7 +14,7 @@ use dend_client::{Client, MeshInfo, WsEvent};
 use dend_server::{self as server, AppState, Config};
 use serde_json::json;
 
-use super::Weights;
+use super::PresetArg;
 
 /// Arguments of `dend loadtest`.
 #[derive(Debug, clap::Args)]
@@ -49,20 +49,17 @@ pub struct LoadtestArgs {
     /// budget, then check each one still answers its pose and a drag.
     #[arg(long, default_value_t = 0)]
     idle: usize,
-    /// The drag sessions' weights: general (the server's defaults) or
-    /// characters (the parameters of `Params::for_characters`, as the web
-    /// editor's *Weights: characters* sends them).
-    #[arg(long, value_enum, default_value_t = Weights::General)]
-    weights: Weights,
+    /// The drag sessions' parameter preset, sent as `{"preset": NAME}`
+    /// (characters is the server's default; elastica the paper's even
+    /// bend and twist).
+    #[arg(long, visible_alias = "weights", value_enum, default_value_t = PresetArg::Characters)]
+    preset: PresetArg,
 }
 
-/// The `params` object of the drag sessions: `{}` (the server's defaults)
-/// or every parameter of the characters' weights.
-fn session_params(weights: Weights) -> anyhow::Result<serde_json::Value> {
-    Ok(match weights {
-        Weights::General => json!({}),
-        Weights::Characters => serde_json::to_value(weights.params())?,
-    })
+/// The `params` object of the drag sessions: the preset by name, as the
+/// web editor sends it.
+fn session_params(preset: PresetArg) -> serde_json::Value {
+    json!({ "preset": preset.preset().name() })
 }
 
 /// Runs the load test and prints its report.
@@ -128,14 +125,14 @@ async fn run_async(args: LoadtestArgs) -> anyhow::Result<()> {
     });
     let mut step = [0.0; 3];
     step[(k + 1) % 3] = 0.3 * ext[k] / args.drags.max(1) as f64;
-    let params = session_params(args.weights)?;
+    let params = session_params(args.preset);
     println!(
-        "mesh: {} vertices, {} triangles; {} session(s) x {} drags; weights {}",
+        "mesh: {} vertices, {} triangles; {} session(s) x {} drags; preset {}",
         mesh.vertices,
         mesh.triangles,
         args.sessions,
         args.drags,
-        args.weights
+        args.preset
             .to_possible_value()
             .expect("no skipped variant")
             .get_name()
@@ -435,21 +432,18 @@ async fn one_session(
 
 #[cfg(test)]
 mod tests {
-    use super::{session_params, Weights};
-    use dend::deform::Params;
+    use super::{session_params, PresetArg};
+    use dend::deform::{Params, Preset};
 
     /// The server reads a session's `params` with serde into `Params`: the
-    /// objects the loadtest sends must read back as the weights they name.
+    /// objects the loadtest sends must read back as the presets they name,
+    /// the default preset as `Params::default()`.
     #[test]
-    fn session_params_read_back_as_the_named_weights() {
-        let general: Params =
-            serde_json::from_value(session_params(Weights::General).expect("general"))
-                .expect("parse");
-        assert_eq!(general, Params::default());
-        let characters: Params =
-            serde_json::from_value(session_params(Weights::Characters).expect("characters"))
-                .expect("parse");
-        assert_eq!(characters, Params::default().for_characters());
-        assert_ne!(characters, general);
+    fn session_params_read_back_as_the_named_presets() {
+        let read =
+            |p: PresetArg| -> Params { serde_json::from_value(session_params(p)).expect("parse") };
+        assert_eq!(read(PresetArg::Characters), Params::default());
+        assert_eq!(read(PresetArg::Elastica), Preset::Elastica.params());
+        assert_ne!(read(PresetArg::Characters), read(PresetArg::Elastica));
     }
 }

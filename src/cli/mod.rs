@@ -6,7 +6,7 @@
 use std::process::ExitCode;
 
 use clap::{Parser, Subcommand, ValueEnum};
-use dend::deform::Params;
+use dend::deform::{Params, Preset};
 
 mod curvature;
 mod deform;
@@ -16,24 +16,30 @@ mod loadtest;
 mod measure;
 mod serve;
 
-/// A named set of the elastic formulation's weights (`--weights` of
-/// `deform` and `loadtest`).
+/// A named parameter set (`--preset` of `deform` and `loadtest`):
+/// `dend::deform::Preset` on the command line.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
-enum Weights {
-    /// The defaults (`Params::default()`).
-    General,
-    /// `Params::for_characters()`, as the web editor's *Weights:
-    /// characters* sends them.
+enum PresetArg {
+    /// The default: posing characters (`Preset::Characters`).
     Characters,
+    /// The paper's even bend and twist (`Preset::Elastica`; `general` is
+    /// its old name).
+    #[value(alias = "general")]
+    Elastica,
 }
 
-impl Weights {
-    /// The parameters this set names.
-    fn params(self) -> Params {
+impl PresetArg {
+    /// The library's preset.
+    fn preset(self) -> Preset {
         match self {
-            Weights::General => Params::default(),
-            Weights::Characters => Params::default().for_characters(),
+            PresetArg::Characters => Preset::Characters,
+            PresetArg::Elastica => Preset::Elastica,
         }
+    }
+
+    /// The parameters this preset names.
+    fn params(self) -> Params {
+        self.preset().params()
     }
 }
 

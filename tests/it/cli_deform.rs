@@ -249,12 +249,16 @@ fn characters_weights_are_the_documented_stretch_and_laplacian() {
         "explicit.obj",
         &[&["--stretch", "3"][..], &rest_of_preset].concat(),
     );
-    let defaults = pose("defaults.obj", &[]);
+    let defaults = pose("defaults.obj", &["--preset", "elastica"]);
     let overridden = pose(
         "overridden.obj",
         &["--weights", "characters", "--stretch", "1"],
     );
-    let laplacian_only = pose("laplacian.obj", &rest_of_preset);
+    // elastica (stretch 1) with the characters' other fields written out
+    let laplacian_only = pose(
+        "laplacian.obj",
+        &[&["--preset", "elastica"][..], &rest_of_preset].concat(),
+    );
     assert_eq!(preset, explicit);
     assert_ne!(preset, defaults);
     assert_eq!(overridden, laplacian_only);

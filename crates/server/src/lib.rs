@@ -12,6 +12,7 @@ pub mod fuzzing;
 pub mod lease;
 mod meshes;
 pub mod metrics;
+pub mod presets;
 pub mod recover;
 pub mod session;
 mod sessions;
@@ -140,6 +141,7 @@ pub const ROUTES: &[(&str, &[&str])] = &[
     ("/healthz", &["get"]),
     ("/healthz/ready", &["get"]),
     ("/metrics", &["get"]),
+    ("/v1/presets", &["get"]),
     ("/v1/meshes", &["post"]),
     ("/v1/meshes/generate", &["post"]),
     ("/v1/meshes/{id}", &["get", "delete"]),
@@ -161,6 +163,7 @@ fn route_list() -> Vec<(&'static str, MethodRouter<AppState>)> {
         ("/healthz", get(healthz)),
         ("/healthz/ready", get(ready)),
         ("/metrics", get(metrics::render)),
+        ("/v1/presets", get(presets::get)),
         ("/v1/meshes", post(meshes::upload)),
         ("/v1/meshes/generate", post(meshes::generate)),
         (

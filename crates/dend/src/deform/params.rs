@@ -78,11 +78,11 @@ pub enum Mode {
 #[serde(rename_all = "kebab-case")]
 pub enum Corrections {
     /// Once one gains less energy than the fine iterations before it did
-    /// (the default).
+    /// ([`Preset::Elastica`]).
     #[default]
     WhileFaster,
-    /// Once one gains nothing (it is dropped or no coarse problem exists):
-    /// near ARAP's energy (small `k_L`) the fine iterations slow down and
+    /// Once one gains nothing (it is dropped or no coarse problem exists;
+    /// the default, [`Preset::Characters`]): near ARAP's energy (small `k_L`) the fine iterations slow down and
     /// later corrections still pay (camel limb 32 → 27 iterations at
     /// `k_L` 0.1, `k_s` 2, coarse ratio 3).
     WhileGaining,
@@ -126,8 +126,13 @@ impl Formulation {
 }
 
 /// Every solver parameter, with documented defaults.
+///
+/// Read from JSON through [`ParamsSpec`]: a `"preset"` names the base
+/// ([`Preset`], the default's when absent) and every field given overrides
+/// it. Written out, every field is explicit (no preset), so a stored
+/// session keeps its parameters when a default changes.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
-#[serde(default, deny_unknown_fields)]
+#[serde(from = "ParamsSpec")]
 pub struct Params {
     /// Internal energy. Default: total curvature (`L² - 2GL`).
     pub energy: Energy,
@@ -151,7 +156,8 @@ pub struct Params {
     /// squares or the eq. (23) square system.
     pub formulation: Formulation,
     /// Elastic formulation only: the stretch weight `k_s` (ARAP's spokes
-    /// term), dimensionless. Default 1.
+    /// term), dimensionless. Default [`DEFAULT_STRETCH`]
+    /// ([`ELASTICA_STRETCH`] in [`Preset::Elastica`]).
     pub stretch: f64,
     /// Elastic formulation only: the bending weight `β`, dimensionless: the
     /// energy's `E_T` is weighted `k_b = β S` with `S` the surface area on
@@ -165,86 +171,210 @@ pub struct Params {
     /// Elastic formulation only: the weight `k_L` of the Laplacian part of
     /// the bending energy (`E2`, which is also the rotated detail term),
     /// dimensionless: `b_i = k_L λ2 k_b A_i`, so `k_L = 1` with `λ2 = 1` is
-    /// `E_T` exactly. Default [`DEFAULT_LAPLACIAN`].
+    /// `E_T` exactly. Default [`DEFAULT_LAPLACIAN`] ([`ELASTICA_LAPLACIAN`]
+    /// in [`Preset::Elastica`]).
     pub laplacian: f64,
     /// Elastic formulation only: the most fine vertices per coarse vertex
     /// of the two-level iteration's coarse mesh (`deform::coarse`; meshes
     /// under 4000 vertices use fewer, never under 500 coarse vertices), at
-    /// least 2. Default [`DEFAULT_COARSE_RATIO`]; 3 in
-    /// [`Params::for_characters`]: a finer coarse mesh keeps thin parts
-    /// (the camel's neck) and captures a body's swing (camel limb 40 → 21
-    /// iterations with the default weights), at 30–50 % more time to settle
-    /// on large meshes.
+    /// least 2. Default [`DEFAULT_COARSE_RATIO`] ([`ELASTICA_COARSE_RATIO`]
+    /// in [`Preset::Elastica`]): a finer coarse mesh keeps thin parts (the
+    /// camel's neck) and captures a body's swing (camel limb 40 → 21
+    /// iterations with the elastica weights), at 30–50 % more time to
+    /// settle on large meshes.
     pub coarse_ratio: usize,
     /// Elastic formulation only: when the coarse corrections of a sequence
-    /// stop. Default [`Corrections::WhileFaster`].
+    /// stop. Default [`Corrections::WhileGaining`]
+    /// ([`Corrections::WhileFaster`] in [`Preset::Elastica`]).
     pub corrections: Corrections,
     /// Elastic formulation only: fine iterations between two coarse
     /// corrections of a sequence, at least 1. Default
-    /// [`DEFAULT_CORRECTION_PERIOD`]; [`CHARACTERS_CORRECTION_PERIOD`] in
-    /// [`Params::for_characters`].
+    /// [`DEFAULT_CORRECTION_PERIOD`] ([`ELASTICA_CORRECTION_PERIOD`] in
+    /// [`Preset::Elastica`]).
     pub correction_period: usize,
 }
 
-/// The elastic formulation's default [`Params::correction_period`] (the
-/// prototype: 5 let corrections be rejected on the camel, 15 needed more
-/// iterations; stop 25, with the default weights, 5, 7 and 15 were none
-/// better than 10, and stop 29: 5 takes the dino limb from 22 to 39
-/// iterations).
-pub const DEFAULT_CORRECTION_PERIOD: usize = 10;
+/// The default [`Params::correction_period`] (the characters' weights):
+/// near ARAP's energy (`k_L` 0.1) the corrections keep gaining, and every 5
+/// fine iterations instead of 10 the character edits take fewer iterations
+/// (stop 29, docs/posing.md: armadillo limb 28 → 19, dino limb 26 → 18,
+/// feline standard 21 → 13, camel limb 27 → 22, survey cactus 31 → 28); 7
+/// was between (dino limb 32).
+pub const DEFAULT_CORRECTION_PERIOD: usize = 5;
 
-/// The [`Params::correction_period`] of the elastic weights for posing
-/// characters. Measured with the posing suite (stop 29, docs/posing.md):
-/// near ARAP's energy the corrections keep gaining, and every 5 fine
-/// iterations instead of 10 the character edits take fewer iterations
-/// (armadillo limb 28 → 19, dino limb 26 → 18, feline standard 21 → 13,
-/// camel limb 27 → 22, survey cactus 31 → 28); 7 was between (dino limb
-/// 32).
-pub const CHARACTERS_CORRECTION_PERIOD: usize = 5;
+/// The [`Preset::Elastica`] correction period (the prototype: 5 let
+/// corrections be rejected on the camel, 15 needed more iterations; stop
+/// 25, with these weights, 5, 7 and 15 were none better than 10, and stop
+/// 29: 5 takes the dino limb from 22 to 39 iterations).
+pub const ELASTICA_CORRECTION_PERIOD: usize = 10;
 
 /// The most fine iterations [`Params::correction_period`] accepts.
 pub const MAX_CORRECTION_PERIOD: usize = 1000;
 
-/// The elastic formulation's default coarse ratio (see
-/// [`Params::coarse_ratio`]).
-pub const DEFAULT_COARSE_RATIO: usize = 8;
+/// The default coarse ratio (see [`Params::coarse_ratio`]): a finer coarse
+/// mesh keeps thin parts (the camel's neck) and captures a body's swing.
+pub const DEFAULT_COARSE_RATIO: usize = 3;
 
-/// The coarse ratio of the elastic weights for posing characters
-/// ([`Params::for_characters`]).
-pub const CHARACTERS_COARSE_RATIO: usize = 3;
+/// The [`Preset::Elastica`] coarse ratio.
+pub const ELASTICA_COARSE_RATIO: usize = 8;
 
-/// The elastic formulation's default Laplacian share `k_L` (see
-/// [`Params::laplacian`]): 1, `E_T` exactly. Measured with the posing
-/// suite (stop 25, docs/posing.md), a smaller `k_L` lowers the characters'
-/// distortion a little (dino limb 1.51× ARAP's mean at 1, 1.49× at 0.8,
-/// 1.45× at 0.6) but the 300° bar keeps less of its area (0.80, 0.797,
-/// 0.789) and the 120° cylinder bends less evenly (CV 0.49 at 1, 0.60 at
-/// 0.6); the armadillo's standard edit took 44, 23, 100 and 21 iterations
-/// at 1, 0.8, 0.9 and 0.6: a slow creep just above the tolerance, not a
-/// trend. Stop 26, the whole suite in one run: `k_L = ½` passes 9 of 20
-/// edits against 7 (dino limb 1.43×, armadillo standard 20 iterations,
-/// every character's distortion lower) but the 300° bar's min area falls
-/// to 0.782 (0.789–0.792 with `k_a` 20–25), below the 0.8 that
-/// `tests/elastic.rs` holds the default to, so the default stays 1.
-/// Stop 27: a small `k_L` with a larger `k_s` is the setting for
-/// characters ([`Params::for_characters`], `k_L` 0.1), and the default
-/// keeps the bars' area (docs/posing.md).
-pub const DEFAULT_LAPLACIAN: f64 = 1.0;
+/// The default Laplacian share `k_L` (see [`Params::laplacian`]): small, so
+/// that the stretch term keeps the characters' edge lengths near ARAP's
+/// (stop 27, docs/posing.md).
+pub const DEFAULT_LAPLACIAN: f64 = 0.1;
 
-/// The stretch weight `k_s` of the elastic weights for posing characters
-/// ([`Params::for_characters`]).
-pub const CHARACTERS_STRETCH: f64 = 3.0;
+/// The [`Preset::Elastica`] Laplacian share `k_L`: 1, `E_T` exactly.
+/// Measured with the posing suite (stop 25, docs/posing.md), a smaller
+/// `k_L` lowers the characters' distortion a little but the 300° bar keeps
+/// less of its area (0.80 at 1, 0.789 at 0.6) and the 120° cylinder bends
+/// less evenly (CV 0.49 at 1, 0.60 at 0.6).
+pub const ELASTICA_LAPLACIAN: f64 = 1.0;
 
-/// The Laplacian share `k_L` of the elastic weights for posing characters
-/// ([`Params::for_characters`]).
-pub const CHARACTERS_LAPLACIAN: f64 = 0.1;
+/// The default stretch weight `k_s` (see [`Params::stretch`]).
+pub const DEFAULT_STRETCH: f64 = 3.0;
 
-/// The elastic formulation's default area weight `k_a` (see [`Params::area`]).
+/// The [`Preset::Elastica`] stretch weight `k_s`.
+pub const ELASTICA_STRETCH: f64 = 1.0;
+
+/// The area weight `k_a` of both presets (see [`Params::area`]).
 pub const DEFAULT_AREA: f64 = 15.0;
 
-/// The elastic formulation's default bending weight `β` (see
-/// [`Params::bending`]).
+/// The bending weight `β` of both presets (see [`Params::bending`]).
 pub const DEFAULT_BENDING: f64 = 3e-3;
+
+/// A named set of parameters: what the API's `"preset"` and the CLI's
+/// `--preset` name (issue #33). Explicit fields override a preset's.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize, Default)]
+#[serde(rename_all = "kebab-case")]
+pub enum Preset {
+    /// The default: ARAP-like edge lengths on characters (`k_s` 3, `k_L`
+    /// 0.1, coarse ratio 3, corrections while gaining every 5 fine
+    /// iterations). On the posing suite (stop 29, docs/posing.md) 11 of
+    /// the 12 character edits meet every rule against 7 with
+    /// [`Preset::Elastica`]; twisted square tubes keep their sections (135°:
+    /// min area 0.925, 2.8° from an even twist; converged ARAP 0.90 / 3.6°).
+    #[default]
+    Characters,
+    /// The paper's even bend and twist (`k_s` 1, `k_L` 1: `E_T` exactly,
+    /// coarse ratio 8, corrections while faster every 10): the 300° bar
+    /// keeps min area 0.80 (characters 0.60), the survey bar's twist is
+    /// 0.6° from its ramp (9.2°), and the pose is the same on a mesh and
+    /// its subdivision (0.2–0.4 % of the diagonal, characters 1.8–3.4 %,
+    /// libigl's ARAP 2.3–6.4 %; stop 31).
+    Elastica,
+}
+
+impl Preset {
+    /// Every preset, the default first.
+    pub const ALL: [Preset; 2] = [Preset::Characters, Preset::Elastica];
+
+    /// The preset's name on the wire and the command line.
+    pub fn name(self) -> &'static str {
+        match self {
+            Preset::Characters => "characters",
+            Preset::Elastica => "elastica",
+        }
+    }
+
+    /// A short title for a menu.
+    pub fn label(self) -> &'static str {
+        match self {
+            Preset::Characters => "Characters",
+            Preset::Elastica => "Elastica (even bend and twist)",
+        }
+    }
+
+    /// One sentence on what the preset is for.
+    pub fn description(self) -> &'static str {
+        match self {
+            Preset::Characters => {
+                "Posing characters and creatures: edge lengths kept close to rest, limbs swing freely (the default)."
+            }
+            Preset::Elastica => {
+                "The paper's elastica: bends and twists spread evenly along bars and tubes, cross-sections kept; the same pose at any mesh resolution."
+            }
+        }
+    }
+
+    /// The preset's parameters.
+    pub fn params(self) -> Params {
+        match self {
+            Preset::Characters => Params::default(),
+            Preset::Elastica => Params::elastica(),
+        }
+    }
+
+    /// Parses a name (`characters`, `elastica`).
+    pub fn from_name(name: &str) -> Option<Self> {
+        Preset::ALL.into_iter().find(|p| p.name() == name)
+    }
+}
+
+/// Session parameters as a client writes them: an optional [`Preset`] and
+/// any fields that override it (unknown fields are refused).
+#[derive(Debug, Clone, Copy, Default, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct ParamsSpec {
+    /// The base parameters (default [`Preset::Characters`]).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub preset: Option<Preset>,
+    /// Overrides [`Params::energy`].
+    pub energy: Option<Energy>,
+    /// Overrides [`Params::lambda1`].
+    pub lambda1: Option<f64>,
+    /// Overrides [`Params::lambda2`].
+    pub lambda2: Option<f64>,
+    /// Overrides [`Params::detail`].
+    pub detail: Option<DetailTerm>,
+    /// Overrides [`Params::mode`].
+    pub mode: Option<Mode>,
+    /// Overrides [`Params::tol`].
+    pub tol: Option<f64>,
+    /// Overrides [`Params::max_iters`].
+    pub max_iters: Option<usize>,
+    /// Overrides [`Params::anderson`].
+    pub anderson: Option<usize>,
+    /// Overrides [`Params::formulation`].
+    pub formulation: Option<Formulation>,
+    /// Overrides [`Params::stretch`].
+    pub stretch: Option<f64>,
+    /// Overrides [`Params::bending`].
+    pub bending: Option<f64>,
+    /// Overrides [`Params::area`].
+    pub area: Option<f64>,
+    /// Overrides [`Params::laplacian`].
+    pub laplacian: Option<f64>,
+    /// Overrides [`Params::coarse_ratio`].
+    pub coarse_ratio: Option<usize>,
+    /// Overrides [`Params::corrections`].
+    pub corrections: Option<Corrections>,
+    /// Overrides [`Params::correction_period`].
+    pub correction_period: Option<usize>,
+}
+
+impl From<ParamsSpec> for Params {
+    fn from(s: ParamsSpec) -> Params {
+        let b = s.preset.unwrap_or_default().params();
+        Params {
+            energy: s.energy.unwrap_or(b.energy),
+            lambda1: s.lambda1.unwrap_or(b.lambda1),
+            lambda2: s.lambda2.unwrap_or(b.lambda2),
+            detail: s.detail.unwrap_or(b.detail),
+            mode: s.mode.unwrap_or(b.mode),
+            tol: s.tol.unwrap_or(b.tol),
+            max_iters: s.max_iters.unwrap_or(b.max_iters),
+            anderson: s.anderson.unwrap_or(b.anderson),
+            formulation: s.formulation.unwrap_or(b.formulation),
+            stretch: s.stretch.unwrap_or(b.stretch),
+            bending: s.bending.unwrap_or(b.bending),
+            area: s.area.unwrap_or(b.area),
+            laplacian: s.laplacian.unwrap_or(b.laplacian),
+            coarse_ratio: s.coarse_ratio.unwrap_or(b.coarse_ratio),
+            corrections: s.corrections.unwrap_or(b.corrections),
+            correction_period: s.correction_period.unwrap_or(b.correction_period),
+        }
+    }
+}
 
 impl Default for Params {
     fn default() -> Self {
@@ -258,43 +388,30 @@ impl Default for Params {
             max_iters: 100,
             anderson: 5,
             formulation: Formulation::Elastic,
-            stretch: 1.0,
+            stretch: DEFAULT_STRETCH,
             bending: DEFAULT_BENDING,
             area: DEFAULT_AREA,
             laplacian: DEFAULT_LAPLACIAN,
             coarse_ratio: DEFAULT_COARSE_RATIO,
-            corrections: Corrections::WhileFaster,
+            corrections: Corrections::WhileGaining,
             correction_period: DEFAULT_CORRECTION_PERIOD,
         }
     }
 }
 
 impl Params {
-    /// These parameters with the elastic weights for posing characters:
-    /// `k_s` [`CHARACTERS_STRETCH`], `k_L` [`CHARACTERS_LAPLACIAN`], the
-    /// coarse ratio [`CHARACTERS_COARSE_RATIO`] and corrections
-    /// [`Corrections::WhileGaining`] every [`CHARACTERS_CORRECTION_PERIOD`]
-    /// fine iterations. On the posing suite (stop 29,
-    /// docs/posing.md) 11 of the 12 character edits meet every rule against
-    /// 7 with the defaults (14 of its 20 edits against 8, every edit the
-    /// defaults pass among them): every character's mean edge distortion
-    /// within 0.92–1.38× ARAP's (feline standard 1.38×, 1.75× with the
-    /// defaults), camel limb 23 iterations (40), armadillo standard 18 (44);
-    /// the hand's standard edit still settles only 1.5–1.7× sooner than
-    /// ARAP. The defaults keep twisted bars' cross-sections and even twists
-    /// far better (300° bar min area 0.80 against 0.60, survey bar 0.6°
-    /// from its ramp against 9.2°: docs/posing.md), and only they give
-    /// the same pose on a mesh and its subdivision: on the subdivision
-    /// test's tubes these weights move the pose by 1.8–3.4 % of the
-    /// diagonal (the defaults 0.2–0.4 %, libigl's ARAP 2.3–6.4 %; stop 31).
-    pub fn for_characters(self) -> Params {
+    /// The [`Preset::Elastica`] parameters: the paper's even bend and
+    /// twist (`k_s` [`ELASTICA_STRETCH`], `k_L` [`ELASTICA_LAPLACIAN`],
+    /// coarse ratio [`ELASTICA_COARSE_RATIO`], corrections
+    /// [`Corrections::WhileFaster`] every [`ELASTICA_CORRECTION_PERIOD`]).
+    pub fn elastica() -> Params {
         Params {
-            stretch: CHARACTERS_STRETCH,
-            laplacian: CHARACTERS_LAPLACIAN,
-            coarse_ratio: CHARACTERS_COARSE_RATIO,
-            corrections: Corrections::WhileGaining,
-            correction_period: CHARACTERS_CORRECTION_PERIOD,
-            ..self
+            stretch: ELASTICA_STRETCH,
+            laplacian: ELASTICA_LAPLACIAN,
+            coarse_ratio: ELASTICA_COARSE_RATIO,
+            corrections: Corrections::WhileFaster,
+            correction_period: ELASTICA_CORRECTION_PERIOD,
+            ..Params::default()
         }
     }
 
@@ -376,5 +493,73 @@ impl Params {
             }
         }
         Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn read(json: &str) -> Result<Params, serde_json::Error> {
+        serde_json::from_str(json)
+    }
+
+    #[test]
+    fn an_empty_object_is_the_default_preset() {
+        assert_eq!(read("{}").unwrap(), Params::default());
+        assert_eq!(Preset::default().params(), Params::default());
+        assert_eq!(
+            read(r#"{"preset": "characters"}"#).unwrap(),
+            Params::default()
+        );
+    }
+
+    #[test]
+    fn a_preset_is_its_parameters_and_explicit_fields_override_it() {
+        let e = read(r#"{"preset": "elastica"}"#).unwrap();
+        assert_eq!(e, Params::elastica());
+        assert_ne!(e, Params::default());
+        let o = read(r#"{"preset": "elastica", "stretch": 2.5, "max_iters": 7}"#).unwrap();
+        assert_eq!(
+            o,
+            Params {
+                stretch: 2.5,
+                max_iters: 7,
+                ..Params::elastica()
+            }
+        );
+        // an explicit field equal to the other preset's does not switch it
+        let c = read(r#"{"preset": "characters", "laplacian": 1.0}"#).unwrap();
+        assert_eq!(c.stretch, Params::default().stretch);
+        assert_eq!(c.laplacian, 1.0);
+    }
+
+    #[test]
+    fn written_parameters_read_back_unchanged_whatever_the_default() {
+        // a stored session writes every field: it must read back as itself,
+        // not as the current default (so changing a default keeps it)
+        for p in [Params::default(), Params::elastica(), Params::paper()] {
+            let v = serde_json::to_value(p).unwrap();
+            assert!(v.get("preset").is_none());
+            assert_eq!(serde_json::from_value::<Params>(v).unwrap(), p);
+        }
+    }
+
+    #[test]
+    fn unknown_fields_and_presets_are_refused() {
+        assert!(read(r#"{"stiffness": 1}"#).is_err());
+        assert!(read(r#"{"preset": "general"}"#).is_err());
+        assert!(read(r#"{"preset": 3}"#).is_err());
+    }
+
+    #[test]
+    fn preset_names_round_trip() {
+        for p in Preset::ALL {
+            assert_eq!(Preset::from_name(p.name()), Some(p));
+            let wire = serde_json::to_value(p).unwrap();
+            assert_eq!(wire, serde_json::Value::from(p.name()));
+            assert!(p.params().validate().is_ok());
+        }
+        assert_eq!(Preset::from_name("general"), None);
     }
 }

@@ -45,8 +45,9 @@ pub const MIN_VERTICES: usize = 2 * MIN_COARSE_VERTICES;
 /// Fewest vertices of a coarse mesh.
 pub const MIN_COARSE_VERTICES: usize = 500;
 
-/// Fine vertices per coarse vertex, at most (meshes of `8 × 500 = 4000`
-/// vertices or more); smaller meshes use `#V / 500`.
+/// Fine vertices per coarse vertex, at most, of the default parameters
+/// (meshes of `ratio × 500` vertices or more; smaller meshes use
+/// `#V / 500`).
 pub const RATIO: usize = crate::deform::params::DEFAULT_COARSE_RATIO;
 
 /// The simplification ratio of a mesh with `n >= MIN_VERTICES` vertices:

@@ -106,10 +106,12 @@ fn the_level_of_a_limb_is_a_valid_vertex_subset() {
 
 #[test]
 fn smaller_meshes_keep_at_least_500_coarse_vertices() {
-    assert_eq!(ratio_at_most(MIN_VERTICES, RATIO), 2);
-    assert_eq!(ratio_at_most(1502, RATIO), 3);
-    assert_eq!(ratio_at_most(3999, RATIO), 7);
-    assert_eq!(ratio_at_most(4000, RATIO), RATIO);
+    let most = crate::deform::ELASTICA_COARSE_RATIO;
+    assert_eq!(ratio_at_most(MIN_VERTICES, most), 2);
+    assert_eq!(ratio_at_most(1502, most), 3);
+    assert_eq!(ratio_at_most(3999, most), 7);
+    assert_eq!(ratio_at_most(4000, most), most);
+    assert_eq!(ratio_at_most(50_000, most), most);
     assert_eq!(ratio_at_most(50_000, RATIO), RATIO);
     // a 24 × 64 = 1536-vertex tube: ratio 3, about 512 coarse vertices
     let mesh = generate(&ShapeSpec {
@@ -202,7 +204,7 @@ fn a_swung_limb_reaches_the_same_pose() {
 
 #[test]
 fn the_fine_objective_never_grows_through_the_coarse_start_and_corrections() {
-    for period in [crate::deform::DEFAULT_CORRECTION_PERIOD, 5] {
+    for period in [crate::deform::ELASTICA_CORRECTION_PERIOD, 5] {
         let params = Params {
             correction_period: period,
             corrections: crate::deform::Corrections::WhileGaining,
