@@ -100,11 +100,16 @@ fn keys(y: &yaml_rust2::Yaml) -> BTreeSet<String> {
 /// accepts (it would have caught `square_lu` and `elastic` missing).
 #[test]
 fn params_schema_matches_the_params_type() {
-    use dend::deform::{Corrections, DetailTerm, Formulation, Mode, Params};
+    use dend::deform::{Corrections, DetailTerm, Formulation, Mode, ParamsSpec, Preset};
     let doc = openapi_doc();
     let props = &doc["components"]["schemas"]["Params"]["properties"];
     let documented = keys(props);
-    let serialised = serde_json::to_value(Params::default()).expect("params JSON");
+    // what a client may send: every parameter and the preset
+    let spec = ParamsSpec {
+        preset: Some(Preset::default()),
+        ..ParamsSpec::default()
+    };
+    let serialised = serde_json::to_value(spec).expect("params JSON");
     let fields: BTreeSet<String> = serialised
         .as_object()
         .expect("an object")
