@@ -133,7 +133,7 @@ pub async fn create(
         None
     } else {
         let rest = rest_for(&st, &req.mesh_id).await?;
-        if params.coarse_ratio != dend::deform::DEFAULT_COARSE_RATIO {
+        if params.coarse_ratio != dend::deform::ELASTICA_COARSE_RATIO {
             // this ratio's coarse level, off the first settle's path (the
             // default one is built when the mesh's rest state is)
             let (rest, params) = (rest.clone(), params);

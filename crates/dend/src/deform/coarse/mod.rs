@@ -45,10 +45,10 @@ pub const MIN_VERTICES: usize = 2 * MIN_COARSE_VERTICES;
 /// Fewest vertices of a coarse mesh.
 pub const MIN_COARSE_VERTICES: usize = 500;
 
-/// Fine vertices per coarse vertex, at most, of the default parameters
+/// Fine vertices per coarse vertex, at most, of the level built with the rest (the elastica preset's ratio)
 /// (meshes of `ratio × 500` vertices or more; smaller meshes use
 /// `#V / 500`).
-pub const RATIO: usize = crate::deform::params::DEFAULT_COARSE_RATIO;
+pub const RATIO: usize = crate::deform::params::ELASTICA_COARSE_RATIO;
 
 /// The simplification ratio of a mesh with `n >= MIN_VERTICES` vertices:
 /// `clamp(n / MIN_COARSE_VERTICES, 2, max_ratio)`, `max_ratio` being

@@ -167,7 +167,7 @@ fn a_pulled_limb_converges_sooner() {
     let mesh = limb();
     let rest = Arc::new(Rest::new(mesh.clone()).unwrap());
     let c = patch_pull(&mesh, [0.0, 0.1 * mesh.diagonal(), 0.0]);
-    let params = Params::default();
+    let params = Params::elastica();
     let (_, one) = solve(&rest, params, &c, Levels::One);
     let (_, two) = solve(&rest, params, &c, Levels::Two);
     assert!(one.converged && two.converged);
@@ -192,7 +192,7 @@ fn a_swung_limb_reaches_the_same_pose() {
     let c = limb_constraints(&mesh, swing);
     let tight = Params {
         tol: 1e-6,
-        ..Params::default()
+        ..Params::elastica()
     };
     let (a, ra) = solve(&rest, tight, &c, Levels::One);
     let (b, rb) = solve(&rest, tight, &c, Levels::Two);
@@ -208,7 +208,7 @@ fn the_fine_objective_never_grows_through_the_coarse_start_and_corrections() {
         let params = Params {
             correction_period: period,
             corrections: crate::deform::Corrections::WhileGaining,
-            ..Params::default()
+            ..Params::elastica()
         };
         objective_never_grows_through_corrections(params);
     }
@@ -299,7 +299,7 @@ fn steps_until_converged(
 fn identity_and_translation_stay_exact() {
     let mesh = limb();
     let rest = Arc::new(Rest::new(mesh.clone()).unwrap());
-    let params = Params::default();
+    let params = Params::elastica();
     // identity: the rest pose
     let c = limb_constraints(&mesh, RigidTransform::identity);
     let (d, r) = solve(&rest, params, &c, Levels::Two);
@@ -461,7 +461,7 @@ fn the_coarse_ratio_parameter_picks_the_level() {
     let c = limb_constraints(&mesh, swing);
     let base = Params {
         tol: 1e-2,
-        ..Params::default()
+        ..Params::elastica()
     };
     let at3 = Params {
         coarse_ratio: 3,
@@ -494,7 +494,7 @@ fn the_coarse_ratio_parameter_picks_the_level() {
     for bad in [0, 1] {
         let p = Params {
             coarse_ratio: bad,
-            ..Params::default()
+            ..Params::elastica()
         };
         assert!(p.validate().is_err());
     }
@@ -524,7 +524,7 @@ fn corrections_while_gaining_go_on_at_least_as_long() {
     use crate::deform::Corrections;
     let slow = Params {
         laplacian: 0.1,
-        ..Params::default()
+        ..Params::elastica()
     };
     let (faster, its_faster) = corrections_until_converged(slow);
     let (gaining, its_gaining) = corrections_until_converged(Params {
@@ -545,7 +545,7 @@ fn the_coarse_start_solved_beside_the_factor_gives_the_same_sequence() {
     let mesh = limb();
     let rest = Arc::new(Rest::new(mesh.clone()).unwrap());
     let c = patch_pull(&mesh, [0.0, 0.1 * mesh.diagonal(), 0.0]);
-    let params = Params::default();
+    let params = Params::elastica();
     let (plain, rp) = solve(&rest, params, &c, Levels::Two);
     let mut ahead = Deformer::new(rest.clone(), params);
     let factor = ahead.build_factor(&c).unwrap();
