@@ -135,7 +135,6 @@ impl Deformer {
         (el, set): (&ElasticOps, &ElasticSet),
         constraints: &Constraints,
         max_iters: usize,
-        stop: &dyn Fn() -> bool,
     ) -> Result<StepReport, DeformError> {
         let moved = self.load_targets(factor, constraints)?;
         let nu = factor.sys.unknowns.len();
@@ -240,9 +239,6 @@ impl Deformer {
                 if st.since_correction >= self.params.correction_period {
                     e = self.correct(factor, (el, set), constraints, e, &mut report);
                 }
-            }
-            if stop() {
-                break;
             }
         }
         report.objective = e;

@@ -115,7 +115,6 @@ impl Deformer {
         factor: &Factor,
         constraints: &Constraints,
         max_iters: usize,
-        stop: &dyn Fn() -> bool,
     ) -> Result<StepReport, DeformError> {
         self.prepare(factor);
         let moved = self.load_targets(factor, constraints)?;
@@ -203,9 +202,6 @@ impl Deformer {
             }
             if report.last_update < self.params.tol {
                 report.converged = true;
-                break;
-            }
-            if stop() {
                 break;
             }
         }

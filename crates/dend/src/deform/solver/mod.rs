@@ -156,25 +156,9 @@ impl Deformer {
         constraints: &Constraints,
         max_iters: usize,
     ) -> Result<StepReport, DeformError> {
-        self.step_until(factor, constraints, max_iters, &|| false)
-    }
-
-    /// [`Deformer::step`] that also stops after any iteration for which
-    /// `stop()` is true (at least one iteration runs): a server's frame
-    /// deadline, or a new drag waiting. Stopping early changes nothing of
-    /// the sequence: the next call on the same targets continues it (the
-    /// Anderson history, rotations and energy carry over), so a settle
-    /// split into frames at any points is the same iteration.
-    pub fn step_until(
-        &mut self,
-        factor: &Factor,
-        constraints: &Constraints,
-        max_iters: usize,
-        stop: &dyn Fn() -> bool,
-    ) -> Result<StepReport, DeformError> {
         match &factor.elastic {
-            Some((el, set)) => self.step_elastic(factor, (el, set), constraints, max_iters, stop),
-            None => self.step_least_squares(factor, constraints, max_iters, stop),
+            Some((el, set)) => self.step_elastic(factor, (el, set), constraints, max_iters),
+            None => self.step_least_squares(factor, constraints, max_iters),
         }
     }
 
