@@ -317,39 +317,66 @@ impl Preset {
 pub struct ParamsSpec {
     /// The base parameters (default [`Preset::Characters`]).
     #[serde(skip_serializing_if = "Option::is_none")]
+    #[serde(deserialize_with = "present")]
     pub preset: Option<Preset>,
     /// Overrides [`Params::energy`].
+    #[serde(deserialize_with = "present")]
     pub energy: Option<Energy>,
     /// Overrides [`Params::lambda1`].
+    #[serde(deserialize_with = "present")]
     pub lambda1: Option<f64>,
     /// Overrides [`Params::lambda2`].
+    #[serde(deserialize_with = "present")]
     pub lambda2: Option<f64>,
     /// Overrides [`Params::detail`].
+    #[serde(deserialize_with = "present")]
     pub detail: Option<DetailTerm>,
     /// Overrides [`Params::mode`].
+    #[serde(deserialize_with = "present")]
     pub mode: Option<Mode>,
     /// Overrides [`Params::tol`].
+    #[serde(deserialize_with = "present")]
     pub tol: Option<f64>,
     /// Overrides [`Params::max_iters`].
+    #[serde(deserialize_with = "present")]
     pub max_iters: Option<usize>,
     /// Overrides [`Params::anderson`].
+    #[serde(deserialize_with = "present")]
     pub anderson: Option<usize>,
     /// Overrides [`Params::formulation`].
+    #[serde(deserialize_with = "present")]
     pub formulation: Option<Formulation>,
     /// Overrides [`Params::stretch`].
+    #[serde(deserialize_with = "present")]
     pub stretch: Option<f64>,
     /// Overrides [`Params::bending`].
+    #[serde(deserialize_with = "present")]
     pub bending: Option<f64>,
     /// Overrides [`Params::area`].
+    #[serde(deserialize_with = "present")]
     pub area: Option<f64>,
     /// Overrides [`Params::laplacian`].
+    #[serde(deserialize_with = "present")]
     pub laplacian: Option<f64>,
     /// Overrides [`Params::coarse_ratio`].
+    #[serde(deserialize_with = "present")]
     pub coarse_ratio: Option<usize>,
     /// Overrides [`Params::corrections`].
+    #[serde(deserialize_with = "present")]
     pub corrections: Option<Corrections>,
     /// Overrides [`Params::correction_period`].
+    #[serde(deserialize_with = "present")]
     pub correction_period: Option<usize>,
+}
+
+/// Reads a field that is present: `null` is refused rather than read as
+/// "unset", because a client's NaN is written `null` by `JSON.stringify`.
+fn present<'de, D, T>(d: D) -> Result<Option<T>, D::Error>
+where
+    D: serde::Deserializer<'de>,
+    T: Deserialize<'de>,
+{
+    T::deserialize(d).map(Some)
 }
 
 impl From<ParamsSpec> for Params {
@@ -550,6 +577,15 @@ mod tests {
         assert!(read(r#"{"stiffness": 1}"#).is_err());
         assert!(read(r#"{"preset": "general"}"#).is_err());
         assert!(read(r#"{"preset": 3}"#).is_err());
+    }
+
+    #[test]
+    fn null_is_refused_not_read_as_unset() {
+        for field in ["preset", "tol", "lambda1", "stretch", "max_iters", "energy"] {
+            let r = read(&format!(r#"{{"{field}": null}}"#));
+            assert!(r.is_err(), "{field}: null was accepted as {r:?}");
+        }
+        assert!(read(r#"{"tol": 1e-4}"#).is_ok());
     }
 
     #[test]
