@@ -5,6 +5,7 @@
 //! one table ([`ROUTES`] + `route_list`), which a test keeps equal to
 //! `api/openapi.yaml`.
 
+mod auth;
 pub mod config;
 mod curvature;
 pub mod error;
