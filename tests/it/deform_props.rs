@@ -1,4 +1,4 @@
-//! Properties of the DEND solver (dend.md §7) on generated meshes.
+//! Properties of the DEND solver (design.md §10) on generated meshes.
 
 use std::sync::Arc;
 
@@ -69,7 +69,7 @@ fn translating_every_constraint_translates_the_mesh() {
             );
         }
     }
-    // the literal paper's L² - 2LG is not translation invariant (dend.md §3)
+    // the literal paper's L² - 2LG is not translation invariant (design.md §3)
     let params = Params {
         energy: Energy::TotalCurvaturePaper,
         detail: DetailTerm::Linear,
@@ -89,7 +89,7 @@ fn translating_every_constraint_translates_the_mesh() {
     );
 }
 
-/// dend.md §7–8 on a 1×1×6 open tube twisted 135°: the default mode keeps
+/// design.md §10–11 on a 1×1×6 open tube twisted 135°: the default mode keeps
 /// the cross-sections and twists evenly; the literal paper barely twists
 /// the middle; thin plate with the linear term collapses (paper Fig. 1c).
 #[test]
@@ -156,7 +156,7 @@ fn rotate_about(p: [f64; 3], q: &UnitQuaternion<f64>, c: [f64; 3], t: [f64; 3]) 
 
 /// Rotating every constraint by one R: the nonlinear detail term brings the
 /// result much closer to the rigidly rotated mesh than the linear one
-/// (dend.md §7), and in the paper mode closer as λ2 grows.
+/// (design.md §10), and in the paper mode closer as λ2 grows.
 #[test]
 fn rigid_rotation_of_all_constraints() {
     let m = square_tube(1.0, 4.0, 4, 17);
@@ -339,7 +339,7 @@ fn hard_constraints_are_met_exactly_and_soft_ones_approach_them() {
     assert!(last < 2e-2 * m.diagonal());
 }
 
-/// dend.md §8.4: one solve of the 8th-order normal equations missed the
+/// design.md §4.5: one solve of the 8th-order normal equations missed the
 /// identity by 3e-4 of the diagonal on a random Delaunay saddle, and the
 /// iteration then diverged. Solving for the update from the unsquared
 /// residual keeps the identity exact, for every energy and both modes.

@@ -1,4 +1,4 @@
-//! The elastic formulation (the default, dend.md §9): properties that can
+//! The elastic formulation (the default, design.md §7): properties that can
 //! fail, on generated meshes (irregular open patches with obtuse triangles,
 //! tubes, a limb-like shape), so they run on every clone.
 
@@ -112,7 +112,7 @@ fn identity_edit_is_exact() {
 }
 
 /// Moving every constrained vertex by one vector moves the whole mesh by
-/// it, exactly (dend.md §7), on irregular open meshes with obtuse
+/// it, exactly (design.md §10), on irregular open meshes with obtuse
 /// triangles; likewise one rotation of every constraint (the propagated
 /// rotations make the first iterate the rigid motion).
 #[test]
@@ -473,7 +473,7 @@ fn a_twist_in_steps_keeps_its_direction() {
 /// ARAP run to convergence on the same sets (ARAP's figures measured by
 /// scripts/posing_suite.py: camel 0.00307 / 0.0937, dino 0.00281 / 0.0374).
 /// The least-squares default before this one stretched the camel's neck
-/// 42× (dend.md §9). Needs `../shared/meshes`: skipped (and listed by
+/// 42× (design.md §7.1). Needs `../shared/meshes`: skipped (and listed by
 /// `scripts/test.sh`) without it.
 #[test]
 fn characters_keep_their_proportions_under_the_standard_edit() {

@@ -1,5 +1,5 @@
 //! The discrete operators against libigl's Python binding (the external
-//! oracle of dend.md §2), through `scripts/oracle/operators.py`.
+//! oracle of design.md §2), through `scripts/oracle/operators.py`.
 //!
 //! Conventions compared (raw positions, free functions):
 //! - `cotmatrix` = `igl.cotmatrix` (same sign, same ½): error relative to

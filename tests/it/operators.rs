@@ -1,4 +1,4 @@
-//! Hand-computed and analytic checks of the discrete operators (dend.md §2):
+//! Hand-computed and analytic checks of the discrete operators (design.md §2):
 //! exact values on regular solids, Gauss–Bonnet on every mesh, flat grids,
 //! spheres (with measured convergence orders) and cylinders.
 

@@ -1,4 +1,4 @@
-//! Invariance of the operators (dend.md §2): after a random rotation,
+//! Invariance of the operators (design.md §2): after a random rotation,
 //! translation and uniform scaling by `s` (10^-8 … 10^8) the normalised
 //! operators are unchanged, and in mesh units `Lbar` is invariant, areas
 //! scale by `s²`, `H` by `1/s`, `K` and `G` by `1/s²`. Also `Lbar · 1 = 0`

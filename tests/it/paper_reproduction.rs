@@ -1,4 +1,4 @@
-//! The paper's Figure 1 and 2 set-ups as measured tests (dend.md §7, §8;
+//! The paper's Figure 1 and 2 set-ups as measured tests (design.md §10, §11;
 //! issue 6): a bar twisted 135° and 300°, a cylinder bent 120° and 180°, on
 //! the generated paper-sized shapes (always) and on the Botsch–Sorkine survey
 //! meshes (when `$DEND_MESHES` is present), each in three modes: our default

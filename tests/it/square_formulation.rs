@@ -1,5 +1,5 @@
 //! The eq. (23) square formulation (`Formulation::Square`, issue 5): the
-//! invariances of dend.md §7 on generated meshes, the paper's 135° bar twist
+//! invariances of design.md §10 on generated meshes, the paper's 135° bar twist
 //! and 120° cylinder bend, soft constraints, and factor keys per formulation.
 
 use std::sync::Arc;

@@ -2,9 +2,10 @@
 //!
 //! [`app`] builds the router from an [`AppState`]; [`serve`] binds, prints
 //! the URL, runs until SIGINT/SIGTERM and drains gracefully. Routes live in
-//! one table ([`ROUTES`] + `route_list`), which a test keeps equal to
-//! `api/openapi.yaml`.
+//! one table (`routes!`, which defines [`ROUTES`] and the router's
+//! `route_list`), which a test keeps equal to `api/openapi.yaml`.
 
+mod auth;
 pub mod config;
 mod curvature;
 pub mod error;
@@ -30,7 +31,7 @@ use axum::extract::{DefaultBodyLimit, Request, State};
 use axum::http::{header, Uri};
 use axum::middleware::Next;
 use axum::response::{IntoResponse, Response};
-use axum::routing::{delete, get, post, put, MethodRouter};
+use axum::routing::MethodRouter;
 use axum::{BoxError, Router};
 use parking_lot::{Mutex, RwLock};
 use tower::ServiceBuilder;
@@ -136,58 +137,40 @@ impl AppState {
     }
 }
 
-/// Every route: (path, methods). `api/openapi.yaml` must list exactly these.
-pub const ROUTES: &[(&str, &[&str])] = &[
-    ("/healthz", &["get"]),
-    ("/healthz/ready", &["get"]),
-    ("/metrics", &["get"]),
-    ("/v1/presets", &["get"]),
-    ("/v1/meshes", &["post"]),
-    ("/v1/meshes/generate", &["post"]),
-    ("/v1/meshes/{id}", &["get", "delete"]),
-    ("/v1/sessions", &["post"]),
-    ("/v1/sessions/{id}", &["get", "delete"]),
-    ("/v1/sessions/{id}/constraints", &["put"]),
-    ("/v1/sessions/{id}/drag", &["post"]),
-    ("/v1/sessions/{id}/pose", &["get"]),
-    ("/v1/sessions/{id}/export", &["get"]),
-    ("/v1/sessions/{id}/curvature", &["get"]),
-    ("/v1/sessions/{id}/undo", &["post"]),
-    ("/v1/sessions/{id}/redo", &["post"]),
-    ("/v1/sessions/{id}/reset", &["post"]),
-    ("/v1/sessions/{id}/ws", &["get"]),
-];
+/// Defines [`ROUTES`] and `route_list` from one table of
+/// `"path" => [method(handler), ..]` entries, so that the router and the
+/// route list the OpenAPI test reads cannot disagree.
+macro_rules! routes {
+    ($($path:literal => [$($method:ident($handler:path)),+ $(,)?]),* $(,)?) => {
+        /// Every route: (path, methods). `api/openapi.yaml` must list exactly these.
+        pub const ROUTES: &[(&str, &[&str])] = &[$(($path, &[$(stringify!($method)),+])),*];
 
-fn route_list() -> Vec<(&'static str, MethodRouter<AppState>)> {
-    vec![
-        ("/healthz", get(healthz)),
-        ("/healthz/ready", get(ready)),
-        ("/metrics", get(metrics::render)),
-        ("/v1/presets", get(presets::get)),
-        ("/v1/meshes", post(meshes::upload)),
-        ("/v1/meshes/generate", post(meshes::generate)),
-        (
-            "/v1/meshes/{id}",
-            get(meshes::info).merge(delete(meshes::remove)),
-        ),
-        ("/v1/sessions", post(sessions::create)),
-        (
-            "/v1/sessions/{id}",
-            get(sessions::info).merge(delete(sessions::remove)),
-        ),
-        (
-            "/v1/sessions/{id}/constraints",
-            put(sessions::set_constraints),
-        ),
-        ("/v1/sessions/{id}/drag", post(sessions::drag)),
-        ("/v1/sessions/{id}/pose", get(sessions::pose)),
-        ("/v1/sessions/{id}/export", get(sessions::export)),
-        ("/v1/sessions/{id}/curvature", get(curvature::curvature)),
-        ("/v1/sessions/{id}/undo", post(sessions::undo)),
-        ("/v1/sessions/{id}/redo", post(sessions::redo)),
-        ("/v1/sessions/{id}/reset", post(sessions::reset)),
-        ("/v1/sessions/{id}/ws", get(ws::upgrade)),
-    ]
+        /// Every route with its handlers.
+        fn route_list() -> Vec<(&'static str, MethodRouter<AppState>)> {
+            vec![$(($path, MethodRouter::new()$(.$method($handler))+)),*]
+        }
+    };
+}
+
+routes! {
+    "/healthz" => [get(healthz)],
+    "/healthz/ready" => [get(ready)],
+    "/metrics" => [get(metrics::render)],
+    "/v1/presets" => [get(presets::get)],
+    "/v1/meshes" => [post(meshes::upload)],
+    "/v1/meshes/generate" => [post(meshes::generate)],
+    "/v1/meshes/{id}" => [get(meshes::info), delete(meshes::remove)],
+    "/v1/sessions" => [post(sessions::create)],
+    "/v1/sessions/{id}" => [get(sessions::info), delete(sessions::remove)],
+    "/v1/sessions/{id}/constraints" => [put(sessions::set_constraints)],
+    "/v1/sessions/{id}/drag" => [post(sessions::drag)],
+    "/v1/sessions/{id}/pose" => [get(sessions::pose)],
+    "/v1/sessions/{id}/export" => [get(sessions::export)],
+    "/v1/sessions/{id}/curvature" => [get(curvature::curvature)],
+    "/v1/sessions/{id}/undo" => [post(sessions::undo)],
+    "/v1/sessions/{id}/redo" => [post(sessions::redo)],
+    "/v1/sessions/{id}/reset" => [post(sessions::reset)],
+    "/v1/sessions/{id}/ws" => [get(ws::upgrade)],
 }
 
 /// The router with every route and middleware (tracing, request timeout,

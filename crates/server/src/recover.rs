@@ -13,8 +13,6 @@
 
 use std::sync::Arc;
 
-use subtle::ConstantTimeEq;
-
 use super::error::ApiError;
 use super::{rest_for, AppState, Config};
 use crate::session::{Recovered, SessionHandle, SessionOptions};
@@ -102,10 +100,7 @@ async fn revive_whole(
         .ok_or_else(|| {
             ApiError::Internal(format!("stored token hash of session `{id}` is malformed"))
         })?;
-    let token = token.ok_or(ApiError::MissingToken)?;
-    if !bool::from(super::sessions::token_hash(&token).ct_eq(&token_sha256)) {
-        return Err(ApiError::WrongToken);
-    }
+    crate::auth::check_token_hash(&token_sha256, token.as_deref())?;
     // one opening of this session at a time: check, lease, spawn, restore
     // and insert together
     let opening = st.open_lock(&id).lock_owned().await;

@@ -138,7 +138,7 @@ fn stored() -> (Arc<GatedStore>, AppState) {
         .put_session(&SessionRecord {
             id: "s".into(),
             mesh_id: "m".into(),
-            token_sha256: hex::encode(crate::sessions::token_hash(TOKEN)),
+            token_sha256: hex::encode(crate::auth::token_hash(TOKEN)),
             params: serde_json::to_value(Params::default()).expect("params"),
             constraints: Some(serde_json::json!({
                 "fixed": [0, 1, 2, 3, 4, 5],

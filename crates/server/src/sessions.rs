@@ -1,7 +1,4 @@
-//! Session routes and token authentication.
-//!
-//! A session's access token is 256 random bits (hex), returned once at
-//! creation; only its SHA-256 is kept, compared in constant time.
+//! Session routes (their authentication is `auth.rs`).
 
 use std::time::{SystemTime, UNIX_EPOCH};
 
@@ -14,31 +11,15 @@ use axum::Json;
 use bytes::Bytes;
 use nalgebra::{Quaternion, Unit, UnitQuaternion, Vector3};
 use serde::{Deserialize, Serialize};
-use sha2::{Digest, Sha256};
-use subtle::ConstantTimeEq;
 
 use super::error::ApiError;
 use super::meshes::{new_id, parse_format};
 use super::{rest_for, AppState};
+use crate::auth::{bearer, check_token, token_hash};
 use crate::session::{Delta, HandleRef, PoseSnapshot, SessionHandle, SessionOptions};
 use crate::store::SessionRecord;
 use dend::deform::Params;
 use dend::mesh::io::Format;
-
-/// SHA-256 of a token.
-pub(crate) fn token_hash(token: &str) -> [u8; 32] {
-    Sha256::digest(token.as_bytes()).into()
-}
-
-/// Checks `token` against a session in constant time.
-pub(crate) fn check_token(s: &SessionHandle, token: Option<&str>) -> Result<(), ApiError> {
-    let token = token.ok_or(ApiError::MissingToken)?;
-    if bool::from(token_hash(token).ct_eq(s.token_sha256())) {
-        Ok(())
-    } else {
-        Err(ApiError::WrongToken)
-    }
-}
 
 /// Looks a live session up, re-opening a stored one after a restart
 /// (see `recover`). A stored session is re-opened only for its own
@@ -76,11 +57,6 @@ impl FromRequestParts<AppState> for Authed {
         s.touch();
         Ok(Authed(s))
     }
-}
-
-fn bearer(h: &HeaderMap) -> Option<&str> {
-    let v = h.get(header::AUTHORIZATION)?.to_str().ok()?;
-    v.strip_prefix("Bearer ").map(str::trim)
 }
 
 /// `POST /v1/sessions` body.

@@ -8,7 +8,7 @@ use std::time::Duration;
 
 use axum::extract::ws::{CloseFrame, Message, WebSocket, WebSocketUpgrade};
 use axum::extract::{Path, Query, State};
-use axum::http::{header, HeaderMap};
+use axum::http::HeaderMap;
 use axum::response::Response;
 use bytes::Bytes;
 use futures_util::{Sink, SinkExt, Stream, StreamExt};
@@ -18,8 +18,9 @@ use tokio::time::Instant;
 
 use super::error::ApiError;
 use super::metrics::Metrics;
-use super::sessions::{check_token, find, parse_json, DeltaJson};
+use super::sessions::{find, parse_json, DeltaJson};
 use super::AppState;
+use crate::auth::{bearer, check_token};
 use crate::session::{ClientId, Event, HandleRef, PeerEvent, SessionHandle, SessionInfo};
 
 /// Close code: no token (neither `?token=` nor a first `auth` message).
@@ -432,12 +433,7 @@ pub async fn upgrade(
     headers: HeaderMap,
     ws: WebSocketUpgrade,
 ) -> Result<Response, ApiError> {
-    let header_token = headers
-        .get(header::AUTHORIZATION)
-        .and_then(|v| v.to_str().ok())
-        .and_then(|v| v.strip_prefix("Bearer "))
-        .map(str::to_owned);
-    let token = q.token.or(header_token);
+    let token = q.token.or_else(|| bearer(&headers).map(str::to_owned));
     // a stored, not-live session is re-opened only with its token here
     // (not with a later `auth` message)
     let s = find(&st, &id, token.as_deref()).await?;

@@ -39,7 +39,7 @@ fn session() -> SessionHandle {
     SessionHandle::spawn(
         "s".into(),
         "m".into(),
-        super::super::sessions::token_hash(TOKEN),
+        crate::auth::token_hash(TOKEN),
         rest,
         params,
         opts,

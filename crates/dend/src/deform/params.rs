@@ -1,12 +1,12 @@
 //! Solver parameters: energy, constraint weights, detail term and mode
-//! (dend.md §1, §3).
+//! (design.md §1, §3).
 
 use serde::{Deserialize, Serialize};
 
 use super::DeformError;
 
 /// The internal (elastic) energy, i.e. the matrix `A` of the term `A (X' - X)`
-/// (dend.md §3; paper table in §5).
+/// (design.md §3; paper table in §5).
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize, Default)]
 #[serde(rename_all = "kebab-case", deny_unknown_fields)]
 pub enum Energy {
@@ -47,7 +47,7 @@ impl Energy {
     }
 }
 
-/// How the detail term's target `δ̂` is computed (dend.md §5).
+/// How the detail term's target `δ̂` is computed (design.md §6).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default, Hash)]
 #[serde(rename_all = "kebab-case")]
 pub enum DetailTerm {
@@ -58,12 +58,12 @@ pub enum DetailTerm {
     Nonlinear,
 }
 
-/// Which reading of the paper the solver follows (dend.md §8).
+/// Which reading of the paper the solver follows (design.md §4.3).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default, Hash)]
 #[serde(rename_all = "kebab-case")]
 pub enum Mode {
     /// Our default: the internal term's rest target rotated by the local
-    /// rotations `T_i` (§8.2) and STEP 1 with the augmented columns (§8.3).
+    /// rotations `T_i` (§4.3) and STEP 1 with the augmented columns (§6.1).
     #[default]
     Default,
     /// The paper read literally: internal term `A (X' - X)` against the
@@ -88,11 +88,11 @@ pub enum Corrections {
     WhileGaining,
 }
 
-/// Which system the DEND iteration solves (dend.md §4).
+/// Which system the DEND iteration solves (design.md §4, §5, §7).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default, Hash)]
 #[serde(rename_all = "snake_case")]
 pub enum Formulation {
-    /// dend.md §9: `E_T` minimised as an energy in per-vertex rotated
+    /// design.md §7: `E_T` minimised as an energy in per-vertex rotated
     /// frames, plus ARAP's stretch term; exact local and global steps, so
     /// the objective never grows (see `deform::elastic`). 4th-order normal
     /// matrix (2-ring stencil). The default.
@@ -145,7 +145,7 @@ pub struct Params {
     /// Our reading (default) or the literal paper.
     pub mode: Mode,
     /// Convergence tolerance: stop when no vertex moves more than
-    /// `tol × mean edge length` in one iteration (dend.md §6). Default `1e-3`.
+    /// `tol × mean edge length` in one iteration (design.md §8). Default `1e-3`.
     pub tol: f64,
     /// Iteration limit per solve. Default 100.
     pub max_iters: usize,
