@@ -127,27 +127,27 @@ async fn run(
         t.lock().max_gap = Duration::ZERO;
     }
     let mut handed_over = 0.0;
-    for k in 0..instances.len() {
-        let (id, port) = (instances[k].id.clone(), instances[k].port);
+    for inst in instances.iter_mut() {
+        let (id, port) = (inst.id.clone(), inst.port);
         let owned = pg.query(&format!(
             "SELECT count(*) FROM leases WHERE owner = '{id}' AND expires > now()"
         ))?;
         let t0 = Instant::now();
-        instances[k].signal("TERM")?;
-        let gone = format!("{}/healthz", instances[k].base);
+        inst.signal("TERM")?;
+        let gone = format!("{}/healthz", inst.base);
         while http_status(&gone).is_some() {
             if t0.elapsed() > Duration::from_secs(30) {
                 return Err(format!("{id} did not exit after SIGTERM"));
             }
             tokio::time::sleep(Duration::from_millis(50)).await;
         }
-        instances[k].kill(); // reaps it
+        inst.kill(); // reaps it
         eprintln!(
             "{id}: SIGTERM with {owned} session(s) -> exited after {} ms",
             t0.elapsed().as_millis()
         );
         progress(20).await?;
-        instances[k] = Instance::start_on(dir, &id, &pg.url, LEASE_TTL_MS, port)?;
+        *inst = Instance::start_on(dir, &id, &pg.url, LEASE_TTL_MS, port)?;
         progress(20).await?;
     }
     for i in instances.iter().filter(|i| i.alive()) {
