@@ -261,6 +261,14 @@ pub(crate) async fn pose_retrying(s: &SessionClient) -> Result<dend_client::Pose
     }
 }
 
+/// Milliseconds since PostgreSQL started (its own clock).
+fn pg_up(pg: &Postgres) -> Option<i64> {
+    pg.query("SELECT (EXTRACT(EPOCH FROM now() - pg_postmaster_start_time()) * 1000)::BIGINT")
+        .ok()?
+        .parse()
+        .ok()
+}
+
 pub(crate) async fn owner(instances: &[Instance], pg: &Postgres, id: &str) -> Option<usize> {
     let owner = pg
         .query(&format!("SELECT owner FROM leases WHERE session = '{id}'"))
@@ -360,6 +368,12 @@ async fn run(
         }
     };
     progress(10).await?;
+    // the liveness check is off for RECONNECT_GRACE (3 s) after PostgreSQL
+    // starts (instances reconnecting after a restart); this cluster's
+    // PostgreSQL just started
+    while pg_up(pg).unwrap_or(0) < 3500 {
+        tokio::time::sleep(Duration::from_millis(100)).await;
+    }
     let mut recoveries = vec![];
     let mut taken_over_by_liveness = 0;
     for round in 0..KILLS {
