@@ -54,6 +54,32 @@ pub struct LoadtestArgs {
     /// bend and twist).
     #[arg(long, visible_alias = "weights", value_enum, default_value_t = PresetArg::Characters)]
     preset: PresetArg,
+    /// Solver worker threads of the in-process server (0: one per core).
+    #[arg(long, default_value_t = 0)]
+    solver_threads: usize,
+    /// Admission limit of the in-process server (sessions waiting for a
+    /// solver; 0: the server's default, 16 per solver thread).
+    #[arg(long, default_value_t = 0)]
+    admission_waiting_sessions: usize,
+    /// Once a fifth of the drags are done, try to open this many more
+    /// sessions, one every 50 ms, and report how many the server refused
+    /// with 503 `overloaded` (admission control).
+    #[arg(long, default_value_t = 0)]
+    extra_sessions: usize,
+    /// Fail (exit status 1) when the drag→frame maximum exceeds this, ms.
+    #[arg(long)]
+    check_max_ms: Option<f64>,
+    /// Fail when the drag→frame p99 exceeds this, ms.
+    #[arg(long)]
+    check_p99_ms: Option<f64>,
+    /// Fail when a session's median drag→frame latency exceeds this many
+    /// times the overall median (fairness between sessions).
+    #[arg(long)]
+    check_fairness: Option<f64>,
+    /// Fail unless at least this many of the `--extra-sessions` were
+    /// refused with 503 `overloaded`.
+    #[arg(long)]
+    check_refused: Option<usize>,
 }
 
 /// The `params` object of the drag sessions: the preset by name, as the
@@ -138,20 +164,28 @@ async fn run_async(args: LoadtestArgs) -> anyhow::Result<()> {
             .get_name()
     );
     let t0 = Instant::now();
+    let acked = std::sync::Arc::new(std::sync::atomic::AtomicU64::new(0));
+    let extra = (args.extra_sessions > 0).then(|| {
+        let (client, mesh_id, acked) = (client.clone(), mesh.id.clone(), acked.clone());
+        let (n, at) = (args.extra_sessions, args.sessions as u64 * args.drags / 5);
+        tokio::spawn(async move { extra_sessions(client, mesh_id, n, acked, at).await })
+    });
     let mut tasks = vec![];
     for _ in 0..args.sessions {
-        let (client, mesh_id, spec, params, drags) = (
+        let (client, mesh_id, spec, params, drags, acked) = (
             client.clone(),
             mesh.id.clone(),
             spec.clone(),
             params.clone(),
             args.drags,
+            acked.clone(),
         );
         tasks.push(tokio::spawn(async move {
-            one_session(client, mesh_id, params, spec, drags, step).await
+            one_session(client, mesh_id, params, spec, drags, step, &acked).await
         }));
     }
     let mut all = vec![];
+    let mut medians = vec![];
     let (mut ready, mut constraints_ready) = (vec![], vec![]);
     let mut frames = 0;
     let mut drag_time = Duration::ZERO;
@@ -161,6 +195,9 @@ async fn run_async(args: LoadtestArgs) -> anyhow::Result<()> {
         settles.push(stats.settle);
         settle_its.push(stats.settle_iterations);
         settled_converged += usize::from(stats.settle_converged);
+        let mut own = stats.latencies.clone();
+        own.sort();
+        medians.push(percentile(&own, 0.5));
         all.extend(stats.latencies);
         ready.push(stats.ready);
         constraints_ready.push(stats.constraints_ready);
@@ -188,6 +225,26 @@ async fn run_async(args: LoadtestArgs) -> anyhow::Result<()> {
         ms(pct(1.0)),
         all.len()
     );
+    medians.sort();
+    let overall = ms(pct(0.5)).max(1e-9);
+    let fairness = ms(percentile(&medians, 1.0)) / overall;
+    println!(
+        "per-session median drag->frame: min {:.2} ms, max {:.2} ms; worst session / overall median: {:.2}x",
+        ms(percentile(&medians, 0.0)),
+        ms(percentile(&medians, 1.0)),
+        fairness
+    );
+    let refused = match extra {
+        Some(t) => {
+            let (refused, admitted) = t.await??;
+            println!(
+                "admission: {} more session(s) opened during the drags: {refused} refused (503 overloaded), {admitted} admitted",
+                args.extra_sessions
+            );
+            refused
+        }
+        None => 0,
+    };
     println!(
         "frames/s: {:.0} (all sessions), drags/s: {:.0}; drag phase {:.2} s, total {:.2} s",
         frames as f64 / drag_time.as_secs_f64(),
@@ -222,7 +279,57 @@ async fn run_async(args: LoadtestArgs) -> anyhow::Result<()> {
         "peak RSS of this process (server + clients): {:.1} MiB",
         peak_rss_kib() as f64 / 1024.0
     );
+    let mut failed = vec![];
+    if let Some(limit) = args.check_max_ms.filter(|&l| ms(pct(1.0)) > l) {
+        failed.push(format!("max {:.1} ms > {limit} ms", ms(pct(1.0))));
+    }
+    if let Some(limit) = args.check_p99_ms.filter(|&l| ms(pct(0.99)) > l) {
+        failed.push(format!("p99 {:.1} ms > {limit} ms", ms(pct(0.99))));
+    }
+    if let Some(limit) = args.check_fairness.filter(|&l| fairness > l) {
+        failed.push(format!(
+            "a session's median is {fairness:.2}x the overall median (> {limit}x)"
+        ));
+    }
+    if let Some(want) = args.check_refused.filter(|&w| refused < w) {
+        failed.push(format!(
+            "{refused} extra session(s) refused with 503 overloaded, expected at least {want}"
+        ));
+    }
+    if !failed.is_empty() {
+        anyhow::bail!("load test checks failed: {}", failed.join("; "));
+    }
     Ok(())
+}
+
+/// Once `at` drags were acknowledged in all, opens `n` more sessions one
+/// every 50 ms; (refused with 503 `overloaded`, admitted). Admitted ones
+/// are deleted at once.
+async fn extra_sessions(
+    client: Client,
+    mesh_id: String,
+    n: usize,
+    acked: std::sync::Arc<std::sync::atomic::AtomicU64>,
+    at: u64,
+) -> anyhow::Result<(usize, usize)> {
+    while acked.load(std::sync::atomic::Ordering::Relaxed) < at {
+        tokio::time::sleep(Duration::from_millis(20)).await;
+    }
+    let (mut refused, mut admitted) = (0, 0);
+    for _ in 0..n {
+        match client.create_session(&mesh_id, json!({})).await {
+            Ok(s) => {
+                admitted += 1;
+                s.delete().await?;
+            }
+            Err(dend_client::ClientError::Api {
+                status: 503, code, ..
+            }) if code == "overloaded" => refused += 1,
+            Err(e) => return Err(e.into()),
+        }
+        tokio::time::sleep(Duration::from_millis(50)).await;
+    }
+    Ok((refused, admitted))
 }
 
 /// Starts a server in this process (in memory, or on `--data-dir`) and
@@ -236,6 +343,8 @@ async fn in_process_server(args: &LoadtestArgs) -> anyhow::Result<String> {
         max_sessions: (args.sessions + args.idle + 8).max(256),
         in_memory: args.data_dir.is_none(),
         data_dir: args.data_dir.clone().unwrap_or_default(),
+        solver_threads: args.solver_threads,
+        admission_waiting_sessions: args.admission_waiting_sessions,
         ..Config::default()
     };
     let listener = tokio::net::TcpListener::bind(config.addr).await?;
@@ -362,6 +471,7 @@ async fn one_session(
     spec: serde_json::Value,
     drags: u64,
     step: [f64; 3],
+    acked: &std::sync::atomic::AtomicU64,
 ) -> anyhow::Result<(SessionStats, Duration)> {
     let created = Instant::now();
     let s = client.create_session(&mesh_id, params).await?;
@@ -391,6 +501,7 @@ async fn one_session(
                     stats.frames += 1;
                     if h.ack_seq >= seq {
                         stats.latencies.push(sent.elapsed());
+                        let _ = acked.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
                         if seq == drags && h.settled {
                             // already settled: no further frame will come
                             stats.settle = sent.elapsed();

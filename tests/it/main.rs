@@ -4,6 +4,7 @@
 //! posing suite, process-memory measurements) are the `system` binary
 //! (`tests/system/main.rs`).
 
+mod admission;
 mod asset_groups;
 mod asset_normals;
 mod broken_files;
@@ -35,3 +36,4 @@ mod server_posing;
 mod shared_meshes;
 mod slow_store;
 mod square_formulation;
+mod takeover_reads;

@@ -426,6 +426,11 @@ fn error_schema_matches_the_error_body() {
         TooManyVertices { got: 2, limit: 1 },
         RateLimited(1),
         TooManySessions(1),
+        Overloaded {
+            waiting: 2,
+            limit: 1,
+        },
+        Draining,
         TooManyMeshes(1),
         Timeout,
         SessionClosed,
@@ -465,6 +470,8 @@ fn error_schema_matches_the_error_body() {
             | TooManyVertices { .. }
             | RateLimited(_)
             | TooManySessions(_)
+            | Overloaded { .. }
+            | Draining
             | TooManyMeshes(_)
             | Timeout
             | SessionClosed

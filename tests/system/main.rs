@@ -6,7 +6,10 @@
 
 mod crash_safety;
 mod failover;
+mod failover_fast;
 mod failover_support;
+mod loadtest_fair;
 mod posing_suite_even_pose;
 mod posing_suite_monotone;
+mod rolling_restart;
 mod server_isolation;

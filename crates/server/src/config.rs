@@ -83,6 +83,31 @@ pub struct Config {
     /// instance takes the session over once it expires.
     #[arg(long, env = "DEND_LEASE_TTL_MS", default_value_t = 10_000)]
     pub lease_ttl_ms: u64,
+    /// How long a drag that reaches a session while its factor is being
+    /// built (after a constraint edit, or while the session is revived on
+    /// this instance) waits for it, in milliseconds: it is applied once
+    /// the session is ready (HTTP answers then; a WebSocket drag is
+    /// acknowledged by the first frame after it); past this it is refused
+    /// with 409 `not_ready`.
+    #[arg(long, env = "DEND_BUILD_WAIT_MS", default_value_t = 30_000)]
+    pub build_wait_ms: u64,
+    /// Solver worker threads, shared round-robin by the sessions' solves
+    /// (0: one per available core).
+    #[arg(long, env = "DEND_SOLVER_THREADS", default_value_t = 0)]
+    pub solver_threads: usize,
+    /// Admission control: while this many sessions wait for a solver
+    /// worker, a new session is refused with 503 `overloaded` and a
+    /// `Retry-After` (existing sessions keep running). 0: 16 per solver
+    /// thread.
+    #[arg(long, env = "DEND_ADMISSION_WAITING_SESSIONS", default_value_t = 0)]
+    pub admission_waiting_sessions: usize,
+    /// On SIGTERM with a shared store (a rolling restart): how long the
+    /// instance keeps serving while answering not ready, so that the load
+    /// balancer takes it out of its ring, before it hands its sessions
+    /// over, in milliseconds. At least the load balancer's health-check
+    /// interval times its `fall` count.
+    #[arg(long, env = "DEND_DRAIN_WAIT_MS", default_value_t = 2_500)]
+    pub drain_wait_ms: u64,
 }
 
 impl Default for Config {
@@ -106,6 +131,10 @@ impl Default for Config {
             store_connections: 16,
             instance_id: None,
             lease_ttl_ms: 10_000,
+            build_wait_ms: 30_000,
+            solver_threads: 0,
+            admission_waiting_sessions: 0,
+            drain_wait_ms: 2_500,
         }
     }
 }
@@ -126,6 +155,25 @@ impl Config {
     /// The session lease lifetime as a [`Duration`].
     pub fn lease_ttl(&self) -> Duration {
         Duration::from_millis(self.lease_ttl_ms.max(100))
+    }
+
+    /// The drag queue's wait for a factor build as a [`Duration`].
+    pub fn build_wait(&self) -> Duration {
+        Duration::from_millis(self.build_wait_ms)
+    }
+
+    /// The admission limit (`admission_waiting_sessions`, or 16 per solver
+    /// worker when 0) for `workers` solver workers.
+    pub fn admission_limit(&self, workers: usize) -> usize {
+        match self.admission_waiting_sessions {
+            0 => 16 * workers.max(1),
+            n => n,
+        }
+    }
+
+    /// The drain's wait for the load balancer as a [`Duration`].
+    pub fn drain_wait(&self) -> Duration {
+        Duration::from_millis(self.drain_wait_ms)
     }
 
     /// The request timeout as a [`Duration`].

@@ -105,6 +105,22 @@ pub enum ApiError {
     /// `max_sessions` live sessions already.
     #[error("too many sessions (limit {0}); try again later")]
     TooManySessions(usize),
+    /// Admission control: `waiting` sessions wait for a solver worker, at
+    /// or past the configured `limit`. A new session is refused (existing
+    /// ones keep running). Fix: retry after the `Retry-After` seconds, or
+    /// on another instance.
+    #[error("the server is overloaded ({waiting} sessions wait for a solver, limit {limit}); retry in {} s", OVERLOADED_RETRY_AFTER_SECS)]
+    Overloaded {
+        /// Sessions waiting for a solver worker.
+        waiting: usize,
+        /// The admission limit.
+        limit: usize,
+    },
+    /// The instance is shutting down (SIGTERM, a rolling restart): it takes
+    /// no new session and is not ready. Fix: retry; the load balancer
+    /// routes to another instance.
+    #[error("this instance is shutting down; retry (another instance takes over)")]
+    Draining,
     /// `max_meshes` meshes stored already.
     #[error("too many meshes (limit {0})")]
     TooManyMeshes(usize),
@@ -177,6 +193,8 @@ impl ApiError {
             TooManyVertices { .. } => ("too_many_vertices", StatusCode::PAYLOAD_TOO_LARGE),
             RateLimited(_) => ("rate_limited", StatusCode::TOO_MANY_REQUESTS),
             TooManySessions(_) => ("too_many_sessions", StatusCode::SERVICE_UNAVAILABLE),
+            Overloaded { .. } => ("overloaded", StatusCode::SERVICE_UNAVAILABLE),
+            Draining => ("draining", StatusCode::SERVICE_UNAVAILABLE),
             TooManyMeshes(_) => ("too_many_meshes", StatusCode::SERVICE_UNAVAILABLE),
             Timeout => ("timeout", StatusCode::REQUEST_TIMEOUT),
             SessionClosed => ("session_closed", StatusCode::GONE),
@@ -205,9 +223,21 @@ impl ApiError {
     }
 }
 
+/// The `Retry-After` of a 503 `overloaded`, seconds.
+pub const OVERLOADED_RETRY_AFTER_SECS: u64 = 2;
+
 impl IntoResponse for ApiError {
     fn into_response(self) -> Response {
         let status = self.code_status().1;
+        let retry_after = match self {
+            ApiError::Overloaded { .. } => Some(OVERLOADED_RETRY_AFTER_SECS),
+            ApiError::Draining => Some(1),
+            _ => None,
+        };
+        if let Some(secs) = retry_after {
+            let retry = [(axum::http::header::RETRY_AFTER, secs.to_string())];
+            return (status, retry, axum::Json(self.body())).into_response();
+        }
         (status, axum::Json(self.body())).into_response()
     }
 }
@@ -342,6 +372,11 @@ mod tests {
             ApiError::TooManyVertices { got: 2, limit: 1 },
             ApiError::RateLimited(1),
             ApiError::TooManySessions(1),
+            ApiError::Overloaded {
+                waiting: 2,
+                limit: 1,
+            },
+            ApiError::Draining,
             ApiError::TooManyMeshes(1),
             ApiError::Timeout,
             ApiError::SessionClosed,

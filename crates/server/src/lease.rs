@@ -157,15 +157,45 @@ async fn hand_off(st: &AppState, cluster: &Arc<Cluster>) {
             continue;
         };
         tracing::info!(session = %id, "handing a session over to the instance that asked for it");
-        drop_local(st, &h).await;
-        let (c, fence) = (cluster.clone(), h.fence());
-        if let Err(e) = st
-            .store_call(move |s| s.release_lease(&id, &c.instance, fence))
-            .await
-        {
-            tracing::warn!(error = %e, "releasing a handed-over lease failed");
-        }
-        st.metrics.leases_handed_over.inc();
+        hand_over(st, cluster, &h).await;
+    }
+}
+
+/// Hands session `h` over: closes it here, its clients told to reconnect
+/// at once (they reach the instance the load balancer routes them to
+/// now), and releases its lease so that instance takes it at once.
+pub(crate) async fn hand_over(st: &AppState, cluster: &Arc<Cluster>, h: &SessionHandle) {
+    h.mark_moving();
+    drop_local(st, h).await;
+    let (c, fence, id) = (cluster.clone(), h.fence(), h.id().to_owned());
+    if let Err(e) = st
+        .store_call(move |s| s.release_lease(&id, &c.instance, fence))
+        .await
+    {
+        tracing::warn!(error = %e, "releasing a handed-over lease failed");
+    }
+    st.metrics.leases_handed_over.inc();
+}
+
+/// A rolling restart's SIGTERM (docs/deployment.md): stops taking new
+/// sessions (readiness and session creation answer 503 `draining`, so the
+/// load balancer takes this instance out of its ring), waits `drain_wait`
+/// for the load balancer to notice, then hands every live session over
+/// (its clients reconnect at once and reach the instance the load balancer
+/// routes them to now, which takes the released lease and revives the
+/// session; a drag they send meanwhile is queued there until it is ready).
+pub async fn drain(st: &AppState) {
+    st.draining
+        .store(true, std::sync::atomic::Ordering::Relaxed);
+    let Some(cluster) = st.cluster.clone() else {
+        return; // one instance: its sessions revive from the store on restart
+    };
+    tracing::info!(wait = ?st.config.drain_wait(), "draining: not ready, no new sessions");
+    tokio::time::sleep(st.config.drain_wait()).await;
+    let live: Vec<SessionHandle> = st.sessions.read().values().cloned().collect();
+    tracing::info!(sessions = live.len(), "draining: handing the sessions over");
+    for h in live.iter().filter(|h| !h.is_fenced()) {
+        hand_over(st, &cluster, h).await;
     }
 }
 

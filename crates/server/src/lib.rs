@@ -15,6 +15,7 @@ mod meshes;
 pub mod metrics;
 pub mod presets;
 pub mod recover;
+pub mod scheduler;
 pub mod session;
 mod sessions;
 pub mod store;
@@ -41,7 +42,7 @@ pub use config::Config;
 pub use error::ApiError;
 pub use metrics::Metrics;
 
-use crate::session::SessionHandle;
+use crate::session::{SessionHandle, SessionOptions};
 use crate::store::{MemoryStore, Store};
 use dend::deform::{FactorCache, Rest, SolveOptions};
 
@@ -56,6 +57,10 @@ pub struct AppState {
     pub cache: Arc<FactorCache>,
     /// Prometheus metrics.
     pub metrics: Arc<Metrics>,
+    /// Runs every session's solves, fairly between sessions.
+    pub scheduler: Arc<scheduler::Scheduler>,
+    /// Set on SIGTERM (see [`lease::drain`]): not ready, no new sessions.
+    pub draining: Arc<std::sync::atomic::AtomicBool>,
     /// Live sessions by id.
     pub sessions: Arc<RwLock<HashMap<String, SessionHandle>>>,
     /// Rest precomputations by mesh id, shared by that mesh's sessions.
@@ -90,6 +95,41 @@ impl AppState {
             .map_err(ApiError::from)
     }
 
+    /// The options of a session opened on this instance under `fence`.
+    pub(crate) fn session_options(&self, fence: crate::store::Fence) -> SessionOptions {
+        SessionOptions {
+            cache: self.cache.clone(),
+            store: self.store.clone(),
+            observer: self.metrics.clone(),
+            iters_per_frame: self.config.iters_per_frame,
+            build_wait: self.config.build_wait(),
+            scheduler: self.scheduler.clone(),
+            fence,
+        }
+    }
+
+    /// Admission control: refuses a new session (503 `overloaded`) while
+    /// `admission_waiting_sessions` sessions or more wait for a solver
+    /// worker (docs/deployment.md).
+    pub(crate) fn admit(&self) -> Result<(), ApiError> {
+        self.not_draining()?;
+        let limit = self.config.admission_limit(self.scheduler.workers());
+        let waiting = self.scheduler.waiting();
+        if waiting >= limit {
+            self.metrics.sessions_refused.inc();
+            return Err(ApiError::Overloaded { waiting, limit });
+        }
+        Ok(())
+    }
+
+    /// 503 `draining` once SIGTERM started a drain ([`lease::drain`]).
+    pub(crate) fn not_draining(&self) -> Result<(), ApiError> {
+        if self.draining.load(std::sync::atomic::Ordering::Relaxed) {
+            return Err(ApiError::Draining);
+        }
+        Ok(())
+    }
+
     /// The opening lock of session `id` (see `open_locks`).
     pub(crate) fn open_lock(&self, id: &str) -> Arc<tokio::sync::Mutex<()>> {
         let mut locks = self.open_locks.lock();
@@ -116,7 +156,16 @@ impl AppState {
             store,
             metrics.store_seconds.clone(),
         ));
+        let scheduler = Arc::new(scheduler::Scheduler::new(
+            config.solver_threads,
+            Some(scheduler::SchedulerMetrics {
+                delay: metrics.schedule_delay_seconds.clone(),
+                depth: metrics.solve_queue_depth.clone(),
+            }),
+        ));
         Ok(AppState {
+            scheduler,
+            draining: Arc::new(std::sync::atomic::AtomicBool::new(false)),
             cluster: lease::Cluster::from_config(&config),
             open_locks: Arc::new(Mutex::new(HashMap::new())),
             cache: Arc::new(FactorCache::with_options(
@@ -230,6 +279,7 @@ async fn healthz(State(st): State<AppState>) -> impl IntoResponse {
 /// `GET /healthz/ready`: readiness, the store answers within 2 s; else 503
 /// `store_unavailable` (the load balancer's health check).
 async fn ready(State(st): State<AppState>) -> Result<impl IntoResponse, ApiError> {
+    st.not_draining()?;
     let ping = st.store_call(|s| s.ping());
     match tokio::time::timeout(Duration::from_secs(2), ping).await {
         Ok(Ok(())) => Ok(axum::Json(serde_json::json!({"status": "ready"}))),
@@ -271,7 +321,8 @@ pub async fn serve_on(listener: tokio::net::TcpListener, app: Router) -> std::io
 }
 
 /// Binds `config.addr`, prints `listening on http://ADDR`, and serves until
-/// SIGINT or SIGTERM, then drains open requests.
+/// SIGINT or SIGTERM; then, with a shared store, hands its sessions over to
+/// the other instances ([`lease::drain`]) and drains open requests.
 pub async fn serve(config: Config) -> anyhow::Result<()> {
     let listener = tokio::net::TcpListener::bind(config.addr).await?;
     let addr = listener.local_addr()?;
@@ -280,14 +331,22 @@ pub async fn serve(config: Config) -> anyhow::Result<()> {
     let _reaper = spawn_idle_reaper(state.clone(), Duration::from_secs(10));
     let _renewer = lease::spawn_renewer(state.clone());
     if let Some(c) = &state.cluster {
+        // owner liveness (docs/deployment.md): others take this instance's
+        // leases over as soon as it is gone, not when they expire
+        let (store, instance) = (state.store.clone(), c.instance.clone());
+        tokio::task::spawn_blocking(move || store.announce_liveness(&instance)).await??;
         println!(
             "instance {} (shared store, session leases of {:?})",
             c.instance, c.ttl
         );
     }
     println!("listening on http://{addr}");
+    let drained = state.clone();
     axum::serve(listener, app(state.clone()))
-        .with_graceful_shutdown(shutdown_signal())
+        .with_graceful_shutdown(async move {
+            shutdown_signal().await;
+            lease::drain(&drained).await;
+        })
         .await?;
     lease::release_all(&state).await;
     Ok(())

@@ -52,6 +52,12 @@ pub struct Metrics {
     pub leases_handed_over: IntCounter,
     /// Wall time of each store call, seconds, by operation (`op`).
     pub store_seconds: HistogramVec,
+    /// Solver scheduler: a solve's wait for a worker, seconds.
+    pub schedule_delay_seconds: Histogram,
+    /// Solver scheduler: solves waiting for a worker.
+    pub solve_queue_depth: IntGauge,
+    /// New sessions refused by admission control (503 `overloaded`).
+    pub sessions_refused: IntCounter,
 }
 
 fn reg<T: prometheus::core::Collector + Clone + 'static>(r: &Registry, m: T) -> T {
@@ -137,6 +143,27 @@ impl Metrics {
                     HistogramOpts::new("store_seconds", "Wall time of one store call, seconds")
                         .buckets(prometheus::exponential_buckets(0.0001, 2.0, 18)?),
                     &["op"],
+                )?,
+            ),
+            schedule_delay_seconds: reg(
+                &r,
+                Histogram::with_opts(
+                    HistogramOpts::new(
+                        "solve_schedule_delay_seconds",
+                        "Solve submitted -> started on a solver worker, seconds",
+                    )
+                    .buckets(prometheus::exponential_buckets(0.0005, 2.0, 16)?),
+                )?,
+            ),
+            solve_queue_depth: reg(
+                &r,
+                IntGauge::new("solve_queue_depth", "Solves waiting for a solver worker")?,
+            ),
+            sessions_refused: reg(
+                &r,
+                IntCounter::new(
+                    "sessions_refused_total",
+                    "New sessions refused by admission control (503 overloaded)",
                 )?,
             ),
             registry: r,

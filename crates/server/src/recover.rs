@@ -15,7 +15,7 @@ use std::sync::Arc;
 
 use super::error::ApiError;
 use super::{rest_for, AppState, Config};
-use crate::session::{Recovered, SessionHandle, SessionOptions};
+use crate::session::{Recovered, SessionHandle};
 use crate::store::{MemoryStore, PgStore, SqliteStore, Store};
 use dend::deform::Params;
 
@@ -110,17 +110,19 @@ async fn revive_whole(
     if st.sessions.read().len() >= st.config.max_sessions {
         return Err(ApiError::TooManySessions(st.config.max_sessions));
     }
+    // a draining instance takes no session (the load balancer is taking
+    // it out of its ring; the client retries and reaches another one)
+    st.not_draining()?;
+    if record.constraints.is_none() {
+        // a session opened for the first time (shared store: created
+        // elsewhere, opened here): admission control as at creation
+        st.admit()?;
+    }
     // the lease before the rest operators: a session owned elsewhere costs
     // a store read and a lease check, not a rest build
     let fence = crate::lease::acquire(&st, &id).await?;
     let rest = rest_for(&st, &record.mesh_id).await?;
-    let opts = SessionOptions {
-        cache: st.cache.clone(),
-        store: st.store.clone(),
-        observer: st.metrics.clone(),
-        iters_per_frame: st.config.iters_per_frame,
-        fence,
-    };
+    let opts = st.session_options(fence);
     let handle = SessionHandle::spawn(
         id.clone(),
         record.mesh_id.clone(),

@@ -16,7 +16,7 @@ use super::error::ApiError;
 use super::meshes::{new_id, parse_format};
 use super::{rest_for, AppState};
 use crate::auth::{bearer, check_token, token_hash};
-use crate::session::{Delta, HandleRef, PoseSnapshot, SessionHandle, SessionOptions};
+use crate::session::{Delta, HandleRef, PoseSnapshot, SessionHandle};
 use crate::store::SessionRecord;
 use dend::deform::Params;
 use dend::mesh::io::Format;
@@ -97,6 +97,7 @@ pub async fn create(
     let params: Params = serde_json::from_value(params_json.clone())
         .map_err(|e| ApiError::InvalidParams(e.to_string()))?;
     params.validate()?;
+    st.admit()?;
     if st.sessions.read().len() >= st.config.max_sessions {
         return Err(ApiError::TooManySessions(st.config.max_sessions));
     }
@@ -149,13 +150,7 @@ pub async fn create(
             }),
         ));
     };
-    let opts = SessionOptions {
-        cache: st.cache.clone(),
-        store: st.store.clone(),
-        observer: st.metrics.clone(),
-        iters_per_frame: st.config.iters_per_frame,
-        fence: crate::store::NO_FENCE,
-    };
+    let opts = st.session_options(crate::store::NO_FENCE);
     let handle = SessionHandle::spawn(id.clone(), req.mesh_id.clone(), hash, rest, params, opts);
     handle.touch();
     let inserted = {

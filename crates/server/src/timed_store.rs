@@ -109,4 +109,7 @@ impl Store for TimedStore {
     fn ping(&self) -> Result<(), StoreError> {
         self.timed("ping", |s| s.ping())
     }
+    fn announce_liveness(&self, instance: &str) -> Result<(), StoreError> {
+        self.inner.announce_liveness(instance)
+    }
 }

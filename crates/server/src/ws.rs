@@ -29,6 +29,19 @@ pub const CLOSE_MISSING_TOKEN: u16 = 4001;
 pub const CLOSE_WRONG_TOKEN: u16 = 4003;
 /// Close code: the session was closed (deleted or expired).
 pub const CLOSE_SESSION_CLOSED: u16 = 4004;
+/// Close code: the session moved to another instance (a rolling restart,
+/// a rebalancing): reconnect at once, through the load balancer.
+pub const CLOSE_RECONNECT: u16 = 4012;
+
+/// The close of a connection whose session ended here: moved elsewhere
+/// (reconnect at once) or closed.
+fn session_end(s: &SessionHandle) -> WsMsg {
+    if s.is_moving() {
+        WsMsg::Close(CLOSE_RECONNECT, "session moved: reconnect".into())
+    } else {
+        WsMsg::Close(CLOSE_SESSION_CLOSED, "session closed".into())
+    }
+}
 
 /// A transport-independent WebSocket message.
 #[derive(Debug, Clone, PartialEq)]
@@ -321,7 +334,7 @@ where
             }
             changed = frames.changed() => {
                 if changed.is_err() {
-                    send(sink, WsMsg::Close(CLOSE_SESSION_CLOSED, "session closed".into())).await?;
+                    send(sink, session_end(s)).await?;
                     return Ok(());
                 }
                 let frame = frames.borrow_and_update().clone();
@@ -332,7 +345,7 @@ where
             ev = events.recv() => {
                 let msg = match ev {
                     Ok(Event::Closed) | Err(RecvError::Closed) => {
-                        send(sink, WsMsg::Close(CLOSE_SESSION_CLOSED, "session closed".into())).await?;
+                        send(sink, session_end(s)).await?;
                         return Ok(());
                     }
                     Ok(Event::Ready { revision }) => ServerMsg::Ready { revision },

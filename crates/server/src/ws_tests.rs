@@ -21,6 +21,8 @@ fn session() -> SessionHandle {
         store: Arc::new(MemoryStore::new()),
         observer: Arc::new(NoObserver),
         iters_per_frame: 1,
+        build_wait: std::time::Duration::from_secs(30),
+        scheduler: Arc::new(crate::scheduler::Scheduler::new(1, None)),
         fence: crate::store::NO_FENCE,
     };
     let store_record = crate::store::SessionRecord {

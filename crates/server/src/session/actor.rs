@@ -7,6 +7,8 @@ use std::time::Instant;
 
 use tokio::sync::{mpsc, watch};
 
+use super::shared::QueuedDrag;
+
 use super::shared::{off_worker, Cmd, Inner, Internal, Reply, Restore, SessionOptions};
 use super::{
     Delta, Event, Frame, FrameHeader, PeerEvent, PoseSnapshot, SessionError, SessionState,
@@ -80,6 +82,15 @@ pub(super) struct Actor {
     waiters: Vec<(usize, Reply<PoseSnapshot>)>,
     inflight: Vec<Reply<PoseSnapshot>>,
     deferred: VecDeque<Cmd>,
+    /// Drags that reached the session while its factor was being built
+    /// (a new constraint set, a revival): applied, in order, once it is
+    /// ready; refused after `SessionOptions::build_wait`.
+    queued: VecDeque<QueuedDrag>,
+    /// Set from a revival until its first solve: the pose is the
+    /// checkpoint's, without the journaled drags, and is not served.
+    reviving: bool,
+    /// Pose reads waiting for the end of a revival.
+    pose_waiters: Vec<Reply<PoseSnapshot>>,
     history: Vec<Snapshot>,
     cursor: usize,
     uncommitted: bool,
@@ -123,6 +134,9 @@ impl Actor {
             waiters: vec![],
             inflight: vec![],
             deferred: VecDeque::new(),
+            queued: VecDeque::new(),
+            reviving: false,
+            pose_waiters: vec![],
             history: vec![],
             cursor: 0,
             uncommitted: false,
@@ -145,8 +159,16 @@ impl Actor {
                 }
             }
             self.maybe_start_solve();
+            // the oldest queued drag's deadline (far away when none is queued)
+            let deadline = self.queued.front().map_or_else(
+                || tokio::time::Instant::now() + std::time::Duration::from_secs(3600),
+                |q| tokio::time::Instant::from_std(q.at + self.opts.build_wait),
+            );
             tokio::select! {
                 Some(msg) = internal_rx.recv() => self.on_internal(msg),
+                () = tokio::time::sleep_until(deadline), if !self.queued.is_empty() => {
+                    self.expire_queued();
+                }
                 cmd = rx.recv() => match cmd {
                     Some(cmd) => if !self.on_cmd(cmd) { return self.closed() },
                     None => return self.closed(),
@@ -230,7 +252,16 @@ impl Actor {
                 let _ = reply.send(r);
             }
             Cmd::Pose(reply) => {
-                let _ = reply.send(Ok(self.snapshot()));
+                if self.reviving && self.state == SessionState::Failed {
+                    // the revival failed: there is no pose of the session's
+                    let _ = reply.send(Err(SessionError::NotReady { state: self.state }));
+                } else if self.reviving {
+                    // the checkpoint pose lacks the journaled drags: wait
+                    // for the revival's first solve
+                    self.pose_waiters.push(reply);
+                } else {
+                    let _ = reply.send(Ok(self.snapshot()));
+                }
             }
             Cmd::GestureEnded => {
                 if self.settled && self.deformer.is_some() {
@@ -254,6 +285,17 @@ impl Actor {
                 let _ = r.send(Err(e));
             }
         };
+        if self.state == SessionState::Building {
+            // applied once the factor is ready (see `queued`)
+            self.queued.push_back(QueuedDrag {
+                handle,
+                delta,
+                seq,
+                reply,
+                at: Instant::now(),
+            });
+            return;
+        }
         if self.state != SessionState::Ready {
             return fail(reply, SessionError::NotReady { state: self.state });
         }
@@ -334,6 +376,7 @@ impl Actor {
         self.history.clear();
         self.cursor = 0;
         self.uncommitted = false;
+        self.reviving = true;
         self.sets_installed += 1;
         let set = Arc::new(InstalledSet {
             id: self.sets_installed,
@@ -385,6 +428,10 @@ impl Actor {
                 state: SessionState::Building,
             }));
         }
+        // drags queued for the previous set do not carry over to this one
+        self.refuse_queued(|| SessionError::NotReady {
+            state: SessionState::Building,
+        });
         let constraints = Arc::new(set.constraints.clone());
         self.constraints = Some(constraints.clone());
         self.confirmed = Some(constraints.clone());
@@ -441,5 +488,7 @@ impl Actor {
 
 #[path = "actor_history.rs"]
 mod history;
+#[path = "actor_queue.rs"]
+mod queue;
 #[path = "actor_solve.rs"]
 mod solve;

@@ -1,5 +1,5 @@
 //! The solving side of the session actor: one solve at a time on the
-//! blocking pool, journaling the drags it carries first (a drag is
+//! solver scheduler (`crate::scheduler`), journaling the drags it carries first (a drag is
 //! acknowledged only once journaled), and what comes back from the solver
 //! and factor-build tasks.
 
@@ -12,7 +12,7 @@ use crate::session::shared::Internal;
 use crate::session::{Event, Frame, PoseSnapshot, SessionError, SessionState};
 
 impl Actor {
-    /// Starts a solve on the blocking pool when the session is ready and
+    /// Starts a solve on the solver scheduler when the session is ready and
     /// has something to do (new drags, waiters, or iterations left before
     /// it settles); the drags composed since the last solve are journaled
     /// first, in the same task.
@@ -63,7 +63,7 @@ impl Actor {
             self.internal_tx.clone(),
         );
         let (applied_seq, generation) = (self.last_seq, self.generation);
-        drop(tokio::task::spawn_blocking(move || {
+        self.opts.scheduler.submit(&self.inner.id, move || {
             let t0 = Instant::now();
             let appended = if journal.is_empty() {
                 Ok(())
@@ -95,7 +95,7 @@ impl Actor {
                 constraints,
                 generation,
             });
-        }));
+        });
     }
 
     pub(super) fn on_internal(&mut self, msg: Internal) {
@@ -135,11 +135,15 @@ impl Actor {
                         let _ = self.inner.events.send(Event::Ready {
                             revision: self.revision,
                         });
+                        self.apply_queued();
                     }
                     Err(e) => {
                         self.state = SessionState::Failed;
                         self.sync_shared();
-                        let _ = self.inner.events.send(Event::Error(Arc::new(e)));
+                        let e = Arc::new(e);
+                        self.refuse_queued(|| SessionError::Shared(e.clone()));
+                        self.fail_revival(&e);
+                        let _ = self.inner.events.send(Event::Error(e));
                         let _ = self.inner.events.send(Event::State);
                     }
                 }
@@ -186,6 +190,9 @@ impl Actor {
                 let header = self.header();
                 let bytes = body.finish(&header);
                 self.frames_tx.send_replace(Some(Frame { header, bytes }));
+                if generation == self.generation && !journal_failed {
+                    self.end_revival(&header);
+                }
                 for w in std::mem::take(&mut self.inflight) {
                     let _ = w.send(match &error {
                         None => Ok(self.snapshot_for(&header)),

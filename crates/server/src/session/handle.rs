@@ -100,6 +100,7 @@ impl SessionHandle {
             last_active_ms: AtomicU64::new(0),
             clients: AtomicUsize::new(0),
             fenced: std::sync::atomic::AtomicBool::new(false),
+            moving: std::sync::atomic::AtomicBool::new(false),
             fence: opts.fence,
             next_client: AtomicU64::new(1),
         });
@@ -112,6 +113,18 @@ impl SessionHandle {
     /// session's lease over: the session no longer runs here.
     pub fn is_fenced(&self) -> bool {
         self.inner.fenced.load(Ordering::Relaxed)
+    }
+
+    /// Marks the session as handed over to another instance: when it
+    /// closes here, its WebSocket clients are told to reconnect at once
+    /// (close code `CLOSE_RECONNECT`), not that it was closed.
+    pub fn mark_moving(&self) {
+        self.inner.moving.store(true, Ordering::Relaxed);
+    }
+
+    /// Whether the session is being handed over (see [`mark_moving`](Self::mark_moving)).
+    pub fn is_moving(&self) -> bool {
+        self.inner.moving.load(Ordering::Relaxed)
     }
 
     /// The lease revision the session runs under (its fencing token).
@@ -200,7 +213,9 @@ impl SessionHandle {
             });
         }
         let state = self.inner.shared.lock().state;
-        if state != SessionState::Ready {
+        // while the factor builds the drag is queued and applied once it is
+        // ready (`SessionOptions::build_wait`)
+        if !matches!(state, SessionState::Ready | SessionState::Building) {
             return Err(SessionError::NotReady { state });
         }
         let idx = self.handle_index(h)?;
@@ -231,7 +246,8 @@ impl SessionHandle {
     }
 
     /// Queues a drag delta (WebSocket path): composed into the handle's
-    /// target; the frame acknowledging `seq` follows. Returns once queued.
+    /// target; the frame acknowledging `seq` follows (while the factor is
+    /// being built, the first frame once it is ready). Returns once queued.
     pub async fn drag(
         &self,
         client: ClientId,
@@ -250,7 +266,8 @@ impl SessionHandle {
     }
 
     /// Applies a drag delta and runs up to `max_iters` iterations (HTTP path),
-    /// returning the resulting pose.
+    /// returning the resulting pose; while the factor is being built, waits
+    /// for it (up to `SessionOptions::build_wait`).
     pub async fn drag_solve(
         &self,
         h: &HandleRef,

@@ -33,6 +33,22 @@ pub struct SessionOptions {
     /// The session's lease revision, carried by every store write
     /// ([`NO_FENCE`](crate::store::NO_FENCE) without leases).
     pub fence: crate::store::Fence,
+    /// How long a drag that reaches the session while its factor is
+    /// being built (a constraint edit, a revival) waits for it; past this
+    /// it is refused with `not_ready`.
+    pub build_wait: std::time::Duration,
+    /// Where the session's solves run (fairly between sessions).
+    pub scheduler: Arc<crate::scheduler::Scheduler>,
+}
+
+/// A drag waiting for the factor build (see `SessionOptions::build_wait`).
+pub(super) struct QueuedDrag {
+    pub handle: usize,
+    pub delta: Delta,
+    pub seq: u64,
+    pub reply: Option<(usize, Reply<PoseSnapshot>)>,
+    /// When it arrived.
+    pub at: Instant,
 }
 
 /// State shared between the actor and the handles.
@@ -69,6 +85,9 @@ pub(super) struct Inner {
     pub clients: AtomicUsize,
     /// Set when a store write was fenced: another instance owns the session.
     pub fenced: std::sync::atomic::AtomicBool,
+    /// Set when the session is handed over to another instance (a drain,
+    /// a hand-over request): its clients are told to reconnect at once.
+    pub moving: std::sync::atomic::AtomicBool,
     /// The lease revision this session runs under.
     pub fence: crate::store::Fence,
     pub next_client: AtomicU64,

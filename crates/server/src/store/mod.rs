@@ -36,6 +36,7 @@ mod lease_rule;
 mod memory;
 mod postgres;
 mod postgres_leases;
+mod postgres_liveness;
 mod sqlite;
 mod sqlite_assets;
 mod sqlite_leases;
@@ -45,6 +46,7 @@ mod suite;
 pub use codec::{decode_entry, encode_entry};
 pub use memory::MemoryStore;
 pub use postgres::{PgStore, PG_SCHEMA_VERSION};
+pub use postgres_liveness::liveness_name;
 pub use sqlite::{SqliteStore, DB_FILE, SCHEMA_VERSION};
 
 use std::sync::Arc;
@@ -266,6 +268,14 @@ pub trait Store: Send + Sync + 'static {
     fn handoffs_wanted(&self, owner: &str) -> Result<Vec<String>, StoreError>;
     /// Checks that the store answers (the readiness probe).
     fn ping(&self) -> Result<(), StoreError> {
+        Ok(())
+    }
+    /// Announces `instance` as alive for as long as this store lives (the
+    /// shared store's owner liveness: a lease whose owner is no longer
+    /// announced is taken over without waiting for it to expire). A no-op
+    /// for stores without leases shared between processes.
+    fn announce_liveness(&self, instance: &str) -> Result<(), StoreError> {
+        let _ = instance;
         Ok(())
     }
 }

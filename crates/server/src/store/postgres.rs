@@ -103,6 +103,10 @@ pub(super) type Conn = r2d2::PooledConnection<PostgresConnectionManager<NoTls>>;
 pub struct PgStore {
     /// `Some` until dropped (see `Drop`).
     pool: Option<Pool>,
+    /// The pool's connection settings (for the liveness connection).
+    config: postgres::Config,
+    /// The liveness connection, once announced ([`Store::announce_liveness`]).
+    liveness: parking_lot::Mutex<Option<super::postgres_liveness::Liveness>>,
 }
 
 /// Classifies a client error: connection-level failures are
@@ -154,7 +158,7 @@ impl PgStore {
         let _ = config.application_name("dend");
         let options = session_options(config.get_options());
         let _ = config.options(&options);
-        let manager = PostgresConnectionManager::new(config, NoTls);
+        let manager = PostgresConnectionManager::new(config.clone(), NoTls);
         let pool = r2d2::Pool::builder()
             .max_size(max_connections.max(1))
             .min_idle(Some(1))
@@ -162,7 +166,11 @@ impl PgStore {
             .test_on_check_out(true)
             .build(manager)
             .map_err(|e| StoreError::Unavailable(format!("cannot connect to PostgreSQL: {e}")))?;
-        let store = PgStore { pool: Some(pool) };
+        let store = PgStore {
+            pool: Some(pool),
+            config,
+            liveness: parking_lot::Mutex::new(None),
+        };
         store.migrate()?;
         Ok(store)
     }
@@ -539,6 +547,14 @@ impl Store for PgStore {
             .get_timeout(PING_TIMEOUT)
             .map_err(|e| StoreError::Unavailable(format!("no PostgreSQL connection: {e}")))?;
         let _ = c.query_one("SELECT 1", &[]).map_err(pg_err)?;
+        Ok(())
+    }
+
+    /// Opens the liveness connection (`postgres_liveness`) on a thread of
+    /// its own; call it outside an async runtime's worker.
+    fn announce_liveness(&self, instance: &str) -> Result<(), StoreError> {
+        let live = super::postgres_liveness::start(&self.config, instance)?;
+        *self.liveness.lock() = Some(live);
         Ok(())
     }
 }

@@ -75,6 +75,14 @@ pub(super) fn acquire(
     let expiry = match (held, live) {
         (false, _) => Expiry::Released,
         (true, false) => Expiry::Expired,
+        // a live lease of a dead owner (its liveness connection is gone):
+        // as good as expired
+        (true, true)
+            if holder != owner
+                && super::postgres_liveness::owner_gone(&mut tx, owner, &holder)? =>
+        {
+            Expiry::Expired
+        }
         (true, true) => Expiry::Live {
             left_ms: left_ms.max(0) as u64,
         },

@@ -1,0 +1,272 @@
+//! The solver scheduler: every session's solver work on a fixed set of
+//! worker threads, shared fairly between sessions (issue 36).
+//!
+//! A session [`submit`](Scheduler::submit)s its solves one at a time (the
+//! journal append and one `Deformer::step` of its iteration budget). Jobs
+//! wait in one queue per session; the sessions with work wait in a ring.
+//! Each free worker takes the session at the front of the ring, runs *one*
+//! of its jobs (a turn's bounded batch) and puts the session back at the end
+//! of the ring when it has more. With `S` sessions waiting and `W` workers,
+//! a job therefore waits for at most about `S / W` other jobs, however
+//! much work any one session submits. Tokio's blocking pool, which ran the
+//! solves before, starts a thread per job and leaves the interleaving to
+//! the operating system, without a bound on how long one session's solve
+//! waits behind the others'.
+//!
+//! There are as many workers as cores (by default), not a thread per
+//! solve: the HTTP and WebSocket tasks, lease renewals and the store's
+//! liveness connection are not outnumbered by dozens of runnable solver
+//! threads when the solvers saturate the cores.
+//!
+//! Admission: [`waiting`](Scheduler::waiting) is the number of sessions
+//! whose solve waits for a worker; the server refuses new sessions while it
+//! is at `Config::admission_waiting_sessions` (503 `overloaded`, with
+//! `Retry-After`).
+
+use std::collections::{HashMap, VecDeque};
+use std::sync::Arc;
+use std::time::Instant;
+
+use parking_lot::{Condvar, Mutex};
+use prometheus::{Histogram, IntGauge};
+
+/// What the scheduler reports (the server's metrics).
+#[derive(Clone)]
+pub struct SchedulerMetrics {
+    /// Seconds from a job's submission to its start.
+    pub delay: Histogram,
+    /// Jobs waiting for a worker.
+    pub depth: IntGauge,
+}
+
+type Job = Box<dyn FnOnce() + Send + 'static>;
+
+struct State {
+    /// Each session's waiting jobs, oldest first, with their submission time.
+    queues: HashMap<String, VecDeque<(Job, Instant)>>,
+    /// Sessions with waiting jobs, in the order they get their next turn.
+    ring: VecDeque<String>,
+    /// Jobs waiting.
+    depth: usize,
+    /// Set when the scheduler is dropped: workers finish what is queued
+    /// and end.
+    stop: bool,
+}
+
+struct Shared {
+    state: Mutex<State>,
+    work: Condvar,
+    metrics: Option<SchedulerMetrics>,
+}
+
+/// Runs the sessions' solves on `workers` threads, round-robin across
+/// sessions (see the module docs). Dropping it ends the workers once the
+/// queued jobs ran.
+pub struct Scheduler {
+    shared: Arc<Shared>,
+    workers: usize,
+}
+
+impl std::fmt::Debug for Scheduler {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Scheduler")
+            .field("workers", &self.workers)
+            .field("waiting", &self.waiting())
+            .finish()
+    }
+}
+
+impl Scheduler {
+    /// A scheduler with `workers` threads (0: one per available core).
+    pub fn new(workers: usize, metrics: Option<SchedulerMetrics>) -> Scheduler {
+        let workers = if workers == 0 {
+            std::thread::available_parallelism().map_or(2, |n| n.get())
+        } else {
+            workers
+        };
+        let shared = Arc::new(Shared {
+            state: Mutex::new(State {
+                queues: HashMap::new(),
+                ring: VecDeque::new(),
+                depth: 0,
+                stop: false,
+            }),
+            work: Condvar::new(),
+            metrics,
+        });
+        for k in 0..workers {
+            let shared = shared.clone();
+            let spawned = std::thread::Builder::new()
+                .name(format!("dend-solver-{k}"))
+                .spawn(move || worker(&shared));
+            if let Err(e) = spawned {
+                tracing::error!(error = %e, "starting a solver thread failed");
+            }
+        }
+        Scheduler { shared, workers }
+    }
+
+    /// Queues `job` as session `session`'s; it runs on a worker at the
+    /// session's next turn, after the jobs it submitted before.
+    pub fn submit(&self, session: &str, job: impl FnOnce() + Send + 'static) {
+        let mut st = self.shared.state.lock();
+        let queue = st.queues.entry(session.to_owned()).or_default();
+        let was_idle = queue.is_empty();
+        queue.push_back((Box::new(job), Instant::now()));
+        if was_idle {
+            st.ring.push_back(session.to_owned());
+        }
+        st.depth += 1;
+        if let Some(m) = &self.shared.metrics {
+            m.depth.set(st.depth as i64);
+        }
+        drop(st);
+        let _ = self.shared.work.notify_one();
+    }
+
+    /// Sessions whose next job waits for a worker (the admission load).
+    pub fn waiting(&self) -> usize {
+        self.shared.state.lock().ring.len()
+    }
+
+    /// Jobs waiting for a worker.
+    pub fn depth(&self) -> usize {
+        self.shared.state.lock().depth
+    }
+
+    /// The number of worker threads.
+    pub fn workers(&self) -> usize {
+        self.workers
+    }
+}
+
+impl Drop for Scheduler {
+    fn drop(&mut self) {
+        self.shared.state.lock().stop = true;
+        let _ = self.shared.work.notify_all();
+    }
+}
+
+fn worker(shared: &Shared) {
+    loop {
+        let (job, at) = {
+            let mut st = shared.state.lock();
+            loop {
+                if let Some(session) = st.ring.pop_front() {
+                    let Some(queue) = st.queues.get_mut(&session) else {
+                        continue;
+                    };
+                    let Some(job) = queue.pop_front() else {
+                        let _ = st.queues.remove(&session);
+                        continue;
+                    };
+                    if queue.is_empty() {
+                        let _ = st.queues.remove(&session);
+                    } else {
+                        // its next job waits for its next turn
+                        st.ring.push_back(session);
+                    }
+                    st.depth -= 1;
+                    if let Some(m) = &shared.metrics {
+                        m.depth.set(st.depth as i64);
+                    }
+                    break job;
+                }
+                if st.stop {
+                    return;
+                }
+                shared.work.wait(&mut st);
+            }
+        };
+        if let Some(m) = &shared.metrics {
+            m.delay.observe(at.elapsed().as_secs_f64());
+        }
+        // a panicking solve loses its session's reply (as a panicking
+        // blocking task did), not the worker
+        let _ = std::panic::catch_unwind(std::panic::AssertUnwindSafe(job));
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use std::sync::mpsc;
+
+    /// One worker, held busy while a greedy session queues many jobs and a
+    /// quiet one queues one: the quiet job runs second, not after all of
+    /// the greedy ones (the order is the property; no clock involved).
+    #[test]
+    fn a_session_with_one_job_does_not_wait_behind_a_greedy_one() {
+        let s = Scheduler::new(1, None);
+        let (gate_tx, gate_rx) = mpsc::channel::<()>();
+        let (order_tx, order_rx) = mpsc::channel::<String>();
+        let (started_tx, started_rx) = mpsc::channel::<()>();
+        s.submit("blocker", move || {
+            let _ = started_tx.send(());
+            let _ = gate_rx.recv();
+        });
+        started_rx.recv().expect("the worker runs the blocker");
+        for k in 0..20 {
+            let tx = order_tx.clone();
+            s.submit("greedy", move || {
+                let _ = tx.send(format!("greedy{k}"));
+            });
+        }
+        let tx = order_tx.clone();
+        s.submit("quiet", move || {
+            let _ = tx.send("quiet".into());
+        });
+        assert_eq!(s.depth(), 21);
+        assert_eq!(s.waiting(), 2);
+        gate_tx.send(()).expect("gate");
+        let order: Vec<String> = (0..21).map(|_| order_rx.recv().expect("job")).collect();
+        assert_eq!(order[0], "greedy0");
+        assert_eq!(order[1], "quiet", "{order:?}");
+        // each session's own jobs keep their order
+        let greedy: Vec<&String> = order.iter().filter(|j| j.starts_with('g')).collect();
+        for (k, j) in greedy.iter().enumerate() {
+            assert_eq!(**j, format!("greedy{k}"));
+        }
+    }
+
+    /// Round-robin over many sessions: in every window of `S` consecutive
+    /// jobs while all `S` sessions have work, each session runs exactly once.
+    #[test]
+    fn turns_go_round_the_sessions() {
+        let s = Scheduler::new(1, None);
+        let (gate_tx, gate_rx) = mpsc::channel::<()>();
+        let (order_tx, order_rx) = mpsc::channel::<usize>();
+        s.submit("blocker", move || {
+            let _ = gate_rx.recv();
+        });
+        const S: usize = 5;
+        const J: usize = 4;
+        // submitted in bursts: all of session 0's jobs, then session 1's...
+        for k in 0..S {
+            for _ in 0..J {
+                let tx = order_tx.clone();
+                s.submit(&format!("s{k}"), move || {
+                    let _ = tx.send(k);
+                });
+            }
+        }
+        gate_tx.send(()).expect("gate");
+        let order: Vec<usize> = (0..S * J).map(|_| order_rx.recv().expect("job")).collect();
+        for window in order.chunks(S) {
+            let mut w = window.to_vec();
+            w.sort_unstable();
+            assert_eq!(w, (0..S).collect::<Vec<_>>(), "{order:?}");
+        }
+    }
+
+    #[test]
+    fn a_panicking_job_does_not_stop_the_worker() {
+        let s = Scheduler::new(1, None);
+        s.submit("a", || panic!("solver bug"));
+        let (tx, rx) = mpsc::channel();
+        s.submit("b", move || {
+            let _ = tx.send(1);
+        });
+        assert_eq!(rx.recv(), Ok(1));
+    }
+}

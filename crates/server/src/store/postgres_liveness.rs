@@ -1,0 +1,159 @@
+//! Owner liveness through PostgreSQL: how a surviving instance learns at
+//! once that a lease's owner died, instead of waiting for the lease to
+//! expire (docs/deployment.md, "Failover in seconds").
+//!
+//! Each instance keeps one connection of its own open for its whole life
+//! (not pooled), named `dend-live:<instance>` (`application_name`). When
+//! the process dies, however it dies (crash, SIGKILL, out of memory), its
+//! kernel closes that socket and PostgreSQL ends the backend within
+//! milliseconds; a live but CPU-starved or frozen process keeps its socket
+//! open, so it keeps its leases until they expire. [`owner_gone`] is
+//! checked in the takeover's transaction: a live lease whose owner has no
+//! liveness connection is taken over as if it had expired, only when
+//! - the asking instance sees its *own* liveness connection (a pooler in
+//!   front of PostgreSQL that hides backends turns the check off by itself),
+//! - and the database has been up for longer than [`RECONNECT_GRACE`] (after
+//!   a PostgreSQL restart every instance reconnects within it).
+//!
+//! A false "gone" (the owner alive but cut from PostgreSQL for longer than
+//! the grace) is safe: the takeover raises the fencing revision, and the
+//! old owner's writes are refused; it loses the session at its next renewal.
+//!
+//! The liveness connection also asks the server for TCP keep-alives every
+//! second (`tcp_keepalives_*`, `tcp_user_timeout`), so that a host that
+//! vanishes without closing its sockets (power loss, a partition) is noticed
+//! in about [`HOST_LOSS`] rather than the kernel's two hours.
+
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::Arc;
+use std::time::Duration;
+
+use postgres::NoTls;
+
+use super::postgres::pg_err;
+use super::StoreError;
+
+/// How long after a PostgreSQL start the liveness check stays off: the
+/// instances' liveness connections are back well within it.
+pub const RECONNECT_GRACE: Duration = Duration::from_secs(3);
+
+/// About how long PostgreSQL takes to end the liveness connection of a
+/// host that vanished without closing it (keep-alive idle 2 s, then 3
+/// probes 1 s apart).
+pub const HOST_LOSS: Duration = Duration::from_secs(5);
+
+/// How often the liveness thread checks its connection (and reconnects).
+const CHECK_EVERY: Duration = Duration::from_millis(500);
+
+/// The `application_name` of `instance`'s liveness connection (cut to
+/// PostgreSQL's 63 bytes, as the server stores it).
+pub fn liveness_name(instance: &str) -> String {
+    let mut name = format!("dend-live:{instance}");
+    let mut cut = name.len().min(63);
+    while !name.is_char_boundary(cut) {
+        cut -= 1;
+    }
+    name.truncate(cut);
+    name
+}
+
+/// The liveness connection's thread; stops when dropped.
+pub(super) struct Liveness {
+    stop: Arc<AtomicBool>,
+}
+
+impl Drop for Liveness {
+    fn drop(&mut self) {
+        self.stop.store(true, Ordering::Relaxed);
+    }
+}
+
+/// Opens `instance`'s liveness connection with `config` (the pool's
+/// settings) and keeps it open on a thread of its own, reconnecting when it
+/// breaks; returns once the first connection is up (or failed).
+pub(super) fn start(config: &postgres::Config, instance: &str) -> Result<Liveness, StoreError> {
+    let mut config = config.clone();
+    let _ = config.application_name(&liveness_name(instance));
+    let options = format!(
+        "{} -c tcp_keepalives_idle=2 -c tcp_keepalives_interval=1 -c tcp_keepalives_count=3 \
+         -c tcp_user_timeout={}",
+        config.get_options().unwrap_or_default(),
+        HOST_LOSS.as_millis()
+    );
+    let _ = config.options(options.trim());
+    let stop = Arc::new(AtomicBool::new(false));
+    let (first_tx, first_rx) = std::sync::mpsc::channel();
+    let flag = stop.clone();
+    let _ = std::thread::Builder::new()
+        .name("dend-liveness".into())
+        .spawn(move || {
+            let mut first = Some(first_tx);
+            while !flag.load(Ordering::Relaxed) {
+                match config.connect(NoTls) {
+                    Ok(mut client) => {
+                        if let Some(tx) = first.take() {
+                            let _ = tx.send(Ok(()));
+                        }
+                        while !flag.load(Ordering::Relaxed) {
+                            std::thread::sleep(CHECK_EVERY);
+                            if client.simple_query("SELECT 1").is_err() {
+                                tracing::warn!(
+                                    "the liveness connection to PostgreSQL broke: reconnecting"
+                                );
+                                break;
+                            }
+                        }
+                    }
+                    Err(e) => {
+                        if let Some(tx) = first.take() {
+                            let _ = tx.send(Err(pg_err(e)));
+                        }
+                        std::thread::sleep(CHECK_EVERY / 2);
+                    }
+                }
+            }
+        })
+        .map_err(|e| StoreError::Backend(format!("liveness thread: {e}")))?;
+    match first_rx.recv_timeout(Duration::from_secs(10)) {
+        Ok(Ok(())) => {}
+        // it keeps trying: until it connects, this instance's own check
+        // fails and others' leases are only taken once expired
+        Ok(Err(e)) => tracing::warn!(error = %e, "no liveness connection yet"),
+        Err(_) => tracing::warn!("no liveness connection yet"),
+    }
+    Ok(Liveness { stop })
+}
+
+/// Whether `holder`, which holds a live lease that `asking` wants, is gone:
+/// no liveness connection, while `asking`'s own is seen and the database
+/// has been up for longer than [`RECONNECT_GRACE`]. Inside the takeover's
+/// transaction.
+pub(super) fn owner_gone(
+    tx: &mut postgres::Transaction<'_>,
+    asking: &str,
+    holder: &str,
+) -> Result<bool, StoreError> {
+    let grace_ms = RECONNECT_GRACE.as_secs_f64() * 1000.0;
+    let row = tx
+        .query_one(
+            "SELECT pg_postmaster_start_time() < now() - $3::FLOAT8 * INTERVAL '1 millisecond'
+                AND EXISTS (SELECT 1 FROM pg_stat_activity WHERE application_name = $1)
+                AND NOT EXISTS (SELECT 1 FROM pg_stat_activity WHERE application_name = $2)",
+            &[&liveness_name(asking), &liveness_name(holder), &grace_ms],
+        )
+        .map_err(pg_err)?;
+    Ok(row.get(0))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::liveness_name;
+
+    #[test]
+    fn liveness_names_fit_postgres() {
+        assert_eq!(liveness_name("dend1"), "dend-live:dend1");
+        let long = "é".repeat(40);
+        let n = liveness_name(&long);
+        assert!(n.len() <= 63 && n.starts_with("dend-live:é"));
+    }
+}
