@@ -35,3 +35,4 @@ mod server_posing;
 mod shared_meshes;
 mod slow_store;
 mod square_formulation;
+mod ws_flow;
