@@ -280,7 +280,7 @@ async fn constraints_by_group_resolve_on_the_uploaded_asset() -> Result<(), Clie
     }
     let mut ws = s.connect().await?;
     ws.send(&ClientMsg::SetConstraints {
-        constraints: bad,
+        constraints: bad.clone(),
         if_revision: None,
     })
     .await?;

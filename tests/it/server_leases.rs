@@ -169,9 +169,8 @@ async fn the_owner_hands_a_session_over_to_the_instance_that_asks() -> Result<()
         }
     }
     loop {
-        match ws.next().await? {
-            WsEvent::Closed(_) => break,
-            _ => {}
+        if let WsEvent::Closed(_) = ws.next().await? {
+            break;
         }
     }
     assert!(b.sessions.read().get(&s.id).is_none(), "closed on b");

@@ -10,7 +10,6 @@ use std::time::{Duration, Instant};
 use dend_client::ws::{ClientMsg, ServerMsg};
 use dend_client::{SessionClient, WsEvent};
 use parking_lot::Mutex;
-use serde_json::json;
 
 /// The x translation of drag `seq` (distinct per seq, so the final pose
 /// tells which drags it holds).
