@@ -52,5 +52,6 @@ if [ -z "${DEND_BIN:-}" ] || [ ! -x "$DEND_BIN" ]; then
   DEND_BIN="${CARGO_TARGET_DIR:-$(pwd)/target}/debug/dend"
 fi
 export CHROMIUM DEND_BIN
+node web/tests/frame.test.mjs
 node web/tests/browser.test.mjs
 node web/tests/tools.test.mjs

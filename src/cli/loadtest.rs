@@ -1,20 +1,62 @@
 //! `dend loadtest`: drive N sessions with M WebSocket drags each and report
-//! drag→frame latency (p50/p99) and frames per second.
+//! per stream mode: frames/s while dragging, drag→frame latency (p50/p99),
+//! settle time and iterations, converged, the level of the frames and the
+//! bytes/s to each client.
 //!
-//! Each session is closed-loop: send drag `seq`, wait for the first frame
-//! acknowledging it, record the time, send the next. Without `--url` the
-//! command starts a server in-process on a free port.
+//! By default each session is closed-loop: send drag `seq`, wait for the
+//! first frame acknowledging it, send the next; `--drag-hz` sends drags on a
+//! clock instead (a mouse), `--slow-ms` makes the client spend that long on
+//! each frame (a slow browser). `--stream legacy,q16` runs the same drags
+//! once per stream mode, in one run: `legacy` is a version 2 client (no flow
+//! control, f32 frames), `f32`/`q16` declare a window of one frame and take
+//! version 3 frames in that encoding. Without `--url` the command starts a
+//! server in-process on a free port.
 
 use std::path::PathBuf;
+use std::sync::atomic::{AtomicU64, Ordering};
+use std::sync::Arc;
 use std::time::{Duration, Instant};
 
 use anyhow::Context;
 use clap::ValueEnum;
-use dend_client::{Client, MeshInfo, WsEvent};
+use dend_client::ws::{DeltaJson, StreamOptions};
+use dend_client::{Client, FrameEncoding, MeshInfo};
 use dend_server::{self as server, AppState, Config};
 use serde_json::json;
 
 use super::PresetArg;
+use drive::{median, DragPath, Pace, Path, Summary};
+
+#[path = "loadtest_drive.rs"]
+mod drive;
+
+/// How a loadtest client takes its frames.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum StreamMode {
+    /// A version 2 client: no flow control, f32 frames (before protocol 3).
+    Legacy,
+    /// One frame in flight, acknowledged; version 3 f32 frames.
+    F32,
+    /// One frame in flight, acknowledged; version 3 q16 frames.
+    Q16,
+}
+
+impl StreamMode {
+    fn options(self) -> StreamOptions {
+        match self {
+            StreamMode::Legacy => StreamOptions::default(),
+            StreamMode::F32 => StreamOptions::flow(1, FrameEncoding::F32),
+            StreamMode::Q16 => StreamOptions::flow(1, FrameEncoding::Q16),
+        }
+    }
+    fn name(self) -> &'static str {
+        match self {
+            StreamMode::Legacy => "legacy",
+            StreamMode::F32 => "f32",
+            StreamMode::Q16 => "q16",
+        }
+    }
+}
 
 /// Arguments of `dend loadtest`.
 #[derive(Debug, clap::Args)]
@@ -80,6 +122,20 @@ pub struct LoadtestArgs {
     /// refused with 503 `overloaded`.
     #[arg(long)]
     check_refused: Option<usize>,
+    /// The handle's path: a line, or an arc while the handle turns.
+    #[arg(long, value_enum, default_value_t = DragPath::Line)]
+    path: DragPath,
+    /// Drags per second on a clock (a mouse); 0: closed loop, the next
+    /// drag when a frame acknowledges the last.
+    #[arg(long, default_value_t = 0.0)]
+    drag_hz: f64,
+    /// Milliseconds the client spends on each frame (a slow client).
+    #[arg(long, default_value_t = 0)]
+    slow_ms: u64,
+    /// Stream modes to run, one after the other on the same mesh
+    /// (comma-separated): legacy (version 2 client), f32, q16.
+    #[arg(long, value_enum, value_delimiter = ',', default_value = "q16")]
+    stream: Vec<StreamMode>,
 }
 
 /// The `params` object of the drag sessions: the preset by name, as the
@@ -112,22 +168,6 @@ fn grid(n: usize) -> (Vec<[f64; 3]>, Vec<[u32; 3]>) {
     (p, t)
 }
 
-struct SessionStats {
-    latencies: Vec<Duration>,
-    frames: u64,
-    /// Session creation → ready to drag (rest operators when the mesh's
-    /// are not built yet, the constraint set's factor).
-    ready: Duration,
-    /// Constraints sent → ready (the factor build, as a client sees it).
-    constraints_ready: Duration,
-    /// Last drag sent → the settled frame after it.
-    settle: Duration,
-    /// Iterations since the last change in the settled frame.
-    settle_iterations: u32,
-    /// Whether the settled frame converged.
-    settle_converged: bool,
-}
-
 async fn run_async(args: LoadtestArgs) -> anyhow::Result<()> {
     let base = match &args.url {
         Some(u) => u.clone(),
@@ -149,11 +189,20 @@ async fn run_async(args: LoadtestArgs) -> anyhow::Result<()> {
         "fixed": {"box": {"min": lo, "max": fixed_max}},
         "handles": [{"name": "h", "vertices": {"box": {"min": handle_min, "max": hi}}}],
     });
-    let mut step = [0.0; 3];
-    step[(k + 1) % 3] = 0.3 * ext[k] / args.drags.max(1) as f64;
+    let path = Path {
+        kind: args.path,
+        axis: k,
+        extent: ext[k],
+        drags: args.drags,
+    };
+    let pace = Pace {
+        drag_hz: args.drag_hz,
+        slow_ms: args.slow_ms,
+    };
     let params = session_params(args.preset);
     println!(
-        "mesh: {} vertices, {} triangles; {} session(s) x {} drags; preset {}",
+        "mesh: {} vertices, {} triangles; {} session(s) x {} drags; preset {}; path {:?}; \
+         drags {}; client spends {} ms per frame",
         mesh.vertices,
         mesh.triangles,
         args.sessions,
@@ -161,110 +210,21 @@ async fn run_async(args: LoadtestArgs) -> anyhow::Result<()> {
         args.preset
             .to_possible_value()
             .expect("no skipped variant")
-            .get_name()
+            .get_name(),
+        args.path,
+        if args.drag_hz > 0.0 {
+            format!("at {} Hz", args.drag_hz)
+        } else {
+            "closed loop".into()
+        },
+        args.slow_ms,
     );
-    let t0 = Instant::now();
-    let acked = std::sync::Arc::new(std::sync::atomic::AtomicU64::new(0));
-    let extra = (args.extra_sessions > 0).then(|| {
-        let (client, mesh_id, acked) = (client.clone(), mesh.id.clone(), acked.clone());
-        let (n, at) = (args.extra_sessions, args.sessions as u64 * args.drags / 5);
-        tokio::spawn(async move { extra_sessions(client, mesh_id, n, acked, at).await })
-    });
-    let mut tasks = vec![];
-    for _ in 0..args.sessions {
-        let (client, mesh_id, spec, params, drags, acked) = (
-            client.clone(),
-            mesh.id.clone(),
-            spec.clone(),
-            params.clone(),
-            args.drags,
-            acked.clone(),
-        );
-        tasks.push(tokio::spawn(async move {
-            one_session(client, mesh_id, params, spec, drags, step, &acked).await
-        }));
+    println!("upload {:.1} ms", upload.as_secs_f64() * 1e3);
+    let mut failed = vec![];
+    for mode in &args.stream {
+        let run = (&client, mesh.id.as_str(), &spec, &params);
+        failed.extend(run_mode(run, *mode, &args, path, pace).await?);
     }
-    let mut all = vec![];
-    let mut medians = vec![];
-    let (mut ready, mut constraints_ready) = (vec![], vec![]);
-    let mut frames = 0;
-    let mut drag_time = Duration::ZERO;
-    let (mut settles, mut settle_its, mut settled_converged) = (vec![], vec![], 0);
-    for t in tasks {
-        let (stats, elapsed) = t.await??;
-        settles.push(stats.settle);
-        settle_its.push(stats.settle_iterations);
-        settled_converged += usize::from(stats.settle_converged);
-        let mut own = stats.latencies.clone();
-        own.sort();
-        medians.push(percentile(&own, 0.5));
-        all.extend(stats.latencies);
-        ready.push(stats.ready);
-        constraints_ready.push(stats.constraints_ready);
-        frames += stats.frames;
-        drag_time = drag_time.max(elapsed);
-    }
-    let ms = |d: Duration| d.as_secs_f64() * 1e3;
-    ready.sort();
-    constraints_ready.sort();
-    println!(
-        "upload {:.1} ms; session created -> ready to drag: median {:.1} ms, max {:.1} ms \
-         (constraints sent -> ready: median {:.1} ms, max {:.1} ms)",
-        ms(upload),
-        ms(percentile(&ready, 0.5)),
-        ms(percentile(&ready, 1.0)),
-        ms(percentile(&constraints_ready, 0.5)),
-        ms(percentile(&constraints_ready, 1.0)),
-    );
-    all.sort();
-    let pct = |p: f64| percentile(&all, p);
-    println!(
-        "drag->frame latency: p50 {:.2} ms, p99 {:.2} ms, max {:.2} ms over {} drags",
-        ms(pct(0.5)),
-        ms(pct(0.99)),
-        ms(pct(1.0)),
-        all.len()
-    );
-    medians.sort();
-    let overall = ms(pct(0.5)).max(1e-9);
-    let fairness = ms(percentile(&medians, 1.0)) / overall;
-    println!(
-        "per-session median drag->frame: min {:.2} ms, max {:.2} ms; worst session / overall median: {:.2}x",
-        ms(percentile(&medians, 0.0)),
-        ms(percentile(&medians, 1.0)),
-        fairness
-    );
-    let refused = match extra {
-        Some(t) => {
-            let (refused, admitted) = t.await??;
-            println!(
-                "admission: {} more session(s) opened during the drags: {refused} refused (503 overloaded), {admitted} admitted",
-                args.extra_sessions
-            );
-            refused
-        }
-        None => 0,
-    };
-    println!(
-        "frames/s: {:.0} (all sessions), drags/s: {:.0}; drag phase {:.2} s, total {:.2} s",
-        frames as f64 / drag_time.as_secs_f64(),
-        all.len() as f64 / drag_time.as_secs_f64(),
-        drag_time.as_secs_f64(),
-        t0.elapsed().as_secs_f64()
-    );
-    settles.sort();
-    settle_its.sort();
-    println!(
-        "settle (last drag sent -> settled frame): median {:.1} ms, max {:.1} ms; \
-         iterations after the last change: median {}, max {}; converged {}/{}",
-        ms(percentile(&settles, 0.5)),
-        ms(percentile(&settles, 1.0)),
-        settle_its.get(settle_its.len() / 2).copied().unwrap_or(0),
-        settle_its.last().copied().unwrap_or(0),
-        settled_converged,
-        settles.len()
-    );
-    println!("errors: 0 (any error aborts the run)");
     if args.idle > 0 {
         idle_sessions(
             &client,
@@ -279,27 +239,138 @@ async fn run_async(args: LoadtestArgs) -> anyhow::Result<()> {
         "peak RSS of this process (server + clients): {:.1} MiB",
         peak_rss_kib() as f64 / 1024.0
     );
-    let mut failed = vec![];
-    if let Some(limit) = args.check_max_ms.filter(|&l| ms(pct(1.0)) > l) {
-        failed.push(format!("max {:.1} ms > {limit} ms", ms(pct(1.0))));
-    }
-    if let Some(limit) = args.check_p99_ms.filter(|&l| ms(pct(0.99)) > l) {
-        failed.push(format!("p99 {:.1} ms > {limit} ms", ms(pct(0.99))));
-    }
-    if let Some(limit) = args.check_fairness.filter(|&l| fairness > l) {
-        failed.push(format!(
-            "a session's median is {fairness:.2}x the overall median (> {limit}x)"
-        ));
-    }
-    if let Some(want) = args.check_refused.filter(|&w| refused < w) {
-        failed.push(format!(
-            "{refused} extra session(s) refused with 503 overloaded, expected at least {want}"
-        ));
-    }
     if !failed.is_empty() {
         anyhow::bail!("load test checks failed: {}", failed.join("; "));
     }
     Ok(())
+}
+
+/// Runs the sessions' drags with one stream mode (on the mesh, with the
+/// constraints and parameters of `run`) and prints its report; returns the
+/// `--check-*` rules it broke.
+async fn run_mode(
+    (client, mesh_id, spec, params): (&Client, &str, &serde_json::Value, &serde_json::Value),
+    mode: StreamMode,
+    args: &LoadtestArgs,
+    path: Path,
+    pace: Pace,
+) -> anyhow::Result<Vec<String>> {
+    let t0 = Instant::now();
+    let progress = Arc::new(AtomicU64::new(0));
+    let extra = (args.extra_sessions > 0).then(|| {
+        let (client, mesh_id, progress) = (client.clone(), mesh_id.to_owned(), progress.clone());
+        let (n, at) = (args.extra_sessions, args.sessions as u64 * args.drags / 5);
+        tokio::spawn(async move { extra_sessions(client, mesh_id, n, progress, at).await })
+    });
+    let mut tasks = vec![];
+    for _ in 0..args.sessions {
+        let (client, mesh_id, spec, params, progress) = (
+            client.clone(),
+            mesh_id.to_owned(),
+            spec.clone(),
+            params.clone(),
+            progress.clone(),
+        );
+        tasks.push(tokio::spawn(async move {
+            let run = (client, mesh_id, params, spec);
+            one_session(run, mode.options(), path, pace, &progress).await
+        }));
+    }
+    let mut sum = Summary::default();
+    let (mut ready, mut constraints_ready) = (vec![], vec![]);
+    for t in tasks {
+        let (seen, r, c) = t.await??;
+        sum.add(seen);
+        ready.push(r);
+        constraints_ready.push(c);
+    }
+    sum.sort();
+    ready.sort();
+    constraints_ready.sort();
+    let ms = |d: Duration| d.as_secs_f64() * 1e3;
+    let m = mode.name();
+    println!(
+        "[{m}] session created -> ready to drag: median {:.1} ms, max {:.1} ms \
+         (constraints sent -> ready: median {:.1} ms, max {:.1} ms)",
+        ms(percentile(&ready, 0.5)),
+        ms(percentile(&ready, 1.0)),
+        ms(percentile(&constraints_ready, 0.5)),
+        ms(percentile(&constraints_ready, 1.0)),
+    );
+    let pct = |p: f64| percentile(&sum.latencies, p);
+    println!(
+        "[{m}] drag->frame latency: p50 {:.2} ms, p99 {:.2} ms, max {:.2} ms over {} drags",
+        ms(pct(0.5)),
+        ms(pct(0.99)),
+        ms(pct(1.0)),
+        sum.latencies.len()
+    );
+    let overall = ms(pct(0.5)).max(1e-9);
+    let fairness = ms(percentile(&sum.medians, 1.0)) / overall;
+    println!(
+        "[{m}] per-session median drag->frame: min {:.2} ms, max {:.2} ms; \
+         worst session / overall median: {:.2}x",
+        ms(percentile(&sum.medians, 0.0)),
+        ms(percentile(&sum.medians, 1.0)),
+        fairness
+    );
+    let refused = match extra {
+        Some(t) => {
+            let (refused, admitted) = t.await??;
+            println!(
+                "[{m}] admission: {} more session(s) opened during the drags: \
+                 {refused} refused (503 overloaded), {admitted} admitted",
+                args.extra_sessions
+            );
+            refused
+        }
+        None => 0,
+    };
+    println!(
+        "[{m}] while dragging, per client (median of sessions): {:.1} frames/s, {:.2} MB/s, \
+         {:.1} KB per frame; frames by level: full {}, coarse {}",
+        median(&sum.fps),
+        median(&sum.bytes_per_sec) / 1e6,
+        median(&sum.bytes_per_frame) / 1e3,
+        sum.levels[0],
+        sum.levels[1],
+    );
+    println!(
+        "[{m}] settle (last drag sent -> settled frame): median {:.1} ms, max {:.1} ms; \
+         iterations after the last change: median {}, max {}; converged {}/{}",
+        ms(percentile(&sum.settles, 0.5)),
+        ms(percentile(&sum.settles, 1.0)),
+        sum.settle_iterations
+            .get(sum.settle_iterations.len() / 2)
+            .copied()
+            .unwrap_or(0),
+        sum.settle_iterations.last().copied().unwrap_or(0),
+        sum.converged,
+        sum.settles.len()
+    );
+    println!(
+        "[{m}] {} frames in all; phase {:.2} s; errors: 0 (any error aborts the run)",
+        sum.frames,
+        t0.elapsed().as_secs_f64()
+    );
+    let mut failed = vec![];
+    if let Some(limit) = args.check_max_ms.filter(|&l| ms(pct(1.0)) > l) {
+        failed.push(format!("[{m}] max {:.1} ms > {limit} ms", ms(pct(1.0))));
+    }
+    if let Some(limit) = args.check_p99_ms.filter(|&l| ms(pct(0.99)) > l) {
+        failed.push(format!("[{m}] p99 {:.1} ms > {limit} ms", ms(pct(0.99))));
+    }
+    if let Some(limit) = args.check_fairness.filter(|&l| fairness > l) {
+        failed.push(format!(
+            "[{m}] a session's median is {fairness:.2}x the overall median (> {limit}x)"
+        ));
+    }
+    if let Some(want) = args.check_refused.filter(|&w| refused < w) {
+        failed.push(format!(
+            "[{m}] {refused} extra session(s) refused with 503 overloaded, expected at least {want}"
+        ));
+    }
+    Ok(failed)
 }
 
 /// Once `at` drags were acknowledged in all, opens `n` more sessions one
@@ -309,10 +380,10 @@ async fn extra_sessions(
     client: Client,
     mesh_id: String,
     n: usize,
-    acked: std::sync::Arc<std::sync::atomic::AtomicU64>,
+    progress: Arc<AtomicU64>,
     at: u64,
 ) -> anyhow::Result<(usize, usize)> {
-    while acked.load(std::sync::atomic::Ordering::Relaxed) < at {
+    while progress.load(Ordering::Relaxed) < at {
         tokio::time::sleep(Duration::from_millis(20)).await;
     }
     let (mut refused, mut admitted) = (0, 0);
@@ -432,11 +503,7 @@ async fn idle_sessions(
         s.set_constraints(&spec).await?;
         s.wait_ready(Duration::from_secs(600)).await?;
         let _ = s
-            .drag(
-                json!(0),
-                json!({"translate": [0.0, 0.01 * ext, 0.0]}),
-                Some(2),
-            )
+            .drag(0, DeltaJson::new([0.0, 0.01 * ext, 0.0], None), Some(2))
             .await?;
         sessions.push(s);
     }
@@ -452,9 +519,7 @@ async fn idle_sessions(
     for s in &sessions {
         let p = s.pose().await?;
         moved += usize::from(p.positions.iter().flatten().all(|x| x.is_finite()) && p.revision > 0);
-        let _ = s
-            .drag(json!(0), json!({"translate": [0.0, 0.0, 0.0]}), Some(1))
-            .await?;
+        let _ = s.drag(0, DeltaJson::new([0.0; 3], None), Some(1)).await?;
     }
     println!(
         "idle: {moved}/{n} sessions kept their pose and solved a drag after eviction; factor cache now {:.1} MiB, {} built",
@@ -464,81 +529,27 @@ async fn idle_sessions(
     Ok(())
 }
 
+/// One session: created, constrained, connected with `opts`, dragged.
+/// Returns what its client saw, and the times to ready (from creation and
+/// from the constraints).
 async fn one_session(
-    client: Client,
-    mesh_id: String,
-    params: serde_json::Value,
-    spec: serde_json::Value,
-    drags: u64,
-    step: [f64; 3],
-    acked: &std::sync::atomic::AtomicU64,
-) -> anyhow::Result<(SessionStats, Duration)> {
+    (client, mesh_id, params, spec): (Client, String, serde_json::Value, serde_json::Value),
+    opts: StreamOptions,
+    path: Path,
+    pace: Pace,
+    progress: &AtomicU64,
+) -> anyhow::Result<(drive::Seen, Duration, Duration)> {
     let created = Instant::now();
     let s = client.create_session(&mesh_id, params).await?;
     let constrained = Instant::now();
     s.set_constraints(&spec).await?;
     s.wait_ready(Duration::from_secs(600)).await?;
-    let mut ws = s.connect().await?;
-    let mut stats = SessionStats {
-        latencies: Vec::with_capacity(drags as usize),
-        frames: 0,
-        ready: created.elapsed(),
-        constraints_ready: constrained.elapsed(),
-        settle: Duration::ZERO,
-        settle_iterations: 0,
-        settle_converged: false,
-    };
-    let start = Instant::now();
-    let mut last_sent = Instant::now();
-    let mut already_settled = false;
-    for seq in 1..=drags {
-        let sent = Instant::now();
-        last_sent = sent;
-        ws.drag(0, step, None, seq).await?;
-        loop {
-            match ws.next().await? {
-                WsEvent::Frame(h, _) => {
-                    stats.frames += 1;
-                    if h.ack_seq >= seq {
-                        stats.latencies.push(sent.elapsed());
-                        let _ = acked.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
-                        if seq == drags && h.settled {
-                            // already settled: no further frame will come
-                            stats.settle = sent.elapsed();
-                            stats.settle_iterations = h.iteration;
-                            stats.settle_converged = h.converged;
-                            already_settled = true;
-                        }
-                        break;
-                    }
-                }
-                WsEvent::Event(v) if v["type"] == "error" => anyhow::bail!("server error: {v}"),
-                WsEvent::Closed(c) => anyhow::bail!("connection closed ({c:?})"),
-                WsEvent::Event(_) => {}
-            }
-        }
-    }
-    let elapsed = start.elapsed();
-    // after the last drag: frames until the server says settled
-    while !already_settled {
-        match ws.next().await? {
-            WsEvent::Frame(h, _) => {
-                stats.frames += 1;
-                if h.ack_seq >= drags && h.settled {
-                    stats.settle = last_sent.elapsed();
-                    stats.settle_iterations = h.iteration;
-                    stats.settle_converged = h.converged;
-                    already_settled = true;
-                }
-            }
-            WsEvent::Event(v) if v["type"] == "error" => anyhow::bail!("server error: {v}"),
-            WsEvent::Closed(c) => anyhow::bail!("connection closed ({c:?})"),
-            WsEvent::Event(_) => {}
-        }
-    }
+    let (ready, constraints_ready) = (created.elapsed(), constrained.elapsed());
+    let mut ws = s.connect_with(opts).await?;
+    let seen = drive::drag(&mut ws, &path, pace, progress).await?;
     ws.close().await?;
     s.delete().await?;
-    Ok((stats, elapsed))
+    Ok((seen, ready, constraints_ready))
 }
 
 #[cfg(test)]

@@ -61,6 +61,11 @@ fn ws_message_corpus() {
 }
 
 #[test]
+fn pose_frame_corpus() {
+    replay("pose_frame", dend_server::fuzzing::pose_frame);
+}
+
+#[test]
 fn parse_obj_corpus() {
     replay("parse_obj", |d| {
         dend_server::fuzzing::mesh_file(d, Format::Obj)

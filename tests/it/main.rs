@@ -37,3 +37,4 @@ mod shared_meshes;
 mod slow_store;
 mod square_formulation;
 mod takeover_reads;
+mod ws_flow;

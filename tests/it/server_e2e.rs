@@ -7,6 +7,7 @@ use std::time::Duration;
 
 use dend::deform::{ConstraintsSpec, Deformer, Factor, Params, Rest};
 use dend::mesh::Mesh;
+use dend_client::ws::DeltaJson;
 use dend_client::{Client, ClientError, WsEvent};
 use dend_server::Config;
 use dend_testkit::server::{grid, grid_constraints, start};
@@ -111,7 +112,7 @@ async fn two_clients_in_one_session_both_receive_frames() -> Result<(), ClientEr
     let (hb, vb) = b.frame_acking(5, true).await?;
     assert_eq!(ha, hb);
     assert_eq!(va, vb);
-    assert_eq!(s.info().await?["peers"], 2);
+    assert_eq!(s.info().await?.peers, 2);
     Ok(())
 }
 
@@ -126,16 +127,12 @@ async fn http_drag_undo_redo_reset_export_delete() -> Result<(), ClientError> {
     s.wait_ready(Duration::from_secs(60)).await?;
     let top = N * N - 1;
     let p1 = s
-        .drag(json!("top"), json!({"translate": [0.0, 0.0, 1.0]}), None)
+        .drag("top", DeltaJson::translate([0.0, 0.0, 1.0]), None)
         .await?;
     assert!(p1.converged);
     assert!((p1.positions[top][2] - 1.0).abs() < 1e-6);
     let p2 = s
-        .drag(
-            json!(0),
-            json!({"rotate": {"axis": [1, 0, 0], "degrees": 10}}),
-            None,
-        )
+        .drag(0, DeltaJson::axis_angle([1.0, 0.0, 0.0], 10.0), None)
         .await?;
     assert!(p2.revision > p1.revision);
     let u = s.undo().await?;
@@ -218,7 +215,7 @@ async fn wrong_or_missing_token_is_refused() -> Result<(), ClientError> {
     // the right token still works
     let mut good = s.connect().await?;
     match good.next().await? {
-        WsEvent::Event(v) => assert_eq!(v["type"], "state"),
+        WsEvent::Event(e) => assert_eq!(e.kind(), "state"),
         other => panic!("expected state, got {other:?}"),
     }
     Ok(())

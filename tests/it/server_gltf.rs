@@ -7,6 +7,7 @@ use std::time::Duration;
 
 use dend::mesh::asset::sample::{self, TubeOptions};
 use dend::mesh::io::gltf::{Container, GltfAsset, Sidecars};
+use dend_client::ws::{ClientMsg, DeltaJson, ServerMsg};
 use dend_client::{Client, ClientError};
 use dend_server::store::SqliteStore;
 use dend_server::Config;
@@ -59,8 +60,8 @@ async fn a_glb_upload_exports_posed_in_its_own_layout() -> Result<(), ClientErro
     s.wait_ready(Duration::from_secs(60)).await?;
     let p = s
         .drag(
-            json!("top"),
-            json!({"rotate": {"axis": [0, 0, 1], "degrees": 60}}),
+            "top",
+            DeltaJson::axis_angle([0.0, 0.0, 1.0], 60.0),
             Some(30),
         )
         .await?;
@@ -238,7 +239,7 @@ async fn constraints_by_group_resolve_on_the_uploaded_asset() -> Result<(), Clie
     .await?;
     s.wait_ready(Duration::from_secs(60)).await?;
     let p = s
-        .drag(json!("tip"), json!({"translate": [1.5, 0, 0]}), Some(60))
+        .drag("tip", DeltaJson::translate([1.5, 0.0, 0.0]), Some(60))
         .await?;
     let top = (RINGS - 1) as f64;
     let (mut held, mut moved) = (0, 0);
@@ -278,22 +279,31 @@ async fn constraints_by_group_resolve_on_the_uploaded_asset() -> Result<(), Clie
         other => panic!("{other:?}"),
     }
     let mut ws = s.connect().await?;
-    ws.send(&json!({"type": "set_constraints", "constraints": bad}))
-        .await?;
+    ws.send(&ClientMsg::SetConstraints {
+        constraints: bad.clone(),
+        if_revision: None,
+    })
+    .await?;
     let e = ws.event("error").await?;
-    assert_eq!(e["code"], "unknown_group", "{e}");
+    assert!(
+        matches!(&e, ServerMsg::Error { code, .. } if code == "unknown_group"),
+        "{e:?}"
+    );
     // over the WebSocket a known group resolves like over HTTP
     let good = json!({"fixed": {"group": "tip"}, "handles": [{"name": "b", "vertices": {"group": "base"}}]});
-    ws.send(&json!({"type": "set_constraints", "constraints": good}))
-        .await?;
+    ws.send(&ClientMsg::SetConstraints {
+        constraints: good,
+        if_revision: None,
+    })
+    .await?;
     s.wait_ready(Duration::from_secs(60)).await?;
     let stored = s.info().await?;
-    let fixed = stored["constraints"]["fixed"].clone();
-    let fixed: Vec<u64> = serde_json::from_value(fixed).unwrap();
+    let constraints = stored.constraints.expect("constraints");
+    let fixed: Vec<u64> = serde_json::from_value(constraints["fixed"].clone()).unwrap();
     assert_eq!(
         fixed.len(),
         2 * AROUND,
-        "stored as the index list: {stored}"
+        "stored as the index list: {constraints}"
     );
     ws.close().await?;
 

@@ -16,6 +16,7 @@ use std::sync::Arc;
 use std::time::Duration;
 
 use dend::mesh::Mesh;
+use dend_client::ws::{DeltaJson, ServerMsg};
 use dend_client::{Client, ClientError, WsEvent};
 use dend_server::lease::Cluster;
 use dend_server::store::{
@@ -85,7 +86,7 @@ async fn leased_elsewhere_is_refused_then_taken_over_and_the_old_owner_fenced(
     sb.set_constraints(&grid_constraints(N)).await?;
     sb.wait_ready(Duration::from_secs(20)).await?;
     let _ = sb
-        .drag(json!(0), json!({"translate": [0.5, 0.0, 0.0]}), None)
+        .drag(0, DeltaJson::translate([0.5, 0.0, 0.0]), None)
         .await?;
     // a never drives it while b's lease lives: 409 naming b, HTTP and WebSocket
     let r = sa.info().await;
@@ -106,7 +107,7 @@ async fn leased_elsewhere_is_refused_then_taken_over_and_the_old_owner_fenced(
     assert_eq!(ca.metric("dend_leases_taken_over_total").await?, Some(1.0));
     // b's next write is fenced: refused, applied nowhere, and b lets go
     let r = sb
-        .drag(json!(0), json!({"translate": [1.0, 0.0, 0.0]}), None)
+        .drag(0, DeltaJson::translate([1.0, 0.0, 0.0]), None)
         .await;
     let (status, code, message) = api_code(&r).expect("fenced");
     assert_eq!(
@@ -127,7 +128,7 @@ async fn leased_elsewhere_is_refused_then_taken_over_and_the_old_owner_fenced(
     );
     // a drives it
     let pose = sa
-        .drag(json!(0), json!({"translate": [0.25, 0.0, 0.0]}), None)
+        .drag(0, DeltaJson::translate([0.25, 0.0, 0.0]), None)
         .await?;
     assert!((pose.positions[N * (N - 1)][0] - 0.75).abs() < 1e-9);
     Ok(())
@@ -168,10 +169,8 @@ async fn the_owner_hands_a_session_over_to_the_instance_that_asks() -> Result<()
         }
     }
     loop {
-        match ws.next().await? {
-            WsEvent::Closed(_) => break,
-            WsEvent::Event(v) if v["type"] == "closed" => break,
-            _ => {}
+        if let WsEvent::Closed(_) = ws.next().await? {
+            break;
         }
     }
     assert!(b.sessions.read().get(&s.id).is_none(), "closed on b");
@@ -346,8 +345,8 @@ async fn an_unreachable_store_refuses_writes_and_loses_no_acknowledged_drag(
     let mut refused = false;
     while !refused {
         match ws.next().await? {
-            WsEvent::Event(v) if v["type"] == "error" => {
-                assert_eq!(v["code"], "store_unavailable", "{v}");
+            WsEvent::Event(ServerMsg::Error { code, message, .. }) => {
+                assert_eq!(code, "store_unavailable", "{message}");
                 refused = true;
             }
             WsEvent::Frame(h, _) => assert!(h.ack_seq <= 1, "seq 2 acknowledged"),
@@ -356,9 +355,7 @@ async fn an_unreachable_store_refuses_writes_and_loses_no_acknowledged_drag(
         }
     }
     // an HTTP drag: 503, not applied either
-    let r = s
-        .drag(json!(0), json!({"translate": [4.0, 0.0, 0.0]}), None)
-        .await;
+    let r = s.drag(0, DeltaJson::translate([4.0, 0.0, 0.0]), None).await;
     assert_eq!(api_code(&r).map(|c| c.0), Some(503));
 
     flaky.down.store(false, Ordering::SeqCst);

@@ -367,7 +367,7 @@ fn session_schema_matches_the_session_info() {
         constraints: None,
         constraints_revision: 0,
         warnings: vec![],
-        build_stage: Some(dend_server::session::BuildStage::Numeric),
+        build_stage: Some(dend_protocol::BuildStage::Numeric),
     };
     let json = serde_json::to_value(&info).expect("json");
     assert_eq!(keys(&schema["properties"]), json_keys(json), "Session");

@@ -6,6 +6,7 @@
 use std::sync::Arc;
 use std::time::Duration;
 
+use dend_client::ws::{ClientMsg, DeltaJson, ServerMsg, SessionInfo};
 use dend_client::{Client, ClientError, SessionClient};
 use dend_server::store::MemoryStore;
 use dend_server::Config;
@@ -28,9 +29,7 @@ fn row(r: usize) -> Vec<usize> {
 
 /// A drag of `top` by `t`, solved to convergence; the pose.
 async fn drag(s: &SessionClient, t: [f64; 3]) -> Result<Vec<[f64; 3]>, ClientError> {
-    let p = s
-        .drag(json!("top"), json!({ "translate": t }), Some(2000))
-        .await?;
+    let p = s.drag("top", DeltaJson::translate(t), Some(2000)).await?;
     assert!(p.converged, "drag by {t:?} did not converge");
     Ok(p.positions)
 }
@@ -152,20 +151,20 @@ async fn a_revived_session_has_the_anchored_set_and_the_kept_pose() -> Result<()
 async fn the_session_shows_its_constraints_and_refuses_stale_edits() -> Result<(), ClientError> {
     let (_c, s, _posed) = posed_session(Arc::new(MemoryStore::new())).await?;
     let info = s.info().await?;
-    assert_eq!(info["constraints"], grid_constraints(N));
-    let r1 = info["constraints_revision"].as_u64().expect("revision");
+    assert_eq!(info.constraints, Some(grid_constraints(N)));
+    let r1 = info.constraints_revision;
     // a joined client sees the set and its revision in its first state
     let mut ws = s.connect().await?;
-    let st = ws.event("state").await?;
-    assert_eq!(st["constraints"], grid_constraints(N));
+    let st = state_of(ws.event("state").await?);
+    assert_eq!(st.constraints, Some(grid_constraints(N)));
     // an edit based on the current revision applies...
     let r2 = s.set_constraints_if(&pinned_middle(), r1).await?;
     assert_ne!(r2, r1);
     // ...and reaches the joined client
     loop {
-        let st = ws.event("state").await?;
-        if st["constraints_revision"] == r2 {
-            assert_eq!(st["constraints"], pinned_middle());
+        let st = state_of(ws.event("state").await?);
+        if st.constraints_revision == r2 {
+            assert_eq!(st.constraints, Some(pinned_middle()));
             break;
         }
     }
@@ -177,16 +176,16 @@ async fn the_session_shows_its_constraints_and_refuses_stale_edits() -> Result<(
         other => panic!("expected stale_constraints, got {other:?}"),
     }
     let info = s.info().await?;
-    assert_eq!(info["constraints"], pinned_middle());
-    assert_eq!(info["constraints_revision"], r2);
+    assert_eq!(info.constraints, Some(pinned_middle()));
+    assert_eq!(info.constraints_revision, r2);
     // undo to the first set (the edit's own solve and this drag are one
     // entry) changes the revision back to the first set's
     s.wait_ready(Duration::from_secs(60)).await?;
     let _ = drag(&s, [0.0; 3]).await?;
     let _ = s.undo().await?;
     let info = s.info().await?;
-    assert_eq!(info["constraints"], grid_constraints(N));
-    assert_eq!(info["constraints_revision"], r1);
+    assert_eq!(info.constraints, Some(grid_constraints(N)));
+    assert_eq!(info.constraints_revision, r1);
     Ok(())
 }
 
@@ -194,7 +193,10 @@ async fn the_session_shows_its_constraints_and_refuses_stale_edits() -> Result<(
 async fn one_gesture_is_one_undo_step_however_often_it_settles() -> Result<(), ClientError> {
     let (_c, s, posed) = posed_session(Arc::new(MemoryStore::new())).await?;
     let mut ws = s.connect().await?;
-    ws.send(&json!({"type": "grab", "handle": "top"})).await?;
+    ws.send(&ClientMsg::Grab {
+        handle: "top".into(),
+    })
+    .await?;
     // three moves, each settling before the next
     for seq in 1..=3 {
         ws.drag(0, [0.3, 0.0, 0.0], None, seq).await?;
@@ -203,8 +205,10 @@ async fn one_gesture_is_one_undo_step_however_often_it_settles() -> Result<(), C
     }
     let mid = s.pose().await?.positions;
     assert!(max_diff(&mid, &posed) > 0.5);
-    ws.send(&json!({"type": "release", "handle": "top"}))
-        .await?;
+    ws.send(&ClientMsg::Release {
+        handle: "top".into(),
+    })
+    .await?;
     // one undo goes back to before the grab...
     let back = s.undo().await?;
     let d = max_diff(&back.positions, &posed);
@@ -222,26 +226,32 @@ async fn one_gesture_is_one_undo_step_however_often_it_settles() -> Result<(), C
 #[tokio::test]
 async fn the_session_reports_the_warnings_of_its_constraint_set() -> Result<(), ClientError> {
     let (_c, s, _posed) = posed_session(Arc::new(MemoryStore::new())).await?;
-    assert_eq!(s.info().await?["warnings"], json!([]));
+    assert!(s.info().await?.warnings.is_empty());
     // one handle, nothing fixed, and a stray handle vertex in row 3
     let mut top = row(N - 1);
     top.push(3 * N + 3);
     s.set_constraints(&json!({"handles": [{"name": "top", "vertices": top}]}))
         .await?;
-    let w = s.info().await?["warnings"].clone();
+    let w = s.info().await?.warnings;
     let codes: Vec<&str> = w
-        .as_array()
-        .expect("warnings")
         .iter()
         .map(|x| x["code"].as_str().expect("code"))
         .collect();
-    assert_eq!(codes, ["nothing_fixed", "stray_vertices"], "{w}");
+    assert_eq!(codes, ["nothing_fixed", "stray_vertices"], "{w:?}");
     assert_eq!(w[1]["vertices"], json!([3 * N + 3]));
     assert!(w[0]["message"]
         .as_str()
         .expect("message")
         .contains("rigidly"));
     Ok(())
+}
+
+/// The session of a `state` event.
+fn state_of(m: ServerMsg) -> SessionInfo {
+    match m {
+        ServerMsg::State { session, .. } => session,
+        other => panic!("not a state: {other:?}"),
+    }
 }
 
 fn median(mut v: Vec<f64>) -> f64 {

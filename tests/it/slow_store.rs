@@ -6,6 +6,7 @@ use std::sync::Arc;
 use std::time::{Duration, Instant};
 
 use dend::mesh::Mesh;
+use dend_client::ws::DeltaJson;
 use dend_client::{Client, ClientError, WsEvent};
 use dend_server::store::{
     Checkpoint, Fence, JournalEntry, LeaseGrant, MemoryStore, SessionRecord, Store, StoreError,
@@ -145,8 +146,8 @@ async fn a_slow_store_for_one_session_does_not_stall_another() -> Result<(), Cli
     // A: drags answered after a settle, each followed by a slow checkpoint
     let slow = tokio::spawn(async move {
         for k in 0..3 {
-            let d = json!({"translate": [0.0, 0.0, 0.1 * (k + 1) as f64]});
-            a.drag(json!(0), d, Some(200)).await?;
+            let d = DeltaJson::translate([0.0, 0.0, 0.1 * (k + 1) as f64]);
+            a.drag(0, d, Some(200)).await?;
             tokio::time::sleep(Duration::from_millis(50)).await;
         }
         Ok::<_, ClientError>(())

@@ -12,6 +12,7 @@
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
+use dend_client::ws::{ClientMsg, DeltaJson, ServerMsg};
 use dend_client::{Client, ClientError, Pose, SessionClient, WsEvent};
 use dend_server::lease::Cluster;
 use dend_server::store::{MemoryStore, Store};
@@ -110,7 +111,7 @@ async fn reads_through_a_takeover_hold_every_acknowledged_drag_and_drags_then_ar
     // ten drags in one gesture (the handle held, as the editor does): no
     // checkpoint after them, they are in the journal only
     let mut ws = sa.connect().await?;
-    ws.send(&json!({"type": "grab", "handle": 0})).await?;
+    ws.send(&ClientMsg::Grab { handle: 0.into() }).await?;
     for seq in 1..=10 {
         ws.drag(0, [0.01, 0.0, 0.0], None, seq).await?;
         let _ = ws.frame_acking(seq, false).await?;
@@ -125,7 +126,7 @@ async fn reads_through_a_takeover_hold_every_acknowledged_drag_and_drags_then_ar
         .collect();
     let dragged = loop {
         match sb
-            .drag(json!(0), json!({"translate": [0.05, 0.0, 0.0]}), None)
+            .drag(0, DeltaJson::new([0.05, 0.0, 0.0], None), None)
             .await
         {
             Ok(p) => break p,
@@ -168,7 +169,7 @@ async fn drags_during_a_factor_rebuild_are_queued_and_applied() -> Result<(), Cl
     s.set_constraints(&other).await?;
     ws.drag(0, [0.25, 0.0, 0.0], None, 1).await?;
     let http = s
-        .drag(json!(0), json!({"translate": [0.5, 0.0, 0.0]}), None)
+        .drag(0, DeltaJson::new([0.5, 0.0, 0.0], None), None)
         .await?;
     assert!(
         (offset_on(&http, BIG) - 0.75).abs() < 1e-6,
@@ -178,8 +179,8 @@ async fn drags_during_a_factor_rebuild_are_queued_and_applied() -> Result<(), Cl
     loop {
         match ws.next().await? {
             WsEvent::Frame(h, _) if h.ack_seq >= 1 => break,
-            WsEvent::Event(v) if v["type"] == "error" => {
-                panic!("the WebSocket drag was refused: {v}")
+            WsEvent::Event(e @ ServerMsg::Error { .. }) => {
+                panic!("the WebSocket drag was refused: {e:?}")
             }
             WsEvent::Closed(c) => panic!("closed ({c:?})"),
             _ => assert!(t0.elapsed() < Duration::from_secs(20), "no frame acked it"),

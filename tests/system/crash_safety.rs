@@ -20,6 +20,7 @@ use std::time::Duration;
 
 use dend::deform::{ConstraintsSpec, RigidTransform};
 use dend::mesh::Mesh;
+use dend_client::ws::{ServerMsg, SessionState};
 use dend_client::{Client, WsClient, WsEvent};
 use dend_server::session::Recovered;
 use dend_server::store::{SqliteStore, Store};
@@ -110,10 +111,14 @@ fn close(a: &RigidTransform, b: &RigidTransform) -> bool {
 async fn until_ready(ws: &mut WsClient) -> Res<()> {
     loop {
         match ws.next().await? {
-            WsEvent::Event(v) if v["type"] == "ready" => return Ok(()),
-            WsEvent::Event(v) if v["type"] == "state" && v["state"] == "ready" => return Ok(()),
-            WsEvent::Event(v) if v["type"] == "error" => {
-                return Err(format!("error event {v}").into())
+            WsEvent::Event(ServerMsg::Ready { .. }) => return Ok(()),
+            WsEvent::Event(ServerMsg::State { session, .. })
+                if session.state == SessionState::Ready =>
+            {
+                return Ok(())
+            }
+            WsEvent::Event(e @ ServerMsg::Error { .. }) => {
+                return Err(format!("error event {e:?}").into())
             }
             WsEvent::Closed(c) => return Err(format!("closed {c:?} before ready").into()),
             _ => {}
@@ -153,8 +158,8 @@ async fn drag_loop(
                         break;
                     }
                 }
-                WsEvent::Event(v) if v["type"] == "error" => {
-                    return Err(format!("error event {v}").into())
+                WsEvent::Event(e @ ServerMsg::Error { .. }) => {
+                    return Err(format!("error event {e:?}").into())
                 }
                 WsEvent::Closed(c) => return Err(format!("closed {c:?}").into()),
                 WsEvent::Event(_) => {}

@@ -23,6 +23,7 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
+use dend_client::ws::{ClientMsg, ServerMsg};
 use dend_client::{Client, ClientError, SessionClient, WsEvent};
 use dend_testkit::server::{grid, grid_constraints};
 use parking_lot::Mutex;
@@ -72,11 +73,12 @@ impl Seen {
         self.last_frame = Some(now);
     }
 
-    fn error(&mut self, v: &serde_json::Value) {
-        if v["seq"].is_u64() {
-            self.refused.push(v.to_string());
+    fn error(&mut self, code: &str, message: &str, seq: Option<u64>) {
+        let text = format!("{code}: {message} (seq {seq:?})");
+        if seq.is_some() {
+            self.refused.push(text);
         } else {
-            self.other_errors.push(v.to_string());
+            self.other_errors.push(text);
         }
     }
 }
@@ -103,7 +105,9 @@ async fn first_frame(
                 seen.lock().frame();
                 return Some(h);
             }
-            Ok(WsEvent::Event(v)) if v["type"] == "error" => seen.lock().error(&v),
+            Ok(WsEvent::Event(ServerMsg::Error { code, message, seq })) => {
+                seen.lock().error(&code, &message, seq)
+            }
             Ok(WsEvent::Event(_)) => {}
             Ok(WsEvent::Closed(_)) | Err(_) => return None,
         }
@@ -127,7 +131,7 @@ pub(crate) async fn drive(s: SessionClient, ctl: Arc<Ctl>, seen: Arc<Mutex<Seen>
             (t.sent == t.acked).then_some(t.acked + 1)
         };
         if ws
-            .send(&json!({"type": "grab", "handle": 0}))
+            .send(&ClientMsg::Grab { handle: 0.into() })
             .await
             .is_err()
         {
@@ -202,10 +206,10 @@ pub(crate) async fn drive(s: SessionClient, ctl: Arc<Ctl>, seen: Arc<Mutex<Seen>
                         waiting_for = None;
                     }
                 }
-                Ok(Ok(WsEvent::Event(v))) if v["type"] == "error" => {
+                Ok(Ok(WsEvent::Event(ServerMsg::Error { code, message, seq }))) => {
                     let mut t = seen.lock();
-                    t.error(&v);
-                    if v["seq"].as_u64() == Some(w) {
+                    t.error(&code, &message, seq);
+                    if seq == Some(w) {
                         // refused, not applied: sent again
                         t.sent = t.acked;
                         waiting_for = None;

@@ -7,6 +7,7 @@
 use std::collections::HashSet;
 use std::time::Duration;
 
+use dend_client::ws::{ClientMsg, ServerMsg, SessionState};
 use dend_client::{Client, ClientError, WsEvent};
 use dend_server::Config;
 use dend_testkit::server::{grid, grid_constraints, start};
@@ -56,7 +57,7 @@ async fn a_token_opens_its_own_session_only() -> Res {
         assert_eq!((status, code.as_str()), (403, "forbidden"));
     }
     // B is untouched: still ready, still at revision of its own making
-    assert_eq!(b.info().await?["state"], "ready");
+    assert_eq!(b.info().await?.state, SessionState::Ready);
     // WebSocket with A's token: 403 before the upgrade (query), close 4003 (auth message)
     let ws_url = url("/ws").replacen("http", "ws", 1);
     match tokio_tungstenite::connect_async(format!("{ws_url}?token={}", a.token)).await {
@@ -84,7 +85,7 @@ async fn a_token_opens_its_own_session_only() -> Res {
     }
     assert_eq!(close, Some(4003));
     // A's own token works on A
-    assert_eq!(a.info().await?["id"], a.id.as_str());
+    assert_eq!(a.info().await?.id, a.id);
     Ok(())
 }
 
@@ -284,7 +285,10 @@ async fn floods_slow_readers_and_many_connections_stay_bounded() -> Res {
     // a flood of 1000 messages: the excess gets `rate_limited` error events
     let mut ws = s.connect().await?;
     for i in 0..1000 {
-        ws.send(&json!({"type": "ping", "nonce": i})).await?;
+        ws.send(&ClientMsg::Ping {
+            nonce: Some(json!(i)),
+        })
+        .await?;
     }
     let (mut pongs, mut limited) = (0, 0);
     while pongs + limited < 1000 {
@@ -292,9 +296,9 @@ async fn floods_slow_readers_and_many_connections_stay_bounded() -> Res {
             .await
             .map_err(|_| ClientError::Protocol("flood answers stalled".into()))??
         {
-            WsEvent::Event(v) if v["type"] == "pong" => pongs += 1,
-            WsEvent::Event(v) if v["type"] == "error" => {
-                assert_eq!(v["code"], "rate_limited");
+            WsEvent::Event(ServerMsg::Pong { .. }) => pongs += 1,
+            WsEvent::Event(ServerMsg::Error { code, .. }) => {
+                assert_eq!(code, "rate_limited");
                 limited += 1;
             }
             WsEvent::Closed(code) => panic!("closed {code:?}"),
@@ -342,7 +346,7 @@ async fn floods_slow_readers_and_many_connections_stay_bounded() -> Res {
             a.saturating_sub(b)
         );
     }
-    let peers = s.info().await?["peers"].as_u64().unwrap_or(0);
+    let peers = s.info().await?.peers;
     assert!(peers >= 220, "{peers} peers");
     Ok(())
 }

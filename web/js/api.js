@@ -22,25 +22,69 @@ async function checked(res) {
   throw new ApiError('http_' + res.status, `${res.status} ${res.statusText}`, res.status);
 }
 
-/** Parses a binary pose frame (little-endian header + f32 xyz). */
+/** How the editor's socket streams frames (api/ws-protocol.md, "Stream
+ * options"): one frame in flight, acknowledged once drawn, in the compact
+ * q16 encoding (16 bits per coordinate in the frame's box). */
+export const STREAM = { window: 1, encoding: 'q16' };
+
+/** Parses a binary pose frame: version 2 (40-byte header, f32 xyz) or
+ * version 3 (96-byte header with level, encoding and box; f32 or q16 xyz).
+ * Throws on anything else. */
 export function parseFrame(buf) {
   const dv = new DataView(buf);
+  if (buf.byteLength < 40) throw new Error('truncated frame header');
   const magic = String.fromCharCode(dv.getUint8(0), dv.getUint8(1), dv.getUint8(2), dv.getUint8(3));
   if (magic !== 'DEND') throw new Error(`bad frame magic ${JSON.stringify(magic)}`);
   const version = dv.getUint16(4, true);
-  if (version !== 2) throw new Error(`unsupported frame version ${version}`);
+  if (version !== 2 && version !== 3) throw new Error(`unsupported frame version ${version}`);
   const flags = dv.getUint16(6, true);
   const n = dv.getUint32(28, true);
-  if (buf.byteLength < 40 + 12 * n) throw new Error('truncated frame');
-  return {
+  const frame = {
+    version,
     converged: (flags & 1) !== 0,
     settled: (flags & 2) !== 0,
     revision: Number(dv.getBigUint64(8, true)),
     ackSeq: Number(dv.getBigUint64(16, true)),
     iteration: dv.getUint32(24, true),
     objective: dv.getFloat64(32, true),
-    positions: new Float32Array(buf, 40, 3 * n),
+    level: 0,
+    encoding: 'f32',
+    bytes: buf.byteLength,
   };
+  if (version === 2) {
+    if (buf.byteLength !== 40 + 12 * n) throw new Error('frame length does not match its vertex count');
+    frame.positions = new Float32Array(buf, 40, 3 * n);
+    return frame;
+  }
+  if (buf.byteLength < 96) throw new Error('truncated frame header');
+  frame.level = dv.getUint8(40);
+  if (frame.level > 1) throw new Error(`unknown frame level ${frame.level}`);
+  const enc = dv.getUint8(41);
+  if (enc > 1) throw new Error(`unknown frame encoding ${enc}`);
+  frame.encoding = enc === 0 ? 'f32' : 'q16';
+  const lo = [0, 1, 2].map((k) => dv.getFloat64(48 + 8 * k, true));
+  const hi = [0, 1, 2].map((k) => dv.getFloat64(72 + 8 * k, true));
+  if (![0, 1, 2].every((k) => Number.isFinite(lo[k]) && Number.isFinite(hi[k]) && lo[k] <= hi[k])) {
+    throw new Error('the frame box is not a finite box');
+  }
+  frame.bbox = [lo, hi];
+  if (buf.byteLength !== 96 + (enc === 0 ? 12 : 6) * n) throw new Error('frame length does not match its vertex count');
+  if (enc === 0) {
+    frame.positions = new Float32Array(buf, 96, 3 * n);
+    return frame;
+  }
+  // q16: min + q * (max - min) / 65535 per axis (the payload starts at
+  // offset 96, a multiple of 2: a typed view is aligned)
+  const q = new Uint16Array(buf, 96, 3 * n);
+  const out = new Float32Array(3 * n);
+  const step = [0, 1, 2].map((k) => (hi[k] - lo[k]) / 65535);
+  for (let i = 0; i < 3 * n; i += 3) {
+    out[i] = lo[0] + q[i] * step[0];
+    out[i + 1] = lo[1] + q[i + 1] * step[1];
+    out[i + 2] = lo[2] + q[i + 2] * step[2];
+  }
+  frame.positions = out;
+  return frame;
 }
 
 export class Api {
@@ -103,19 +147,38 @@ export class Api {
     return res.blob();
   }
 
-  /** Opens the session socket; `on.frame(frame)`, `on.event(json)`,
-   * `on.close(code, reason)`. Resolves once open. */
+  /** Opens the session socket with flow control ([STREAM]); `on.frame(frame)`,
+   * `on.event(json)`, `on.close(code, reason)`. A frame is acknowledged on
+   * the animation frame after `on.frame` took it (drawn), so the server
+   * sends the next one only then and never queues frames for a slow tab.
+   * Resolves once open. */
   connect(id, token, on) {
     const proto = location.protocol === 'https:' ? 'wss:' : 'ws:';
     const host = this.base ? new URL(this.base).host : location.host;
-    const ws = new WebSocket(`${proto}//${host}/v1/sessions/${id}/ws?token=${encodeURIComponent(token)}`);
+    const q = `token=${encodeURIComponent(token)}&window=${STREAM.window}&encoding=${STREAM.encoding}`;
+    const ws = new WebSocket(`${proto}//${host}/v1/sessions/${id}/ws?${q}`);
     ws.binaryType = 'arraybuffer';
+    const ack = (revision) => {
+      if (ws.readyState === WebSocket.OPEN) ws.send(JSON.stringify({ type: 'ack', revision }));
+    };
     ws.onmessage = (m) => {
       if (typeof m.data === 'string') {
         on.event(JSON.parse(m.data));
-      } else {
-        on.frame(parseFrame(m.data));
+        return;
       }
+      let frame;
+      try {
+        frame = parseFrame(m.data);
+      } catch (e) {
+        // a frame that does not parse is taken too (acknowledging every
+        // frame sent so far): the stream goes on
+        ack(Number.MAX_SAFE_INTEGER);
+        console.error(e);
+        return;
+      }
+      if (typeof requestAnimationFrame === 'function') requestAnimationFrame(() => ack(frame.revision));
+      else ack(frame.revision);
+      on.frame(frame);
     };
     ws.onclose = (e) => on.close(e.code, e.reason);
     return new Promise((resolve, reject) => {

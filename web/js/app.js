@@ -574,5 +574,5 @@ window.dend = {
     const s = project(app.positions, Renderer.mvp(app.camera, c.clientWidth / c.clientHeight), c.clientWidth, c.clientHeight);
     return indices.map((i) => [s[3 * i], s[3 * i + 1]]);
   },
-  stats: () => ({ events: [...app.eventLog], warnings: app.warnings.map((w) => w.code), state: app.state, frames: app.frames, last: app.last && { ...app.last, positions: undefined }, latencies: [...app.latencies] }),
+  stats: () => ({ events: [...app.eventLog], warnings: app.warnings.map((w) => w.code), state: app.state, frames: app.frames, last: app.last && { ...app.last, positions: undefined }, latencies: [...app.latencies], flow: app.flow }),
 };

@@ -9,6 +9,27 @@ import {
 
 const $ = (id) => document.getElementById(id);
 
+/** The stream as the status bar shows it: frames/s over the last second,
+ * the settle time (last drag sent → its settled frame), the frame's level. */
+const flow = { times: [], lastDragSent: null, settleMs: null, bytes: 0 };
+
+function showFlow(f, now) {
+  flow.times.push(now);
+  flow.bytes += f.bytes || 0;
+  while (flow.times.length && flow.times[0] < now - 1000) flow.times.shift();
+  if (f.settled && flow.lastDragSent !== null) {
+    flow.settleMs = now - flow.lastDragSent;
+    flow.lastDragSent = null;
+  }
+  const fps = $('stFps');
+  if (fps) fps.textContent = String(flow.times.length);
+  const settle = $('stSettle');
+  if (settle) settle.textContent = flow.lastDragSent !== null ? '…' : flow.settleMs === null ? '–' : `${flow.settleMs.toFixed(0)} ms`;
+  const level = $('stLevel');
+  if (level) level.textContent = f.level === 1 ? 'coarse' : 'full';
+  app.flow = { fps: flow.times.length, settleMs: flow.settleMs, level: f.level, bytes: flow.bytes, encoding: f.encoding };
+}
+
 function onFrame(f) {
   if (!app.positions || f.positions.length !== app.positions.length) return;
   const now = performance.now();
@@ -17,8 +38,10 @@ function onFrame(f) {
       app.latencies.push(now - t);
       if (app.latencies.length > 100) app.latencies.shift();
       app.sent.delete(s);
+      if (flow.lastDragSent === null || t > flow.lastDragSent) flow.lastDragSent = t;
     }
   }
+  showFlow(f, now);
   app.positions = new Float32Array(f.positions);
   app.frames++;
   app.last = f;

@@ -9,16 +9,22 @@
 //! let s = c.create_session(&mesh.id, serde_json::json!({})).await?;
 //! let mut ws = s.connect().await?;
 //! ws.drag(0, [0.0, 0.0, 0.1], None, 1).await?;
+//! let (header, positions) = ws.frame_acking(1, false).await?;
+//! # let _ = (header, positions);
 //! # Ok(()) }
 //! ```
 
 use std::time::Duration;
 
 use futures_util::{SinkExt, StreamExt};
-use serde_json::{json, Value};
+use serde_json::Value;
 use tokio_tungstenite::tungstenite::Message;
 
-use dend_protocol::{decode_frame, FrameError, FrameHeader};
+use dend_protocol::ws::{
+    ClientMsg, CreateSession, Created, DeltaJson, DragRequest, HandleRef, ServerMsg, SessionInfo,
+    SessionState, StreamOptions,
+};
+use dend_protocol::{decode_frame_full, DecodedFrame, FrameError, FrameHeader};
 
 /// Client errors.
 #[derive(Debug, thiserror::Error)]
@@ -55,10 +61,21 @@ impl From<FrameError> for ClientError {
     }
 }
 
+/// The wire types (messages, session info, stream options).
+pub use dend_protocol::ws;
+/// How version 3 frames store positions.
+pub use dend_protocol::FrameEncoding;
 /// A mesh as the API describes it (the server's own type).
 pub use dend_protocol::MeshInfo;
 /// A pose as JSON (the server's own type).
 pub use dend_protocol::PoseJson as Pose;
+
+/// `POST /v1/meshes` JSON body.
+#[derive(serde::Serialize)]
+struct UploadJson<'a> {
+    positions: &'a [[f64; 3]],
+    triangles: &'a [[u32; 3]],
+}
 
 /// An HTTP client bound to a server base URL (`http://host:port`).
 #[derive(Debug, Clone)]
@@ -67,16 +84,25 @@ pub struct Client {
     base: String,
 }
 
+/// The API's error body `{code, message}`.
+#[derive(Debug, Default, serde::Deserialize)]
+struct ErrorBody {
+    #[serde(default)]
+    code: String,
+    #[serde(default)]
+    message: String,
+}
+
 async fn check(r: reqwest::Response) -> Result<reqwest::Response, ClientError> {
     if r.status().is_success() {
         return Ok(r);
     }
     let status = r.status().as_u16();
-    let body: Value = r.json().await.unwrap_or(Value::Null);
+    let body: ErrorBody = r.json().await.unwrap_or_default();
     Err(ClientError::Api {
         status,
-        code: body["code"].as_str().unwrap_or("").to_owned(),
-        message: body["message"].as_str().unwrap_or("").to_owned(),
+        code: body.code,
+        message: body.message,
     })
 }
 
@@ -137,7 +163,10 @@ impl Client {
         let r = self
             .http
             .post(format!("{}/v1/meshes", self.base))
-            .json(&json!({"positions": positions, "triangles": triangles}))
+            .json(&UploadJson {
+                positions,
+                triangles,
+            })
             .send()
             .await?;
         Ok(check(r).await?.json().await?)
@@ -186,15 +215,18 @@ impl Client {
         let r = self
             .http
             .post(format!("{}/v1/sessions", self.base))
-            .json(&json!({"mesh_id": mesh_id, "params": params}))
+            .json(&CreateSession {
+                mesh_id: mesh_id.to_owned(),
+                params,
+            })
             .send()
             .await?;
-        let v: Value = check(r).await?.json().await?;
+        let created: Created = check(r).await?.json().await?;
         Ok(SessionClient {
             http: self.http.clone(),
             base: self.base.clone(),
-            id: v["id"].as_str().unwrap_or("").to_owned(),
-            token: v["token"].as_str().unwrap_or("").to_owned(),
+            id: created.id,
+            token: created.token,
         })
     }
 }
@@ -215,20 +247,20 @@ impl SessionClient {
         format!("{}/v1/sessions/{}{}", self.base, self.id, tail)
     }
 
-    async fn post(
+    async fn post<B: serde::Serialize>(
         &self,
         tail: &str,
-        body: Option<Value>,
+        body: Option<&B>,
     ) -> Result<reqwest::Response, ClientError> {
         let mut rq = self.http.post(self.url(tail)).bearer_auth(&self.token);
         if let Some(b) = body {
-            rq = rq.json(&b);
+            rq = rq.json(b);
         }
         check(rq.send().await?).await
     }
 
     /// `GET /v1/sessions/{id}`.
-    pub async fn info(&self) -> Result<Value, ClientError> {
+    pub async fn info(&self) -> Result<SessionInfo, ClientError> {
         let r = self
             .http
             .get(self.url(""))
@@ -267,10 +299,12 @@ impl SessionClient {
             .json(spec)
             .send()
             .await?;
-        let body: Value = check(r).await?.json().await?;
-        body["constraints_revision"]
-            .as_u64()
-            .ok_or_else(|| ClientError::Protocol(format!("no constraints_revision in {body}")))
+        #[derive(serde::Deserialize)]
+        struct Accepted {
+            constraints_revision: u64,
+        }
+        let body: Accepted = check(r).await?.json().await?;
+        Ok(body.constraints_revision)
     }
 
     /// Polls until the state is `ready` (or `failed` → error).
@@ -280,10 +314,11 @@ impl SessionClient {
         // tens of milliseconds, a large one in seconds
         let mut pause = Duration::from_millis(1);
         loop {
-            let v = self.info().await?;
-            match v["state"].as_str() {
-                Some("ready") => return Ok(()),
-                Some("failed") => return Err(ClientError::Protocol("factor build failed".into())),
+            match self.info().await?.state {
+                SessionState::Ready => return Ok(()),
+                SessionState::Failed => {
+                    return Err(ClientError::Protocol("factor build failed".into()))
+                }
                 _ if tokio::time::Instant::now() > end => {
                     return Err(ClientError::Protocol("not ready in time".into()))
                 }
@@ -295,19 +330,20 @@ impl SessionClient {
         }
     }
 
-    /// HTTP drag: delta + solve, returns the pose.
+    /// HTTP drag: delta + solve (at most `max_iters` iterations; default
+    /// the session's), returns the pose.
     pub async fn drag(
         &self,
-        handle: Value,
-        delta: Value,
+        handle: impl Into<HandleRef>,
+        delta: DeltaJson,
         max_iters: Option<usize>,
     ) -> Result<Pose, ClientError> {
-        let mut body = delta;
-        body["handle"] = handle;
-        if let Some(m) = max_iters {
-            body["max_iters"] = json!(m);
-        }
-        Ok(self.post("/drag", Some(body)).await?.json().await?)
+        let body = DragRequest {
+            handle: handle.into(),
+            delta,
+            max_iters,
+        };
+        Ok(self.post("/drag", Some(&body)).await?.json().await?)
     }
 
     /// `GET pose` as JSON.
@@ -352,17 +388,17 @@ impl SessionClient {
 
     /// Undo.
     pub async fn undo(&self) -> Result<Pose, ClientError> {
-        Ok(self.post("/undo", None).await?.json().await?)
+        Ok(self.post::<()>("/undo", None).await?.json().await?)
     }
 
     /// Redo.
     pub async fn redo(&self) -> Result<Pose, ClientError> {
-        Ok(self.post("/redo", None).await?.json().await?)
+        Ok(self.post::<()>("/redo", None).await?.json().await?)
     }
 
     /// Reset.
     pub async fn reset(&self) -> Result<Pose, ClientError> {
-        Ok(self.post("/reset", None).await?.json().await?)
+        Ok(self.post::<()>("/reset", None).await?.json().await?)
     }
 
     /// Delete the session.
@@ -377,17 +413,36 @@ impl SessionClient {
         Ok(())
     }
 
-    /// Opens the WebSocket (token in the query).
+    /// Opens the WebSocket with flow control (one frame in flight, each
+    /// acknowledged when the next message is asked for) and full-precision
+    /// (`f32`) version 3 frames.
     pub async fn connect(&self) -> Result<WsClient, ClientError> {
-        let url = format!(
+        self.connect_with(StreamOptions::flow(1, FrameEncoding::F32))
+            .await
+    }
+
+    /// Opens the WebSocket (token in the query) with these stream options;
+    /// `StreamOptions::default()` is a version 2 client (no flow control,
+    /// version 2 frames).
+    pub async fn connect_with(&self, opts: StreamOptions) -> Result<WsClient, ClientError> {
+        let mut url = format!(
             "{}/ws?token={}",
             self.url("").replacen("http", "ws", 1),
             self.token
         );
+        let q = opts.to_query();
+        if !q.is_empty() {
+            url = format!("{url}&{q}");
+        }
         let (ws, _) = tokio_tungstenite::connect_async(url)
             .await
             .map_err(Box::new)?;
-        Ok(WsClient { ws })
+        Ok(WsClient {
+            ws,
+            flow: opts.window.is_some(),
+            to_ack: None,
+            bytes: 0,
+        })
     }
 }
 
@@ -397,7 +452,7 @@ pub enum WsEvent {
     /// A pose frame.
     Frame(FrameHeader, Vec<[f32; 3]>),
     /// A JSON event.
-    Event(Value),
+    Event(ServerMsg),
     /// The server closed (code).
     Closed(Option<u16>),
 }
@@ -407,13 +462,31 @@ pub struct WsClient {
     ws: tokio_tungstenite::WebSocketStream<
         tokio_tungstenite::MaybeTlsStream<tokio::net::TcpStream>,
     >,
+    /// Whether the connection declared a flow-control window (frames are
+    /// acknowledged).
+    flow: bool,
+    /// The revision of the last frame handed to the caller, acknowledged
+    /// when the caller asks for the next message (it has taken the frame).
+    to_ack: Option<u64>,
+    /// Bytes of the binary frames received.
+    bytes: u64,
+}
+
+impl std::fmt::Debug for WsClient {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("WsClient")
+            .field("flow", &self.flow)
+            .field("bytes", &self.bytes)
+            .finish_non_exhaustive()
+    }
 }
 
 impl WsClient {
-    /// Sends a JSON message.
-    pub async fn send(&mut self, v: &Value) -> Result<(), ClientError> {
+    /// Sends a message.
+    pub async fn send(&mut self, m: &ClientMsg) -> Result<(), ClientError> {
+        let text = serde_json::to_string(m).map_err(|e| ClientError::Protocol(e.to_string()))?;
         self.ws
-            .send(Message::Text(v.to_string().into()))
+            .send(Message::Text(text.into()))
             .await
             .map_err(Box::new)?;
         Ok(())
@@ -427,44 +500,77 @@ impl WsClient {
         quaternion: Option<[f64; 4]>,
         seq: u64,
     ) -> Result<(), ClientError> {
-        let mut m = json!({"type": "drag", "handle": handle, "translate": translate, "seq": seq});
-        if let Some(q) = quaternion {
-            m["quaternion"] = json!(q);
-        }
-        self.send(&m).await
+        self.send(&ClientMsg::Drag {
+            handle: HandleRef::Index(handle),
+            delta: DeltaJson::new(translate, quaternion),
+            seq,
+        })
+        .await
     }
 
-    /// The next frame or event.
-    pub async fn next(&mut self) -> Result<WsEvent, ClientError> {
+    /// Bytes of pose frames received so far.
+    pub fn frame_bytes(&self) -> u64 {
+        self.bytes
+    }
+
+    /// Acknowledges the last frame handed out, if not yet done (also done
+    /// by [`WsClient::next`]: call it when a frame is taken before asking
+    /// for the next message).
+    pub async fn ack(&mut self) -> Result<(), ClientError> {
+        // cleared once sent: a call cancelled mid-send acks again later
+        if let Some(revision) = self.to_ack {
+            self.send(&ClientMsg::Ack { revision }).await?;
+            self.to_ack = None;
+        }
+        Ok(())
+    }
+
+    /// The next frame (with its box and encoding) or event. Asking for it
+    /// acknowledges the frame handed out before.
+    pub async fn next_full(&mut self) -> Result<WsFull, ClientError> {
+        self.ack().await?;
         loop {
             match self.ws.next().await {
-                None => return Ok(WsEvent::Closed(None)),
+                None => return Ok(WsFull::Closed(None)),
                 Some(Err(e)) => return Err(Box::new(e).into()),
                 Some(Ok(Message::Binary(b))) => {
-                    let (h, v) = decode_frame(&b)?;
-                    return Ok(WsEvent::Frame(h, v));
+                    self.bytes += b.len() as u64;
+                    let f = decode_frame_full(&b)?;
+                    if self.flow {
+                        self.to_ack = Some(f.header.revision);
+                    }
+                    return Ok(WsFull::Frame(f));
                 }
                 Some(Ok(Message::Text(t))) => {
                     return serde_json::from_str(&t)
-                        .map(WsEvent::Event)
-                        .map_err(|e| ClientError::Protocol(e.to_string()));
+                        .map(WsFull::Event)
+                        .map_err(|e| ClientError::Protocol(format!("{e}: {t}")));
                 }
-                Some(Ok(Message::Close(c))) => {
-                    return Ok(WsEvent::Closed(c.map(|c| c.code.into())))
-                }
+                Some(Ok(Message::Close(c))) => return Ok(WsFull::Closed(c.map(|c| c.code.into()))),
                 Some(Ok(_)) => continue,
             }
         }
     }
 
-    /// Skips to the next event of type `ty` (frames and other events dropped).
-    pub async fn event(&mut self, ty: &str) -> Result<Value, ClientError> {
+    /// The next frame or event. Asking for it acknowledges the frame
+    /// handed out before.
+    pub async fn next(&mut self) -> Result<WsEvent, ClientError> {
+        Ok(match self.next_full().await? {
+            WsFull::Frame(f) => WsEvent::Frame(f.header, f.positions),
+            WsFull::Event(e) => WsEvent::Event(e),
+            WsFull::Closed(c) => WsEvent::Closed(c),
+        })
+    }
+
+    /// Skips to the next event of kind `kind` (its `type`: `state`,
+    /// `error`, `ready`, …; frames and other events dropped).
+    pub async fn event(&mut self, kind: &str) -> Result<ServerMsg, ClientError> {
         loop {
             match self.next().await? {
-                WsEvent::Event(v) if v["type"] == ty => return Ok(v),
+                WsEvent::Event(m) if m.kind() == kind => return Ok(m),
                 WsEvent::Closed(c) => {
                     return Err(ClientError::Protocol(format!(
-                        "closed ({c:?}) before `{ty}`"
+                        "closed ({c:?}) before `{kind}`"
                     )))
                 }
                 _ => {}
@@ -483,8 +589,8 @@ impl WsClient {
                 WsEvent::Frame(h, v) if h.ack_seq >= seq && (h.converged || !converged) => {
                     return Ok((h, v))
                 }
-                WsEvent::Event(v) if v["type"] == "error" => {
-                    return Err(ClientError::Protocol(format!("error event: {v}")));
+                WsEvent::Event(e @ ServerMsg::Error { .. }) => {
+                    return Err(ClientError::Protocol(format!("error event: {e:?}")));
                 }
                 WsEvent::Closed(c) => return Err(ClientError::Protocol(format!("closed ({c:?})"))),
                 _ => {}
@@ -497,4 +603,15 @@ impl WsClient {
         self.ws.close(None).await.map_err(Box::new)?;
         Ok(())
     }
+}
+
+/// A message from the server, frames with their box and encoding.
+#[derive(Debug, Clone)]
+pub enum WsFull {
+    /// A pose frame.
+    Frame(DecodedFrame),
+    /// A JSON event.
+    Event(ServerMsg),
+    /// The server closed (code).
+    Closed(Option<u16>),
 }

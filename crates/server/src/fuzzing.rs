@@ -60,6 +60,13 @@ pub fn ws_message(data: &[u8]) -> bool {
     decode_client_msg(text).is_ok()
 }
 
+/// Decodes `data` as a binary pose frame (version 2 or 3) as clients do;
+/// true when it decoded (and its vertex count matched its positions).
+pub fn pose_frame(data: &[u8]) -> bool {
+    dend_protocol::decode_frame_full(data)
+        .is_ok_and(|f| f.positions.len() == f.header.vertex_count as usize)
+}
+
 /// Reads `data` as a mesh file in `format` and validates the result as
 /// `Mesh::new` does; true when it gave a mesh.
 pub fn mesh_file(data: &[u8], format: Format) -> bool {

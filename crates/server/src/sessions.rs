@@ -10,16 +10,17 @@ use axum::response::{IntoResponse, Response};
 use axum::Json;
 use bytes::Bytes;
 use nalgebra::{Quaternion, Unit, UnitQuaternion, Vector3};
-use serde::{Deserialize, Serialize};
+use serde::Deserialize;
 
 use super::error::ApiError;
 use super::meshes::{new_id, parse_format};
 use super::{rest_for, AppState};
 use crate::auth::{bearer, check_token, token_hash};
-use crate::session::{Delta, HandleRef, PoseSnapshot, SessionHandle};
+use crate::session::{Delta, PoseSnapshot, SessionHandle};
 use crate::store::SessionRecord;
 use dend::deform::Params;
 use dend::mesh::io::Format;
+pub use dend_protocol::ws::{CreateSession, Created, DeltaJson, DragRequest};
 
 /// Looks a live session up, re-opening a stored one after a restart
 /// (see `recover`). A stored session is re-opened only for its own
@@ -57,30 +58,6 @@ impl FromRequestParts<AppState> for Authed {
         s.touch();
         Ok(Authed(s))
     }
-}
-
-/// `POST /v1/sessions` body.
-#[derive(Debug, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct CreateSession {
-    /// The mesh to edit.
-    pub mesh_id: String,
-    /// Solver parameters (all optional).
-    #[serde(default)]
-    pub params: serde_json::Value,
-}
-
-/// `POST /v1/sessions` answer.
-#[derive(Debug, Serialize)]
-pub struct Created {
-    /// Session id.
-    pub id: String,
-    /// Access token (shown once).
-    pub token: String,
-    /// Mesh id.
-    pub mesh_id: String,
-    /// State (`empty`).
-    pub state: crate::session::SessionState,
 }
 
 /// `POST /v1/sessions`.
@@ -237,32 +214,6 @@ pub async fn set_constraints(
     ))
 }
 
-/// A rotation as axis + degrees.
-#[derive(Debug, Clone, Copy, Deserialize, Serialize)]
-#[serde(deny_unknown_fields)]
-pub struct AxisAngle {
-    /// Rotation axis (any length > 0).
-    pub axis: [Option<f64>; 3],
-    /// Angle in degrees (right-hand rule).
-    pub degrees: Option<f64>,
-}
-
-/// The delta fields of a drag (HTTP body and WebSocket message). Numbers
-/// are `Option` because JavaScript's `JSON.stringify` turns NaN and
-/// infinities into `null`: those get `non_finite`, not `invalid_json`.
-#[derive(Debug, Clone, Default, Deserialize, Serialize)]
-pub struct DeltaJson {
-    /// Delta translation (mesh units).
-    #[serde(default)]
-    pub translate: Option<[Option<f64>; 3]>,
-    /// Delta rotation as axis + degrees.
-    #[serde(default)]
-    pub rotate: Option<AxisAngle>,
-    /// Delta rotation as a quaternion `[x, y, z, w]` (normalised).
-    #[serde(default)]
-    pub quaternion: Option<[Option<f64>; 4]>,
-}
-
 fn finite<const N: usize>(v: &[Option<f64>; N], what: &str) -> Result<[f64; N], ApiError> {
     let mut out = [0.0; N];
     for (i, x) in v.iter().enumerate() {
@@ -278,41 +229,40 @@ fn finite<const N: usize>(v: &[Option<f64>; N], what: &str) -> Result<[f64; N], 
     Ok(out)
 }
 
-impl DeltaJson {
-    /// Validates (finite, non-degenerate, not both rotations) and converts.
-    pub fn to_delta(&self) -> Result<Delta, ApiError> {
-        let t = match &self.translate {
-            Some(t) => finite(t, "translate")?,
-            None => [0.0; 3],
-        };
-        let rotation = match (&self.rotate, &self.quaternion) {
-            (Some(_), Some(_)) => {
-                return Err(ApiError::InvalidJson(
-                    "give `rotate` or `quaternion`, not both".into(),
-                ));
+/// Validates a drag's delta (finite, non-degenerate, not both
+/// rotations) and converts it.
+pub fn to_delta(d: &DeltaJson) -> Result<Delta, ApiError> {
+    let t = match &d.translate {
+        Some(t) => finite(t, "translate")?,
+        None => [0.0; 3],
+    };
+    let rotation = match (&d.rotate, &d.quaternion) {
+        (Some(_), Some(_)) => {
+            return Err(ApiError::InvalidJson(
+                "give `rotate` or `quaternion`, not both".into(),
+            ));
+        }
+        (Some(r), None) => {
+            let axis = finite(&r.axis, "rotate.axis")?;
+            let [degrees] = finite(&[r.degrees], "rotate.degrees")?;
+            let axis = Unit::try_new(Vector3::from(axis), 1e-12)
+                .ok_or_else(|| ApiError::NonFinite("`rotate.axis` has zero length".into()))?;
+            UnitQuaternion::from_axis_angle(&axis, degrees.to_radians())
+        }
+        (None, Some(q)) => {
+            let q = finite(q, "quaternion")?;
+            let q = Quaternion::new(q[3], q[0], q[1], q[2]);
+            if q.norm() < 1e-12 {
+                return Err(ApiError::NonFinite("`quaternion` has zero length".into()));
             }
-            (Some(r), None) => {
-                let axis = finite(&r.axis, "rotate.axis")?;
-                let [degrees] = finite(&[r.degrees], "rotate.degrees")?;
-                let axis = Unit::try_new(Vector3::from(axis), 1e-12)
-                    .ok_or_else(|| ApiError::NonFinite("`rotate.axis` has zero length".into()))?;
-                UnitQuaternion::from_axis_angle(&axis, degrees.to_radians())
-            }
-            (None, Some(q)) => {
-                let q = finite(q, "quaternion")?;
-                let q = Quaternion::new(q[3], q[0], q[1], q[2]);
-                if q.norm() < 1e-12 {
-                    return Err(ApiError::NonFinite("`quaternion` has zero length".into()));
-                }
-                UnitQuaternion::from_quaternion(q)
-            }
-            (None, None) => UnitQuaternion::identity(),
-        };
-        Ok(Delta {
-            rotation,
-            translation: t,
-        })
-    }
+            UnitQuaternion::from_quaternion(q)
+        }
+        (None, None) => UnitQuaternion::identity(),
+    };
+    Ok(Delta {
+        rotation,
+        translation: t,
+    })
 }
 
 /// Parses a JSON body; the non-standard literals `NaN`/`Infinity` (as
@@ -327,20 +277,6 @@ pub(crate) fn parse_json<T: serde::de::DeserializeOwned>(body: &[u8]) -> Result<
             ApiError::InvalidJson(e.to_string())
         }
     })
-}
-
-/// `POST /v1/sessions/{id}/drag` body.
-#[derive(Debug, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct DragRequest {
-    /// Handle index or name.
-    pub handle: HandleRef,
-    /// The delta.
-    #[serde(flatten)]
-    pub delta: DeltaJson,
-    /// Iteration budget (default: the session's `max_iters`).
-    #[serde(default)]
-    pub max_iters: Option<usize>,
 }
 
 pub use dend_protocol::PoseJson;
@@ -364,7 +300,7 @@ pub async fn drag(
     body: Result<Bytes, BytesRejection>,
 ) -> Result<Json<PoseJson>, ApiError> {
     let req: DragRequest = parse_json(&body?)?;
-    let delta = req.delta.to_delta()?;
+    let delta = to_delta(&req.delta)?;
     let max_iters = req.max_iters.unwrap_or(s.params().max_iters).max(1);
     Ok(pose_json(
         s.drag_solve(&req.handle, delta, max_iters).await?,

@@ -6,22 +6,29 @@
 use std::sync::Arc;
 use std::time::Duration;
 
+use axum::extract::rejection::QueryRejection;
 use axum::extract::ws::{CloseFrame, Message, WebSocket, WebSocketUpgrade};
 use axum::extract::{Path, Query, State};
 use axum::http::HeaderMap;
 use axum::response::Response;
 use bytes::Bytes;
 use futures_util::{Sink, SinkExt, Stream, StreamExt};
-use serde::{Deserialize, Serialize};
+use serde::Deserialize;
 use tokio::sync::broadcast::error::RecvError;
 use tokio::time::Instant;
 
 use super::error::ApiError;
 use super::metrics::Metrics;
-use super::sessions::{find, parse_json, DeltaJson};
+use super::sessions::{find, parse_json, to_delta};
 use super::AppState;
 use crate::auth::{bearer, check_token};
-use crate::session::{ClientId, Event, HandleRef, PeerEvent, SessionHandle, SessionInfo};
+use crate::session::{wire_stage, Event, SessionHandle};
+pub use dend_protocol::ws::{ClientId, ClientMsg, ServerMsg, SessionInfo, StreamOptions};
+use dend_protocol::FrameEncoding;
+use flow::Flow;
+
+#[path = "ws_flow.rs"]
+mod flow;
 
 /// Close code: no token (neither `?token=` nor a first `auth` message).
 pub const CLOSE_MISSING_TOKEN: u16 = 4001;
@@ -54,103 +61,10 @@ pub enum WsMsg {
     Close(u16, String),
 }
 
-/// Client → server messages (JSON, `type` tagged).
-#[derive(Debug, Clone, Deserialize, Serialize)]
-#[serde(tag = "type", rename_all = "snake_case")]
-pub enum ClientMsg {
-    /// Authenticate (first message, when no `?token=` was given).
-    Auth {
-        /// The session token.
-        token: String,
-    },
-    /// A drag delta on a handle.
-    Drag {
-        /// Handle index or name.
-        handle: HandleRef,
-        /// The delta (`translate`, `rotate` or `quaternion`).
-        #[serde(flatten)]
-        delta: DeltaJson,
-        /// Client sequence number (acknowledged in frames).
-        seq: u64,
-    },
-    /// Take exclusive hold of a handle.
-    Grab {
-        /// Handle index or name.
-        handle: HandleRef,
-    },
-    /// Let go of a handle.
-    Release {
-        /// Handle index or name.
-        handle: HandleRef,
-    },
-    /// Replace the constraints (the CLI's constraints JSON).
-    SetConstraints {
-        /// The spec.
-        constraints: serde_json::Value,
-        /// The constraints revision the edit is based on: refused with
-        /// `stale_constraints` if another edit replaced it (omitted: any).
-        #[serde(default)]
-        if_revision: Option<u64>,
-    },
-    /// Undo.
-    Undo,
-    /// Redo.
-    Redo,
-    /// Liveness probe; answered by `pong` with the same nonce.
-    Ping {
-        /// Echoed back.
-        #[serde(default)]
-        nonce: Option<serde_json::Value>,
-    },
-}
-
-/// Server → client JSON events (`type` tagged).
-#[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
-#[serde(tag = "type", rename_all = "snake_case")]
-pub enum ServerMsg {
-    /// The factor is ready; drags are accepted.
-    Ready {
-        /// Revision.
-        revision: u64,
-    },
-    /// An error (of this client's message when `seq`/`request` is set).
-    Error {
-        /// Stable code (same table as HTTP).
-        code: String,
-        /// Message.
-        message: String,
-        /// The drag's seq, for drag errors.
-        #[serde(default, skip_serializing_if = "Option::is_none")]
-        seq: Option<u64>,
-    },
-    /// A stage of the factor build started (`assembly`, `symbolic`,
-    /// `numeric`, in that order; `ready` follows).
-    BuildProgress {
-        /// The stage.
-        stage: crate::session::BuildStage,
-    },
-    /// Answer to `ping`.
-    Pong {
-        /// The ping's nonce.
-        #[serde(default)]
-        nonce: Option<serde_json::Value>,
-    },
-    /// The session state (sent on connect, after state changes, after lag).
-    State {
-        /// This connection's client id.
-        you: ClientId,
-        /// The session.
-        #[serde(flatten)]
-        session: serde_json::Value,
-    },
-    /// A handle grabbed or released, a client joined or left: the
-    /// session's [`PeerEvent`] as it is (its own `type` tag).
-    #[serde(untagged)]
-    Peer(PeerEvent),
-}
-
-impl ServerMsg {
-    fn error(e: &ApiError, seq: Option<u64>) -> Self {
+/// The server's messages built from its own types.
+trait ServerMsgExt {
+    /// The `error` event of an API error (`seq`: the failed drag's).
+    fn error(e: &ApiError, seq: Option<u64>) -> ServerMsg {
         let b = e.body();
         ServerMsg::Error {
             code: b.code,
@@ -158,12 +72,15 @@ impl ServerMsg {
             seq,
         }
     }
-    fn state(you: ClientId, info: &SessionInfo) -> Self {
-        ServerMsg::State {
-            you,
-            session: serde_json::to_value(info).unwrap_or_default(),
-        }
+    /// The `state` event for client `you`.
+    fn state(you: ClientId, info: SessionInfo) -> ServerMsg {
+        ServerMsg::State { you, session: info }
     }
+    /// The message as a text frame.
+    fn text(&self) -> WsMsg;
+}
+
+impl ServerMsgExt for ServerMsg {
     fn text(&self) -> WsMsg {
         WsMsg::Text(serde_json::to_string(self).unwrap_or_default())
     }
@@ -179,6 +96,8 @@ pub struct ConnConfig {
     /// Where `set_constraints` resolves `{"group": …}` vertex sets (the
     /// session's mesh's asset, from the store); None: passed on as they are.
     pub groups: Option<AppState>,
+    /// How frames are streamed (flow-control window, encoding).
+    pub stream: StreamOptions,
 }
 
 impl std::fmt::Debug for ConnConfig {
@@ -187,6 +106,7 @@ impl std::fmt::Debug for ConnConfig {
             .field("max_messages_per_sec", &self.max_messages_per_sec)
             .field("auth_timeout", &self.auth_timeout)
             .field("groups", &self.groups.is_some())
+            .field("stream", &self.stream)
             .finish()
     }
 }
@@ -299,10 +219,11 @@ where
     Si: Sink<WsMsg> + Unpin,
     St: Stream<Item = Result<WsMsg, E>> + Unpin,
 {
-    send(sink, ServerMsg::state(me, &s.info()).text()).await?;
+    send(sink, ServerMsg::state(me, s.info()).text()).await?;
+    let mut flow = Flow::new(cfg.stream);
     let current = frames.borrow_and_update().clone();
     if let Some(f) = current {
-        send(sink, WsMsg::Binary(f.bytes)).await?;
+        send_frame(sink, &mut flow, &f).await?;
     }
     let rate = f64::from(cfg.max_messages_per_sec.max(1));
     let mut bucket = Bucket {
@@ -322,24 +243,44 @@ where
                     }
                     _ => return Ok(()),
                 };
+                let parsed = parse_json::<ClientMsg>(text.as_bytes());
+                if let Ok(ClientMsg::Ack { revision }) = parsed {
+                    // not rate limited: a client acks at most the frames it got
+                    flow.ack(revision);
+                    if flow.open() && frames.has_changed().unwrap_or(false) {
+                        let latest = frames.borrow_and_update().clone();
+                        if let Some(f) = latest {
+                            send_frame(sink, &mut flow, &f).await?;
+                        }
+                    }
+                    continue;
+                }
                 if !bucket.take() {
                     let e = ApiError::RateLimited(cfg.max_messages_per_sec);
                     send(sink, ServerMsg::error(&e, seq_of(&text)).text()).await?;
                     continue;
                 }
                 s.touch();
-                if let Some(reply) = handle_message(s, me, &text, cfg.groups.as_ref()).await {
-                    send(sink, reply.text()).await?;
+                let reply = match parsed {
+                    Ok(msg) => handle_message(s, me, msg, cfg.groups.as_ref()).await,
+                    Err(e) => Err(e),
+                };
+                match reply {
+                    Ok(Some(reply)) => send(sink, reply.text()).await?,
+                    Ok(None) => {}
+                    Err(e) => send(sink, ServerMsg::error(&e, seq_of(&text)).text()).await?,
                 }
             }
-            changed = frames.changed() => {
+            // while the window is full the latest frame waits in the
+            // channel (later ones replace it) until an ack opens it
+            changed = frames.changed(), if flow.open() => {
                 if changed.is_err() {
                     send(sink, session_end(s)).await?;
                     return Ok(());
                 }
                 let frame = frames.borrow_and_update().clone();
                 if let Some(f) = frame {
-                    send(sink, WsMsg::Binary(f.bytes)).await?;
+                    send_frame(sink, &mut flow, &f).await?;
                 }
             }
             ev = events.recv() => {
@@ -351,12 +292,24 @@ where
                     Ok(Event::Ready { revision }) => ServerMsg::Ready { revision },
                     Ok(Event::Error(e)) => ServerMsg::error(&ApiError::from(&*e), None),
                     Ok(Event::Peer(p)) => ServerMsg::Peer(p),
-                    Ok(Event::BuildProgress { stage }) => ServerMsg::BuildProgress { stage },
-                    Ok(Event::State) | Err(RecvError::Lagged(_)) => ServerMsg::state(me, &s.info()),
+                    Ok(Event::BuildProgress { stage }) => ServerMsg::BuildProgress { stage: wire_stage(stage) },
+                    Ok(Event::State) | Err(RecvError::Lagged(_)) => ServerMsg::state(me, s.info()),
                 };
                 send(sink, msg.text()).await?;
             }
         }
+    }
+}
+
+/// Sends frame `f` as this connection wants it.
+async fn send_frame<Si: Sink<WsMsg> + Unpin>(
+    sink: &mut Si,
+    flow: &mut Flow,
+    f: &crate::session::Frame,
+) -> Result<(), ()> {
+    match flow.take(f) {
+        Some(bytes) => send(sink, WsMsg::Binary(bytes)).await,
+        None => Ok(()),
     }
 }
 
@@ -376,7 +329,7 @@ fn seq_of(text: &str) -> Option<u64> {
 pub fn decode_client_msg(text: &str) -> Result<ClientMsg, ApiError> {
     let msg = parse_json::<ClientMsg>(text.as_bytes())?;
     if let ClientMsg::Drag { delta, .. } = &msg {
-        let _ = delta.to_delta()?;
+        let _ = to_delta(delta)?;
     }
     Ok(msg)
 }
@@ -385,55 +338,53 @@ pub fn decode_client_msg(text: &str) -> Result<ClientMsg, ApiError> {
 async fn handle_message(
     s: &SessionHandle,
     me: ClientId,
-    text: &str,
+    msg: ClientMsg,
     groups: Option<&AppState>,
-) -> Option<ServerMsg> {
-    let msg = match parse_json::<ClientMsg>(text.as_bytes()) {
-        Ok(m) => m,
-        Err(e) => return Some(ServerMsg::error(&e, seq_of(text))),
-    };
-    let result: Result<Option<ServerMsg>, ApiError> = async {
-        match msg {
-            ClientMsg::Auth { .. } => Ok(None),
-            ClientMsg::Ping { nonce } => Ok(Some(ServerMsg::Pong { nonce })),
-            ClientMsg::Drag { handle, delta, seq } => {
-                let d = delta.to_delta()?;
-                s.drag(me, &handle, d, seq).await?;
-                Ok(None)
-            }
-            ClientMsg::Grab { handle } => s.grab(me, &handle).map(|_| None).map_err(ApiError::from),
-            ClientMsg::Release { handle } => {
-                s.release(me, &handle).map(|_| None).map_err(ApiError::from)
-            }
-            ClientMsg::SetConstraints {
-                constraints,
-                if_revision,
-            } => {
-                let constraints = match groups {
-                    Some(st) => {
-                        crate::meshes::resolve_groups(st, &s.info().mesh_id, constraints).await?
-                    }
-                    None => constraints,
-                };
-                s.set_constraints(constraints, if_revision)
-                    .await
-                    .map(|_| None)
-                    .map_err(ApiError::from)
-            }
-            ClientMsg::Undo => s.undo().await.map(|_| None).map_err(ApiError::from),
-            ClientMsg::Redo => s.redo().await.map(|_| None).map_err(ApiError::from),
+) -> Result<Option<ServerMsg>, ApiError> {
+    match msg {
+        ClientMsg::Auth { .. } => Ok(None),
+        ClientMsg::Ping { nonce } => Ok(Some(ServerMsg::Pong { nonce })),
+        ClientMsg::Drag { handle, delta, seq } => {
+            let d = to_delta(&delta)?;
+            s.drag(me, &handle, d, seq).await?;
+            Ok(None)
         }
+        ClientMsg::Grab { handle } => s.grab(me, &handle).map(|_| None).map_err(ApiError::from),
+        ClientMsg::Release { handle } => {
+            s.release(me, &handle).map(|_| None).map_err(ApiError::from)
+        }
+        ClientMsg::SetConstraints {
+            constraints,
+            if_revision,
+        } => {
+            let constraints = match groups {
+                Some(st) => {
+                    crate::meshes::resolve_groups(st, &s.info().mesh_id, constraints).await?
+                }
+                None => constraints,
+            };
+            s.set_constraints(constraints, if_revision)
+                .await
+                .map(|_| None)
+                .map_err(ApiError::from)
+        }
+        ClientMsg::Ack { .. } => Ok(None),
+        ClientMsg::Undo => s.undo().await.map(|_| None).map_err(ApiError::from),
+        ClientMsg::Redo => s.redo().await.map(|_| None).map_err(ApiError::from),
     }
-    .await;
-    result.unwrap_or_else(|e| Some(ServerMsg::error(&e, seq_of(text))))
 }
 
-/// `?token=` of the upgrade request.
+/// The query of the upgrade request: `?token=` and the stream options
+/// (`window`, `encoding`).
 #[derive(Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct WsQuery {
     /// The session token (alternative to the first `auth` message).
     pub token: Option<String>,
+    /// Flow-control window ([`StreamOptions::window`]).
+    pub window: Option<u32>,
+    /// Frame encoding ([`StreamOptions::encoding`]).
+    pub encoding: Option<FrameEncoding>,
 }
 
 /// `GET /v1/sessions/{id}/ws`: upgrades after checking the token when one
@@ -442,10 +393,17 @@ pub struct WsQuery {
 pub async fn upgrade(
     State(st): State<AppState>,
     Path(id): Path<String>,
-    Query(q): Query<WsQuery>,
+    query: Result<Query<WsQuery>, QueryRejection>,
     headers: HeaderMap,
     ws: WebSocketUpgrade,
 ) -> Result<Response, ApiError> {
+    let Query(q) = query
+        .map_err(|r| ApiError::InvalidParams(format!("the socket's query: {}", r.body_text())))?;
+    let stream = StreamOptions {
+        window: q.window,
+        encoding: q.encoding,
+    };
+    stream.validate().map_err(ApiError::InvalidParams)?;
     let token = q.token.or_else(|| bearer(&headers).map(str::to_owned));
     // a stored, not-live session is re-opened only with its token here
     // (not with a later `auth` message)
@@ -461,6 +419,7 @@ pub async fn upgrade(
         max_messages_per_sec: st.config.ws_max_messages_per_sec,
         auth_timeout: Duration::from_secs(10),
         groups: Some(st.clone()),
+        stream,
     };
     let metrics = st.metrics.clone();
     Ok(ws

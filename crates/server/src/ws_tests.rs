@@ -7,9 +7,10 @@ use futures_channel::mpsc;
 use futures_util::{SinkExt, StreamExt};
 
 use super::*;
-use crate::session::{decode_frame, NoObserver, SessionOptions};
+use crate::session::{decode_frame, NoObserver, PeerEvent, SessionOptions};
 use crate::store::MemoryStore;
 use dend::deform::{FactorCache, Params, Rest};
+use dend_protocol::{decode_frame_full, FrameEncoding};
 
 const TOKEN: &str = "secret-token";
 const MAX_ITERS: usize = 40;
@@ -59,12 +60,17 @@ struct Client {
 }
 
 fn connect(s: &SessionHandle, authed: bool, rate: u32) -> Client {
+    connect_with(s, authed, rate, StreamOptions::default())
+}
+
+fn connect_with(s: &SessionHandle, authed: bool, rate: u32, stream: StreamOptions) -> Client {
     let (to_server, server_in) = mpsc::channel(64);
     let (server_out, from_server) = mpsc::channel(64);
     let cfg = ConnConfig {
         max_messages_per_sec: rate,
         auth_timeout: Duration::from_secs(5),
         groups: None,
+        stream,
     };
     let task = tokio::spawn(run_connection(
         server_out,
@@ -335,5 +341,78 @@ fn peer_events_are_sent_as_their_own_json() {
         let msg = ServerMsg::Peer(event);
         assert_eq!(serde_json::to_value(&msg).unwrap(), want);
         assert_eq!(serde_json::from_value::<ServerMsg>(want).unwrap(), msg);
+    }
+}
+
+/// With a window of one frame, the connection sends nothing more until the
+/// client acknowledges the frame it has; then it sends the latest frame,
+/// skipping the ones the session produced meanwhile. The frames are
+/// version 3 in the encoding asked for.
+#[tokio::test]
+async fn a_window_of_one_holds_frames_until_acked_then_sends_the_latest() {
+    let s = session();
+    let _ = s
+        .set_constraints(constraints(), None)
+        .await
+        .expect("constraints");
+    while s.info().state != crate::session::SessionState::Ready {
+        tokio::time::sleep(Duration::from_millis(5)).await;
+    }
+    let mut c = connect_with(&s, true, 1000, StreamOptions::flow(1, FrameEncoding::Q16));
+    let _ = c.event("state").await;
+    // a frame of the current pose may come first: take it
+    while let Ok(Some(m)) =
+        tokio::time::timeout(Duration::from_millis(100), c.from_server.next()).await
+    {
+        if let WsMsg::Binary(b) = m {
+            let h = decode_frame(&b).expect("frame").0;
+            c.send(serde_json::json!({"type": "ack", "revision": h.revision}))
+                .await;
+        }
+    }
+    c.send(
+        serde_json::json!({"type": "drag", "handle": 0, "translate": [0.0, 0.0, 0.3], "seq": 1}),
+    )
+    .await;
+    let first = loop {
+        if let WsMsg::Binary(b) = c.next().await {
+            break decode_frame_full(&b).expect("a version 3 frame");
+        }
+    };
+    assert_eq!((first.version, first.encoding), (3, FrameEncoding::Q16));
+    // a second drag while the window is full: the session solves it and
+    // settles, and none of its frames is sent
+    c.send(
+        serde_json::json!({"type": "drag", "handle": 0, "translate": [0.0, 0.4, 0.2], "seq": 2}),
+    )
+    .await;
+    tokio::time::sleep(Duration::from_millis(400)).await;
+    while let Ok(m) = c.from_server.try_recv() {
+        assert!(!matches!(m, WsMsg::Binary(_)), "a frame beyond the window");
+    }
+    assert!(
+        s.info().revision > first.header.revision,
+        "the session went on meanwhile"
+    );
+    c.send(serde_json::json!({"type": "ack", "revision": first.header.revision}))
+        .await;
+    let latest = loop {
+        if let WsMsg::Binary(b) = c.next().await {
+            break decode_frame_full(&b).expect("frame").header;
+        }
+    };
+    assert!(
+        latest.settled && latest.ack_seq == 2,
+        "the frame after the ack is the latest, settled one: {latest:?}"
+    );
+    assert!(latest.revision > first.header.revision);
+    // and the window is full again until this one is acknowledged
+    c.send(
+        serde_json::json!({"type": "drag", "handle": 0, "translate": [0.0, 0.0, -0.2], "seq": 3}),
+    )
+    .await;
+    tokio::time::sleep(Duration::from_millis(300)).await;
+    while let Ok(m) = c.from_server.try_recv() {
+        assert!(!matches!(m, WsMsg::Binary(_)), "a frame beyond the window");
     }
 }

@@ -7,9 +7,9 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
+use dend_client::ws::{ClientMsg, ServerMsg};
 use dend_client::{SessionClient, WsEvent};
 use parking_lot::Mutex;
-use serde_json::json;
 
 /// The x translation of drag `seq` (distinct per seq, so the final pose
 /// tells which drags it holds).
@@ -127,7 +127,7 @@ pub async fn drive(
         // checkpoints only when a gesture ends, so until then the
         // acknowledged drags exist in the journal alone
         if ws
-            .send(&json!({"type": "grab", "handle": 0}))
+            .send(&ClientMsg::Grab { handle: 0.into() })
             .await
             .is_err()
         {
@@ -138,10 +138,10 @@ pub async fn drive(
             let seq = seq_next;
             if seq % 40 == 0 {
                 // end the gesture (a checkpoint), start the next
-                let release = ws.send(&json!({"type": "release", "handle": 0})).await;
+                let release = ws.send(&ClientMsg::Release { handle: 0.into() }).await;
                 if release.is_err()
                     || ws
-                        .send(&json!({"type": "grab", "handle": 0}))
+                        .send(&ClientMsg::Grab { handle: 0.into() })
                         .await
                         .is_err()
                 {
@@ -160,8 +160,8 @@ pub async fn drive(
                             return Answer::Acked(h.ack_seq)
                         }
                         // refused, not applied (the store is down): send it again
-                        Ok(WsEvent::Event(v))
-                            if v["type"] == "error" && v["code"] == "store_unavailable" =>
+                        Ok(WsEvent::Event(ServerMsg::Error { code, .. }))
+                            if code == "store_unavailable" =>
                         {
                             return Answer::Refused;
                         }

@@ -198,6 +198,8 @@ impl Actor {
             settled: self.settled,
             objective: self.objective,
             vertex_count: self.pose.len() as u32,
+            // the full mesh's solve: a coarse preview sets `LEVEL_COARSE`
+            level: dend_protocol::LEVEL_FULL,
         }
     }
 

@@ -11,50 +11,10 @@ use super::actor::Actor;
 pub use super::shared::SessionOptions;
 use super::shared::{Cmd, Grabs, Inner, Restore, Shared};
 use super::{
-    ClientId, Delta, Event, Frame, HandleRef, PeerEvent, PoseSnapshot, Recovered, SessionError,
-    SessionState,
+    wire_stage, ClientId, Delta, Event, Frame, HandleRef, PeerEvent, PoseSnapshot, Recovered,
+    SessionError, SessionInfo, SessionState,
 };
-use dend::deform::{BuildStage, ConstraintsSpec, Params, Rest};
-
-/// A snapshot of a session's public state.
-#[derive(Debug, Clone, serde::Serialize)]
-pub struct SessionInfo {
-    /// Session id.
-    pub id: String,
-    /// Mesh id.
-    pub mesh_id: String,
-    /// Constraint/factor state.
-    pub state: SessionState,
-    /// Current revision.
-    pub revision: u64,
-    /// Handle names, by index.
-    pub handles: Vec<String>,
-    /// Connected WebSocket clients.
-    pub peers: usize,
-    /// Whether undo would do something.
-    pub can_undo: bool,
-    /// Whether redo would do something.
-    pub can_redo: bool,
-    /// Vertex count of the mesh.
-    pub vertices: usize,
-    /// The constraint set as its client sent it (null before the first).
-    pub constraints: Option<serde_json::Value>,
-    /// Revision of the constraint set: it changes with every constraint
-    /// edit, and with undo, redo or reset to another set. An edit may name
-    /// the revision it is based on (`If-Match`, or `if_revision` over
-    /// WebSocket) and is then refused with `stale_constraints` (409) if the
-    /// set was replaced meanwhile.
-    pub constraints_revision: u64,
-    /// What the installed constraint set does that its user should know
-    /// (the set is valid): `nothing_fixed`, `unconstrained_component`
-    /// (`component`, `vertices`), `stray_vertices` (`count`, `vertices`),
-    /// each with a readable `message`.
-    pub warnings: Vec<serde_json::Value>,
-    /// While the state is `building` and the factor is being built (not
-    /// found in the cache): the stage under way, `assembly`, `symbolic` or
-    /// `numeric` (in that order; `build_progress` events announce each).
-    pub build_stage: Option<BuildStage>,
-}
+use dend::deform::{ConstraintsSpec, Params, Rest};
 
 /// A cloneable handle to a running session actor.
 #[derive(Clone)]
@@ -168,7 +128,7 @@ impl SessionHandle {
             constraints: s.constraints.as_deref().cloned(),
             constraints_revision: s.constraints_revision,
             warnings: s.warnings.to_vec(),
-            build_stage: s.build_stage,
+            build_stage: s.build_stage.map(wire_stage),
         }
     }
 

@@ -19,55 +19,31 @@ mod recovery;
 mod shared;
 
 pub use dend_protocol as frame;
+pub use dend_protocol::ws::{ClientId, HandleRef, PeerEvent, SessionInfo, SessionState};
 pub use dend_protocol::{decode_frame, FrameError, FrameHeader};
-pub use handle::{SessionHandle, SessionInfo, SessionOptions};
+pub use handle::{SessionHandle, SessionOptions};
 pub use recovery::{transform, Recovered};
 
 use std::sync::Arc;
 
 use bytes::Bytes;
 use nalgebra::UnitQuaternion;
-use serde::{Deserialize, Serialize};
 
 use crate::store::StoreError;
 pub use dend::deform::BuildStage;
+
+/// A factor build's stage as the wire names it.
+pub fn wire_stage(s: BuildStage) -> dend_protocol::BuildStage {
+    match s {
+        BuildStage::Assembly => dend_protocol::BuildStage::Assembly,
+        BuildStage::Symbolic => dend_protocol::BuildStage::Symbolic,
+        BuildStage::Numeric => dend_protocol::BuildStage::Numeric,
+    }
+}
 use dend::deform::DeformError;
 
 #[allow(unused_imports)] // doc links
 use dend::deform::{Deformer, Params, Rest};
-
-/// The constraint/factor state of a session.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
-#[serde(rename_all = "snake_case")]
-pub enum SessionState {
-    /// No constraints set yet.
-    Empty,
-    /// Constraints set; the factor is being built.
-    Building,
-    /// The factor is ready: drags are accepted.
-    Ready,
-    /// Building the factor failed (see the `error` event); set other constraints.
-    Failed,
-}
-
-/// A handle named by its index in the constraints' `handles` or by name.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-#[serde(untagged)]
-pub enum HandleRef {
-    /// Index into the constraints' handle list.
-    Index(usize),
-    /// The handle's `name`.
-    Name(String),
-}
-
-impl std::fmt::Display for HandleRef {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        match self {
-            HandleRef::Index(i) => write!(f, "#{i}"),
-            HandleRef::Name(n) => write!(f, "`{n}`"),
-        }
-    }
-}
 
 /// A drag delta: rotate about the handle's current pivot, then translate.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -155,41 +131,6 @@ pub struct Frame {
     pub header: FrameHeader,
     /// The encoded frame, shared by every receiver.
     pub bytes: Bytes,
-}
-
-/// Client id within a session (assigned by [`SessionHandle::join`]).
-pub type ClientId = u64;
-
-/// What one client of a session did, told to every client: the event and
-/// its WebSocket JSON (`{"type": "handle_grabbed", "handle": 0, "client": 3}`,
-/// sent as it is by the connection loop).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
-#[serde(tag = "type", rename_all = "snake_case")]
-pub enum PeerEvent {
-    /// A client grabbed a handle.
-    HandleGrabbed {
-        /// Handle index.
-        handle: usize,
-        /// Who.
-        client: ClientId,
-    },
-    /// A client released a handle.
-    HandleReleased {
-        /// Handle index.
-        handle: usize,
-        /// Who.
-        client: ClientId,
-    },
-    /// A client joined.
-    PeerJoined {
-        /// Who.
-        client: ClientId,
-    },
-    /// A client left.
-    PeerLeft {
-        /// Who.
-        client: ClientId,
-    },
 }
 
 /// Events pushed to every client of a session.

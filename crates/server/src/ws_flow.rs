@@ -1,0 +1,72 @@
+//! Per-connection flow control of pose frames and their encoding (see
+//! `api/ws-protocol.md`, "Flow control").
+//!
+//! The session publishes frames on a `watch` channel: a reader that looks
+//! later sees only the latest one. That alone does not keep a slow client
+//! current, because every frame the loop hands to the socket waits in the
+//! socket's buffers (kernel and proxy), hundreds of kilobytes of them, and
+//! the client reads those old frames first. With a declared window the
+//! loop hands over a frame only while fewer than `window` frames are sent
+//! and not acknowledged, so what waits in the buffers is bounded by the
+//! window and the frame the client gets next is the latest one.
+
+use std::collections::VecDeque;
+
+use bytes::Bytes;
+use dend_protocol::{reencode_v2, FrameEncoding, StreamOptions};
+
+use crate::session::Frame;
+
+/// The frames one connection has in flight, and how it wants them encoded.
+#[derive(Debug)]
+pub(super) struct Flow {
+    /// Frames sent and not acknowledged at most (`None`: no flow control).
+    window: Option<usize>,
+    /// The revisions of the frames sent and not acknowledged, oldest first.
+    in_flight: VecDeque<u64>,
+    /// Version 3 frames in this encoding (`None`: the session's version 2 frames).
+    encoding: Option<FrameEncoding>,
+}
+
+impl Flow {
+    /// The flow of a connection that chose `opts` (validated).
+    pub(super) fn new(opts: StreamOptions) -> Self {
+        Flow {
+            window: opts.window.map(|w| w.max(1) as usize),
+            in_flight: VecDeque::new(),
+            encoding: opts.encoding,
+        }
+    }
+
+    /// Whether a frame may be sent now.
+    pub(super) fn open(&self) -> bool {
+        self.window.is_none_or(|w| self.in_flight.len() < w)
+    }
+
+    /// The client took every frame up to `revision`.
+    pub(super) fn ack(&mut self, revision: u64) {
+        while self.in_flight.front().is_some_and(|r| *r <= revision) {
+            self.in_flight.pop_front();
+        }
+    }
+
+    /// The bytes to send for `f` (re-encoded when the client asked for
+    /// version 3 frames), counted as in flight. `None` when the session's
+    /// frame does not decode, which its own encoder never produces.
+    pub(super) fn take(&mut self, f: &Frame) -> Option<Bytes> {
+        let bytes = match self.encoding {
+            None => f.bytes.clone(),
+            Some(e) => match reencode_v2(&f.bytes, &f.header, e) {
+                Ok(b) => b,
+                Err(err) => {
+                    tracing::error!(%err, "a session frame does not decode");
+                    return None;
+                }
+            },
+        };
+        if self.window.is_some() {
+            self.in_flight.push_back(f.header.revision);
+        }
+        Some(bytes)
+    }
+}

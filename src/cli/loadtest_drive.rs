@@ -1,0 +1,249 @@
+//! One loadtest session's drag: the path the handle follows, the pace of
+//! the drags, the client's own time per frame, and what it saw.
+
+use std::collections::BTreeMap;
+use std::sync::atomic::{AtomicU64, Ordering};
+use std::time::{Duration, Instant};
+
+use dend_client::ws::ServerMsg;
+use dend_client::{WsClient, WsFull};
+
+/// The path a handle follows.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum DragPath {
+    /// A straight line across the mesh's second axis.
+    Line,
+    /// An arc about the fixed end while the handle turns with it (its
+    /// rotation changes along the arc), 60° in all.
+    Arc,
+}
+
+/// The geometry of a drag: where the handle is and where it goes.
+#[derive(Debug, Clone, Copy)]
+pub struct Path {
+    /// The path.
+    pub kind: DragPath,
+    /// The longest axis of the mesh (the handle is at its high end).
+    pub axis: usize,
+    /// Its extent.
+    pub extent: f64,
+    /// Drags in the gesture.
+    pub drags: u64,
+}
+
+impl Path {
+    /// The delta of drag `i` (0-based): translation and quaternion.
+    pub fn delta(&self, i: u64) -> ([f64; 3], Option<[f64; 4]>) {
+        let k = self.axis;
+        let n = self.drags.max(1) as f64;
+        match self.kind {
+            DragPath::Line => {
+                let mut t = [0.0; 3];
+                t[(k + 1) % 3] = 0.3 * self.extent / n;
+                (t, None)
+            }
+            DragPath::Arc => {
+                // the handle (at radius `extent` from the fixed end along
+                // axis k) swings by 60° about axis k+2 and turns with it:
+                // each drag rotates it by the step about its own pivot and
+                // moves the pivot along the arc
+                let total = 60f64.to_radians();
+                let step = total / n;
+                let at = |j: f64| {
+                    let a = step * j;
+                    (self.extent * a.cos(), self.extent * a.sin())
+                };
+                let (x0, y0) = at(i as f64);
+                let (x1, y1) = at(i as f64 + 1.0);
+                let mut t = [0.0; 3];
+                t[k] = x1 - x0;
+                t[(k + 1) % 3] = y1 - y0;
+                let mut axis = [0.0; 3];
+                axis[(k + 2) % 3] = 1.0;
+                let (s, c) = (0.5 * step).sin_cos();
+                (t, Some([axis[0] * s, axis[1] * s, axis[2] * s, c]))
+            }
+        }
+    }
+}
+
+/// How the client drags and reads.
+#[derive(Debug, Clone, Copy)]
+pub struct Pace {
+    /// Drags per second sent on a clock (a mouse); 0: closed loop (the
+    /// next drag when a frame acknowledges the last one).
+    pub drag_hz: f64,
+    /// Time the client spends on each frame (drawing it), ms.
+    pub slow_ms: u64,
+}
+
+/// What one session's client saw.
+#[derive(Debug, Default)]
+pub struct Seen {
+    /// Drag sent → the first frame acknowledging it, per drag.
+    pub latencies: Vec<Duration>,
+    /// Frames received while dragging (first drag sent → the frame
+    /// acknowledging the last).
+    pub drag_frames: u64,
+    /// Frame bytes received while dragging.
+    pub drag_bytes: u64,
+    /// That drag phase's length.
+    pub drag_time: Duration,
+    /// Frames received in all.
+    pub frames: u64,
+    /// Frames per level (0 full, 1 coarse).
+    pub levels: [u64; 2],
+    /// Last drag sent → the settled frame after it.
+    pub settle: Duration,
+    /// Iterations since the last change in the settled frame.
+    pub settle_iterations: u32,
+    /// Whether the settled frame converged.
+    pub settle_converged: bool,
+}
+
+/// Drags the handle along `path` at `pace` and reads frames until the
+/// one after the last drag that says settled. Every acknowledged drag is
+/// counted in `progress` (shared by the sessions of a run).
+pub async fn drag(
+    ws: &mut WsClient,
+    path: &Path,
+    pace: Pace,
+    progress: &AtomicU64,
+) -> anyhow::Result<Seen> {
+    let mut seen = Seen::default();
+    let mut sent: BTreeMap<u64, Instant> = BTreeMap::new();
+    let start = Instant::now();
+    let period = (pace.drag_hz > 0.0).then(|| Duration::from_secs_f64(1.0 / pace.drag_hz));
+    let (mut next_seq, mut acked) = (1u64, 0u64);
+    let mut last_sent = start;
+    let bytes0 = ws.frame_bytes();
+    loop {
+        // send what is due: on the clock, or (closed loop) once acknowledged
+        while next_seq <= path.drags {
+            let due = match period {
+                Some(p) => Instant::now() >= start + p * (next_seq - 1) as u32,
+                None => acked + 1 >= next_seq,
+            };
+            if !due {
+                break;
+            }
+            let (t, q) = path.delta(next_seq - 1);
+            ws.drag(0, t, q, next_seq).await?;
+            last_sent = Instant::now();
+            sent.insert(next_seq, last_sent);
+            next_seq += 1;
+        }
+        let wait = match period {
+            Some(p) if next_seq <= path.drags => start + p * (next_seq - 1) as u32,
+            _ => Instant::now() + Duration::from_secs(600),
+        };
+        let msg = match tokio::time::timeout_at(wait.into(), ws.next_full()).await {
+            Err(_) => continue,
+            Ok(m) => m?,
+        };
+        match msg {
+            WsFull::Frame(f) => {
+                let now = Instant::now();
+                let h = f.header;
+                seen.frames += 1;
+                seen.levels[usize::from(h.level.min(1))] += 1;
+                let dragging = acked < path.drags;
+                if dragging {
+                    seen.drag_frames += 1;
+                }
+                while let Some((&s, &t)) = sent.first_key_value() {
+                    if s > h.ack_seq {
+                        break;
+                    }
+                    seen.latencies.push(now - t);
+                    sent.remove(&s);
+                    let _ = progress.fetch_add(1, Ordering::Relaxed);
+                }
+                acked = acked.max(h.ack_seq);
+                if dragging && acked >= path.drags {
+                    seen.drag_time = now - start;
+                    seen.drag_bytes = ws.frame_bytes() - bytes0;
+                }
+                if acked >= path.drags && h.settled {
+                    seen.settle = now - last_sent;
+                    seen.settle_iterations = h.iteration;
+                    seen.settle_converged = h.converged;
+                    return Ok(seen);
+                }
+                if pace.slow_ms > 0 {
+                    tokio::time::sleep(Duration::from_millis(pace.slow_ms)).await;
+                }
+            }
+            WsFull::Event(e @ ServerMsg::Error { .. }) => anyhow::bail!("server error: {e:?}"),
+            WsFull::Closed(c) => anyhow::bail!("connection closed ({c:?})"),
+            WsFull::Event(_) => {}
+        }
+    }
+}
+
+/// Summary statistics of the sessions' drags, as the report prints them.
+#[derive(Debug, Default)]
+pub struct Summary {
+    /// Every drag's latency, sorted.
+    pub latencies: Vec<Duration>,
+    /// Frames per second while dragging, per session, sorted.
+    pub fps: Vec<f64>,
+    /// Bytes per second to one client while dragging, per session, sorted.
+    pub bytes_per_sec: Vec<f64>,
+    /// Bytes per frame, per session, sorted.
+    pub bytes_per_frame: Vec<f64>,
+    /// Settle times, sorted.
+    pub settles: Vec<Duration>,
+    /// Settle iterations, sorted.
+    pub settle_iterations: Vec<u32>,
+    /// Sessions whose settled frame converged.
+    pub converged: usize,
+    /// Frames per level, all sessions.
+    pub levels: [u64; 2],
+    /// Frames in all.
+    pub frames: u64,
+    /// Each session's median drag→frame latency, sorted.
+    pub medians: Vec<Duration>,
+}
+
+impl Summary {
+    /// Adds one session.
+    pub fn add(&mut self, s: Seen) {
+        let secs = s.drag_time.as_secs_f64().max(1e-9);
+        self.fps.push(s.drag_frames as f64 / secs);
+        self.bytes_per_sec.push(s.drag_bytes as f64 / secs);
+        self.bytes_per_frame
+            .push(s.drag_bytes as f64 / s.drag_frames.max(1) as f64);
+        let mut own = s.latencies.clone();
+        own.sort();
+        self.medians
+            .push(own.get(own.len() / 2).copied().unwrap_or_default());
+        self.latencies.extend(s.latencies);
+        self.settles.push(s.settle);
+        self.settle_iterations.push(s.settle_iterations);
+        self.converged += usize::from(s.settle_converged);
+        self.levels[0] += s.levels[0];
+        self.levels[1] += s.levels[1];
+        self.frames += s.frames;
+    }
+
+    /// Sorts every list (before reading percentiles).
+    pub fn sort(&mut self) {
+        self.latencies.sort();
+        self.medians.sort();
+        self.settles.sort();
+        self.settle_iterations.sort();
+        for v in [
+            &mut self.fps,
+            &mut self.bytes_per_sec,
+            &mut self.bytes_per_frame,
+        ] {
+            v.sort_by(f64::total_cmp);
+        }
+    }
+}
+
+/// The median of sorted values (0 when there are none).
+pub fn median(sorted: &[f64]) -> f64 {
+    sorted.get(sorted.len() / 2).copied().unwrap_or(0.0)
+}

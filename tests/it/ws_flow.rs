@@ -1,0 +1,203 @@
+//! The session socket's flow control and compact frames, end to end over
+//! a real socket (api/ws-protocol.md, protocol version 3): a slow client
+//! keeps a flat drag→frame latency, q16 frames are half the bytes of f32
+//! and within 1e-4 of the diagonal of the full-precision pose, and a
+//! client that asks for nothing still gets version 2 frames.
+
+use std::collections::BTreeMap;
+use std::time::{Duration, Instant};
+
+use dend_client::ws::{ServerMsg, StreamOptions};
+use dend_client::{Client, FrameEncoding, SessionClient, WsFull};
+use dend_server::Config;
+use dend_testkit::server::{grid, grid_constraints, start};
+
+type R = Result<(), Box<dyn std::error::Error>>;
+
+/// A server, and a session on an `n`×`n` grid, ready to drag.
+async fn ready_session(
+    n: usize,
+    params: serde_json::Value,
+) -> Result<(Client, SessionClient), Box<dyn std::error::Error>> {
+    let (base, _state) = start(Config {
+        ws_max_messages_per_sec: 100_000,
+        ..Config::default()
+    })
+    .await;
+    let c = Client::new(&base);
+    let (p, t) = grid(n);
+    let mesh = c.upload_json(&p, &t).await?;
+    let s = c.create_session(&mesh.id, params).await?;
+    s.set_constraints(&grid_constraints(n)).await?;
+    s.wait_ready(Duration::from_secs(60)).await?;
+    Ok((c, s))
+}
+
+fn median(mut v: Vec<f64>) -> f64 {
+    v.sort_by(f64::total_cmp);
+    v.get(v.len() / 2).copied().unwrap_or(f64::NAN)
+}
+
+/// A client that spends 50 ms on each frame while it drags at 60 Hz for
+/// 10 s: with a window of one frame, the latency of its last second is
+/// the latency of its first (no queue builds up anywhere). Without flow
+/// control the socket's buffers fill with frames the client reads late,
+/// and the latency grows through the drag.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_slow_client_sees_a_flat_drag_to_frame_latency() -> R {
+    let n = 30;
+    let (_c, s) = ready_session(n, serde_json::json!({})).await?;
+    let mut ws = s
+        .connect_with(StreamOptions::flow(1, FrameEncoding::Q16))
+        .await?;
+    let period = Duration::from_secs_f64(1.0 / 60.0);
+    let length = Duration::from_secs(10);
+    let start = Instant::now();
+    let mut sent: BTreeMap<u64, Instant> = BTreeMap::new();
+    // (seconds since the start when the drag was sent, its latency in ms)
+    let mut samples: Vec<(f64, f64)> = vec![];
+    let mut seq = 0u64;
+    while start.elapsed() < length {
+        while start + period * seq as u32 <= Instant::now() && start.elapsed() < length {
+            seq += 1;
+            // a slow circle in the grid's plane: the handle goes and comes back
+            let a = seq as f64 * 0.05;
+            ws.drag(0, [0.02 * a.cos(), 0.02 * a.sin(), 0.0], None, seq)
+                .await?;
+            sent.insert(seq, Instant::now());
+        }
+        let due = start + period * seq as u32;
+        let Ok(msg) = tokio::time::timeout_at(due.into(), ws.next_full()).await else {
+            continue;
+        };
+        match msg? {
+            WsFull::Frame(f) => {
+                let now = Instant::now();
+                while let Some((&k, &t)) = sent.first_key_value() {
+                    if k > f.header.ack_seq {
+                        break;
+                    }
+                    samples.push(((t - start).as_secs_f64(), (now - t).as_secs_f64() * 1e3));
+                    sent.remove(&k);
+                }
+                // the client draws the frame
+                tokio::time::sleep(Duration::from_millis(50)).await;
+            }
+            WsFull::Event(e @ ServerMsg::Error { .. }) => return Err(format!("{e:?}").into()),
+            WsFull::Event(_) => {}
+            WsFull::Closed(c) => return Err(format!("closed {c:?}").into()),
+        }
+    }
+    let window = |from: f64, to: f64| {
+        median(
+            samples
+                .iter()
+                .filter(|(t, _)| (from..to).contains(t))
+                .map(|(_, l)| *l)
+                .collect(),
+        )
+    };
+    let (first, last) = (window(0.0, 1.0), window(8.5, 9.5));
+    eprintln!(
+        "drag->frame medians: first second {first:.1} ms, last second {last:.1} ms, {} samples",
+        samples.len()
+    );
+    assert!(samples.len() > 300, "{} drags acknowledged", samples.len());
+    assert!(
+        last <= 2.0 * first + 50.0,
+        "the latency grew through the drag: {first:.1} ms in the first second, {last:.1} ms at the end"
+    );
+    Ok(())
+}
+
+/// The first settled frame acknowledging drag 1, and its size in bytes.
+async fn settled(
+    c: &mut dend_client::WsClient,
+) -> Result<(dend_protocol::DecodedFrame, u64), dend_client::ClientError> {
+    loop {
+        let before = c.frame_bytes();
+        if let WsFull::Frame(f) = c.next_full().await? {
+            if f.header.ack_seq >= 1 && f.header.settled {
+                return Ok((f, c.frame_bytes() - before));
+            }
+        }
+    }
+}
+
+/// The settled frame in q16 is within 1e-4 of the diagonal of the f64 pose
+/// (`GET /pose`), in half the bytes of the same frame in f32; a client
+/// that asks for nothing gets a version 2 frame of the same pose.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn q16_frames_are_half_the_bytes_and_within_1e_4_of_the_diagonal() -> R {
+    let n = 20;
+    let (_c, s) = ready_session(n, serde_json::json!({})).await?;
+    let mut q16 = s
+        .connect_with(StreamOptions::flow(1, FrameEncoding::Q16))
+        .await?;
+    let mut f32s = s
+        .connect_with(StreamOptions::flow(1, FrameEncoding::F32))
+        .await?;
+    let mut legacy = s.connect_with(StreamOptions::default()).await?;
+    // a turn and a lift, so the pose leaves the rest mesh's plane and box
+    let q = [0.0, 0.0, (0.25f64).sin(), (0.25f64).cos()];
+    q16.drag(0, [0.0, 3.0, 5.0], Some(q), 1).await?;
+    let (fq, bq) = settled(&mut q16).await?;
+    let (ff, bf) = settled(&mut f32s).await?;
+    let (fl, _) = settled(&mut legacy).await?;
+    assert_eq!((fq.version, fq.encoding), (3, FrameEncoding::Q16));
+    assert_eq!((ff.version, ff.encoding), (3, FrameEncoding::F32));
+    assert_eq!(
+        fl.version, 2,
+        "a client that asks for nothing gets version 2"
+    );
+    assert_eq!(fq.header.revision, ff.header.revision);
+    let v = (n * n) as u64;
+    assert_eq!(bq, 96 + 6 * v);
+    assert_eq!(bf, 96 + 12 * v);
+    assert!(bq * 10 < bf * 6, "q16 {bq} bytes against f32 {bf}");
+    let pose = s.pose().await?;
+    assert_eq!(
+        pose.revision, fq.header.revision,
+        "the pose of the settled frame"
+    );
+    let b = fq.bbox.expect("a version 3 frame has a box");
+    let diag = (0..3)
+        .map(|k| (b[1][k] - b[0][k]).powi(2))
+        .sum::<f64>()
+        .sqrt();
+    assert!(b[1][2] > 1.0, "the box covers the lifted pose: {b:?}");
+    let worst = pose
+        .positions
+        .iter()
+        .zip(&fq.positions)
+        .map(|(a, q)| {
+            (0..3)
+                .map(|k| (a[k] - f64::from(q[k])).powi(2))
+                .sum::<f64>()
+                .sqrt()
+        })
+        .fold(0.0, f64::max);
+    assert!(worst <= 1e-4 * diag, "q16 error {worst} of diagonal {diag}");
+    assert_eq!(fl.positions, ff.positions, "f32 in both versions");
+    Ok(())
+}
+
+/// Bad stream options are refused before the upgrade, with the API's error.
+#[tokio::test]
+async fn bad_stream_options_are_refused_before_the_upgrade() -> R {
+    let (_c, s) = ready_session(4, serde_json::json!({})).await?;
+    for opts in [
+        StreamOptions {
+            window: Some(0),
+            encoding: None,
+        },
+        StreamOptions {
+            window: Some(1000),
+            encoding: None,
+        },
+    ] {
+        let e = s.connect_with(opts).await.err().ok_or("connected")?;
+        assert!(e.to_string().contains("422"), "{e}");
+    }
+    Ok(())
+}
