@@ -6,7 +6,7 @@ use std::sync::Arc;
 use std::time::{Duration, Instant};
 
 use dend::mesh::Mesh;
-use dend_client::ws::DeltaJson;
+use dend_client::ws::{DeltaJson, ServerMsg};
 use dend_client::{Client, ClientError, WsEvent};
 use dend_server::store::{
     Checkpoint, Fence, JournalEntry, LeaseGrant, MemoryStore, SessionRecord, Store, StoreError,
@@ -161,13 +161,17 @@ async fn a_slow_store_for_one_session_does_not_stall_another() -> Result<(), Cli
         let sent = Instant::now();
         ws.drag(0, [0.0, 0.01, 0.0], None, seq).await?;
         loop {
-            if let WsEvent::Frame(h, _) = ws.next().await? {
-                if h.ack_seq >= seq {
-                    break;
-                }
+            match ws.next().await? {
+                WsEvent::Frame(h, _) if h.ack_seq >= seq => break,
+                WsEvent::Event(e @ ServerMsg::Error { .. }) => panic!("drag {seq} refused: {e:?}"),
+                WsEvent::Closed(c) => panic!("closed ({c:?}) waiting for drag {seq}"),
+                _ => {}
             }
         }
         worst = worst.max(sent.elapsed());
+        // a person's pace, under the server's message rate limit (a tiny
+        // mesh answers a drag in well under the limit's 2 ms)
+        tokio::time::sleep(Duration::from_millis(4)).await;
     }
     slow.await.expect("join")?;
     assert!(seq > 5, "only {seq} drags of B in 3 s");
