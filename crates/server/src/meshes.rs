@@ -7,14 +7,14 @@
 use std::sync::Arc;
 
 use axum::extract::rejection::BytesRejection;
-use axum::extract::{Path, Query, State};
+use axum::extract::State;
 use axum::http::{header, HeaderMap, StatusCode};
 use axum::response::IntoResponse;
 use axum::Json;
 use bytes::Bytes;
 use serde::Deserialize;
 
-use super::error::ApiError;
+use super::error::{ApiError, Path, Query};
 use super::AppState;
 use crate::store::StoredAsset;
 use dend::deform::ConstraintsSpec;

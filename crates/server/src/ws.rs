@@ -6,8 +6,9 @@
 use std::sync::Arc;
 use std::time::Duration;
 
+use axum::extract::ws::rejection::WebSocketUpgradeRejection;
 use axum::extract::ws::{CloseFrame, Message, WebSocket, WebSocketUpgrade};
-use axum::extract::{Path, Query, State};
+use axum::extract::State;
 use axum::http::{header, HeaderMap};
 use axum::response::Response;
 use bytes::Bytes;
@@ -16,7 +17,7 @@ use serde::{Deserialize, Serialize};
 use tokio::sync::broadcast::error::RecvError;
 use tokio::time::Instant;
 
-use super::error::ApiError;
+use super::error::{ApiError, Path, Query};
 use super::metrics::Metrics;
 use super::sessions::{check_token, find, parse_json, DeltaJson};
 use super::AppState;
@@ -430,7 +431,7 @@ pub async fn upgrade(
     Path(id): Path<String>,
     Query(q): Query<WsQuery>,
     headers: HeaderMap,
-    ws: WebSocketUpgrade,
+    ws: Result<WebSocketUpgrade, WebSocketUpgradeRejection>,
 ) -> Result<Response, ApiError> {
     let header_token = headers
         .get(header::AUTHORIZATION)
@@ -448,6 +449,9 @@ pub async fn upgrade(
         }
         None => false,
     };
+    // not an upgrade request: a JSON 400 `invalid_upgrade` (after the
+    // session and token checks, as on every session route)
+    let ws = ws?;
     let cfg = ConnConfig {
         max_messages_per_sec: st.config.ws_max_messages_per_sec,
         auth_timeout: Duration::from_secs(10),
