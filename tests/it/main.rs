@@ -29,6 +29,7 @@ mod paper_reproduction;
 mod server_e2e;
 mod server_errors;
 mod server_gltf;
+mod server_json_errors;
 mod server_leases;
 mod server_limits;
 mod server_openapi;

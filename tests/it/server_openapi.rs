@@ -403,6 +403,11 @@ fn error_schema_matches_the_error_body() {
         UnsupportedFormat(s()),
         InvalidParams(s()),
         InvalidConstraints(s()),
+        UnsupportedMediaType(s()),
+        InvalidQuery(s()),
+        InvalidPath(s()),
+        InvalidUpgrade(s()),
+        MethodNotAllowed(s()),
         VertexOutOfRange(s()),
         UnknownGroup(s()),
         NonFinite(s()),
@@ -450,6 +455,11 @@ fn error_schema_matches_the_error_body() {
             | UnsupportedFormat(_)
             | InvalidParams(_)
             | InvalidConstraints(_)
+            | UnsupportedMediaType(_)
+            | InvalidQuery(_)
+            | InvalidPath(_)
+            | InvalidUpgrade(_)
+            | MethodNotAllowed(_)
             | VertexOutOfRange(_)
             | UnknownGroup(_)
             | NonFinite(_)

@@ -229,6 +229,8 @@ pub fn app(state: AppState) -> Router {
     for (path, mr) in route_list() {
         router = router.route(path, mr);
     }
+    // a method a route does not serve: JSON 405 (axum's own is empty)
+    let router = router.method_not_allowed_fallback(error::method_not_allowed);
     let timeout = state.config.request_timeout();
     router
         // The web client's static files (`/`, outside the `/v1` API).

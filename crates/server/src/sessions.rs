@@ -3,7 +3,7 @@
 use std::time::{SystemTime, UNIX_EPOCH};
 
 use axum::extract::rejection::{BytesRejection, JsonRejection};
-use axum::extract::{FromRequestParts, Path, Query, State};
+use axum::extract::{FromRequestParts, State};
 use axum::http::request::Parts;
 use axum::http::{header, HeaderMap, StatusCode};
 use axum::response::{IntoResponse, Response};
@@ -12,7 +12,7 @@ use bytes::Bytes;
 use nalgebra::{Quaternion, Unit, UnitQuaternion, Vector3};
 use serde::Deserialize;
 
-use super::error::ApiError;
+use super::error::{ApiError, Path, Query};
 use super::meshes::{new_id, parse_format};
 use super::{rest_for, AppState};
 use crate::auth::{bearer, check_token, token_hash};
@@ -49,9 +49,7 @@ impl FromRequestParts<AppState> for Authed {
     type Rejection = ApiError;
 
     async fn from_request_parts(parts: &mut Parts, st: &AppState) -> Result<Self, ApiError> {
-        let Path(id) = Path::<String>::from_request_parts(parts, st)
-            .await
-            .map_err(|e| ApiError::InvalidJson(e.body_text()))?;
+        let Path(id) = Path::<String>::from_request_parts(parts, st).await?;
         let token = bearer(&parts.headers);
         let s = find(st, &id, token).await?;
         check_token(&s, token)?;
