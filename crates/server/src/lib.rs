@@ -12,6 +12,9 @@ pub mod fuzzing;
 pub mod lease;
 mod meshes;
 pub mod metrics;
+mod morph_export;
+
+mod poses;
 pub mod recover;
 pub mod session;
 mod sessions;
@@ -29,7 +32,7 @@ use axum::extract::{DefaultBodyLimit, Request, State};
 use axum::http::{header, Uri};
 use axum::middleware::Next;
 use axum::response::{IntoResponse, Response};
-use axum::routing::{delete, get, post, put, MethodRouter};
+use axum::routing::{delete, get, patch, post, put, MethodRouter};
 use axum::{BoxError, Router};
 use parking_lot::{Mutex, RwLock};
 use tower::ServiceBuilder;
@@ -154,6 +157,12 @@ pub const ROUTES: &[(&str, &[&str])] = &[
     ("/v1/sessions/{id}/redo", &["post"]),
     ("/v1/sessions/{id}/reset", &["post"]),
     ("/v1/sessions/{id}/ws", &["get"]),
+    ("/v1/sessions/{id}/poses", &["get", "post"]),
+    (
+        "/v1/sessions/{id}/poses/{name}",
+        &["get", "patch", "delete"],
+    ),
+    ("/v1/sessions/{id}/poses/{name}/restore", &["post"]),
 ];
 
 fn route_list() -> Vec<(&'static str, MethodRouter<AppState>)> {
@@ -184,6 +193,20 @@ fn route_list() -> Vec<(&'static str, MethodRouter<AppState>)> {
         ("/v1/sessions/{id}/redo", post(sessions::redo)),
         ("/v1/sessions/{id}/reset", post(sessions::reset)),
         ("/v1/sessions/{id}/ws", get(ws::upgrade)),
+        (
+            "/v1/sessions/{id}/poses",
+            get(poses::list).merge(post(poses::save)),
+        ),
+        (
+            "/v1/sessions/{id}/poses/{name}",
+            get(poses::get)
+                .merge(patch(poses::rename))
+                .merge(delete(poses::remove)),
+        ),
+        (
+            "/v1/sessions/{id}/poses/{name}/restore",
+            post(poses::restore),
+        ),
     ]
 }
 

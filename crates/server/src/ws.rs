@@ -82,6 +82,29 @@ pub enum ClientMsg {
     Undo,
     /// Redo.
     Redo,
+    /// Save the settled pose under `name` (replacing a pose of that name);
+    /// the `state` that follows lists it in `poses`.
+    SavePose {
+        /// The name.
+        name: String,
+    },
+    /// Make named pose `name` the current pose (an undo step).
+    RestorePose {
+        /// The name.
+        name: String,
+    },
+    /// Rename named pose `name` to `to`.
+    RenamePose {
+        /// The current name.
+        name: String,
+        /// The new name.
+        to: String,
+    },
+    /// Delete named pose `name`.
+    DeletePose {
+        /// The name.
+        name: String,
+    },
     /// Liveness probe; answered by `pong` with the same nonce.
     Ping {
         /// Echoed back.
@@ -408,6 +431,26 @@ async fn handle_message(
             }
             ClientMsg::Undo => s.undo().await.map(|_| None).map_err(ApiError::from),
             ClientMsg::Redo => s.redo().await.map(|_| None).map_err(ApiError::from),
+            ClientMsg::SavePose { name } => s
+                .save_pose(&name)
+                .await
+                .map(|_| None)
+                .map_err(ApiError::from),
+            ClientMsg::RestorePose { name } => s
+                .restore_pose(&name)
+                .await
+                .map(|_| None)
+                .map_err(ApiError::from),
+            ClientMsg::RenamePose { name, to } => s
+                .rename_pose(&name, &to)
+                .await
+                .map(|_| None)
+                .map_err(ApiError::from),
+            ClientMsg::DeletePose { name } => s
+                .delete_pose(&name)
+                .await
+                .map(|_| None)
+                .map_err(ApiError::from),
         }
     }
     .await;

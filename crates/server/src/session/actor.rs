@@ -86,6 +86,10 @@ pub(super) struct Actor {
     pose: Arc<Vec<[f64; 3]>>,
     /// Set when the lease is lost (a fenced write): the actor ends.
     stop: bool,
+    /// The named poses (None until read from the store, see `actor_poses.rs`).
+    named: Option<Vec<crate::store::NamedPose>>,
+    /// Named-pose commands waiting for the pose to settle.
+    settle_queue: VecDeque<super::poses::PoseCmd>,
 }
 
 impl Actor {
@@ -128,6 +132,8 @@ impl Actor {
             uncommitted: false,
             pose,
             stop: false,
+            named: None,
+            settle_queue: VecDeque::new(),
         }
     }
 
@@ -135,6 +141,7 @@ impl Actor {
         let Some(mut internal_rx) = self.internal_rx.take() else {
             return;
         };
+        self.load_named_poses();
         loop {
             while self.deformer.is_some() {
                 let Some(cmd) = self.deferred.pop_front() else {
@@ -143,6 +150,12 @@ impl Actor {
                 if !self.on_cmd(cmd) {
                     return self.closed();
                 }
+            }
+            while self.pose_settled() {
+                let Some(cmd) = self.settle_queue.pop_front() else {
+                    break;
+                };
+                self.on_pose_cmd(cmd);
             }
             self.maybe_start_solve();
             tokio::select! {
@@ -231,6 +244,13 @@ impl Actor {
             }
             Cmd::Pose(reply) => {
                 let _ = reply.send(Ok(self.snapshot()));
+            }
+            Cmd::Poses(cmd) => {
+                if cmd.waits_for_settle() && !self.pose_settled() {
+                    self.settle_queue.push_back(cmd);
+                } else {
+                    self.on_pose_cmd(cmd);
+                }
             }
             Cmd::GestureEnded => {
                 if self.settled && self.deformer.is_some() {
@@ -441,5 +461,7 @@ impl Actor {
 
 #[path = "actor_history.rs"]
 mod history;
+#[path = "actor_poses.rs"]
+mod named_poses;
 #[path = "actor_solve.rs"]
 mod solve;

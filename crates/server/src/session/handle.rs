@@ -54,6 +54,8 @@ pub struct SessionInfo {
     /// found in the cache): the stage under way, `assembly`, `symbolic` or
     /// `numeric` (in that order; `build_progress` events announce each).
     pub build_stage: Option<BuildStage>,
+    /// The named poses, in save order (without their positions).
+    pub poses: Vec<super::PoseInfo>,
 }
 
 /// A cloneable handle to a running session actor.
@@ -95,6 +97,7 @@ impl SessionHandle {
                 constraints_revision: 0,
                 warnings: Arc::default(),
                 build_stage: None,
+                poses: Arc::default(),
             }),
             started: Instant::now(),
             last_active_ms: AtomicU64::new(0),
@@ -156,6 +159,7 @@ impl SessionHandle {
             constraints_revision: s.constraints_revision,
             warnings: s.warnings.to_vec(),
             build_stage: s.build_stage,
+            poses: s.poses.to_vec(),
         }
     }
 
@@ -221,7 +225,7 @@ impl SessionHandle {
             .map_err(|_| SessionError::Closed)
     }
 
-    async fn call<T>(
+    pub(super) async fn call<T>(
         &self,
         make: impl FnOnce(oneshot::Sender<Result<T, SessionError>>) -> Cmd,
     ) -> Result<T, SessionError> {
