@@ -22,6 +22,8 @@ mod generators;
 mod gltf_assets;
 mod libigl_oracle;
 mod mesh_io;
+mod morph_targets;
+mod named_poses;
 mod no_panic;
 mod operators;
 mod operators_invariance;

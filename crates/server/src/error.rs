@@ -173,6 +173,22 @@ pub enum ApiError {
         /// When its lease expires unless renewed.
         retry_after_ms: u64,
     },
+    /// No named pose of this name in the session.
+    #[error("{0}")]
+    PoseNotFound(String),
+    /// A named pose of this name exists already (rename).
+    #[error("{0}")]
+    PoseExists(String),
+    /// A pose name that is empty, too long or has control characters.
+    #[error("{0}")]
+    InvalidPoseName(String),
+    /// The session has the most named poses it may keep.
+    #[error("{0}")]
+    TooManyPoses(String),
+    /// An export option the session's mesh cannot honour (morph targets
+    /// of a mesh uploaded without a glTF/GLB file).
+    #[error("{0}")]
+    UnsupportedExport(String),
     /// Anything else: logged, reported generically.
     #[error("internal error")]
     Internal(String),
@@ -231,6 +247,11 @@ impl ApiError {
             SessionClosed => ("session_closed", StatusCode::GONE),
             StoreUnavailable(_) => ("store_unavailable", StatusCode::SERVICE_UNAVAILABLE),
             SessionOwnedElsewhere { .. } => ("session_owned_elsewhere", StatusCode::CONFLICT),
+            PoseNotFound(_) => ("pose_not_found", StatusCode::NOT_FOUND),
+            PoseExists(_) => ("pose_exists", StatusCode::CONFLICT),
+            InvalidPoseName(_) => ("invalid_pose_name", StatusCode::UNPROCESSABLE_ENTITY),
+            TooManyPoses(_) => ("too_many_poses", StatusCode::CONFLICT),
+            UnsupportedExport(_) => ("unsupported_export", StatusCode::UNPROCESSABLE_ENTITY),
             Internal(_) => ("internal", StatusCode::INTERNAL_SERVER_ERROR),
         }
     }
@@ -374,6 +395,10 @@ impl From<&SessionError> for ApiError {
             SessionError::NothingToUndo => ApiError::NothingToUndo(msg),
             SessionError::NothingToRedo => ApiError::NothingToRedo(msg),
             SessionError::StaleConstraints { .. } => ApiError::StaleConstraints(msg),
+            SessionError::UnknownPose { .. } => ApiError::PoseNotFound(msg),
+            SessionError::PoseExists { .. } => ApiError::PoseExists(msg),
+            SessionError::InvalidPoseName { .. } => ApiError::InvalidPoseName(msg),
+            SessionError::TooManyPoses { .. } => ApiError::TooManyPoses(msg),
             SessionError::InvalidConstraints(m) => ApiError::InvalidConstraints(m.clone()),
             SessionError::Deform(d) => deform_ref(d, msg),
             SessionError::Store(s) => ApiError::from(s),
@@ -461,6 +486,11 @@ mod tests {
                 owner: "i2".into(),
                 retry_after_ms: 5,
             },
+            ApiError::PoseNotFound(String::new()),
+            ApiError::PoseExists(String::new()),
+            ApiError::InvalidPoseName(String::new()),
+            ApiError::TooManyPoses(String::new()),
+            ApiError::UnsupportedExport(String::new()),
             ApiError::Internal("secret path /etc".into()),
         ];
         let mut codes: Vec<_> = all.iter().map(|e| e.code()).collect();

@@ -371,6 +371,26 @@ async fn handle_message(
         ClientMsg::Ack { .. } => Ok(None),
         ClientMsg::Undo => s.undo().await.map(|_| None).map_err(ApiError::from),
         ClientMsg::Redo => s.redo().await.map(|_| None).map_err(ApiError::from),
+        ClientMsg::SavePose { name } => s
+            .save_pose(&name)
+            .await
+            .map(|_| None)
+            .map_err(ApiError::from),
+        ClientMsg::RestorePose { name } => s
+            .restore_pose(&name)
+            .await
+            .map(|_| None)
+            .map_err(ApiError::from),
+        ClientMsg::RenamePose { name, to } => s
+            .rename_pose(&name, &to)
+            .await
+            .map(|_| None)
+            .map_err(ApiError::from),
+        ClientMsg::DeletePose { name } => s
+            .delete_pose(&name)
+            .await
+            .map(|_| None)
+            .map_err(ApiError::from),
     }
 }
 
