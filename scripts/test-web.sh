@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
 # Browser tests of the web client (web/tests/browser.test.mjs, then
-# web/tests/tools.test.mjs for the posing tools): installs what
+# web/tests/tools.test.mjs for the posing tools, then
+# web/tests/editor.test.mjs for the first minutes of a new user): installs what
 # it needs if missing (Debian's chromium, node/npm, playwright-core and the
 # glTF validator from npm),
 # builds `dend`, and runs the test against the real `dend serve`.
@@ -55,3 +56,4 @@ export CHROMIUM DEND_BIN
 node web/tests/frame.test.mjs
 node web/tests/browser.test.mjs
 node web/tests/tools.test.mjs
+node web/tests/editor.test.mjs

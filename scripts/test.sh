@@ -27,6 +27,25 @@ fi
 export DEND_FAILOVER_REPORT="${DEND_FAILOVER_REPORT:-$PG_TMP/failover.json}"
 cargo test --workspace --lib --bins --tests --examples
 [ -s "$DEND_FAILOVER_REPORT" ] && { echo "== failover figures:"; cat "$DEND_FAILOVER_REPORT"; }
+# the Python client's tests, against a real `dend serve` (the binary cargo
+# test built for the CLI tests)
+export DEND_BIN="${CARGO_TARGET_DIR:-$(pwd)/target}/debug/dend"
+.venv/bin/python -m pytest -q clients/python/tests
+# the Blender add-on's headless test (Debian's `blender`; .ci/run installs it)
+if command -v blender >/dev/null; then
+  BLENDER_LOG="$(mktemp)"
+  if ! blender -b --factory-startup --python-exit-code 1 \
+      --python clients/blender/tests/test_addon.py >"$BLENDER_LOG" 2>&1; then
+    cat "$BLENDER_LOG"
+    exit 1
+  fi
+  grep -E "^(shape key|dend blender)" "$BLENDER_LOG"
+elif [ "${CI:-}" = true ]; then
+  echo "blender is not installed: CI must run the add-on's test" >&2
+  exit 1
+else
+  echo "blender not installed: the Blender add-on's test did not run" >> "$DEND_SKIP_LOG"
+fi
 # the browser test drives the `dend` binary cargo test built for the CLI tests
 DEND_BIN="${CARGO_TARGET_DIR:-$(pwd)/target}/debug/dend" bash scripts/test-web.sh
 if [ -s "$DEND_SKIP_LOG" ]; then

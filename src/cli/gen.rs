@@ -1,10 +1,11 @@
-//! `dend gen SHAPE -o FILE`: writes a procedural test shape.
+//! `dend gen SHAPE -o FILE [--constraints C.json]`: writes a procedural
+//! test shape (and, for the creature, its default edit).
 
 use std::path::PathBuf;
 
 use anyhow::Context;
 use clap::Args;
-use dend::mesh::gen::{generate, Shape, ShapeParams, ShapeSpec};
+use dend::mesh::gen::{creature_constraints, generate, Shape, ShapeParams, ShapeSpec};
 use dend::mesh::io::{write_path_with, Encoding};
 
 /// Arguments of `dend gen`.
@@ -19,12 +20,20 @@ pub struct GenArgs {
     /// Write PLY/STL as ASCII instead of binary little-endian.
     #[arg(long)]
     ascii: bool,
+    /// Also write the shape's default constraint set (the creature's: feet
+    /// fixed, the head a handle) to this JSON file, for `dend deform
+    /// --constraints`. Only the creature has one.
+    #[arg(long, value_name = "C.json")]
+    constraints: Option<PathBuf>,
     #[command(flatten)]
     params: ShapeParams,
 }
 
 /// Generates the shape and writes it.
 pub fn run(args: GenArgs) -> anyhow::Result<()> {
+    if args.constraints.is_some() && args.shape != Shape::Creature {
+        anyhow::bail!("--constraints: only the creature has a default constraint set");
+    }
     let spec = ShapeSpec {
         shape: args.shape,
         params: args.params,
@@ -42,5 +51,10 @@ pub fn run(args: GenArgs) -> anyhow::Result<()> {
         mesh.num_vertices(),
         mesh.num_triangles()
     );
+    if let Some(path) = &args.constraints {
+        let json = serde_json::to_string(&creature_constraints(&mesh))?;
+        std::fs::write(path, json).with_context(|| format!("cannot write {}", path.display()))?;
+        println!("wrote {}: the default constraint set", path.display());
+    }
     Ok(())
 }

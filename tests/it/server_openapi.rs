@@ -51,7 +51,7 @@ async fn every_route_in_the_table_is_served() {
     let state = AppState::new(Config::default()).expect("state");
     let router = app(state);
     for (method, path) in router_routes() {
-        let uri = path.replace("{id}", "x");
+        let uri = path.replace("{id}", "x").replace("{name}", "x");
         let req = Request::builder()
             .method(Method::from_bytes(method.to_uppercase().as_bytes()).expect("method"))
             .uri(&uri)
@@ -368,6 +368,7 @@ fn session_schema_matches_the_session_info() {
         constraints_revision: 0,
         warnings: vec![],
         build_stage: Some(dend_protocol::BuildStage::Numeric),
+        poses: vec![],
     };
     let json = serde_json::to_value(&info).expect("json");
     assert_eq!(keys(&schema["properties"]), json_keys(json), "Session");
@@ -403,6 +404,11 @@ fn error_schema_matches_the_error_body() {
         UnsupportedFormat(s()),
         InvalidParams(s()),
         InvalidConstraints(s()),
+        UnsupportedMediaType(s()),
+        InvalidQuery(s()),
+        InvalidPath(s()),
+        InvalidUpgrade(s()),
+        MethodNotAllowed(s()),
         VertexOutOfRange(s()),
         UnknownGroup(s()),
         NonFinite(s()),
@@ -440,6 +446,11 @@ fn error_schema_matches_the_error_body() {
             owner: s(),
             retry_after_ms: 1,
         },
+        PoseNotFound(s()),
+        PoseExists(s()),
+        InvalidPoseName(s()),
+        TooManyPoses(s()),
+        UnsupportedExport(s()),
         Internal(s()),
     ];
     for e in &all {
@@ -450,6 +461,11 @@ fn error_schema_matches_the_error_body() {
             | UnsupportedFormat(_)
             | InvalidParams(_)
             | InvalidConstraints(_)
+            | UnsupportedMediaType(_)
+            | InvalidQuery(_)
+            | InvalidPath(_)
+            | InvalidUpgrade(_)
+            | MethodNotAllowed(_)
             | VertexOutOfRange(_)
             | UnknownGroup(_)
             | NonFinite(_)
@@ -477,6 +493,11 @@ fn error_schema_matches_the_error_body() {
             | SessionClosed
             | StoreUnavailable(_)
             | SessionOwnedElsewhere { .. }
+            | PoseNotFound(_)
+            | PoseExists(_)
+            | InvalidPoseName(_)
+            | TooManyPoses(_)
+            | UnsupportedExport(_)
             | Internal(_) => {}
         }
         let (code, status) = e.code_status();

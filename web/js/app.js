@@ -45,6 +45,12 @@ export const app = {
   warnings: [],
   colorMode: 'regions', // or a field of GET …/curvature: mean, gaussian, g
   curvature: null,
+  presets: null, // GET /v1/presets: {default, presets: [{name, label, description, params}]}
+  settingsUndo: [], // earlier sessions a settings change left: [{session, settings}]
+  canUndo: false, // the session's own history has an earlier entry
+  held: new Map(), // server handle index → client id holding it (another client's grab)
+  notices: [], // each quiet status shown (the browser test counts them)
+  opened: false, // the first open (the creature, or the session of the URL) is done
 };
 
 let curvatureTimer = null;
@@ -69,6 +75,40 @@ export function showError(e) {
   $('error').hidden = false;
 }
 $('errorClose').onclick = () => { $('error').hidden = true; };
+
+/** A quiet status line (not an error): `text`, or '' to clear it. The
+ * same text shown again is not a new notice. */
+export function notice(text) {
+  const el = $('notice');
+  if (text && (el.hidden || el.textContent !== text)) app.notices.push(text);
+  el.textContent = text;
+  el.hidden = !text;
+}
+
+/** Another client holds server handle `handle` (a `handle_grabbed` event,
+ * or the error of a drag it refused): one quiet status until released. */
+export function showHeld(handle, client) {
+  if (client !== undefined && client === app.you) return;
+  if (handle === undefined || handle === null) {
+    // a refused drag: the grab's own status is shown already, if any
+    if (app.held.size === 0) notice('the handle is held by another client');
+    return;
+  }
+  app.held.set(handle, client);
+  notice(`handle ${handle} held by ${client === undefined ? 'another client' : `client ${client}`}`);
+}
+
+/** `handle` was released (or every handle, when the socket changes). */
+export function clearHeld(handle) {
+  if (handle === undefined) app.held.clear();
+  else app.held.delete(handle);
+  if (app.held.size === 0) notice('');
+}
+
+/** Whether another client holds the handle of UI handle `k`. */
+export function heldByOther(k) {
+  return app.held.has(serverHandle(k));
+}
 
 /** The progress line of the status bar (upload, session set-up, the
  * factor build's stages from the server); '' hides it. Each text shown
@@ -279,7 +319,23 @@ export function strokeEnded() {
 
 // ---------- session ----------
 
-function params() {
+// ---------- settings: the server's presets, a stiffness, the paper's parameters ----------
+
+/** The preset chosen in the menu ({name, label, description, params}), or
+ * null when the server lists none. */
+function currentPreset() {
+  const list = app.presets ? app.presets.presets : [];
+  return list.find((p) => p.name === $('preset').value) || null;
+}
+
+/** The stiffness slider's factor on the preset's bending weight β
+ * (`bending` in the session parameters): 2^slider, 0.25× to 4×. */
+function stiffnessFactor() {
+  return 2 ** Number($('stiffness').value);
+}
+
+/** The Advanced fold's fields as session parameters. */
+function advancedParams() {
   const e = $('energy').value;
   const energy = e === 'combined' ? { combined: { ks: +$('ks').value, kb: +$('kb').value } } : e;
   const mode = $('mode').value;
@@ -287,12 +343,6 @@ function params() {
   // its bending energy and no paper mode: the other choices are the
   // paper's eq. (24) least squares
   const elastic = (e === 'total' || e === 'thin-plate') && mode !== 'paper';
-  // the characters' weights (Params::for_characters; README,
-  // docs/posing.md: 11 of the suite's 12 character edits pass against 7
-  // with the defaults, 14 of its 20 edits against 8)
-  const characters = elastic && $('weights').value === 'characters'
-    ? { stretch: 3, laplacian: 0.1, coarse_ratio: 3, corrections: 'while-gaining', correction_period: 5 }
-    : {};
   return {
     energy,
     lambda1: $('hard').checked ? 0 : +$('lambda1').value,
@@ -300,8 +350,93 @@ function params() {
     detail: $('detail').value,
     mode,
     formulation: elastic ? 'elastic' : 'least_squares',
-    ...characters,
   };
+}
+
+/** Fills the Advanced fold from a preset's parameters (what the server
+ * sends; fields it does not name keep their value). */
+function showAdvanced(p) {
+  if (!p) return;
+  if (typeof p.energy === 'string') $('energy').value = p.energy;
+  else if (p.energy && p.energy.combined) {
+    $('energy').value = 'combined';
+    $('ks').value = p.energy.combined.ks;
+    $('kb').value = p.energy.combined.kb;
+  }
+  $('combinedRow').hidden = $('energy').value !== 'combined';
+  if (typeof p.lambda1 === 'number') {
+    $('hard').checked = p.lambda1 === 0;
+    $('lambda1').disabled = p.lambda1 === 0;
+    if (p.lambda1 > 0) $('lambda1').value = p.lambda1;
+  }
+  if (typeof p.lambda2 === 'number') $('lambda2').value = p.lambda2;
+  if (typeof p.detail === 'string') $('detail').value = p.detail;
+  if (typeof p.mode === 'string') $('mode').value = p.mode;
+}
+
+/** The session parameters of the panel: the preset by name, the fields of
+ * the Advanced fold that differ from the preset's (explicit fields
+ * override a preset), and the stiffness as the preset's `bending` scaled. */
+function params() {
+  const preset = currentPreset();
+  const adv = advancedParams();
+  if (!preset) return adv;
+  const out = { preset: preset.name };
+  const same = (a, b) => JSON.stringify(a) === JSON.stringify(b);
+  for (const [k, v] of Object.entries(adv)) if (!same(v, preset.params[k])) out[k] = v;
+  const f = stiffnessFactor();
+  if (f !== 1 && typeof preset.params.bending === 'number') out.bending = preset.params.bending * f;
+  return out;
+}
+
+/** The panel's settings, to restore them on undo. */
+function settingsSnapshot() {
+  const ids = ['preset', 'stiffness', 'energy', 'ks', 'kb', 'lambda1', 'lambda2', 'detail', 'mode'];
+  return { values: Object.fromEntries(ids.map((id) => [id, $(id).value])), hard: $('hard').checked };
+}
+
+function restoreSettings(s) {
+  for (const [id, v] of Object.entries(s.values)) $(id).value = v;
+  $('hard').checked = s.hard;
+  $('lambda1').disabled = s.hard;
+  $('combinedRow').hidden = $('energy').value !== 'combined';
+  showStiffness();
+  showPresetInfo();
+}
+
+function showStiffness() {
+  const f = stiffnessFactor();
+  $('stiffnessOut').textContent = `${f < 1 ? f.toFixed(2) : f.toFixed(f % 1 ? 2 : 0)}×`;
+}
+
+function showPresetInfo() {
+  const p = currentPreset();
+  $('presetInfo').textContent = p ? p.description || '' : 'the server lists no presets: its defaults';
+}
+
+/** The preset menu, built from the server's list (GET /v1/presets). */
+async function loadPresets() {
+  try {
+    app.presets = await app.api.json('GET', '/v1/presets');
+  } catch (e) {
+    app.presets = null; // an older server: its defaults, no menu
+  }
+  const list = app.presets ? app.presets.presets || [] : [];
+  $('preset').replaceChildren(...list.map((p) => {
+    const o = document.createElement('option');
+    o.value = p.name;
+    o.textContent = p.label || p.name;
+    o.title = p.description || '';
+    return o;
+  }));
+  $('preset').disabled = list.length === 0;
+  $('stiffness').disabled = list.length === 0;
+  if (list.length) {
+    $('preset').value = list.some((p) => p.name === app.presets.default) ? app.presets.default : list[0].name;
+    showAdvanced(currentPreset().params);
+  }
+  showStiffness();
+  showPresetInfo();
 }
 
 function setMesh(obj) {
@@ -335,6 +470,8 @@ async function openSession(id, token, meshId) {
     app.ws = null;
   }
   app.session = { id, token, meshId };
+  app.canUndo = false;
+  clearHeld();
   app.frames = 0;
   app.last = null;
   app.latencies = [];
@@ -357,13 +494,26 @@ async function startSession(meshId) {
   await openSession(s.id, s.token, meshId);
 }
 
-const generate = guarded(async () => {
+/** Generates the menu's shape and opens a session on it; a shape with a
+ * default edit (the creature: feet fixed, head a handle) gets it applied,
+ * its handle selected for the gizmo. */
+async function generateShape(shape) {
   $('error').hidden = true;
   setState('creating');
-  const m = await app.api.generate($('shape').value);
+  const m = await app.api.generate(shape);
+  app.settingsUndo = [];
   await startSession(m.id);
   resetPaint();
-});
+  if (m.constraints) {
+    const r = await app.api.setConstraints(app.session.id, app.session.token, m.constraints, app.constraintsRevision);
+    showConstraints({ constraints: m.constraints, constraints_revision: r.constraints_revision });
+    app.gizmo.handle = 0;
+    $('prompt').hidden = false;
+    app.needsDraw = true;
+  }
+}
+
+const generate = guarded(() => generateShape($('shape').value));
 
 const upload = guarded(async (ev) => {
   const file = ev.target.files[0];
@@ -382,6 +532,7 @@ const upload = guarded(async (ev) => {
     progress('');
     ev.target.value = ''; // the same file can be picked again
   }
+  app.settingsUndo = [];
   await startSession(m.id);
   resetPaint();
 });
@@ -397,13 +548,94 @@ function resetPaint() {
   recolor();
 }
 
-const restartWithParams = guarded(async () => {
-  if (!app.session) throw new ApiError('no_session', 'generate or upload a mesh first');
-  const s = await app.api.createSession(app.session.meshId, params());
-  setState(s.state || 'empty');
-  await openSession(s.id, s.token, app.session.meshId);
-  if (app.applied) await applyConstraints();
+/** The constraint set of the painted labels pinned where the pose has
+ * its vertices (`fixed_positions`, each handle's `positions`): a new
+ * session with other parameters starts from the same regions and handle
+ * targets, so the pose is kept (the free vertices are solved again with
+ * the new parameters). */
+function pinnedConstraints() {
+  const c = constraintsJson();
+  const at = (i) => [app.positions[3 * i], app.positions[3 * i + 1], app.positions[3 * i + 2]];
+  const json = {
+    fixed: c.json.fixed,
+    fixed_positions: c.json.fixed.map(at),
+    handles: c.json.handles.map((h) => ({ ...h, positions: h.vertices.map(at) })),
+  };
+  return { json, serverIndexOf: c.serverIndexOf };
+}
+
+let settingsBusy = null;
+
+/** A settings change (preset, stiffness, an Advanced field): a session
+ * with the new parameters on the same mesh, given the current regions and
+ * pose; the previous session is kept as the undo step (Undo returns to
+ * it). Only the constraint set of this tab is sent, to a session no one
+ * else edits: no `stale_constraints`. */
+const changeSettings = guarded(async (previous) => {
+  if (!app.session) return;
+  while (settingsBusy) await settingsBusy;
+  let done;
+  settingsBusy = new Promise((r) => { done = r; });
+  try {
+    const old = app.session;
+    const hasRegions = app.labels.some((l) => l > 0);
+    const pinned = hasRegions ? pinnedConstraints() : null;
+    progress('applying the new settings…');
+    const s = await app.api.createSession(old.meshId, params());
+    let revision = 0;
+    if (pinned) {
+      const r = await app.api.setConstraints(s.id, s.token, pinned.json);
+      revision = r && r.constraints_revision !== undefined ? r.constraints_revision : 0;
+    }
+    app.settingsUndo.push({ session: old, settings: previous });
+    if (pinned) {
+      // the same regions (the explicit positions are this session's anchor)
+      app.applied = { json: constraintsJson().json, serverIndexOf: pinned.serverIndexOf };
+      app.dirtyLabels = false;
+      app.constraintsRevision = revision;
+    } else {
+      app.applied = null;
+      app.constraintsRevision = 0;
+    }
+    setState(pinned ? 'building' : 'empty');
+    await openSession(s.id, s.token, old.meshId);
+    recolor();
+  } finally {
+    progress('');
+    settingsBusy = null;
+    done();
+  }
 });
+
+/** Undo: the session's own history first; at its start, the last
+ * settings change (back to the session and settings before it). */
+export const undo = guarded(async () => {
+  if (app.canUndo || app.settingsUndo.length === 0) {
+    send({ type: 'undo' });
+    return;
+  }
+  const { session, settings } = app.settingsUndo.pop();
+  const dropped = app.session;
+  restoreSettings(settings);
+  lastSettings = settings;
+  const info = await app.api.session(session.id, session.token);
+  await openSession(session.id, session.token, session.meshId);
+  showConstraints(info);
+  setState(info.state);
+  // the abandoned session: nobody else has its token
+  if (dropped) app.api.json('DELETE', `/v1/sessions/${dropped.id}`, undefined, dropped.token).catch(() => {});
+});
+
+/** The settings before the last change (the undo step's). */
+let lastSettings = null;
+
+function settingsChanged() {
+  const previous = lastSettings;
+  lastSettings = settingsSnapshot();
+  showPresetInfo();
+  showStiffness();
+  if (previous) changeSettings(previous);
+}
 
 /** Joins an existing session from a share link (#session=…&token=…). */
 async function join(id, token) {
@@ -412,6 +644,8 @@ async function join(id, token) {
   setMesh(parseObj(await app.api.exportObj(id, token)));
   resetPaint();
   showConstraints(info);
+  // a set with handles: the first one gets the gizmo
+  if (app.labels.some((l) => l > 0)) app.gizmo.handle = 0;
   setState(info.state);
   await openSession(id, token, info.mesh_id);
 }
@@ -438,6 +672,7 @@ export function serverHandle(uiHandle) {
 /** Sends one drag delta and records its send time for the latency. */
 export function sendDrag(uiHandle, translate, rotate) {
   const seq = ++app.seq;
+  $('prompt').hidden = true;
   const msg = { type: 'drag', handle: serverHandle(uiHandle), translate, seq };
   if (rotate) msg.rotate = rotate;
   if (send(msg)) app.sent.set(seq, performance.now());
@@ -501,8 +736,17 @@ $('panelToggle').onclick = () => {
   $('panelToggle').setAttribute('aria-expanded', String(!p.classList.contains('collapsed')));
   app.needsDraw = true;
 };
-$('applyParams').onclick = restartWithParams;
-$('undo').onclick = () => send({ type: 'undo' });
+for (const id of ['stiffness', 'energy', 'ks', 'kb', 'hard', 'lambda1', 'lambda2', 'detail', 'mode']) {
+  $(id).addEventListener('change', settingsChanged);
+}
+$('preset').addEventListener('change', () => {
+  // a preset brings its own parameters: the Advanced fold shows them
+  showAdvanced(currentPreset() && currentPreset().params);
+  settingsChanged();
+});
+$('stiffness').addEventListener('input', showStiffness);
+$('helpClose').onclick = () => { $('helpOverlay').hidden = true; };
+$('undo').onclick = undo;
 $('redo').onclick = () => send({ type: 'redo' });
 $('reset').onclick = guarded(async () => { const s = needSession(); await app.api.reset(s.id, s.token); });
 $('export').onclick = guarded(async () => {
@@ -553,7 +797,14 @@ try {
   new ResizeObserver(() => { app.needsDraw = true; }).observe($('view'));
   requestAnimationFrame(loop);
   const h = new URLSearchParams(location.hash.slice(1));
-  if (h.get('session') && h.get('token')) guarded(join)(h.get('session'), h.get('token'));
+  (async () => {
+    await loadPresets();
+    lastSettings = settingsSnapshot();
+    if (h.get('session') && h.get('token')) await guarded(join)(h.get('session'), h.get('token'));
+    // first open: a posable creature with its feet fixed and its head a handle
+    else await guarded(generateShape)('creature');
+    app.opened = true;
+  })();
 } catch (e) {
   showError(e);
 }
@@ -574,5 +825,5 @@ window.dend = {
     const s = project(app.positions, Renderer.mvp(app.camera, c.clientWidth / c.clientHeight), c.clientWidth, c.clientHeight);
     return indices.map((i) => [s[3 * i], s[3 * i + 1]]);
   },
-  stats: () => ({ events: [...app.eventLog], warnings: app.warnings.map((w) => w.code), state: app.state, frames: app.frames, last: app.last && { ...app.last, positions: undefined }, latencies: [...app.latencies], flow: app.flow }),
+  stats: () => ({ events: [...app.eventLog], warnings: app.warnings.map((w) => w.code), state: app.state, frames: app.frames, last: app.last && { ...app.last, positions: undefined }, latencies: [...app.latencies], flow: app.flow, notices: [...app.notices] }),
 };

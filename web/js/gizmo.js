@@ -7,6 +7,14 @@
 // current pivot, its centroid). The numeric entry of the panel sends a
 // translation and a rotation as one drag between a grab and a release: one
 // undo step.
+//
+// Hit test (the order a press is resolved in): the centre disc moves the
+// handle in the view plane (as a press on the handle itself does); then
+// the arrows; then the rings, only on their visible arcs (the half nearer
+// the eye) and only when a ring is not seen nearly edge-on: an edge-on
+// ring projects to a line through the centre, and used to take presses
+// meant for the handle (a ~0° rotation instead of a move). The back arcs
+// and edge-on rings are drawn faint.
 
 import { add, scale, sub, dot } from './camera.js';
 import { Renderer } from './renderer.js';
@@ -17,6 +25,8 @@ const AXES = [[1, 0, 0], [0, 1, 0], [0, 0, 1]];
 const COLORS = ['#d22', '#2a2', '#25d'];
 const ARROW_PX = 90; // arrow length on screen
 const RING = 0.7; // ring radius as a fraction of the arrow length
+const CENTER_PX = 12; // radius of the centre disc that moves the handle
+const EDGE_ON = 0.25; // |cos| between a ring's axis and the view below which it is edge-on
 
 export class Gizmo {
   constructor(app, overlay) {
@@ -68,12 +78,16 @@ export class Gizmo {
     });
     const s = this.toScreen([...pts, ...rings.flat()]);
     if (s[0][2] > 1) return null; // behind the eye
+    const { fwd } = cam.basis();
     return {
       world: c,
       length: len,
       center: s[0].slice(0, 2),
       tips: s.slice(1, 4).map((p) => p.slice(0, 2)),
       rings: rings.map((_, k) => s.slice(4 + 49 * k, 4 + 49 * (k + 1)).map((p) => p.slice(0, 2))),
+      // per ring point: on the half nearer the eye
+      front: rings.map((r) => r.map((p) => dot(sub(p, c), fwd) <= 1e-9 * len)),
+      edgeOn: AXES.map((a) => Math.abs(dot(a, fwd)) < EDGE_ON),
     };
   }
 
@@ -91,10 +105,18 @@ export class Gizmo {
     g.lineWidth = 2;
     geo.rings.forEach((ring, k) => {
       g.strokeStyle = COLORS[k];
-      g.globalAlpha = this.active && this.active.ring === k ? 1 : 0.65;
-      g.beginPath();
-      ring.forEach(([x, y], j) => (j ? g.lineTo(x, y) : g.moveTo(x, y)));
-      g.stroke();
+      // the visible arcs (those a press can take) strong, the rest faint
+      for (const front of [false, true]) {
+        const on = front && !geo.edgeOn[k];
+        g.globalAlpha = this.active && this.active.ring === k ? 1 : on ? 0.65 : 0.18;
+        g.beginPath();
+        for (let j = 0; j + 1 < ring.length; j++) {
+          if (geo.front[k][j] !== front && geo.front[k][j + 1] !== front) continue;
+          g.moveTo(ring[j][0], ring[j][1]);
+          g.lineTo(ring[j + 1][0], ring[j + 1][1]);
+        }
+        g.stroke();
+      }
     });
     g.globalAlpha = 1;
     const [cx, cy] = geo.center;
@@ -114,17 +136,28 @@ export class Gizmo {
       g.font = '11px system-ui, sans-serif';
       g.fillText('xyz'[k], x + 12 * Math.cos(a) - 3, y + 12 * Math.sin(a) + 4);
     });
+    // the centre disc: press here to move the handle in the view plane
+    g.fillStyle = 'rgba(255,255,255,0.55)';
+    g.strokeStyle = '#222';
+    g.lineWidth = 1.5;
+    g.beginPath();
+    g.arc(cx, cy, CENTER_PX - 4, 0, 2 * Math.PI);
+    g.fill();
+    g.stroke();
     g.fillStyle = '#222';
     g.beginPath();
-    g.arc(cx, cy, 3, 0, 2 * Math.PI);
+    g.arc(cx, cy, 2.5, 0, 2 * Math.PI);
     g.fill();
   }
 
-  /** What is under the pointer: {axis: k} (an arrow), {ring: k}, or null. */
+  /** What is under the pointer: {center: true} (the centre disc),
+   * {axis: k} (an arrow), {ring: k} (a visible arc of a ring not seen
+   * edge-on), or null. */
   hit(x, y) {
     const geo = this.geom;
     if (!geo) return null;
     const [cx, cy] = geo.center;
+    if (Math.hypot(x - cx, y - cy) <= CENTER_PX) return { center: true };
     let best = null;
     let bestD = 7;
     geo.tips.forEach(([tx, ty], k) => {
@@ -138,7 +171,9 @@ export class Gizmo {
     if (best) return best;
     bestD = 6;
     geo.rings.forEach((ring, k) => {
+      if (geo.edgeOn[k]) return;
       for (let j = 0; j + 1 < ring.length; j++) {
+        if (!geo.front[k][j] || !geo.front[k][j + 1]) continue;
         const d = segmentDistance(x, y, ring[j][0], ring[j][1], ring[j + 1][0], ring[j + 1][1]);
         if (d < bestD) {
           bestD = d;

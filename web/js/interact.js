@@ -10,7 +10,7 @@ import { Renderer } from './renderer.js';
 import { project, brush, box, lasso, pick, adjacency, fillRegion } from './select.js';
 import { Occlusion } from './zbuffer.js';
 import { sub, dot, add, scale } from './camera.js';
-import { paint, strokeEnded, sendDrag, send, serverHandle } from './app.js';
+import { paint, strokeEnded, sendDrag, send, serverHandle, heldByOther, showHeld } from './app.js';
 
 const $ = (id) => document.getElementById(id);
 
@@ -131,16 +131,24 @@ export function attachInteraction(app, canvas) {
       return;
     }
     const part = app.gizmo.hit(x, y);
-    if (part) {
+    // a handle another client holds: its status (once), and the press orbits
+    const held = (k) => {
+      if (!heldByOther(k)) return false;
+      showHeld(serverHandle(k), app.held.get(serverHandle(k)));
+      return true;
+    };
+    if (part && !part.center && !held(app.gizmo.handle)) {
       const k = app.gizmo.handle;
       drag = { kind: 'gizmo', k, g: app.gizmo.start(part, x, y) };
       send({ type: 'grab', handle: serverHandle(k) });
       app.needsDraw = true;
       return;
     }
-    const v = pick(screen(), x, y, 14, (i) => app.labels[i] > 0);
-    if (v >= 0) {
-      const k = app.labels[v] - 1;
+    // the gizmo's centre moves its handle in the view plane, as a press on
+    // the handle itself does
+    const v = part && part.center ? -1 : pick(screen(), x, y, 14, (i) => app.labels[i] > 0);
+    if ((v >= 0 || (part && part.center)) && !held(v >= 0 ? app.labels[v] - 1 : app.gizmo.handle)) {
+      const k = v >= 0 ? app.labels[v] - 1 : app.gizmo.handle;
       app.gizmo.handle = k; // a picked handle gets the gizmo
       app.needsDraw = true;
       const c = centroid(k);

@@ -2,7 +2,7 @@
 // Ctrl+Z undo, Ctrl+Shift+Z / Ctrl+Y redo, F frame the mesh, N/B/X/L/G
 // tools (navigate, brush, box, lasso, fill), A apply constraints.
 
-import { send, frameView, applyConstraints } from './app.js';
+import { send, frameView, applyConstraints, undo } from './app.js';
 
 export function attachKeys() {
   window.addEventListener('keydown', (e) => {
@@ -11,7 +11,7 @@ export function attachKeys() {
     const key = e.key.toLowerCase();
     const ctrl = e.ctrlKey || e.metaKey;
     const tool = (v) => { const r = document.querySelector(`input[name=tool][value=${v}]`); if (r) r.checked = true; };
-    if (ctrl && key === 'z' && !e.shiftKey) send({ type: 'undo' });
+    if (ctrl && key === 'z' && !e.shiftKey) undo();
     else if (ctrl && (key === 'y' || (key === 'z' && e.shiftKey))) send({ type: 'redo' });
     else if (ctrl) return;
     else if (key === 'f') frameView();
@@ -21,7 +21,10 @@ export function attachKeys() {
     else if (key === 'l') tool('lasso');
     else if (key === 'g') tool('fill');
     else if (key === 'a') applyConstraints();
-    else if (key === '?') document.querySelector('.help').classList.toggle('flash');
+    else if (key === '?') {
+      document.querySelector('.help').classList.toggle('flash');
+      document.getElementById('helpOverlay').hidden = false;
+    }
     else return;
     e.preventDefault();
   });

@@ -5,6 +5,7 @@
 import { ApiError } from './api.js';
 import {
   app, progress, setState, showConstraints, showWarnings, showError, updateStats, uploadPose, refreshCurvature,
+  showHeld, clearHeld,
 } from './app.js';
 
 const $ = (id) => document.getElementById(id);
@@ -67,7 +68,8 @@ function onEvent(e) {
       if (e.you !== undefined) app.you = e.you;
       setState(e.state);
       $('stPeers').textContent = String(e.peers);
-      $('undo').disabled = !e.can_undo;
+      app.canUndo = !!e.can_undo;
+      $('undo').disabled = !e.can_undo && app.settingsUndo.length === 0;
       $('redo').disabled = !e.can_redo;
       // another client's constraint edit (or undo to another set): show it,
       // unless this tab has strokes of its own not applied yet
@@ -88,6 +90,11 @@ function onEvent(e) {
     case 'error':
       // a refused drag never gets a frame: not a latency sample
       if (e.seq !== undefined && e.seq !== null) app.sent.delete(e.seq);
+      // another client holds the handle: a quiet status, not an error
+      if (e.code === 'handle_grabbed') {
+        showHeld(e.handle);
+        break;
+      }
       if ((e.code === 'unknown_handle' || e.code === 'not_ready') && (app.dirtyLabels || !app.applied)) {
         showError({ code: e.code, message: `${e.message} — the painted regions are not applied yet: paint a fixed region and press “Apply constraints”` });
       } else {
@@ -99,10 +106,10 @@ function onEvent(e) {
       }
       break;
     case 'handle_grabbed':
-      if (e.client !== app.you) $('stState').textContent = `handle ${e.handle} held by client ${e.client}`;
+      if (e.client !== app.you) showHeld(e.handle, e.client);
       break;
     case 'handle_released':
-      if (e.client !== app.you) setState(app.state);
+      if (e.client !== app.you) clearHeld(e.handle);
       break;
     case 'peer_joined':
     case 'peer_left':

@@ -18,6 +18,14 @@ mkdirSync(artifacts, { recursive: true });
 
 export function log(...a) { console.log('[web-test]', ...a); }
 
+/** Whether a console message is the browser's report of a 404 from
+ * `GET /v1/presets`: a server without the presets route (the editor then
+ * shows its defaults and no menu), not a page error. */
+export function presetsMissing(m) {
+  const url = (m.location && m.location().url) || '';
+  return /\/v1\/presets$/.test(url) && /404/.test(m.text());
+}
+
 /** Headless Chromium (Debian's). */
 export function launch() {
   return chromium.launch({

@@ -16,7 +16,7 @@ import { mkdtempSync, rmSync } from 'node:fs';
 import { tmpdir } from 'node:os';
 import { join } from 'node:path';
 import assert from 'node:assert/strict';
-import { artifacts, log, launch, startServer, waitFor, waitForPose, serverPose, screenBox, boxSelect, pngStats } from './lib.mjs';
+import { artifacts, log, launch, startServer, waitFor, waitForPose, serverPose, screenBox, boxSelect, pngStats, presetsMissing } from './lib.mjs';
 
 const dataDir = mkdtempSync(join(tmpdir(), 'dend-web-tools-'));
 
@@ -240,7 +240,10 @@ async function gizmo(page, base) {
   await waitFor(page, () => window.dend.app.state === 'ready', null, 'constraints ready', 60000);
   // the server reported the factor build's stages and the page showed them
   const { events } = await page.evaluate(() => window.dend.stats());
-  const stages = events.filter((e) => e.startsWith('build_progress:')).map((e) => e.slice(15));
+  // this apply's build: the events since it set the state to building (the
+  // first open's creature had a build of its own)
+  const since = events.lastIndexOf('setState:building');
+  const stages = events.slice(since).filter((e) => e.startsWith('build_progress:')).map((e) => e.slice(15));
   log('factor build stages:', stages.join(' → '), '; progress lines:', (await page.evaluate(() => window.dend.app.progressLog)).join(' | '));
   assert.deepEqual(stages, ['assembly', 'symbolic', 'numeric'], 'the build stages arrive in order');
   assert.ok((await page.evaluate(() => window.dend.app.progressLog)).includes('factor: numeric factorisation…'), 'the progress line showed them');
@@ -378,9 +381,9 @@ async function main() {
     const ctx = await browser.newContext({ viewport: { width: 1200, height: 760 } });
     const page = await ctx.newPage();
     page.on('pageerror', (e) => pageErrors.push(`page: ${e.message}`));
-    page.on('console', (m) => { if (m.type() === 'error') pageErrors.push(`console: ${m.text()}`); });
+    page.on('console', (m) => { if (m.type() === 'error' && !presetsMissing(m)) pageErrors.push(`console: ${m.text()}`); });
     await page.goto(base + '/');
-    await waitFor(page, () => window.dend && window.dend.app.renderer, null, 'the client to start');
+    await waitFor(page, () => window.dend && window.dend.app.renderer && window.dend.app.opened, null, 'the client to start');
 
     await occlusionBrush(page);
     await lassoSelect(page);

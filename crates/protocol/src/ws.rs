@@ -167,6 +167,23 @@ pub struct SessionInfo {
     /// found in the cache): the stage under way, `assembly`, `symbolic` or
     /// `numeric` (in that order; `build_progress` events announce each).
     pub build_stage: Option<BuildStage>,
+    /// The named poses, in save order (without their positions).
+    #[serde(default)]
+    pub poses: Vec<PoseInfo>,
+}
+
+/// A named pose as listed: everything but its positions and targets.
+#[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
+pub struct PoseInfo {
+    /// The name.
+    pub name: String,
+    /// Position in save order (0 first): the list's order, the morph
+    /// targets' and the export animation's.
+    pub index: usize,
+    /// The session revision of the saved pose.
+    pub revision: u64,
+    /// When it was saved, seconds since the Unix epoch.
+    pub created_unix: u64,
 }
 
 /// `POST /v1/sessions` body.
@@ -304,6 +321,29 @@ pub enum ClientMsg {
     Undo,
     /// Redo.
     Redo,
+    /// Save the settled pose under `name` (replacing a pose of that name);
+    /// the `state` that follows lists it in `poses`.
+    SavePose {
+        /// The name.
+        name: String,
+    },
+    /// Make named pose `name` the current pose (an undo step).
+    RestorePose {
+        /// The name.
+        name: String,
+    },
+    /// Rename named pose `name` to `to`.
+    RenamePose {
+        /// The current name.
+        name: String,
+        /// The new name.
+        to: String,
+    },
+    /// Delete named pose `name`.
+    DeletePose {
+        /// The name.
+        name: String,
+    },
     /// Liveness probe; answered by `pong` with the same nonce.
     Ping {
         /// Echoed back.

@@ -1,8 +1,17 @@
 //! The server's one error type, its one code → status table and its one
 //! `IntoResponse`: every failure is JSON `{code, message}`. Client mistakes
 //! carry their message; internal failures a generic one (details logged).
+//!
+//! axum's own extractor rejections (query string, path parameters, JSON
+//! body and its content type, WebSocket upgrade headers, a method the route
+//! does not serve) are mapped here too: handlers extract through
+//! [`Query`] and [`Path`] (axum's extractors with an [`ApiError`]
+//! rejection) and take JSON bodies as `Result<Json<T>, JsonRejection>`
+//! (mapped by `?`), so no plain-text rejection reaches a client.
 
-use axum::extract::rejection::{BytesRejection, JsonRejection};
+use axum::extract::rejection::{BytesRejection, JsonRejection, PathRejection, QueryRejection};
+use axum::extract::ws::rejection::WebSocketUpgradeRejection;
+use axum::extract::FromRequestParts;
 use axum::http::StatusCode;
 use axum::response::{IntoResponse, Response};
 use serde::Serialize;
@@ -17,6 +26,21 @@ pub enum ApiError {
     /// The body is not valid JSON or does not match the expected shape.
     #[error("invalid JSON: {0}")]
     InvalidJson(String),
+    /// A JSON body sent without `Content-Type: application/json`.
+    #[error("{0}")]
+    UnsupportedMediaType(String),
+    /// A query string that does not parse or has unknown parameters.
+    #[error("invalid query: {0}")]
+    InvalidQuery(String),
+    /// A path parameter that does not parse (e.g. not UTF-8).
+    #[error("invalid path: {0}")]
+    InvalidPath(String),
+    /// A request to the WebSocket route that is not a WebSocket upgrade.
+    #[error("not a WebSocket upgrade: {0}")]
+    InvalidUpgrade(String),
+    /// The route exists but does not serve this method.
+    #[error("method {0} is not allowed on this route")]
+    MethodNotAllowed(String),
     /// A mesh body that does not parse, or a mesh that fails validation.
     /// The message is the reader's or the validation's own (the code
     /// `invalid_mesh` already says what kind of error it is: clients show
@@ -149,6 +173,22 @@ pub enum ApiError {
         /// When its lease expires unless renewed.
         retry_after_ms: u64,
     },
+    /// No named pose of this name in the session.
+    #[error("{0}")]
+    PoseNotFound(String),
+    /// A named pose of this name exists already (rename).
+    #[error("{0}")]
+    PoseExists(String),
+    /// A pose name that is empty, too long or has control characters.
+    #[error("{0}")]
+    InvalidPoseName(String),
+    /// The session has the most named poses it may keep.
+    #[error("{0}")]
+    TooManyPoses(String),
+    /// An export option the session's mesh cannot honour (morph targets
+    /// of a mesh uploaded without a glTF/GLB file).
+    #[error("{0}")]
+    UnsupportedExport(String),
     /// Anything else: logged, reported generically.
     #[error("internal error")]
     Internal(String),
@@ -169,6 +209,13 @@ impl ApiError {
         use ApiError::*;
         match self {
             InvalidJson(_) => ("invalid_json", StatusCode::BAD_REQUEST),
+            UnsupportedMediaType(_) => {
+                ("unsupported_media_type", StatusCode::UNSUPPORTED_MEDIA_TYPE)
+            }
+            InvalidQuery(_) => ("invalid_query", StatusCode::BAD_REQUEST),
+            InvalidPath(_) => ("invalid_path", StatusCode::BAD_REQUEST),
+            InvalidUpgrade(_) => ("invalid_upgrade", StatusCode::BAD_REQUEST),
+            MethodNotAllowed(_) => ("method_not_allowed", StatusCode::METHOD_NOT_ALLOWED),
             InvalidMesh(_) => ("invalid_mesh", StatusCode::UNPROCESSABLE_ENTITY),
             UnsupportedFormat(_) => ("unsupported_format", StatusCode::UNSUPPORTED_MEDIA_TYPE),
             InvalidParams(_) => ("invalid_params", StatusCode::UNPROCESSABLE_ENTITY),
@@ -200,6 +247,11 @@ impl ApiError {
             SessionClosed => ("session_closed", StatusCode::GONE),
             StoreUnavailable(_) => ("store_unavailable", StatusCode::SERVICE_UNAVAILABLE),
             SessionOwnedElsewhere { .. } => ("session_owned_elsewhere", StatusCode::CONFLICT),
+            PoseNotFound(_) => ("pose_not_found", StatusCode::NOT_FOUND),
+            PoseExists(_) => ("pose_exists", StatusCode::CONFLICT),
+            InvalidPoseName(_) => ("invalid_pose_name", StatusCode::UNPROCESSABLE_ENTITY),
+            TooManyPoses(_) => ("too_many_poses", StatusCode::CONFLICT),
+            UnsupportedExport(_) => ("unsupported_export", StatusCode::UNPROCESSABLE_ENTITY),
             Internal(_) => ("internal", StatusCode::INTERNAL_SERVER_ERROR),
         }
     }
@@ -242,13 +294,52 @@ impl IntoResponse for ApiError {
     }
 }
 
+/// `axum::extract::Query` with an [`ApiError`] rejection (400
+/// `invalid_query`).
+#[derive(Debug, FromRequestParts)]
+#[from_request(via(axum::extract::Query), rejection(ApiError))]
+pub struct Query<T>(pub T);
+
+/// `axum::extract::Path` with an [`ApiError`] rejection (400
+/// `invalid_path`).
+#[derive(Debug, FromRequestParts)]
+#[from_request(via(axum::extract::Path), rejection(ApiError))]
+pub struct Path<T>(pub T);
+
 impl From<JsonRejection> for ApiError {
     fn from(r: JsonRejection) -> Self {
         match r {
             JsonRejection::BytesRejection(b) => b.into(),
+            JsonRejection::MissingJsonContentType(m) => {
+                ApiError::UnsupportedMediaType(m.body_text())
+            }
             other => ApiError::InvalidJson(other.body_text()),
         }
     }
+}
+
+impl From<QueryRejection> for ApiError {
+    fn from(r: QueryRejection) -> Self {
+        ApiError::InvalidQuery(r.body_text())
+    }
+}
+
+impl From<PathRejection> for ApiError {
+    fn from(r: PathRejection) -> Self {
+        ApiError::InvalidPath(r.body_text())
+    }
+}
+
+impl From<WebSocketUpgradeRejection> for ApiError {
+    fn from(r: WebSocketUpgradeRejection) -> Self {
+        ApiError::InvalidUpgrade(r.body_text())
+    }
+}
+
+/// The router's answer to a method a route does not serve (axum's own is
+/// an empty 405).
+pub async fn method_not_allowed(method: axum::http::Method) -> ApiError {
+    ApiError::MethodNotAllowed(method.to_string())
 }
 
 impl From<BytesRejection> for ApiError {
@@ -304,6 +395,10 @@ impl From<&SessionError> for ApiError {
             SessionError::NothingToUndo => ApiError::NothingToUndo(msg),
             SessionError::NothingToRedo => ApiError::NothingToRedo(msg),
             SessionError::StaleConstraints { .. } => ApiError::StaleConstraints(msg),
+            SessionError::UnknownPose { .. } => ApiError::PoseNotFound(msg),
+            SessionError::PoseExists { .. } => ApiError::PoseExists(msg),
+            SessionError::InvalidPoseName { .. } => ApiError::InvalidPoseName(msg),
+            SessionError::TooManyPoses { .. } => ApiError::TooManyPoses(msg),
             SessionError::InvalidConstraints(m) => ApiError::InvalidConstraints(m.clone()),
             SessionError::Deform(d) => deform_ref(d, msg),
             SessionError::Store(s) => ApiError::from(s),
@@ -350,6 +445,11 @@ mod tests {
     fn codes_are_unique_and_internal_details_hidden() {
         let all = [
             ApiError::InvalidJson(String::new()),
+            ApiError::UnsupportedMediaType(String::new()),
+            ApiError::InvalidQuery(String::new()),
+            ApiError::InvalidPath(String::new()),
+            ApiError::InvalidUpgrade(String::new()),
+            ApiError::MethodNotAllowed(String::new()),
             ApiError::InvalidMesh(String::new()),
             ApiError::UnsupportedFormat(String::new()),
             ApiError::InvalidParams(String::new()),
@@ -386,6 +486,11 @@ mod tests {
                 owner: "i2".into(),
                 retry_after_ms: 5,
             },
+            ApiError::PoseNotFound(String::new()),
+            ApiError::PoseExists(String::new()),
+            ApiError::InvalidPoseName(String::new()),
+            ApiError::TooManyPoses(String::new()),
+            ApiError::UnsupportedExport(String::new()),
             ApiError::Internal("secret path /etc".into()),
         ];
         let mut codes: Vec<_> = all.iter().map(|e| e.code()).collect();

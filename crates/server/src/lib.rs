@@ -14,6 +14,9 @@ pub mod lease;
 mod meshes;
 pub mod metrics;
 pub mod presets;
+mod morph_export;
+
+mod poses;
 pub mod recover;
 pub mod scheduler;
 pub mod session;
@@ -220,6 +223,9 @@ routes! {
     "/v1/sessions/{id}/redo" => [post(sessions::redo)],
     "/v1/sessions/{id}/reset" => [post(sessions::reset)],
     "/v1/sessions/{id}/ws" => [get(ws::upgrade)],
+    "/v1/sessions/{id}/poses" => [get(poses::list), post(poses::save)],
+    "/v1/sessions/{id}/poses/{name}" => [get(poses::get), patch(poses::rename), delete(poses::remove)],
+    "/v1/sessions/{id}/poses/{name}/restore" => [post(poses::restore)],
 }
 
 /// The router with every route and middleware (tracing, request timeout,
@@ -229,6 +235,8 @@ pub fn app(state: AppState) -> Router {
     for (path, mr) in route_list() {
         router = router.route(path, mr);
     }
+    // a method a route does not serve: JSON 405 (axum's own is empty)
+    let router = router.method_not_allowed_fallback(error::method_not_allowed);
     let timeout = state.config.request_timeout();
     router
         // The web client's static files (`/`, outside the `/v1` API).

@@ -7,14 +7,14 @@
 use std::sync::Arc;
 
 use axum::extract::rejection::BytesRejection;
-use axum::extract::{Path, Query, State};
+use axum::extract::State;
 use axum::http::{header, HeaderMap, StatusCode};
 use axum::response::IntoResponse;
 use axum::Json;
 use bytes::Bytes;
 use serde::Deserialize;
 
-use super::error::ApiError;
+use super::error::{ApiError, Path, Query};
 use super::AppState;
 use crate::store::StoredAsset;
 use dend::deform::ConstraintsSpec;
@@ -261,16 +261,30 @@ pub async fn upload(
 
 /// `POST /v1/meshes/generate`: a procedural test shape,
 /// `{"shape": "bar", "params": {"nu": .., "nv": .., "size": .., ...}}`.
+/// The answer is the mesh's info, plus, for a shape with a default edit
+/// (the creature), that edit as `constraints` (index lists, ready for
+/// `PUT …/constraints`).
 pub async fn generate(
     State(st): State<AppState>,
     body: Result<Json<ShapeSpec>, axum::extract::rejection::JsonRejection>,
 ) -> Result<impl IntoResponse, ApiError> {
     let Json(spec) = body?;
-    let mesh = tokio::task::spawn_blocking(move || gen::generate(&spec))
-        .await
-        .map_err(|e| ApiError::Internal(e.to_string()))?
-        .map_err(|e| ApiError::InvalidParams(e.to_string()))?;
-    store_mesh(&st, (mesh, None)).await
+    let (mesh, constraints) = tokio::task::spawn_blocking(move || {
+        let mesh = gen::generate(&spec)?;
+        let defaults =
+            (spec.shape == gen::Shape::Creature).then(|| gen::creature_constraints(&mesh));
+        Ok::<_, gen::GenError>((mesh, defaults))
+    })
+    .await
+    .map_err(|e| ApiError::Internal(e.to_string()))?
+    .map_err(|e| ApiError::InvalidParams(e.to_string()))?;
+    let (status, Json(info)) = store_mesh(&st, (mesh, None)).await?;
+    let mut answer = serde_json::to_value(info).map_err(|e| ApiError::Internal(e.to_string()))?;
+    if let (Some(c), Some(obj)) = (constraints, answer.as_object_mut()) {
+        let c = serde_json::to_value(c).map_err(|e| ApiError::Internal(e.to_string()))?;
+        obj.insert("constraints".into(), c);
+    }
+    Ok((status, Json(answer)))
 }
 
 /// `DELETE /v1/meshes/{id}`: 204; 409 `mesh_in_use` while live or stored

@@ -102,6 +102,29 @@ impl Store for GatedStore {
     fn get_checkpoint(&self, id: &str) -> Result<Option<Checkpoint>, StoreError> {
         self.inner.get_checkpoint(id)
     }
+    fn put_named_pose(
+        &self,
+        id: &str,
+        fence: Fence,
+        pose: &crate::store::NamedPose,
+    ) -> Result<(), StoreError> {
+        self.inner.put_named_pose(id, fence, pose)
+    }
+    fn rename_named_pose(
+        &self,
+        id: &str,
+        fence: Fence,
+        from: &str,
+        to: &str,
+    ) -> Result<(), StoreError> {
+        self.inner.rename_named_pose(id, fence, from, to)
+    }
+    fn delete_named_pose(&self, id: &str, fence: Fence, name: &str) -> Result<(), StoreError> {
+        self.inner.delete_named_pose(id, fence, name)
+    }
+    fn named_poses(&self, id: &str) -> Result<Vec<crate::store::NamedPose>, StoreError> {
+        self.inner.named_poses(id)
+    }
     fn acquire_lease(
         &self,
         id: &str,

@@ -3,7 +3,7 @@
 use std::time::{SystemTime, UNIX_EPOCH};
 
 use axum::extract::rejection::{BytesRejection, JsonRejection};
-use axum::extract::{FromRequestParts, Path, Query, State};
+use axum::extract::{FromRequestParts, State};
 use axum::http::request::Parts;
 use axum::http::{header, HeaderMap, StatusCode};
 use axum::response::{IntoResponse, Response};
@@ -12,7 +12,7 @@ use bytes::Bytes;
 use nalgebra::{Quaternion, Unit, UnitQuaternion, Vector3};
 use serde::Deserialize;
 
-use super::error::ApiError;
+use super::error::{ApiError, Path, Query};
 use super::meshes::{new_id, parse_format};
 use super::{rest_for, AppState};
 use crate::auth::{bearer, check_token, token_hash};
@@ -49,9 +49,7 @@ impl FromRequestParts<AppState> for Authed {
     type Rejection = ApiError;
 
     async fn from_request_parts(parts: &mut Parts, st: &AppState) -> Result<Self, ApiError> {
-        let Path(id) = Path::<String>::from_request_parts(parts, st)
-            .await
-            .map_err(|e| ApiError::InvalidJson(e.body_text()))?;
+        let Path(id) = Path::<String>::from_request_parts(parts, st).await?;
         let token = bearer(&parts.headers);
         let s = find(st, &id, token).await?;
         check_token(&s, token)?;
@@ -281,7 +279,7 @@ pub(crate) fn parse_json<T: serde::de::DeserializeOwned>(body: &[u8]) -> Result<
 
 pub use dend_protocol::PoseJson;
 
-fn pose_json(p: PoseSnapshot) -> Json<PoseJson> {
+pub(crate) fn pose_json(p: PoseSnapshot) -> Json<PoseJson> {
     let h = p.header;
     Json(PoseJson {
         revision: h.revision,
@@ -347,6 +345,11 @@ pub async fn pose(Authed(s): Authed, headers: HeaderMap) -> Result<Response, Api
 pub struct ExportQuery {
     /// `obj` (default), `off`, `ply`, `stl`, `gltf` or `glb`.
     pub format: Option<String>,
+    /// `pose` (default) or `morph-targets` (see `morph_export`).
+    #[serde(rename = "as")]
+    pub export_as: Option<String>,
+    /// With `as=morph-targets`: 1 adds the animation through the poses.
+    pub animation: Option<u8>,
 }
 
 /// `GET /v1/sessions/{id}/export?format=obj|off|ply|stl|gltf|glb`: the
@@ -359,12 +362,15 @@ pub async fn export(
     Authed(s): Authed,
     Query(q): Query<ExportQuery>,
 ) -> Result<Response, ApiError> {
-    let p = s.pose().await?;
     let format = parse_format(
         &q.format
             .unwrap_or_else(|| "obj".into())
             .to_ascii_lowercase(),
     )?;
+    if crate::morph_export::wanted(q.export_as.as_deref())? {
+        return crate::morph_export::export(&st, &s, format, q.animation == Some(1)).await;
+    }
+    let p = s.pose().await?;
     let asset = crate::meshes::stored_asset(&st, &s.info().mesh_id).await?;
     let rest = s.rest().clone();
     let bytes = tokio::task::spawn_blocking(move || match asset {

@@ -7,7 +7,8 @@ use std::time::{Duration, Instant};
 use prometheus::HistogramVec;
 
 use crate::store::{
-    Checkpoint, Fence, JournalEntry, LeaseGrant, SessionRecord, Store, StoreError, StoredAsset,
+    Checkpoint, Fence, JournalEntry, LeaseGrant, NamedPose, SessionRecord, Store, StoreError,
+    StoredAsset,
 };
 use dend::mesh::Mesh;
 
@@ -111,5 +112,27 @@ impl Store for TimedStore {
     }
     fn announce_liveness(&self, instance: &str) -> Result<(), StoreError> {
         self.inner.announce_liveness(instance)
+    }
+    fn put_named_pose(&self, id: &str, fence: Fence, pose: &NamedPose) -> Result<(), StoreError> {
+        self.timed("put_named_pose", |s| s.put_named_pose(id, fence, pose))
+    }
+    fn rename_named_pose(
+        &self,
+        id: &str,
+        fence: Fence,
+        from: &str,
+        to: &str,
+    ) -> Result<(), StoreError> {
+        self.timed("rename_named_pose", |s| {
+            s.rename_named_pose(id, fence, from, to)
+        })
+    }
+    fn delete_named_pose(&self, id: &str, fence: Fence, name: &str) -> Result<(), StoreError> {
+        self.timed("delete_named_pose", |s| {
+            s.delete_named_pose(id, fence, name)
+        })
+    }
+    fn named_poses(&self, id: &str) -> Result<Vec<NamedPose>, StoreError> {
+        self.timed("named_poses", |s| s.named_poses(id))
     }
 }

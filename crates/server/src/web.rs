@@ -29,6 +29,7 @@ pub const FILES: &[(&str, &[u8])] = &[
     ),
     ("js/keys.js", include_bytes!("../../../web/js/keys.js")),
     ("js/mesh.js", include_bytes!("../../../web/js/mesh.js")),
+    ("js/poses.js", include_bytes!("../../../web/js/poses.js")),
     (
         "js/regions.js",
         include_bytes!("../../../web/js/regions.js"),

@@ -6,9 +6,9 @@
 use std::sync::Arc;
 use std::time::Duration;
 
-use axum::extract::rejection::QueryRejection;
+use axum::extract::ws::rejection::WebSocketUpgradeRejection;
 use axum::extract::ws::{CloseFrame, Message, WebSocket, WebSocketUpgrade};
-use axum::extract::{Path, Query, State};
+use axum::extract::State;
 use axum::http::HeaderMap;
 use axum::response::Response;
 use bytes::Bytes;
@@ -17,7 +17,7 @@ use serde::Deserialize;
 use tokio::sync::broadcast::error::RecvError;
 use tokio::time::Instant;
 
-use super::error::ApiError;
+use super::error::{ApiError, Path, Query};
 use super::metrics::Metrics;
 use super::sessions::{find, parse_json, to_delta};
 use super::AppState;
@@ -371,6 +371,26 @@ async fn handle_message(
         ClientMsg::Ack { .. } => Ok(None),
         ClientMsg::Undo => s.undo().await.map(|_| None).map_err(ApiError::from),
         ClientMsg::Redo => s.redo().await.map(|_| None).map_err(ApiError::from),
+        ClientMsg::SavePose { name } => s
+            .save_pose(&name)
+            .await
+            .map(|_| None)
+            .map_err(ApiError::from),
+        ClientMsg::RestorePose { name } => s
+            .restore_pose(&name)
+            .await
+            .map(|_| None)
+            .map_err(ApiError::from),
+        ClientMsg::RenamePose { name, to } => s
+            .rename_pose(&name, &to)
+            .await
+            .map(|_| None)
+            .map_err(ApiError::from),
+        ClientMsg::DeletePose { name } => s
+            .delete_pose(&name)
+            .await
+            .map(|_| None)
+            .map_err(ApiError::from),
     }
 }
 
@@ -393,12 +413,10 @@ pub struct WsQuery {
 pub async fn upgrade(
     State(st): State<AppState>,
     Path(id): Path<String>,
-    query: Result<Query<WsQuery>, QueryRejection>,
+    Query(q): Query<WsQuery>,
     headers: HeaderMap,
-    ws: WebSocketUpgrade,
+    ws: Result<WebSocketUpgrade, WebSocketUpgradeRejection>,
 ) -> Result<Response, ApiError> {
-    let Query(q) = query
-        .map_err(|r| ApiError::InvalidParams(format!("the socket's query: {}", r.body_text())))?;
     let stream = StreamOptions {
         window: q.window,
         encoding: q.encoding,
@@ -415,6 +433,9 @@ pub async fn upgrade(
         }
         None => false,
     };
+    // not an upgrade request: a JSON 400 `invalid_upgrade` (after the
+    // session and token checks, as on every session route)
+    let ws = ws?;
     let cfg = ConnConfig {
         max_messages_per_sec: st.config.ws_max_messages_per_sec,
         auth_timeout: Duration::from_secs(10),

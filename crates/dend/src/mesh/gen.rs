@@ -12,6 +12,7 @@
 //! | `plane` | 47 × 45 grid; 1 × 44/46 (square cells) | 2115 | flat in z = 0, 1 boundary loop |
 //! | `bumpy-plane` | as `plane`, plus 9 Gaussian bumps of height 0.1 | 2115 | height field, 1 boundary loop |
 //! | `torus` | 24 × 24; radii 1 and 0.4 | 576 | closed, genus 1, axis z |
+//! | `creature` | 2 Catmull–Clark levels of a 146-vertex quadruped cage | 2306 | closed, genus 0, +y up, head at +x, 4 legs, neck + head, tail (`gen/creature.rs`) |
 //!
 //! The bar and the cylinder have their long axis along z with the end that is
 //! usually fixed at z = 0, so constraints can be picked by a z range, as in
@@ -26,6 +27,9 @@ use serde::{Deserialize, Serialize};
 use thiserror::Error;
 
 use super::{Mesh, MeshError, Point, Real};
+
+mod creature;
+pub use creature::{creature_constraints, BELLY_HEIGHT, FOOT_HEIGHT, HEAD_DEPTH};
 
 /// The generated shapes.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize, clap::ValueEnum)]
@@ -43,6 +47,10 @@ pub enum Shape {
     BumpyPlane,
     /// Torus about the z axis (default 24 × 24 = 576 vertices).
     Torus,
+    /// A posable quadruped, +y up, head towards +x: smooth legs, neck,
+    /// head and tail (default 2 subdivision levels); its default edit is
+    /// [`creature_constraints`].
+    Creature,
 }
 
 /// Optional size parameters; `None` takes the shape's default (module table).
@@ -51,7 +59,8 @@ pub enum Shape {
 pub struct ShapeParams {
     /// First resolution. bar: segments across each side [7]; cylinder:
     /// vertices around [32]; flag/plane: vertices along x [17/47]; torus:
-    /// vertices around the z axis [24].
+    /// vertices around the z axis [24]; creature: Catmull–Clark levels
+    /// (0..=4) [2].
     #[arg(long)]
     pub nu: Option<u32>,
     /// Second resolution. bar: segments along z [27]; cylinder: rings along z
@@ -59,7 +68,8 @@ pub struct ShapeParams {
     #[arg(long)]
     pub nv: Option<u32>,
     /// First size. bar: side of the square cross-section [1]; cylinder:
-    /// radius [1]; flag/plane: extent along x [1]; torus: major radius [1].
+    /// radius [1]; flag/plane: extent along x [1]; torus: major radius [1];
+    /// creature: scale [1].
     #[arg(long)]
     pub size: Option<Real>,
     /// Second size. bar/cylinder: length along z [6]; flag/plane: extent
@@ -211,6 +221,18 @@ pub fn generate(spec: &ShapeSpec) -> Result<Mesh, GenError> {
             }
             torus(res(p.nu, 24, "nu", 3)?, res(p.nv, 24, "nv", 3)?, big, small)
         }
+        Shape::Creature => {
+            let levels = p.nu.unwrap_or(2);
+            if levels > 4 {
+                return Err(GenError::Resolution {
+                    what: "nu",
+                    value: levels,
+                    min: 0,
+                    max: 4,
+                });
+            }
+            creature::creature(levels, size(p.size, 1.0, "size")?)
+        }
     };
     Ok(Mesh::new(positions, triangles)?)
 }
@@ -361,6 +383,7 @@ mod tests {
             (Shape::Plane, 2115),
             (Shape::BumpyPlane, 2115),
             (Shape::Torus, 576),
+            (Shape::Creature, 2306),
         ] {
             let m = generate(&ShapeSpec::default_for(shape)).unwrap();
             assert_eq!(m.num_vertices(), nv, "{shape:?}");

@@ -97,6 +97,10 @@ pub(super) struct Actor {
     pose: Arc<Vec<[f64; 3]>>,
     /// Set when the lease is lost (a fenced write): the actor ends.
     stop: bool,
+    /// The named poses (None until read from the store, see `actor_poses.rs`).
+    named: Option<Vec<crate::store::NamedPose>>,
+    /// Named-pose commands waiting for the pose to settle.
+    settle_queue: VecDeque<super::poses::PoseCmd>,
 }
 
 impl Actor {
@@ -142,6 +146,8 @@ impl Actor {
             uncommitted: false,
             pose,
             stop: false,
+            named: None,
+            settle_queue: VecDeque::new(),
         }
     }
 
@@ -149,6 +155,7 @@ impl Actor {
         let Some(mut internal_rx) = self.internal_rx.take() else {
             return;
         };
+        self.load_named_poses();
         loop {
             while self.deformer.is_some() {
                 let Some(cmd) = self.deferred.pop_front() else {
@@ -157,6 +164,12 @@ impl Actor {
                 if !self.on_cmd(cmd) {
                     return self.closed();
                 }
+            }
+            while self.pose_settled() {
+                let Some(cmd) = self.settle_queue.pop_front() else {
+                    break;
+                };
+                self.on_pose_cmd(cmd);
             }
             self.maybe_start_solve();
             // the oldest queued drag's deadline (far away when none is queued)
@@ -263,6 +276,13 @@ impl Actor {
                     self.pose_waiters.push(reply);
                 } else {
                     let _ = reply.send(Ok(self.snapshot()));
+                }
+            }
+            Cmd::Poses(cmd) => {
+                if cmd.waits_for_settle() && !self.pose_settled() {
+                    self.settle_queue.push_back(cmd);
+                } else {
+                    self.on_pose_cmd(cmd);
                 }
             }
             Cmd::GestureEnded => {
@@ -492,5 +512,8 @@ impl Actor {
 mod history;
 #[path = "actor_queue.rs"]
 mod queue;
+
+#[path = "actor_poses.rs"]
+mod named_poses;
 #[path = "actor_solve.rs"]
 mod solve;

@@ -55,6 +55,7 @@ impl SessionHandle {
                 constraints_revision: 0,
                 warnings: Arc::default(),
                 build_stage: None,
+                poses: Arc::default(),
             }),
             started: Instant::now(),
             last_active_ms: AtomicU64::new(0),
@@ -129,6 +130,7 @@ impl SessionHandle {
             constraints_revision: s.constraints_revision,
             warnings: s.warnings.to_vec(),
             build_stage: s.build_stage.map(wire_stage),
+            poses: s.poses.to_vec(),
         }
     }
 
@@ -196,7 +198,7 @@ impl SessionHandle {
             .map_err(|_| SessionError::Closed)
     }
 
-    async fn call<T>(
+    pub(super) async fn call<T>(
         &self,
         make: impl FnOnce(oneshot::Sender<Result<T, SessionError>>) -> Cmd,
     ) -> Result<T, SessionError> {

@@ -15,6 +15,7 @@
 
 mod actor;
 mod handle;
+mod poses;
 mod recovery;
 mod shared;
 
@@ -22,6 +23,7 @@ pub use dend_protocol as frame;
 pub use dend_protocol::ws::{ClientId, HandleRef, PeerEvent, SessionInfo, SessionState};
 pub use dend_protocol::{decode_frame, FrameError, FrameHeader};
 pub use handle::{SessionHandle, SessionOptions};
+pub use poses::{check_pose_name, PoseInfo, MAX_NAMED_POSES, MAX_POSE_NAME_BYTES};
 pub use recovery::{transform, Recovered};
 
 use std::sync::Arc;
@@ -95,6 +97,32 @@ pub enum SessionError {
         current: u64,
         /// The revision the edit was based on.
         given: u64,
+    },
+    /// No named pose of this name. Fix: list the session's `poses`.
+    #[error("no pose named `{name}`")]
+    UnknownPose {
+        /// The name as given.
+        name: String,
+    },
+    /// A rename onto a name another pose has. Fix: delete or rename that
+    /// pose first, or choose another name.
+    #[error("a pose named `{name}` exists already")]
+    PoseExists {
+        /// The name.
+        name: String,
+    },
+    /// A pose name that is empty, too long or has control characters.
+    #[error("invalid pose name: {reason}")]
+    InvalidPoseName {
+        /// What is wrong with it.
+        reason: String,
+    },
+    /// A save beyond the session's pose limit. Fix: delete a pose (or save
+    /// over an existing name).
+    #[error("the session has {limit} named poses already (the limit)")]
+    TooManyPoses {
+        /// [`MAX_NAMED_POSES`].
+        limit: usize,
     },
     /// The constraints JSON does not parse as a constraints spec.
     #[error("invalid constraints: {0}")]

@@ -68,6 +68,8 @@ pub(super) struct Shared {
     pub warnings: Arc<Vec<serde_json::Value>>,
     /// The factor build's stage under way (`SessionInfo::build_stage`).
     pub build_stage: Option<BuildStage>,
+    /// The named poses, listed (`SessionInfo::poses`).
+    pub poses: Arc<Vec<super::PoseInfo>>,
 }
 
 pub(super) struct Inner {
@@ -181,6 +183,8 @@ pub(super) enum Cmd {
     Pose(Reply<PoseSnapshot>),
     /// A grab ended: the gesture's settled pose may become a history entry.
     GestureEnded,
+    /// A named-pose command (`poses.rs`).
+    Poses(super::poses::PoseCmd),
     Close,
 }
 

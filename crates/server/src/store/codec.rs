@@ -275,3 +275,67 @@ fn token_hash_bytes(r: &SessionRecord) -> Result<Vec<u8>, StoreError> {
             ))
         })
 }
+
+/// A named pose as stored: the row shape of the SQL backends'
+/// `named_poses` table (fields in [`SELECT_NAMED_POSE`]'s order).
+pub(super) struct NamedPoseRow {
+    pub name: String,
+    pub ordinal: i64,
+    pub revision: i64,
+    pub created_unix: i64,
+    /// The constraint set's JSON.
+    pub constraints: Option<String>,
+    /// [`encode_points`] of the pose.
+    pub pose: Vec<u8>,
+    /// [`encode_targets`] of the targets.
+    pub targets: Vec<u8>,
+}
+
+/// The columns of a [`NamedPoseRow`], in its field order.
+pub(super) const SELECT_NAMED_POSE: &str =
+    "SELECT name, ordinal, revision, created_unix, constraints, pose, targets FROM named_poses";
+
+impl NamedPoseRow {
+    /// The row of `p` (counters past `i64::MAX` are clamped).
+    pub(super) fn encode(p: &super::NamedPose) -> NamedPoseRow {
+        let clamp = |x: u64| i64::try_from(x).unwrap_or(i64::MAX);
+        NamedPoseRow {
+            name: p.name.clone(),
+            ordinal: clamp(p.ordinal),
+            revision: clamp(p.revision),
+            created_unix: clamp(p.created_unix),
+            constraints: p.constraints.as_ref().map(|c| c.to_string()),
+            pose: encode_points(&p.pose),
+            targets: encode_targets(&p.targets),
+        }
+    }
+
+    /// The named pose of a stored row of session `id` (checked as a
+    /// checkpoint is: finite values, whole records).
+    pub(super) fn decode(self, id: &str) -> Result<super::NamedPose, StoreError> {
+        let what = format!("named pose `{}` of session `{id}`", self.name);
+        let cp = decode_checkpoint(self.revision, 0, &self.pose, &self.targets, id).map_err(
+            |e| match e {
+                StoreError::Corrupt { reason, .. } => corrupt(&what, reason),
+                e => e,
+            },
+        )?;
+        let constraints = self
+            .constraints
+            .map(|c| serde_json::from_str(&c))
+            .transpose()
+            .map_err(|e| corrupt(&what, format!("constraints: {e}")))?;
+        let nonneg = |x: i64, field: &str| {
+            u64::try_from(x).map_err(|_| corrupt(&what, format!("negative {field}")))
+        };
+        Ok(super::NamedPose {
+            ordinal: nonneg(self.ordinal, "ordinal")?,
+            created_unix: nonneg(self.created_unix, "created_unix")?,
+            name: self.name,
+            revision: cp.revision,
+            constraints,
+            pose: cp.pose,
+            targets: cp.targets,
+        })
+    }
+}

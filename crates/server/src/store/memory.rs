@@ -9,7 +9,8 @@ use parking_lot::Mutex;
 
 use super::lease_rule::{self, Expiry};
 use super::{
-    Checkpoint, Fence, JournalEntry, LeaseGrant, SessionRecord, Store, StoreError, StoredAsset,
+    Checkpoint, Fence, JournalEntry, LeaseGrant, NamedPose, SessionRecord, Store, StoreError,
+    StoredAsset,
 };
 use dend::mesh::Mesh;
 
@@ -18,6 +19,8 @@ struct SessionData {
     record: Option<SessionRecord>,
     journal: Vec<JournalEntry>,
     checkpoint: Option<Checkpoint>,
+    /// Named poses, by ordinal.
+    poses: Vec<NamedPose>,
 }
 
 /// An in-memory [`Store`]: hash maps behind mutexes.
@@ -259,5 +262,59 @@ impl Store for MemoryStore {
             .filter(|(_, l)| lease_rule::wants_handoff(l.view(now), l.wanted_by.is_some(), owner))
             .map(|(id, _)| id.clone())
             .collect())
+    }
+
+    fn put_named_pose(&self, id: &str, fence: Fence, pose: &NamedPose) -> Result<(), StoreError> {
+        self.named_write(id, fence, |poses| {
+            poses.retain(|p| p.name != pose.name);
+            poses.push(pose.clone());
+            poses.sort_by(|a, b| (a.ordinal, &a.name).cmp(&(b.ordinal, &b.name)));
+        })
+    }
+
+    fn rename_named_pose(
+        &self,
+        id: &str,
+        fence: Fence,
+        from: &str,
+        to: &str,
+    ) -> Result<(), StoreError> {
+        self.named_write(id, fence, |poses| {
+            if let Some(p) = poses.iter_mut().find(|p| p.name == from) {
+                p.name = to.to_owned();
+            }
+        })
+    }
+
+    fn delete_named_pose(&self, id: &str, fence: Fence, name: &str) -> Result<(), StoreError> {
+        self.named_write(id, fence, |poses| poses.retain(|p| p.name != name))
+    }
+
+    fn named_poses(&self, id: &str) -> Result<Vec<NamedPose>, StoreError> {
+        Ok(self
+            .sessions
+            .lock()
+            .get(id)
+            .map(|s| s.poses.clone())
+            .unwrap_or_default())
+    }
+}
+
+impl MemoryStore {
+    /// Changes session `id`'s named poses with `f`, fenced.
+    fn named_write(
+        &self,
+        id: &str,
+        fence: Fence,
+        f: impl FnOnce(&mut Vec<NamedPose>),
+    ) -> Result<(), StoreError> {
+        let mut sessions = self.sessions.lock();
+        let s = sessions
+            .get_mut(id)
+            .filter(|s| s.record.is_some())
+            .ok_or_else(|| missing(id))?;
+        self.check_fence(id, fence)?;
+        f(&mut s.poses);
+        Ok(())
     }
 }

@@ -30,6 +30,11 @@
 //! [`Store::set_constraints`]) carries it, and the store refuses it with
 //! [`StoreError::Fenced`] once another instance has taken the lease over.
 //! A fence of [`NO_FENCE`] (the single-instance stores' mode) skips the check.
+//!
+//! A session's [`NamedPose`]s (poses saved under a name, for restoring and
+//! exporting as morph targets) are kept beside its journal: written
+//! before the save, rename or delete is acknowledged, fenced like the
+//! journal, deleted with the session, and kept across constraint edits.
 
 mod codec;
 mod lease_rule;
@@ -37,11 +42,15 @@ mod memory;
 mod postgres;
 mod postgres_leases;
 mod postgres_liveness;
+mod postgres_poses;
 mod sqlite;
 mod sqlite_assets;
 mod sqlite_leases;
+mod sqlite_poses;
 #[cfg(test)]
 mod suite;
+#[cfg(test)]
+mod suite_poses;
 
 pub use codec::{decode_entry, encode_entry};
 pub use memory::MemoryStore;
@@ -196,6 +205,35 @@ pub struct Checkpoint {
     pub targets: Vec<StoredTransform>,
 }
 
+/// A pose saved under a name in a session: the settled pose and handle
+/// targets at the save, with the constraint set the targets belong to, so
+/// that restoring it is exact and drags continue from it.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct NamedPose {
+    /// The name (unique within the session).
+    pub name: String,
+    /// Save order within the session (larger: saved later); the order of
+    /// the list, of the morph targets and of the export's animation.
+    pub ordinal: u64,
+    /// The session revision of the saved pose.
+    pub revision: u64,
+    /// When it was saved, seconds since the Unix epoch.
+    pub created_unix: u64,
+    /// The constraint set as stored (anchored) when the pose was saved;
+    /// None when the session had none.
+    pub constraints: Option<serde_json::Value>,
+    /// The pose (mesh units), `#V×3`.
+    pub pose: Vec<[f64; 3]>,
+    /// The handle targets of `constraints`, one per handle.
+    pub targets: Vec<StoredTransform>,
+}
+
+/// The error of a store that keeps no named poses (the default methods
+/// below, kept for test doubles).
+fn no_named_poses() -> StoreError {
+    StoreError::Backend("this store keeps no named poses".into())
+}
+
 /// Storage of meshes and sessions (see the module docs for when the server
 /// calls what). Implementations are shared as `Arc<dyn Store>`.
 pub trait Store: Send + Sync + 'static {
@@ -266,6 +304,35 @@ pub trait Store: Send + Sync + 'static {
     /// instance that came back). The owner hands them over: it closes them
     /// and releases their leases. A grant clears the request.
     fn handoffs_wanted(&self, owner: &str) -> Result<Vec<String>, StoreError>;
+    /// Stores a named pose of session `id`, replacing the one of the same
+    /// name if any. Fenced. [`StoreError::Missing`] without the session.
+    fn put_named_pose(&self, id: &str, fence: Fence, pose: &NamedPose) -> Result<(), StoreError> {
+        let _ = (id, fence, pose);
+        Err(no_named_poses())
+    }
+    /// Renames named pose `from` of session `id` to `to` (the caller checked
+    /// that `to` is free; a no-op when there is no `from`). Fenced.
+    fn rename_named_pose(
+        &self,
+        id: &str,
+        fence: Fence,
+        from: &str,
+        to: &str,
+    ) -> Result<(), StoreError> {
+        let _ = (id, fence, from, to);
+        Err(no_named_poses())
+    }
+    /// Deletes named pose `name` of session `id` (a no-op if absent). Fenced.
+    fn delete_named_pose(&self, id: &str, fence: Fence, name: &str) -> Result<(), StoreError> {
+        let _ = (id, fence, name);
+        Err(no_named_poses())
+    }
+    /// The named poses of session `id`, by [`NamedPose::ordinal`] (none
+    /// for an unknown session).
+    fn named_poses(&self, id: &str) -> Result<Vec<NamedPose>, StoreError> {
+        let _ = id;
+        Ok(vec![])
+    }
     /// Checks that the store answers (the readiness probe).
     fn ping(&self) -> Result<(), StoreError> {
         Ok(())

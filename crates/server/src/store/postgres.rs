@@ -26,13 +26,13 @@ use super::codec::{
     encode_points, encode_targets, encode_triangles, RecordRow, SELECT_SESSION,
 };
 use super::{
-    postgres_leases, Checkpoint, Fence, JournalEntry, LeaseGrant, SessionRecord, Store, StoreError,
-    StoredAsset,
+    postgres_leases, postgres_poses, Checkpoint, Fence, JournalEntry, LeaseGrant, NamedPose,
+    SessionRecord, Store, StoreError, StoredAsset,
 };
 use dend::mesh::Mesh;
 
 /// The newest schema version this program knows (the last of [`MIGRATIONS`]).
-pub const PG_SCHEMA_VERSION: i32 = 2;
+pub const PG_SCHEMA_VERSION: i32 = 3;
 
 /// How long a store call waits for a pooled connection (or a new one).
 pub const POOL_TIMEOUT: Duration = Duration::from_secs(2);
@@ -94,6 +94,7 @@ pub const MIGRATIONS: &[(i32, &str)] = &[
              session TEXT PRIMARY KEY, owner TEXT NOT NULL,
              revision BIGINT NOT NULL, expires TIMESTAMPTZ, wanted_by TEXT);",
     ),
+    (3, postgres_poses::MIGRATION),
 ];
 
 type Pool = r2d2::Pool<PostgresConnectionManager<NoTls>>;
@@ -538,6 +539,28 @@ impl Store for PgStore {
 
     /// A connection within [`PING_TIMEOUT`] (tested on checkout), so that
     /// readiness answers fast when the server is gone.
+    fn put_named_pose(&self, id: &str, fence: Fence, pose: &NamedPose) -> Result<(), StoreError> {
+        postgres_poses::put(&mut self.conn()?, id, fence, pose)
+    }
+
+    fn rename_named_pose(
+        &self,
+        id: &str,
+        fence: Fence,
+        from: &str,
+        to: &str,
+    ) -> Result<(), StoreError> {
+        postgres_poses::rename(&mut self.conn()?, id, fence, from, to)
+    }
+
+    fn delete_named_pose(&self, id: &str, fence: Fence, name: &str) -> Result<(), StoreError> {
+        postgres_poses::delete(&mut self.conn()?, id, fence, name)
+    }
+
+    fn named_poses(&self, id: &str) -> Result<Vec<NamedPose>, StoreError> {
+        postgres_poses::list(&mut self.conn()?, id)
+    }
+
     fn ping(&self) -> Result<(), StoreError> {
         let pool = self
             .pool

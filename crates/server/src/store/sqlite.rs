@@ -27,8 +27,8 @@ use super::codec::{
     encode_points, encode_targets, encode_triangles, RecordRow, SELECT_SESSION,
 };
 use super::{
-    sqlite_assets, sqlite_leases, Checkpoint, Fence, JournalEntry, LeaseGrant, SessionRecord,
-    Store, StoreError, StoredAsset,
+    sqlite_assets, sqlite_leases, sqlite_poses, Checkpoint, Fence, JournalEntry, LeaseGrant,
+    NamedPose, SessionRecord, Store, StoreError, StoredAsset,
 };
 use dend::mesh::Mesh;
 
@@ -75,7 +75,7 @@ pub struct SqliteStore {
     path: PathBuf,
 }
 
-fn backend(e: impl std::fmt::Display) -> StoreError {
+pub(super) fn backend(e: impl std::fmt::Display) -> StoreError {
     StoreError::Backend(e.to_string())
 }
 
@@ -116,6 +116,7 @@ impl SqliteStore {
         }
         conn.execute_batch(SCHEMA).map_err(backend)?;
         conn.execute_batch(sqlite_leases::SCHEMA).map_err(backend)?;
+        conn.execute_batch(sqlite_poses::SCHEMA).map_err(backend)?;
         conn.pragma_update(None, "user_version", SCHEMA_VERSION)
             .map_err(backend)?;
         Ok(SqliteStore {
@@ -161,7 +162,7 @@ fn record_row(r: &rusqlite::Row<'_>) -> rusqlite::Result<RecordRow> {
 
 /// An immediate (write-locked) transaction on session `id`'s rows, after
 /// checking that the session exists and that `fence` still holds its lease.
-fn fenced<'c>(
+pub(super) fn fenced<'c>(
     conn: &'c mut Connection,
     id: &str,
     fence: Fence,
@@ -417,6 +418,28 @@ impl Store for SqliteStore {
 
     fn handoffs_wanted(&self, owner: &str) -> Result<Vec<String>, StoreError> {
         sqlite_leases::wanted(&self.conn.lock(), owner)
+    }
+
+    fn put_named_pose(&self, id: &str, fence: Fence, pose: &NamedPose) -> Result<(), StoreError> {
+        sqlite_poses::put(&mut self.conn.lock(), id, fence, pose)
+    }
+
+    fn rename_named_pose(
+        &self,
+        id: &str,
+        fence: Fence,
+        from: &str,
+        to: &str,
+    ) -> Result<(), StoreError> {
+        sqlite_poses::rename(&mut self.conn.lock(), id, fence, from, to)
+    }
+
+    fn delete_named_pose(&self, id: &str, fence: Fence, name: &str) -> Result<(), StoreError> {
+        sqlite_poses::delete(&mut self.conn.lock(), id, fence, name)
+    }
+
+    fn named_poses(&self, id: &str) -> Result<Vec<NamedPose>, StoreError> {
+        sqlite_poses::list(&self.conn.lock(), id)
     }
 }
 

@@ -14,6 +14,8 @@ use std::time::Duration;
 use super::*;
 use dend::mesh::Mesh;
 
+use super::suite_poses::named_poses_round_trip;
+
 /// Re-opens a durable backend's storage.
 type Reopen = Box<dyn Fn() -> Result<Arc<dyn Store>, StoreError>>;
 
@@ -450,6 +452,7 @@ macro_rules! every_case {
                 one_winner_when_instances_race_for_a_lease,
                 everything_survives_reopen,
                 writes_to_a_deleted_session_are_missing,
+                named_poses_round_trip,
             );
         )*
     };

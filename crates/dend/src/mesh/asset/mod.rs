@@ -25,6 +25,7 @@
 //! | OFF, STL | vertices and triangles | positions (written as a plain mesh) |
 
 pub mod groups;
+mod morph;
 pub mod normals;
 mod obj;
 mod ply;
@@ -43,6 +44,8 @@ use normals::{group_shading, Shade};
 use obj::ObjAsset;
 use ply::PlyAsset;
 use weld::Weld;
+
+pub use morph::MorphExportError;
 
 /// What kept the file's own data.
 #[derive(Debug, Clone)]

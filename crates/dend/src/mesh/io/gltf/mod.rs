@@ -40,10 +40,12 @@
 
 mod accessor;
 mod container;
+mod morph;
 mod read;
 mod write;
 
 pub use container::Sidecars;
+pub use morph::MorphTarget;
 
 /// A document and its single buffer as `container`: GLB with a BIN chunk,
 /// or `.gltf` with the buffer as a data URI (`doc` must have one buffer).

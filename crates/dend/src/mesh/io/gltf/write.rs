@@ -91,7 +91,7 @@ impl GltfAsset {
 }
 
 /// Sets accessor `index`'s `min`/`max` to the bounds of `values`.
-fn set_min_max(json: &mut Value, index: usize, values: &[[f32; 3]]) {
+pub(super) fn set_min_max(json: &mut Value, index: usize, values: &[[f32; 3]]) {
     let mut lo = [f32::INFINITY; 3];
     let mut hi = [f32::NEG_INFINITY; 3];
     for v in values {
@@ -111,7 +111,7 @@ fn set_min_max(json: &mut Value, index: usize, values: &[[f32; 3]]) {
 
 /// Merges `buffers` into one (each part at a 4-byte aligned offset), moves
 /// the bufferViews onto it and writes the container.
-fn finish(mut json: Value, buffers: &[Vec<u8>], container: Container) -> Vec<u8> {
+pub(super) fn finish(mut json: Value, buffers: &[Vec<u8>], container: Container) -> Vec<u8> {
     let mut merged = Vec::new();
     let mut base = Vec::with_capacity(buffers.len());
     for b in buffers {

@@ -1,0 +1,70 @@
+//! `GET /v1/sessions/{id}/export?format=glb&as=morph-targets[&animation=1]`:
+//! the session's mesh file as uploaded (glTF/GLB) plus one morph target
+//! per named pose, in save order, or the current pose (named `pose`) when
+//! none is saved (`dend::mesh::asset::Asset::export_morph_targets`).
+
+use axum::http::header;
+use axum::response::{IntoResponse, Response};
+
+use super::error::ApiError;
+use super::AppState;
+use crate::session::SessionHandle;
+use dend::mesh::asset::MorphExportError;
+use dend::mesh::io::Format;
+
+/// Whether the export's `as=` asks for morph targets (`pose`, the default,
+/// does not); any other value is 422 `unsupported_export`.
+pub(crate) fn wanted(export_as: Option<&str>) -> Result<bool, ApiError> {
+    match export_as {
+        None | Some("pose") => Ok(false),
+        Some("morph-targets") => Ok(true),
+        Some(other) => Err(ApiError::UnsupportedExport(format!(
+            "unknown export `as={other}` (pose or morph-targets)"
+        ))),
+    }
+}
+
+/// The morph-target export of session `s` as `format` (glb or gltf).
+pub(crate) async fn export(
+    st: &AppState,
+    s: &SessionHandle,
+    format: Format,
+    animation: bool,
+) -> Result<Response, ApiError> {
+    let named = s.named_poses().await?;
+    let poses: Vec<(String, Vec<[f64; 3]>)> = if named.is_empty() {
+        vec![("pose".into(), s.pose().await?.positions.to_vec())]
+    } else {
+        named
+            .iter()
+            .map(|p| (p.name.clone(), p.pose.clone()))
+            .collect()
+    };
+    let asset = crate::meshes::stored_asset(st, &s.info().mesh_id)
+        .await?
+        .ok_or_else(|| {
+            ApiError::UnsupportedExport(
+                "morph targets need a mesh uploaded as glTF/GLB (this one was not kept as a file)"
+                    .into(),
+            )
+        })?;
+    let bytes = tokio::task::spawn_blocking(move || {
+        let refs: Vec<(String, &[[f64; 3]])> = poses
+            .iter()
+            .map(|(n, p)| (n.clone(), p.as_slice()))
+            .collect();
+        asset
+            .export_morph_targets(&refs, animation, format)
+            .map_err(|e| match e {
+                MorphExportError::NotGltf { .. } => ApiError::UnsupportedExport(e.to_string()),
+                MorphExportError::Pose(e) => ApiError::Internal(e.to_string()),
+            })
+    })
+    .await
+    .map_err(|e| ApiError::Internal(e.to_string()))??;
+    let ct = match format {
+        Format::Gltf => "model/gltf+json",
+        _ => "model/gltf-binary",
+    };
+    Ok(([(header::CONTENT_TYPE, ct)], bytes).into_response())
+}

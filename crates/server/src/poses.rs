@@ -1,0 +1,125 @@
+//! Named-pose routes (`/v1/sessions/{id}/poses…`): save the settled pose
+//! under a name, list, read, rename, delete and restore (see
+//! `session::poses`).
+
+use axum::extract::rejection::BytesRejection;
+use axum::extract::{FromRequestParts, Path};
+use axum::http::request::Parts;
+use axum::http::{header, StatusCode};
+use axum::response::IntoResponse;
+use axum::Json;
+use bytes::Bytes;
+use serde::{Deserialize, Serialize};
+
+use super::error::ApiError;
+use super::sessions::{check_token, find, parse_json, pose_json, Authed, PoseJson};
+use super::AppState;
+use crate::session::{PoseInfo, SessionHandle};
+
+/// `POST /v1/sessions/{id}/poses` and `PATCH …/poses/{name}` body.
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct PoseName {
+    /// The pose's (new) name.
+    pub name: String,
+}
+
+/// `GET /v1/sessions/{id}/poses` answer.
+#[derive(Debug, Serialize)]
+pub struct PoseList {
+    /// The named poses, in save order.
+    pub poses: Vec<PoseInfo>,
+}
+
+/// `GET /v1/sessions/{id}/poses/{name}` answer: the listing plus positions.
+#[derive(Debug, Serialize)]
+pub struct NamedPoseJson {
+    /// Name, index, revision, save time.
+    #[serde(flatten)]
+    pub info: PoseInfo,
+    /// Vertex positions (mesh units), `#V×3`.
+    pub positions: Vec<[f64; 3]>,
+}
+
+/// Extractor: the session and the pose name of the path, the session
+/// opened by the bearer token (as `sessions::Authed`).
+pub struct AuthedPose(pub SessionHandle, pub String);
+
+impl FromRequestParts<AppState> for AuthedPose {
+    type Rejection = ApiError;
+
+    async fn from_request_parts(parts: &mut Parts, st: &AppState) -> Result<Self, ApiError> {
+        let Path((id, name)) = Path::<(String, String)>::from_request_parts(parts, st)
+            .await
+            .map_err(|e| ApiError::InvalidJson(e.body_text()))?;
+        let token = parts
+            .headers
+            .get(header::AUTHORIZATION)
+            .and_then(|v| v.to_str().ok())
+            .and_then(|v| v.strip_prefix("Bearer "))
+            .map(str::trim);
+        let s = find(st, &id, token).await?;
+        check_token(&s, token)?;
+        s.touch();
+        Ok(AuthedPose(s, name))
+    }
+}
+
+/// `GET /v1/sessions/{id}/poses`.
+pub async fn list(Authed(s): Authed) -> Result<Json<PoseList>, ApiError> {
+    let poses = s.named_poses().await?;
+    Ok(Json(PoseList {
+        poses: PoseInfo::list(&poses),
+    }))
+}
+
+/// `POST /v1/sessions/{id}/poses`: saves the settled pose (201).
+pub async fn save(
+    Authed(s): Authed,
+    body: Result<Bytes, BytesRejection>,
+) -> Result<impl IntoResponse, ApiError> {
+    let req: PoseName = parse_json(&body?)?;
+    Ok((StatusCode::CREATED, Json(s.save_pose(&req.name).await?)))
+}
+
+/// `GET /v1/sessions/{id}/poses/{name}`.
+pub async fn get(AuthedPose(s, name): AuthedPose) -> Result<Json<NamedPoseJson>, ApiError> {
+    let poses = s.named_poses().await?;
+    let (index, p) = poses
+        .iter()
+        .enumerate()
+        .find(|(_, p)| p.name == name)
+        .ok_or_else(|| ApiError::PoseNotFound(format!("no pose named `{name}`")))?;
+    let info = PoseInfo::list(&poses).swap_remove(index);
+    Ok(Json(NamedPoseJson {
+        info,
+        positions: p.pose.clone(),
+    }))
+}
+
+/// `PATCH /v1/sessions/{id}/poses/{name}`: renames.
+pub async fn rename(
+    AuthedPose(s, name): AuthedPose,
+    body: Result<Bytes, BytesRejection>,
+) -> Result<Json<PoseInfo>, ApiError> {
+    let req: PoseName = parse_json(&body?)?;
+    s.rename_pose(&name, &req.name).await?;
+    let poses = s.named_poses().await?;
+    PoseInfo::list(&poses)
+        .into_iter()
+        .find(|p| p.name == req.name)
+        .map(Json)
+        .ok_or_else(|| ApiError::PoseNotFound(format!("no pose named `{}`", req.name)))
+}
+
+/// `DELETE /v1/sessions/{id}/poses/{name}` (204).
+pub async fn remove(AuthedPose(s, name): AuthedPose) -> Result<StatusCode, ApiError> {
+    s.delete_pose(&name).await?;
+    Ok(StatusCode::NO_CONTENT)
+}
+
+/// `POST /v1/sessions/{id}/poses/{name}/restore`: the named pose becomes
+/// the current one (an undo step).
+pub async fn restore(AuthedPose(s, name): AuthedPose) -> Result<Json<PoseJson>, ApiError> {
+    Ok(pose_json(s.restore_pose(&name).await?))
+}

@@ -1,0 +1,137 @@
+//! Named poses: a session's settled pose saved under a name, listed,
+//! renamed, deleted and restored (an undo step), kept in the store
+//! ([`NamedPose`]) and read back when the session's actor starts (so a
+//! revived or failed-over session has them). The export writes them as
+//! glTF morph targets (`crate::morph_export`).
+
+use std::sync::Arc;
+
+use serde::Serialize;
+
+use super::shared::{Cmd, Reply};
+use super::{PoseSnapshot, SessionError, SessionHandle};
+use crate::store::NamedPose;
+
+/// Most named poses a session keeps.
+pub const MAX_NAMED_POSES: usize = 64;
+
+/// Longest pose name, in bytes.
+pub const MAX_POSE_NAME_BYTES: usize = 128;
+
+pub use dend_protocol::ws::PoseInfo;
+
+/// The listing of `poses` (in their order).
+pub fn pose_list(poses: &[NamedPose]) -> Vec<PoseInfo> {
+    poses
+        .iter()
+        .enumerate()
+        .map(|(index, p)| PoseInfo {
+            name: p.name.clone(),
+            index,
+            revision: p.revision,
+            created_unix: p.created_unix,
+        })
+        .collect()
+}
+
+/// What a handle asks the actor to do with named poses.
+pub(super) enum PoseCmd {
+    /// Save the settled pose as `name` (replacing one of that name).
+    Save {
+        name: String,
+        reply: Reply<PoseInfo>,
+    },
+    /// The named poses, with their positions.
+    List(Reply<Arc<Vec<NamedPose>>>),
+    Rename {
+        from: String,
+        to: String,
+        reply: Reply<()>,
+    },
+    Delete {
+        name: String,
+        reply: Reply<()>,
+    },
+    /// Make the named pose the current one (an undo step).
+    Restore {
+        name: String,
+        reply: Reply<PoseSnapshot>,
+    },
+}
+
+impl PoseCmd {
+    /// Whether the command reads or replaces the pose, so it waits until
+    /// the session has settled (no solve running or to come, no factor
+    /// being built).
+    pub(super) fn waits_for_settle(&self) -> bool {
+        matches!(self, PoseCmd::Save { .. } | PoseCmd::Restore { .. })
+    }
+}
+
+/// Checks a pose name: 1 to [`MAX_POSE_NAME_BYTES`] bytes, no control
+/// characters, not only white space.
+pub fn check_pose_name(name: &str) -> Result<(), SessionError> {
+    let bad = |reason: &str| {
+        Err(SessionError::InvalidPoseName {
+            reason: reason.into(),
+        })
+    };
+    if name.trim().is_empty() {
+        return bad("a pose name must not be empty or only white space");
+    }
+    if name.len() > MAX_POSE_NAME_BYTES {
+        return bad(&format!(
+            "a pose name is at most {MAX_POSE_NAME_BYTES} bytes"
+        ));
+    }
+    if name.chars().any(char::is_control) {
+        return bad("a pose name must not contain control characters");
+    }
+    Ok(())
+}
+
+impl SessionHandle {
+    async fn pose_call<T>(
+        &self,
+        make: impl FnOnce(Reply<T>) -> PoseCmd,
+    ) -> Result<T, SessionError> {
+        self.call(|reply| Cmd::Poses(make(reply))).await
+    }
+
+    /// Saves the current pose under `name` once the session has settled
+    /// (replacing a pose of the same name, in its place).
+    pub async fn save_pose(&self, name: &str) -> Result<PoseInfo, SessionError> {
+        check_pose_name(name)?;
+        let name = name.to_owned();
+        self.pose_call(|reply| PoseCmd::Save { name, reply }).await
+    }
+
+    /// The named poses, in save order, with their positions.
+    pub async fn named_poses(&self) -> Result<Arc<Vec<NamedPose>>, SessionError> {
+        self.pose_call(PoseCmd::List).await
+    }
+
+    /// Renames pose `from` to `to`.
+    pub async fn rename_pose(&self, from: &str, to: &str) -> Result<(), SessionError> {
+        check_pose_name(to)?;
+        let (from, to) = (from.to_owned(), to.to_owned());
+        self.pose_call(|reply| PoseCmd::Rename { from, to, reply })
+            .await
+    }
+
+    /// Deletes pose `name`.
+    pub async fn delete_pose(&self, name: &str) -> Result<(), SessionError> {
+        let name = name.to_owned();
+        self.pose_call(|reply| PoseCmd::Delete { name, reply })
+            .await
+    }
+
+    /// Makes pose `name` the current pose, with its handle targets (and
+    /// its constraint set, when the session has another one since): an
+    /// undo step.
+    pub async fn restore_pose(&self, name: &str) -> Result<PoseSnapshot, SessionError> {
+        let name = name.to_owned();
+        self.pose_call(|reply| PoseCmd::Restore { name, reply })
+            .await
+    }
+}
