@@ -13,10 +13,16 @@ use dend::mesh::asset::sample::{self, TubeOptions};
 use dend::mesh::asset::Asset;
 use dend::mesh::io::gltf::{Container, Sidecars};
 use dend::mesh::io::Format;
+use dend_client::ws::DeltaJson;
 use dend_client::{Client, ClientError, SessionClient};
 use dend_server::Config;
 use dend_testkit::server::start;
 use serde_json::{json, Value};
+
+/// A drag delta written as its JSON (the typed client's [`DeltaJson`]).
+fn delta(v: Value) -> DeltaJson {
+    serde_json::from_value(v).expect("a drag delta")
+}
 
 /// The JSON chunk and BIN chunk of a GLB (an independent split).
 fn glb_parts(bytes: &[u8]) -> (Value, Vec<u8>) {
@@ -204,7 +210,7 @@ async fn pose_and_save(
     let url = |tail: &str| format!("{base}/v1/sessions/{}{tail}", s.id);
     let mut poses = vec![];
     for (name, drag) in drags {
-        s.drag(json!("top"), drag.clone(), Some(40)).await?;
+        s.drag("top", delta(drag.clone()), Some(40)).await?;
         let r = http
             .post(url("/poses"))
             .bearer_auth(&s.token)
@@ -281,7 +287,7 @@ async fn without_saved_poses_the_current_pose_is_the_one_target() -> Result<(), 
     let input = sample::tube(TubeOptions::default()).unwrap();
     let (s, _) = pose_and_save(&base, input.clone(), tube_spec(), &[]).await?;
     let p = s
-        .drag(json!("top"), json!({"translate": [0.3, 0.2, 0]}), Some(40))
+        .drag("top", delta(json!({"translate": [0.3, 0.2, 0]})), Some(40))
         .await?;
     let out = export(&s, &base, "format=glb&as=morph-targets")
         .await

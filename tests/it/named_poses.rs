@@ -7,10 +7,21 @@ use std::io::{BufRead, BufReader};
 use std::process::{Child, Command, Stdio};
 use std::time::Duration;
 
+use dend_client::ws::{ClientMsg, DeltaJson};
 use dend_client::{Client, ClientError, SessionClient};
 use dend_server::Config;
 use dend_testkit::server::{grid, grid_constraints, start};
 use serde_json::{json, Value};
+
+/// A drag delta written as its JSON (the typed client's [`DeltaJson`]).
+fn delta(v: Value) -> DeltaJson {
+    serde_json::from_value(v).expect("a drag delta")
+}
+
+/// A WebSocket message written as its JSON (the typed [`ClientMsg`]).
+fn client_msg(v: Value) -> ClientMsg {
+    serde_json::from_value(v).expect("a client message")
+}
 
 const N: usize = 8;
 
@@ -49,7 +60,14 @@ fn positions(v: &Value) -> Vec<[f64; 3]> {
     serde_json::from_value(v["positions"].clone()).unwrap()
 }
 
-fn names(v: &Value) -> Vec<String> {
+/// The pose names of a session's info, a `state` message or a list.
+fn names(v: &impl serde::Serialize) -> Vec<String> {
+    let v = serde_json::to_value(v).unwrap();
+    let v = if v["type"] == "state" {
+        &v["session"]
+    } else {
+        &v
+    };
     v["poses"]
         .as_array()
         .unwrap()
@@ -58,13 +76,18 @@ fn names(v: &Value) -> Vec<String> {
         .collect()
 }
 
+/// A typed answer as its JSON.
+fn json_of(v: impl serde::Serialize) -> Value {
+    serde_json::to_value(v).unwrap()
+}
+
 #[tokio::test]
 async fn save_list_rename_delete_and_restore_over_http() -> Result<(), ClientError> {
     let (base, _state) = start(Config::default()).await;
     let s = ready_grid(&base).await?;
     let (st, v) = call(&s, &base, "GET", "/poses", None).await;
     assert_eq!((st, names(&v)), (200, Vec::<String>::new()));
-    s.drag(json!("top"), json!({"translate": [0, 0, 2]}), Some(100))
+    s.drag("top", delta(json!({"translate": [0, 0, 2]})), Some(100))
         .await?;
     let (st, lift) = call(&s, &base, "POST", "/poses", Some(json!({"name": "lift"}))).await;
     assert_eq!(st, 201, "{lift}");
@@ -75,8 +98,8 @@ async fn save_list_rename_delete_and_restore_over_http() -> Result<(), ClientErr
     let settled = s.pose().await?;
     assert!(settled.settled, "a save waits for the pose to settle");
     s.drag(
-        json!("top"),
-        json!({"rotate": {"axis": [1, 0, 0], "degrees": 40}}),
+        "top",
+        delta(json!({"rotate": {"axis": [1, 0, 0], "degrees": 40}})),
         Some(100),
     )
     .await?;
@@ -102,7 +125,7 @@ async fn save_list_rename_delete_and_restore_over_http() -> Result<(), ClientErr
     );
     assert_eq!(s.redo().await?.positions, settled.positions);
     let moved = s
-        .drag(json!("top"), json!({"translate": [0, 0, -0.5]}), Some(100))
+        .drag("top", delta(json!({"translate": [0, 0, -0.5]})), Some(100))
         .await?;
     let dz = moved.positions[N * N - 1][2] - settled.positions[N * N - 1][2];
     assert!(
@@ -184,25 +207,25 @@ async fn save_list_rename_delete_and_restore_over_http() -> Result<(), ClientErr
 async fn a_restore_brings_back_the_pose_constraint_set() -> Result<(), ClientError> {
     let (base, _state) = start(Config::default()).await;
     let s = ready_grid(&base).await?;
-    s.drag(json!("top"), json!({"translate": [0, 1, 1]}), Some(100))
+    s.drag("top", delta(json!({"translate": [0, 1, 1]})), Some(100))
         .await?;
     let (st, _) = call(&s, &base, "POST", "/poses", Some(json!({"name": "a"}))).await;
     assert_eq!(st, 201);
     let saved = s.pose().await?;
-    let first = s.info().await?["constraints"].clone();
+    let first = json_of(s.info().await?)["constraints"].clone();
     // another set: the left column fixed, the right one the handle
     let left: Vec<usize> = (0..N).map(|j| j * N).collect();
     let right: Vec<usize> = (0..N).map(|j| j * N + N - 1).collect();
     s.set_constraints(&json!({"fixed": left, "handles": [{"name": "side", "vertices": right}]}))
         .await?;
     s.wait_ready(Duration::from_secs(60)).await?;
-    s.drag(json!("side"), json!({"translate": [0, 0, 1]}), Some(50))
+    s.drag("side", delta(json!({"translate": [0, 0, 1]})), Some(50))
         .await?;
     let (st, back) = call(&s, &base, "POST", "/poses/a/restore", None).await;
     assert_eq!(st, 200, "{back}");
     assert_eq!(positions(&back), saved.positions);
     s.wait_ready(Duration::from_secs(60)).await?;
-    let info = s.info().await?;
+    let info = json_of(s.info().await?);
     assert_eq!(info["handles"], json!(["top"]));
     assert_eq!(
         info["constraints"]["handles"][0]["name"],
@@ -221,24 +244,26 @@ async fn poses_over_the_websocket() -> Result<(), ClientError> {
     let (base, _state) = start(Config::default()).await;
     let s = ready_grid(&base).await?;
     let mut ws = s.connect().await?;
-    ws.send(&json!({"type": "save_pose", "name": "rest"}))
+    ws.send(&client_msg(json!({"type": "save_pose", "name": "rest"})))
         .await?;
     let mut state = ws.event("state").await?;
     while names(&state).is_empty() {
         state = ws.event("state").await?;
     }
     assert_eq!(names(&state), ["rest"]);
-    ws.send(&json!({"type": "rename_pose", "name": "rest", "to": "start"}))
-        .await?;
+    ws.send(&client_msg(
+        json!({"type": "rename_pose", "name": "rest", "to": "start"}),
+    ))
+    .await?;
     let mut state = ws.event("state").await?;
     while names(&state) != ["start"] {
         state = ws.event("state").await?;
     }
-    ws.send(&json!({"type": "restore_pose", "name": "gone"}))
+    ws.send(&client_msg(json!({"type": "restore_pose", "name": "gone"})))
         .await?;
-    let e = ws.event("error").await?;
+    let e = json_of(ws.event("error").await?);
     assert_eq!(e["code"], "pose_not_found");
-    ws.send(&json!({"type": "delete_pose", "name": "start"}))
+    ws.send(&client_msg(json!({"type": "delete_pose", "name": "start"})))
         .await?;
     let mut state = ws.event("state").await?;
     while !names(&state).is_empty() {
@@ -287,7 +312,7 @@ async fn named_poses_survive_a_sigkill_with_sqlite() -> Result<(), ClientError> 
     let s = ready_grid(&server.base).await?;
     let mut saved = vec![];
     for (name, dz) in [("low", 0.5), ("high", 2.0)] {
-        s.drag(json!("top"), json!({"translate": [0, 0, dz]}), Some(100))
+        s.drag("top", delta(json!({"translate": [0, 0, dz]})), Some(100))
             .await?;
         let (st, _) = call(
             &s,

@@ -13,8 +13,8 @@ pub mod fuzzing;
 pub mod lease;
 mod meshes;
 pub mod metrics;
-pub mod presets;
 mod morph_export;
+pub mod presets;
 
 mod poses;
 pub mod recover;

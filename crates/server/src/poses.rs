@@ -3,18 +3,19 @@
 //! `session::poses`).
 
 use axum::extract::rejection::BytesRejection;
-use axum::extract::{FromRequestParts, Path};
+use axum::extract::FromRequestParts;
 use axum::http::request::Parts;
-use axum::http::{header, StatusCode};
+use axum::http::StatusCode;
 use axum::response::IntoResponse;
 use axum::Json;
 use bytes::Bytes;
 use serde::{Deserialize, Serialize};
 
-use super::error::ApiError;
-use super::sessions::{check_token, find, parse_json, pose_json, Authed, PoseJson};
+use super::error::{ApiError, Path};
+use super::sessions::{find, parse_json, pose_json, Authed, PoseJson};
 use super::AppState;
-use crate::session::{PoseInfo, SessionHandle};
+use crate::auth::{bearer, check_token};
+use crate::session::{pose_list, PoseInfo, SessionHandle};
 
 /// `POST /v1/sessions/{id}/poses` and `PATCH …/poses/{name}` body.
 #[derive(Debug, Deserialize)]
@@ -49,15 +50,8 @@ impl FromRequestParts<AppState> for AuthedPose {
     type Rejection = ApiError;
 
     async fn from_request_parts(parts: &mut Parts, st: &AppState) -> Result<Self, ApiError> {
-        let Path((id, name)) = Path::<(String, String)>::from_request_parts(parts, st)
-            .await
-            .map_err(|e| ApiError::InvalidJson(e.body_text()))?;
-        let token = parts
-            .headers
-            .get(header::AUTHORIZATION)
-            .and_then(|v| v.to_str().ok())
-            .and_then(|v| v.strip_prefix("Bearer "))
-            .map(str::trim);
+        let Path((id, name)) = Path::<(String, String)>::from_request_parts(parts, st).await?;
+        let token = bearer(&parts.headers);
         let s = find(st, &id, token).await?;
         check_token(&s, token)?;
         s.touch();
@@ -69,7 +63,7 @@ impl FromRequestParts<AppState> for AuthedPose {
 pub async fn list(Authed(s): Authed) -> Result<Json<PoseList>, ApiError> {
     let poses = s.named_poses().await?;
     Ok(Json(PoseList {
-        poses: PoseInfo::list(&poses),
+        poses: pose_list(&poses),
     }))
 }
 
@@ -90,7 +84,7 @@ pub async fn get(AuthedPose(s, name): AuthedPose) -> Result<Json<NamedPoseJson>,
         .enumerate()
         .find(|(_, p)| p.name == name)
         .ok_or_else(|| ApiError::PoseNotFound(format!("no pose named `{name}`")))?;
-    let info = PoseInfo::list(&poses).swap_remove(index);
+    let info = pose_list(&poses).swap_remove(index);
     Ok(Json(NamedPoseJson {
         info,
         positions: p.pose.clone(),
@@ -105,7 +99,7 @@ pub async fn rename(
     let req: PoseName = parse_json(&body?)?;
     s.rename_pose(&name, &req.name).await?;
     let poses = s.named_poses().await?;
-    PoseInfo::list(&poses)
+    pose_list(&poses)
         .into_iter()
         .find(|p| p.name == req.name)
         .map(Json)

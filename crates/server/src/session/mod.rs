@@ -23,7 +23,7 @@ pub use dend_protocol as frame;
 pub use dend_protocol::ws::{ClientId, HandleRef, PeerEvent, SessionInfo, SessionState};
 pub use dend_protocol::{decode_frame, FrameError, FrameHeader};
 pub use handle::{SessionHandle, SessionOptions};
-pub use poses::{check_pose_name, PoseInfo, MAX_NAMED_POSES, MAX_POSE_NAME_BYTES};
+pub use poses::{check_pose_name, pose_list, PoseInfo, MAX_NAMED_POSES, MAX_POSE_NAME_BYTES};
 pub use recovery::{transform, Recovered};
 
 use std::sync::Arc;

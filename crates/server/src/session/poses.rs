@@ -6,8 +6,6 @@
 
 use std::sync::Arc;
 
-use serde::Serialize;
-
 use super::shared::{Cmd, Reply};
 use super::{PoseSnapshot, SessionError, SessionHandle};
 use crate::store::NamedPose;
