@@ -60,14 +60,10 @@ fn positions(v: &Value) -> Vec<[f64; 3]> {
     serde_json::from_value(v["positions"].clone()).unwrap()
 }
 
-/// The pose names of a session's info, a `state` message or a list.
+/// The pose names of a session's info, a `state` message (the session's
+/// fields flattened into it) or a list.
 fn names(v: &impl serde::Serialize) -> Vec<String> {
     let v = serde_json::to_value(v).unwrap();
-    let v = if v["type"] == "state" {
-        &v["session"]
-    } else {
-        &v
-    };
     v["poses"]
         .as_array()
         .unwrap()

@@ -214,9 +214,9 @@ async fn every_route_answers_malformed_requests_with_json_errors() {
             assert!(status >= 400, "{what} with a wrong content type: {status}");
         }
         codes.extend(code);
-        // a method the route does not serve
-        let (status, code) = call(&router, "PATCH", &good, tok, None).await;
-        assert_eq!(status, 405, "{what}: PATCH");
+        // a method the route does not serve (TRACE: no route serves it)
+        let (status, code) = call(&router, "TRACE", &good, tok, None).await;
+        assert_eq!(status, 405, "{what}: TRACE");
         codes.extend(code);
     }
     // the rejections that used to be axum's plain text are among the codes
