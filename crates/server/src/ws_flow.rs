@@ -51,10 +51,17 @@ impl Flow {
     }
 
     /// The bytes to send for `f` (re-encoded when the client asked for
-    /// version 3 frames), counted as in flight. `None` when the session's
-    /// frame does not decode, which its own encoder never produces.
+    /// version 3 frames), counted as in flight. A settled frame goes out
+    /// in `f32` whatever the encoding: the pose a client keeps showing
+    /// once the solver stops is exact to `f32`, and it is one frame per
+    /// gesture. `None` when the session's frame does not decode, which
+    /// its own encoder never produces.
     pub(super) fn take(&mut self, f: &Frame) -> Option<Bytes> {
-        let bytes = match self.encoding {
+        let encoding = match self.encoding {
+            Some(FrameEncoding::Q16) if f.header.settled => Some(FrameEncoding::F32),
+            e => e,
+        };
+        let bytes = match encoding {
             None => f.bytes.clone(),
             Some(e) => match reencode_v2(&f.bytes, &f.header, e) {
                 Ok(b) => b,
