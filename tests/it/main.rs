@@ -15,6 +15,7 @@ mod cli_gltf;
 mod constraint_edits;
 mod constraints_schema;
 mod deform_props;
+mod drag_loop;
 mod elastic;
 mod factor_cache;
 mod fuzz_replay;

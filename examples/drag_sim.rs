@@ -1,0 +1,202 @@
+//! The drag loop of a session, in process and without the server (issue
+//! #32): a handle dragged along a path in `--drags` target changes with
+//! `--per-drag` iterations after each (what the session's frames run while
+//! a person drags), then the settle (one-iteration steps until converged or
+//! `max_iters` since the last change), against the one-shot solve of the
+//! final target from rest. Prints one JSON line.
+//!
+//! ```text
+//! cargo run --release --example drag_sim -- MESH [--drags 60] [--per-drag 1]
+//!     [--path line|arc] [--preset characters|elastica]
+//! ```
+//!
+//! MESH is a file, `tube:N` or `creature:LEVELS` (`dend gen creature`). The edit is the load test's: the lowest
+//! 10 % of the vertices along the longest axis fixed, the highest 10 % the
+//! handle, moved by 0.3 of that extent across it; `arc` swings the handle
+//! out and back along an arc while it turns 60° about the longest axis.
+
+use std::sync::Arc;
+use std::time::Instant;
+
+use dend::deform::{Constraints, Deformer, Factor, Preset, Rest, RigidTransform};
+use dend::mesh::{Mesh, Point};
+use nalgebra::{UnitQuaternion, Vector3};
+
+fn arg<T: std::str::FromStr>(args: &[String], name: &str) -> Option<T> {
+    args.iter()
+        .position(|a| a == name)
+        .and_then(|i| args.get(i + 1))
+        .and_then(|v| v.parse().ok())
+}
+
+fn load(spec: &str) -> Result<Mesh, String> {
+    if let Some(n) = spec.strip_prefix("tube:") {
+        let n: usize = n.parse().map_err(|_| format!("bad tube size {n:?}"))?;
+        return Ok(dend_testkit::tube_of_size(n));
+    }
+    if let Some(levels) = spec.strip_prefix("creature:") {
+        use dend::mesh::gen::{generate, Shape, ShapeSpec};
+        let mut s = ShapeSpec::default_for(Shape::Creature);
+        s.params.nu = Some(
+            levels
+                .parse()
+                .map_err(|_| format!("bad levels {levels:?}"))?,
+        );
+        return generate(&s).map_err(|e| e.to_string());
+    }
+    dend::mesh::io::read_path(std::path::Path::new(spec)).map_err(|e| e.to_string())
+}
+
+/// The handle's target after a fraction `s` of the path.
+fn target_at(s: f64, arc: bool, axis: usize, extent: f64, pivot: Point) -> RigidTransform {
+    let mut t = [0.0; 3];
+    t[(axis + 1) % 3] = 0.3 * extent * s;
+    let mut rotation = UnitQuaternion::identity();
+    if arc {
+        let bow = 0.15 * extent * (std::f64::consts::PI * s).sin();
+        t[(axis + 2) % 3] += bow;
+        let mut a = Vector3::zeros();
+        a[axis] = 1.0;
+        rotation = UnitQuaternion::from_scaled_axis(a * (60f64.to_radians() * s));
+    }
+    RigidTransform {
+        rotation,
+        translation: t,
+        pivot,
+    }
+}
+
+fn main() {
+    if let Err(e) = run() {
+        eprintln!("error: {e}");
+        std::process::exit(2);
+    }
+}
+
+fn run() -> Result<(), String> {
+    let args: Vec<String> = std::env::args().skip(1).collect();
+    let spec = args.first().ok_or("usage: drag_sim MESH [options]")?;
+    let mesh = load(spec)?;
+    let drags: usize = arg(&args, "--drags").unwrap_or(60);
+    let per_drag: usize = arg(&args, "--per-drag").unwrap_or(1);
+    let arc = arg::<String>(&args, "--path").as_deref() == Some("arc");
+    let preset = arg::<String>(&args, "--preset")
+        .map(|p| Preset::from_name(&p).ok_or(format!("unknown preset {p}")))
+        .transpose()?
+        .unwrap_or_default();
+    let params = preset.params();
+    let (lo, hi) = bbox(&mesh);
+    let axis = (0..3)
+        .max_by(|&a, &b| (hi[a] - lo[a]).total_cmp(&(hi[b] - lo[b])))
+        .unwrap_or(0);
+    let extent = hi[axis] - lo[axis];
+    let n = mesh.num_vertices() as u32;
+    let fixed: Vec<u32> = (0..n)
+        .filter(|&v| mesh.positions()[v as usize][axis] < lo[axis] + 0.1 * extent)
+        .collect();
+    let handle: Vec<u32> = (0..n)
+        .filter(|&v| mesh.positions()[v as usize][axis] > hi[axis] - 0.1 * extent)
+        .collect();
+    let mut c = Constraints::new(&mesh, fixed, vec![("h".into(), handle, None)])
+        .map_err(|e| e.to_string())?;
+    let pivot = c.handles[0].rest_centroid;
+    let rest = Arc::new(Rest::new(mesh.clone()).map_err(|e| e.to_string())?);
+    let factor = Factor::build(&rest, &params, &c).map_err(|e| e.to_string())?;
+    let diag = mesh.diagonal();
+
+    // one shot: the final target from rest
+    c.handles[0].target = target_at(1.0, arc, axis, extent, pivot);
+    let mut one = Deformer::new(rest.clone(), params);
+    let t = Instant::now();
+    let r1 = one
+        .step(&factor, &c, params.max_iters)
+        .map_err(|e| e.to_string())?;
+    let one_ms = t.elapsed().as_secs_f64() * 1e3;
+
+    // the drag loop
+    let mut d = Deformer::new(rest.clone(), params);
+    let t = Instant::now();
+    let mut drag_iters = 0;
+    for k in 1..=drags {
+        c.handles[0].target = target_at(k as f64 / drags as f64, arc, axis, extent, pivot);
+        let r = d.step(&factor, &c, per_drag).map_err(|e| e.to_string())?;
+        drag_iters += r.iterations;
+    }
+    let drag_ms = t.elapsed().as_secs_f64() * 1e3;
+    let t = Instant::now();
+    let (mut settle_iters, mut last) = (0, None);
+    let (mut coarse_its, mut coarse_ms) = (0, 0.0);
+    while settle_iters < params.max_iters {
+        let r = d.step(&factor, &c, 1).map_err(|e| e.to_string())?;
+        settle_iters += r.iterations;
+        coarse_its += r.coarse_iterations;
+        coarse_ms += r.coarse_ms;
+        if std::env::var_os("DEND_TRACE").is_some() {
+            eprintln!(
+                "settle {settle_iters}: update {:.2e} objective {:.6} coarse {}",
+                r.last_update, r.objective, r.coarse_iterations
+            );
+        }
+        let done = r.converged || r.diverged || r.iterations == 0;
+        last = Some(r);
+        if done {
+            break;
+        }
+    }
+    let settle_ms = t.elapsed().as_secs_f64() * 1e3;
+    let last = last.ok_or("no settle step")?;
+    let dist = |a: &[Point], b: &[Point]| {
+        a.iter()
+            .zip(b)
+            .map(|(p, q)| {
+                ((p[0] - q[0]).powi(2) + (p[1] - q[1]).powi(2) + (p[2] - q[2]).powi(2)).sqrt()
+            })
+            .fold(0.0, f64::max)
+    };
+    let gap = dist(d.pose(), one.pose());
+    // the minimum near the one-shot pose, to a tight tolerance
+    let mut tight = params;
+    tight.tol = 1e-7;
+    tight.max_iters = 2000;
+    let mut reference = Deformer::new(rest.clone(), tight);
+    reference
+        .set_pose(one.pose().to_vec())
+        .map_err(|e| e.to_string())?;
+    let r_ref = reference
+        .step(&factor, &c, tight.max_iters)
+        .map_err(|e| e.to_string())?;
+    let out = serde_json::json!({
+        "mesh": spec,
+        "vertices": mesh.num_vertices(),
+        "preset": preset.name(),
+        "path": if arc { "arc" } else { "line" },
+        "drags": drags,
+        "per_drag": per_drag,
+        "one_shot": {"iterations": r1.iterations, "converged": r1.converged,
+                     "objective": r1.objective, "ms": one_ms},
+        "drag_ms_per_drag": drag_ms / drags as f64,
+        "drag_iterations": drag_iters,
+        "settle": {"iterations": settle_iters, "converged": last.converged,
+                   "objective": last.objective, "ms": settle_ms,
+                   "coarse_iterations": coarse_its, "coarse_ms": coarse_ms},
+        "reference": {"objective": r_ref.objective, "iterations": r_ref.iterations,
+                      "one_shot_gap": dist(one.pose(), reference.pose()) / diag,
+                      "settled_gap": dist(d.pose(), reference.pose()) / diag},
+        "objective_ratio": last.objective / r1.objective,
+        "gap_over_diagonal": gap / diag,
+    });
+    println!("{out}");
+    Ok(())
+}
+
+fn bbox(mesh: &Mesh) -> (Point, Point) {
+    let mut lo = [f64::INFINITY; 3];
+    let mut hi = [f64::NEG_INFINITY; 3];
+    for p in mesh.positions() {
+        for k in 0..3 {
+            lo[k] = lo[k].min(p[k]);
+            hi[k] = hi[k].max(p[k]);
+        }
+    }
+    (lo, hi)
+}
