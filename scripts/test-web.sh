@@ -1,9 +1,10 @@
 #!/usr/bin/env bash
 # Browser tests of the web client (web/tests/browser.test.mjs, then
 # web/tests/tools.test.mjs for the posing tools, then
-# web/tests/editor.test.mjs for the first minutes of a new user): installs what
-# it needs if missing (Debian's chromium, node/npm, playwright-core and the
-# glTF validator from npm),
+# web/tests/editor.test.mjs for the first minutes of a new user, then
+# web/tests/morph.test.mjs for the morph-target GLB in three.js's
+# GLTFLoader): installs what it needs if missing (Debian's chromium,
+# node/npm, and from npm playwright-core, the glTF validator and three),
 # builds `dend`, and runs the test against the real `dend serve`.
 # Idempotent. Under CI=true a failed install is a failure; otherwise the test
 # is skipped with a message. Screenshots: web/test-artifacts/.
@@ -38,10 +39,12 @@ if [ ! -x "$CHROMIUM" ] || ! command -v node >/dev/null || ! command -v npm >/de
 fi
 [ -x "$CHROMIUM" ] || skip_or_fail "no chromium at $CHROMIUM"
 
-# web/package.json's dev dependencies: playwright-core (this test) and
+# web/package.json's dev dependencies: playwright-core (these tests),
 # gltf-validator (the Khronos glTF validator, run by tests/it/cli_gltf.rs)
-if [ ! -f web/node_modules/playwright-core/package.json ] || [ ! -f web/node_modules/gltf-validator/package.json ]; then
-  (cd web && npm ci --no-audit --no-fund --loglevel=error) || skip_or_fail "npm ci (playwright-core, gltf-validator) failed"
+# and three (its GLTFLoader, served to the page by web/tests/morph.test.mjs)
+if [ ! -f web/node_modules/playwright-core/package.json ] || [ ! -f web/node_modules/gltf-validator/package.json ] \
+    || [ ! -f web/node_modules/three/package.json ]; then
+  (cd web && npm ci --no-audit --no-fund --loglevel=error) || skip_or_fail "npm ci (playwright-core, gltf-validator, three) failed"
 fi
 
 [ "${1:-}" = "--install-only" ] && exit 0
@@ -57,3 +60,4 @@ node web/tests/frame.test.mjs
 node web/tests/browser.test.mjs
 node web/tests/tools.test.mjs
 node web/tests/editor.test.mjs
+node web/tests/morph.test.mjs
