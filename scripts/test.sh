@@ -31,20 +31,24 @@ cargo test --workspace --lib --bins --tests --examples
 # test built for the CLI tests)
 export DEND_BIN="${CARGO_TARGET_DIR:-$(pwd)/target}/debug/dend"
 .venv/bin/python -m pytest -q clients/python/tests
-# the Blender add-on's headless test (Debian's `blender`; .ci/run installs it)
+# the Blender add-on's headless test, and the morph-target GLB imported
+# with its named poses as shape keys (Debian's `blender`; .ci/run installs it)
 if command -v blender >/dev/null; then
   BLENDER_LOG="$(mktemp)"
-  if ! blender -b --factory-startup --python-exit-code 1 \
-      --python clients/blender/tests/test_addon.py >"$BLENDER_LOG" 2>&1; then
-    cat "$BLENDER_LOG"
-    exit 1
-  fi
-  grep -E "^(shape key|dend blender)" "$BLENDER_LOG"
+  for t in test_addon test_import; do
+    if ! blender -b --factory-startup --python-exit-code 1 \
+        --python "clients/blender/tests/$t.py" >"$BLENDER_LOG" 2>&1; then
+      cat "$BLENDER_LOG"
+      exit 1
+    fi
+    grep -E "^(shape key|dend blender)" "$BLENDER_LOG"
+  done
+  rm -f "$BLENDER_LOG"
 elif [ "${CI:-}" = true ]; then
   echo "blender is not installed: CI must run the add-on's test" >&2
   exit 1
 else
-  echo "blender not installed: the Blender add-on's test did not run" >> "$DEND_SKIP_LOG"
+  echo "blender not installed: the Blender add-on's and import tests did not run" >> "$DEND_SKIP_LOG"
 fi
 # the browser test drives the `dend` binary cargo test built for the CLI tests
 DEND_BIN="${CARGO_TARGET_DIR:-$(pwd)/target}/debug/dend" bash scripts/test-web.sh
