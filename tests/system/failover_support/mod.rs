@@ -49,6 +49,14 @@ pub fn prerequisites() -> Result<PathBuf> {
     which("haproxy").ok_or_else(|| "haproxy not found (apt-get install haproxy)".to_owned())
 }
 
+/// PostgreSQL's server binaries, or why they are missing (for the tests
+/// that run instances on PostgreSQL without HAProxy).
+pub fn postgres_prerequisite() -> Result<()> {
+    pg_script(&["bindir"])
+        .map(|_| ())
+        .map_err(|_| "PostgreSQL server binaries not found (apt-get install postgresql)".to_owned())
+}
+
 fn which(name: &str) -> Option<PathBuf> {
     let path = std::env::var_os("PATH")?;
     std::env::split_paths(&path)
