@@ -31,7 +31,9 @@ async fn call(
 ) -> Result<(u16, Value), String> {
     let mut rq = reqwest::Client::new()
         .request(
-            method.parse().map_err(|e| format!("{e}"))?,
+            method
+                .parse::<reqwest::Method>()
+                .map_err(|e| e.to_string())?,
             format!("{base}/v1/sessions/{}{tail}", s.id),
         )
         .bearer_auth(&s.token);
