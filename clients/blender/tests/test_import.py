@@ -225,7 +225,12 @@ def key(x, y, z):
 
 
 def main():
-    tmp = pathlib.Path(tempfile.mkdtemp())
+    with tempfile.TemporaryDirectory() as tmp:
+        run(pathlib.Path(tmp))
+    print("dend blender import test: OK")
+
+
+def run(tmp):
     proc, url = start_server(str(tmp / "data"))
     try:
         rest, poses, glb = pose_and_export(url)
@@ -275,7 +280,6 @@ def main():
     assert max(math.dist(a, b) for a, b in zip(poses["twist"], rest)) > 0.1, "the first pose is not the rest"
     print(f"shape keys {names[1:]} over {len(to_server)} vertices ({len(rest)} welded): "
           + ", ".join(f"{n} {e:.2e}" for n, e in worst.items()) + f" (bound {1e-4 * diag:.2e})")
-    print("dend blender import test: OK")
 
 
 main()
