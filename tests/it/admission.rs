@@ -28,9 +28,9 @@ async fn new_sessions_get_503_overloaded_with_retry_after_while_solvers_are_satu
     let state = AppState::new(config).expect("state");
     let scheduler = state.scheduler.clone();
     let router = app(state);
-    drop(tokio::spawn(
-        async move { axum::serve(listener, router).await },
-    ));
+    drop(tokio::spawn(async move {
+        axum::serve(dend_server::no_delay(listener), router).await
+    }));
     let c = Client::new(&url);
     let (p, t) = grid(4);
     let mesh = c.upload_json(&p, &t).await.expect("upload");

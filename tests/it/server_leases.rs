@@ -46,9 +46,9 @@ async fn start(store: Arc<dyn Store>, cluster: Option<(&str, u64)>) -> (String, 
         })
     });
     let router = app(state.clone());
-    drop(tokio::spawn(
-        async move { axum::serve(listener, router).await },
-    ));
+    drop(tokio::spawn(async move {
+        axum::serve(dend_server::no_delay(listener), router).await
+    }));
     (format!("http://{addr}"), state)
 }
 

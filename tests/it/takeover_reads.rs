@@ -37,9 +37,9 @@ async fn start(store: Arc<dyn Store>, id: &str, ttl_ms: u64) -> (String, AppStat
         ttl: Duration::from_millis(ttl_ms),
     }));
     let router = app(state.clone());
-    drop(tokio::spawn(
-        async move { axum::serve(listener, router).await },
-    ));
+    drop(tokio::spawn(async move {
+        axum::serve(dend_server::no_delay(listener), router).await
+    }));
     (format!("http://{addr}"), state)
 }
 

@@ -434,7 +434,9 @@ impl SessionClient {
         if !q.is_empty() {
             url = format!("{url}&{q}");
         }
-        let (ws, _) = tokio_tungstenite::connect_async(url)
+        // TCP_NODELAY: an ack and the next drag go out at once instead of
+        // waiting for the server's delayed ACK (Nagle's algorithm)
+        let (ws, _) = tokio_tungstenite::connect_async_with_config(url, None, true)
             .await
             .map_err(Box::new)?;
         Ok(WsClient {

@@ -23,9 +23,9 @@ pub async fn start_with_store(config: Config, store: Arc<dyn Store>) -> (String,
     let addr = listener.local_addr().expect("addr");
     let state = AppState::with_store(config, store).expect("state");
     let router = app(state.clone());
-    drop(tokio::spawn(
-        async move { axum::serve(listener, router).await },
-    ));
+    drop(tokio::spawn(async move {
+        axum::serve(dend_server::no_delay(listener), router).await
+    }));
     (format!("http://{addr}"), state)
 }
 
