@@ -8,6 +8,7 @@
 //! ```text
 //! cargo run --release --example drag_sim -- MESH [--drags 60] [--per-drag 1]
 //!     [--path line|arc] [--preset characters|elastica]
+//!     [--correction-period K] [--coarse-ratio R]
 //! ```
 //!
 //! MESH is a file, `tube:N` or `creature:LEVELS` (`dend gen creature`). The edit is the load test's: the lowest
@@ -84,7 +85,13 @@ fn run() -> Result<(), String> {
         .map(|p| Preset::from_name(&p).ok_or(format!("unknown preset {p}")))
         .transpose()?
         .unwrap_or_default();
-    let params = preset.params();
+    let mut params = preset.params();
+    if let Some(k) = arg(&args, "--correction-period") {
+        params.correction_period = k;
+    }
+    if let Some(r) = arg(&args, "--coarse-ratio") {
+        params.coarse_ratio = r;
+    }
     let (lo, hi) = bbox(&mesh);
     let axis = (0..3)
         .max_by(|&a, &b| (hi[a] - lo[a]).total_cmp(&(hi[b] - lo[b])))
