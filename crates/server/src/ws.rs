@@ -268,6 +268,13 @@ where
                 match reply {
                     Ok(Some(reply)) => send(sink, reply.text()).await?,
                     Ok(None) => {}
+                    // the session left for another instance between this
+                    // message and the close: not a refusal, a reconnect
+                    // (the client sends what was not acknowledged again)
+                    Err(ApiError::SessionClosed) if s.is_moving() => {
+                        send(sink, session_end(s)).await?;
+                        return Ok(());
+                    }
                     Err(e) => send(sink, ServerMsg::error(&e, seq_of(&text)).text()).await?,
                 }
             }
