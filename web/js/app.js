@@ -446,7 +446,8 @@ function setMesh(obj) {
   app.normals = new Float32Array(obj.positions.length);
   app.colors = new Float32Array(obj.positions.length);
   app.labels = new Int32Array(obj.positions.length / 3);
-  app.renderer.setTopology(app.mesh.triangles, app.mesh.edges);
+  app.renderer.setTopology(app.mesh.triangles, app.mesh.edges); // untextured
+  app.texture = null;
   app.gizmo.handle = null;
   // a fresh camera per mesh: the default orbit, framed on it
   const fresh = new OrbitCamera();
@@ -468,7 +469,6 @@ export function uploadPose() {
  * base-colour texture, on its own UVs (from the session's GLB export of
  * the pose `obj` shows); other meshes keep their flat colours. */
 async function showTexture(s, info, obj) {
-  app.texture = null;
   const a = info && info.asset;
   if (!a || (a.format !== 'glb' && a.format !== 'gltf')) return;
   const mesh = app.mesh;

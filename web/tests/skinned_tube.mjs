@@ -91,8 +91,11 @@ function primitives() {
   return [tube, cap];
 }
 
-/** The GLB bytes; `texels`: the 2 × 2 texture's colours (default CHECKER). */
-export function skinnedTubeGlb(texels = CHECKER) {
+/** The GLB bytes; `texels`: the 2 × 2 texture's colours (default CHECKER);
+ * `place`: a transform of the tube's node (`translation`, `rotation`,
+ * `scale`), which then has no skin (a skinned mesh ignores its node's
+ * transform) and no JOINTS_0/WEIGHTS_0. */
+export function skinnedTubeGlb(texels = CHECKER, place = null) {
   const chunks = [];
   let offset = 0;
   const views = [];
@@ -126,8 +129,10 @@ export function skinnedTubeGlb(texels = CHECKER) {
       POSITION: addAccessor(new Float32Array(p.pos), FLOAT, 'VEC3', VERTEX, true),
       NORMAL: addAccessor(new Float32Array(p.nrm), FLOAT, 'VEC3', VERTEX),
       TEXCOORD_0: addAccessor(new Float32Array(p.uv), FLOAT, 'VEC2', VERTEX),
-      JOINTS_0: addAccessor(new Uint8Array(p.joints), UBYTE, 'VEC4', VERTEX),
-      WEIGHTS_0: addAccessor(new Float32Array(p.weights), FLOAT, 'VEC4', VERTEX),
+      ...(place ? {} : {
+        JOINTS_0: addAccessor(new Uint8Array(p.joints), UBYTE, 'VEC4', VERTEX),
+        WEIGHTS_0: addAccessor(new Float32Array(p.weights), FLOAT, 'VEC4', VERTEX),
+      }),
     },
     indices: addAccessor(new Uint16Array(p.idx), USHORT, 'SCALAR', INDEX),
     material: 0,
@@ -144,7 +149,7 @@ export function skinnedTubeGlb(texels = CHECKER) {
     scene: 0,
     scenes: [{ nodes: [0, 1] }],
     nodes: [
-      { name: 'tube', mesh: 0, skin: 0 },
+      place ? { name: 'tube', mesh: 0, ...place } : { name: 'tube', mesh: 0, skin: 0 },
       { name: 'root', children: [2] },
       { name: 'upper', translation: [0, 0, 1.5] },
     ],

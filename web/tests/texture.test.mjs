@@ -16,6 +16,8 @@
 //   measurable share of the mesh's pixels;
 // - regions set (feet fixed, top a handle) and one gizmo drag: the pose
 //   moved, the picture changed, the texture's colours are still there;
+// - the same tube placed by its node's transform (no skin: the server has
+//   it in world space) gets its file UVs too;
 // - a generated mesh afterwards is untextured again.
 // The posed tube's screenshot goes to docs/editor-textured.png.
 
@@ -66,13 +68,14 @@ async function texelShares(page, png) {
  * and the widest u span of a tube triangle (1/16 when each corner keeps
  * its own seam copy's UV; near 1 across the seam otherwise). */
 function uvErrors(pos, tri, uv, textured) {
+  // (tube positions in the tube's own frame)
   const { radius, length, around } = TUBE;
   let worst = 0, span = 0, cap = 0;
   for (let f = 0; f < tri.length / 3; f++) {
     assert.equal(textured[f], 1, `triangle ${f} has UVs`);
     const p = [0, 1, 2].map((k) => pos.slice(3 * tri[3 * f + k], 3 * tri[3 * f + k] + 3));
     const t = [0, 1, 2].map((k) => uv.slice(2 * (3 * f + k), 2 * (3 * f + k) + 2));
-    if (p.every((q) => Math.abs(q[2] - length) < 1e-6)) {
+    if (p.every((q) => Math.abs(q[2] - length) < 1e-5)) {
       cap++;
       for (let k = 0; k < 3; k++) worst = Math.max(worst, Math.abs(t[k][0] - (0.5 + p[k][0])), Math.abs(t[k][1] - (0.5 + p[k][1])));
       continue;
@@ -174,6 +177,28 @@ async function main() {
     assert.ok(diff > 0.01, `the picture follows the pose (${diff} of the pixels changed)`);
     assert.ok(after.shares.filter((x) => x > 0.02).length >= 2, `the posed tube still shows the texture: ${after.shares}`);
     await page.screenshot({ path: join(root, 'docs', 'editor-textured.png') });
+
+    // the tube placed by its node (moved, turned 90° about x, scaled 2, no
+    // skin): the server has it in world space, the file's POSITION is local
+    const s45 = Math.SQRT1_2;
+    await page.setInputFiles('#upload', {
+      name: 'placed.glb', mimeType: 'model/gltf-binary',
+      buffer: skinnedTubeGlb(TEXELS, { translation: [1, 2, -0.5], rotation: [s45, 0, 0, s45], scale: [2, 2, 2] }),
+    });
+    await waitFor(page, (old) => window.dend.app.session.id !== old && window.dend.texture() !== null, s.id, 'the placed tube\'s texture', 90000);
+    const placed = await page.evaluate(() => ({ pos: window.dend.positions(), tri: Array.from(window.dend.app.mesh.triangles), tex: window.dend.texture() }));
+    // world → the tube's frame: l = (w - t) / 2, then the turn undone
+    const local = [];
+    for (let i = 0; i < placed.pos.length; i += 3) {
+      const [x, y, z] = [(placed.pos[i] - 1) / 2, (placed.pos[i + 1] - 2) / 2, (placed.pos[i + 2] + 0.5) / 2];
+      local.push(x, z, -y);
+    }
+    const pe = uvErrors(local, placed.tri, placed.tex.uv, placed.tex.textured);
+    await page.waitForTimeout(300);
+    const placedShares = await texelShares(page, await view.screenshot());
+    log('placed tube: UVs worst', pe.worst.toExponential(2), '; u span', pe.span.toFixed(4), '; texel shares', placedShares.shares.map((x) => x.toFixed(3)).join(' '));
+    assert.ok(pe.worst < 1e-4 && pe.span <= 1 / TUBE.around + 1e-6, 'the placed tube has its file UVs');
+    assert.ok(placedShares.shares.filter((x) => x > 0.03).length >= 2, `the placed tube shows the texture: ${placedShares.shares}`);
 
     // a generated mesh afterwards: untextured again
     await page.selectOption('#shape', { index: 0 });
