@@ -3,7 +3,8 @@
 # web/tests/tools.test.mjs for the posing tools, then
 # web/tests/editor.test.mjs for the first minutes of a new user, then
 # web/tests/morph.test.mjs for the morph-target GLB in three.js's
-# GLTFLoader): installs what it needs if missing (Debian's chromium,
+# GLTFLoader, then web/tests/texture.test.mjs for textured glTF uploads):
+# installs what it needs if missing (Debian's chromium,
 # node/npm, and from npm playwright-core, the glTF validator and three),
 # builds `dend`, and runs the test against the real `dend serve`.
 # Idempotent. Under CI=true a failed install is a failure; otherwise the test
@@ -61,3 +62,4 @@ node web/tests/browser.test.mjs
 node web/tests/tools.test.mjs
 node web/tests/editor.test.mjs
 node web/tests/morph.test.mjs
+node web/tests/texture.test.mjs

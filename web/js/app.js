@@ -5,7 +5,7 @@
 
 import { Api, ApiError } from './api.js';
 import { OrbitCamera } from './camera.js';
-import { parseObj, vertexNormals, edgeList, bbox } from './mesh.js';
+import { parseObj, vertexNormals, edgeList, bbox, parseGlb, glbTexture, glbImage } from './mesh.js';
 import { Renderer } from './renderer.js';
 import { attachInteraction } from './interact.js';
 import { Gizmo, wireNumeric, gizmoLabel } from './gizmo.js';
@@ -25,6 +25,7 @@ export const app = {
   you: null,
   state: 'none',
   mesh: null, // {triangles, edges, rest}
+  texture: null, // an uploaded glTF's base-colour texture as drawn: {uv, textured, size}
   positions: null,
   normals: null,
   colors: null,
@@ -180,8 +181,8 @@ function recolor() {
     app.renderer.setColors(fieldColors(field, app.colors));
   } else {
     app.faceLabels = faceLabels(app.labels, app.mesh.triangles);
-    const { rgb, hatch } = faceColors(app.faceLabels);
-    app.renderer.setFaceColors(rgb, hatch);
+    const { rgb, hatch, tint } = faceColors(app.faceLabels);
+    app.renderer.setFaceColors(rgb, hatch, tint);
   }
   app.needsDraw = true;
   const nf = app.labels.filter((l) => l === FIXED).length;
@@ -445,7 +446,8 @@ function setMesh(obj) {
   app.normals = new Float32Array(obj.positions.length);
   app.colors = new Float32Array(obj.positions.length);
   app.labels = new Int32Array(obj.positions.length / 3);
-  app.renderer.setTopology(app.mesh.triangles, app.mesh.edges);
+  app.renderer.setTopology(app.mesh.triangles, app.mesh.edges); // untextured
+  app.texture = null;
   app.gizmo.handle = null;
   // a fresh camera per mesh: the default orbit, framed on it
   const fresh = new OrbitCamera();
@@ -461,6 +463,27 @@ export function uploadPose() {
   vertexNormals(app.positions, app.mesh.triangles, app.normals);
   app.renderer.setPositions(app.positions, app.normals);
   app.needsDraw = true;
+}
+
+/** An uploaded glTF/GLB (`info`: its mesh info) is drawn with its
+ * base-colour texture, on its own UVs (from the session's GLB export of
+ * the pose `obj` shows); other meshes keep their flat colours. */
+async function showTexture(s, info, obj) {
+  const a = info && info.asset;
+  if (!a || (a.format !== 'glb' && a.format !== 'gltf')) return;
+  const mesh = app.mesh;
+  try {
+    const glb = parseGlb(await (await app.api.exportAs(s.id, s.token, 'glb')).arrayBuffer());
+    const t = glbTexture(glb, obj.positions, obj.triangles);
+    if (!t || !t.image) return;
+    const image = await glbImage(glb, t.image);
+    if (app.mesh !== mesh) return; // another mesh since
+    app.renderer.setTexture(image, t.sampler, t.factor, t.uv, t.textured);
+    app.texture = { uv: t.uv, textured: t.textured, size: [image.width, image.height] };
+    recolor();
+  } catch (e) {
+    notice(`the texture is not shown: ${e.message}`);
+  }
 }
 
 async function openSession(id, token, meshId) {
@@ -484,14 +507,16 @@ async function openSession(id, token, meshId) {
   app.ws = await app.api.connect(id, token, socketHandlers);
 }
 
-async function startSession(meshId) {
+async function startSession(meshId, info) {
   progress('computing the mesh operators…');
   const s = await app.api.createSession(meshId, params()).finally(() => progress(''));
   // The triangles come from the OBJ export of the rest pose (the API has no
   // route for the mesh itself); then the socket, whose frames need them.
-  setMesh(parseObj(await app.api.exportObj(s.id, s.token)));
+  const obj = parseObj(await app.api.exportObj(s.id, s.token));
+  setMesh(obj);
   setState(s.state || 'empty');
   await openSession(s.id, s.token, meshId);
+  await showTexture(s, info, obj);
 }
 
 /** Generates the menu's shape and opens a session on it; a shape with a
@@ -533,7 +558,7 @@ const upload = guarded(async (ev) => {
     ev.target.value = ''; // the same file can be picked again
   }
   app.settingsUndo = [];
-  await startSession(m.id);
+  await startSession(m.id, m);
   resetPaint();
 });
 
@@ -641,13 +666,15 @@ function settingsChanged() {
 async function join(id, token) {
   setState('joining');
   const info = await app.api.session(id, token);
-  setMesh(parseObj(await app.api.exportObj(id, token)));
+  const obj = parseObj(await app.api.exportObj(id, token));
+  setMesh(obj);
   resetPaint();
   showConstraints(info);
   // a set with handles: the first one gets the gizmo
   if (app.labels.some((l) => l > 0)) app.gizmo.handle = 0;
   setState(info.state);
   await openSession(id, token, info.mesh_id);
+  await showTexture({ id, token }, await app.api.json('GET', `/v1/meshes/${info.mesh_id}`).catch(() => null), obj);
 }
 
 // ---------- WebSocket ----------
@@ -816,6 +843,9 @@ window.dend = {
   labels: () => (app.labels ? Array.from(app.labels) : null),
   /** Per-face labels as drawn (-2: a face whose vertices disagree, hatched). */
   faceLabels: () => (app.faceLabels ? Array.from(app.faceLabels) : null),
+  /** The glTF texture as drawn: its size, per triangle corner its UV (2
+   * numbers) and per triangle whether it has one; null when untextured. */
+  texture: () => (app.texture ? { size: app.texture.size, uv: Array.from(app.texture.uv), textured: Array.from(app.texture.textured) } : null),
   /** The gizmo's screen geometry (CSS px: center, tips, rings) and its
    * arrow length in mesh units, or null when no handle shows one. */
   gizmo: () => app.gizmo.geometry(),

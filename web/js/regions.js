@@ -28,15 +28,22 @@ export function faceLabels(labels, triangles) {
   return out;
 }
 
-/** Face colours (vec3 per face) and hatch flags of per-face labels. */
+/** Over a texture, the share of a painted region's colour (a tint: the
+ * texture still shows through); free faces show the texture alone. */
+export const REGION_TINT = 0.55;
+
+/** Face colours (vec3 per face), hatch flags and texture tints of
+ * per-face labels. */
 export function faceColors(faces) {
   const rgb = new Float32Array(3 * faces.length);
   const hatch = new Float32Array(faces.length);
+  const tint = new Float32Array(faces.length);
   for (let f = 0; f < faces.length; f++) {
     rgb.set(labelColor(faces[f]), 3 * f);
     hatch[f] = faces[f] === MIXED ? 1 : 0;
+    tint[f] = faces[f] === FREE ? 0 : REGION_TINT;
   }
-  return { rgb, hatch };
+  return { rgb, hatch, tint };
 }
 
 /** Diverging colour of `t` in [-1, 1]: blue, white, red. */

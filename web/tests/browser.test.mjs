@@ -41,10 +41,12 @@ async function main() {
     // the first open generates the creature; this test starts over on the bar
     await waitFor(page, () => window.dend && window.dend.app.renderer && window.dend.app.opened, null, 'the client to start');
 
-    // Generate the bar.
+    // Generate the bar (the creature's session, positions and socket are
+    // there until the bar's session replaces them).
+    const creature = await page.evaluate(() => window.dend.app.session && window.dend.app.session.id);
     await page.selectOption('#shape', 'bar');
     await page.click('#generate');
-    await waitFor(page, () => window.dend.app.positions && window.dend.app.ws, null, 'the bar');
+    await waitFor(page, (old) => window.dend.app.session && window.dend.app.session.id !== old && window.dend.app.positions && window.dend.app.ws, creature, 'the bar');
     const rest = Float32Array.from(await page.evaluate(() => window.dend.positions()));
     const n = rest.length / 3;
     log('bar vertices', n);

@@ -36,9 +36,13 @@ export function launch() {
 }
 
 /** Starts `dend serve` with its store in `dataDir` on `addr` (default: a
- * free port); resolves with {proc, base}. */
+ * free port); resolves with {proc, base}. The page is served from web/ on
+ * disk (`DEND_WEB_DIR`), so the tests run the client being edited even
+ * with a binary built before the edit (its embedded copy is kept equal to
+ * web/ by a unit test of the server). */
 export function startServer(dataDir, addr = '127.0.0.1:0') {
-  const proc = spawn(bin, ['serve', '--addr', addr, '--data-dir', dataDir], { stdio: ['ignore', 'pipe', 'pipe'] });
+  const env = { ...process.env, DEND_WEB_DIR: join(root, 'web') };
+  const proc = spawn(bin, ['serve', '--addr', addr, '--data-dir', dataDir], { stdio: ['ignore', 'pipe', 'pipe'], env });
   let stderr = '';
   proc.stderr.on('data', (d) => { stderr += d; });
   return new Promise((res, rej) => {

@@ -21,8 +21,12 @@ function crc32(buf) {
   return ~c >>> 0;
 }
 
-/** A 2 × 2 RGB PNG (a checker). */
-function checkerPng() {
+/** The default texture: a red and cream checker (row-major texels, the
+ * first row at v = 0). */
+export const CHECKER = [[230, 60, 40], [250, 240, 220], [250, 240, 220], [230, 60, 40]];
+
+/** A 2 × 2 RGB PNG of four texels (row-major, RGB). */
+export function checkerPng(texels = CHECKER) {
   const chunk = (type, data) => {
     const len = Buffer.alloc(4);
     len.writeUInt32BE(data.length);
@@ -36,7 +40,7 @@ function checkerPng() {
   ihdr.writeUInt32BE(2, 4);
   ihdr[8] = 8; // bit depth
   ihdr[9] = 2; // RGB
-  const rows = Buffer.from([0, 230, 60, 40, 250, 240, 220, 0, 250, 240, 220, 230, 60, 40]);
+  const rows = Buffer.from([0, ...texels[0], ...texels[1], 0, ...texels[2], ...texels[3]]);
   return Buffer.concat([
     Buffer.from([0x89, 0x50, 0x4e, 0x47, 0x0d, 0x0a, 0x1a, 0x0a]),
     chunk('IHDR', ihdr), chunk('IDAT', deflateSync(rows)), chunk('IEND', Buffer.alloc(0)),
@@ -87,8 +91,11 @@ function primitives() {
   return [tube, cap];
 }
 
-/** The GLB bytes. */
-export function skinnedTubeGlb() {
+/** The GLB bytes; `texels`: the 2 × 2 texture's colours (default CHECKER);
+ * `place`: a transform of the tube's node (`translation`, `rotation`,
+ * `scale`), which then has no skin (a skinned mesh ignores its node's
+ * transform) and no JOINTS_0/WEIGHTS_0. */
+export function skinnedTubeGlb(texels = CHECKER, place = null) {
   const chunks = [];
   let offset = 0;
   const views = [];
@@ -122,8 +129,10 @@ export function skinnedTubeGlb() {
       POSITION: addAccessor(new Float32Array(p.pos), FLOAT, 'VEC3', VERTEX, true),
       NORMAL: addAccessor(new Float32Array(p.nrm), FLOAT, 'VEC3', VERTEX),
       TEXCOORD_0: addAccessor(new Float32Array(p.uv), FLOAT, 'VEC2', VERTEX),
-      JOINTS_0: addAccessor(new Uint8Array(p.joints), UBYTE, 'VEC4', VERTEX),
-      WEIGHTS_0: addAccessor(new Float32Array(p.weights), FLOAT, 'VEC4', VERTEX),
+      ...(place ? {} : {
+        JOINTS_0: addAccessor(new Uint8Array(p.joints), UBYTE, 'VEC4', VERTEX),
+        WEIGHTS_0: addAccessor(new Float32Array(p.weights), FLOAT, 'VEC4', VERTEX),
+      }),
     },
     indices: addAccessor(new Uint16Array(p.idx), USHORT, 'SCALAR', INDEX),
     material: 0,
@@ -134,13 +143,13 @@ export function skinnedTubeGlb() {
   for (const j of [0, 1]) for (const d of [0, 5, 10, 15]) ibm[16 * j + d] = 1;
   ibm[16 + 14] = -1.5;
   const inverseBindMatrices = addAccessor(ibm, FLOAT, 'MAT4');
-  const image = addView(checkerPng());
+  const image = addView(checkerPng(texels));
   const json = {
     asset: { version: '2.0', generator: 'dend web/tests/skinned_tube.mjs' },
     scene: 0,
     scenes: [{ nodes: [0, 1] }],
     nodes: [
-      { name: 'tube', mesh: 0, skin: 0 },
+      place ? { name: 'tube', mesh: 0, ...place } : { name: 'tube', mesh: 0, skin: 0 },
       { name: 'root', children: [2] },
       { name: 'upper', translation: [0, 0, 1.5] },
     ],
