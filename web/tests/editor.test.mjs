@@ -12,9 +12,10 @@
 //   undoes the drag before it;
 // - two tabs: while one holds the handle, the other's drag on it shows at
 //   most one quiet status and no error, and the status clears on release.
-// Screenshots of the first open and of a posed creature go to docs/.
+// Screenshots of the first open and of a posed creature go to
+// web/test-artifacts/ (and to docs/ with DEND_UPDATE_SCREENSHOT=1).
 
-import { mkdtempSync, rmSync } from 'node:fs';
+import { copyFileSync, mkdtempSync, rmSync } from 'node:fs';
 import { tmpdir } from 'node:os';
 import { join } from 'node:path';
 import assert from 'node:assert/strict';
@@ -87,7 +88,8 @@ async function main() {
     assert.ok(await page.locator('#helpOverlay').isVisible(), 'the help overlay');
     assert.ok(await page.locator('#error').isHidden(), 'no error on first open');
     await page.waitForTimeout(300);
-    await page.screenshot({ path: join(root, 'docs', 'editor-first-open.png') });
+    await page.screenshot({ path: join(artifacts, 'editor-first-open.png') });
+    if (process.env.DEND_UPDATE_SCREENSHOT) copyFileSync(join(artifacts, 'editor-first-open.png'), join(root, 'docs', 'editor-first-open.png'));
 
     // One drag at the handle's centre poses it: up and towards the viewer's right.
     await dragCentre(page, 140, -90);
@@ -102,7 +104,8 @@ async function main() {
     await page.locator('#helpClose').click();
     clicks++;
     await page.waitForTimeout(300);
-    await page.screenshot({ path: join(root, 'docs', 'editor-posed.png') });
+    await page.screenshot({ path: join(artifacts, 'editor-posed.png') });
+    if (process.env.DEND_UPDATE_SCREENSHOT) copyFileSync(join(artifacts, 'editor-posed.png'), join(root, 'docs', 'editor-posed.png'));
 
     // The gizmo grabs from the front, the side and at 45°, at pitch 0
     // (two of its rings pass through the centre edge-on).

@@ -19,9 +19,10 @@
 // - the same tube placed by its node's transform (no skin: the server has
 //   it in world space) gets its file UVs too;
 // - a generated mesh afterwards is untextured again.
-// The posed tube's screenshot goes to docs/editor-textured.png.
+// The posed tube's screenshot goes to web/test-artifacts/ (and to
+// docs/editor-textured.png with DEND_UPDATE_SCREENSHOT=1).
 
-import { mkdtempSync, rmSync } from 'node:fs';
+import { copyFileSync, mkdtempSync, rmSync } from 'node:fs';
 import { tmpdir } from 'node:os';
 import { join } from 'node:path';
 import assert from 'node:assert/strict';
@@ -176,7 +177,8 @@ async function main() {
     assert.ok(moved > 0.2, `the handle moved (${moved})`);
     assert.ok(diff > 0.01, `the picture follows the pose (${diff} of the pixels changed)`);
     assert.ok(after.shares.filter((x) => x > 0.02).length >= 2, `the posed tube still shows the texture: ${after.shares}`);
-    await page.screenshot({ path: join(root, 'docs', 'editor-textured.png') });
+    await page.screenshot({ path: join(artifacts, 'editor-textured.png') });
+    if (process.env.DEND_UPDATE_SCREENSHOT) copyFileSync(join(artifacts, 'editor-textured.png'), join(root, 'docs', 'editor-textured.png'));
 
     // the tube placed by its node (moved, turned 90° about x, scaled 2, no
     // skin): the server has it in world space, the file's POSITION is local
