@@ -124,3 +124,44 @@ fn a_dragged_camel_settles_as_low_as_a_one_shot_solve() {
         check("camel", &mesh, drags);
     }
 }
+
+/// Held corrections (a session holds them while a person drags) run no
+/// coarse work at all, and the first step after the hold ends runs the
+/// correction that was due; the same steps unheld run corrections.
+#[test]
+fn held_corrections_wait_for_the_end_of_the_gesture() {
+    let mut spec = ShapeSpec::default_for(Shape::Creature);
+    spec.params.nu = Some(3);
+    let mesh = generate(&spec).unwrap();
+    let params = Params::default();
+    let (c, axis, extent) = edit(&mesh);
+    let pivot = c.handles[0].rest_centroid;
+    let rest = Arc::new(Rest::new(mesh.clone()).unwrap());
+    let factor = Factor::build(&rest, &params, &c).unwrap();
+    // (coarse iterations in 12 one-iteration steps at the final target,
+    // coarse iterations of the step after them)
+    let run = |hold: bool| -> (usize, usize) {
+        let mut d = Deformer::new(rest.clone(), params);
+        let mut c = c.clone();
+        for k in 1..=10 {
+            c.handles[0].target = target_at(k as f64 / 10.0, axis, extent, pivot);
+            d.step(&factor, &c, 1).unwrap();
+        }
+        d.hold_corrections(hold);
+        let during: usize = (0..12)
+            .map(|_| d.step(&factor, &c, 1).unwrap().coarse_iterations)
+            .sum();
+        d.hold_corrections(false);
+        let after = d.step(&factor, &c, 1).unwrap().coarse_iterations;
+        (during, after)
+    };
+    let (held, first_after) = run(true);
+    let (free, _) = run(false);
+    eprintln!("coarse iterations: held {held} then {first_after}; unheld {free}");
+    assert_eq!(held, 0, "a held step ran coarse work");
+    assert!(
+        free > 0,
+        "the unheld steps ran no correction: the test shows nothing"
+    );
+    assert!(first_after > 0, "the step after the hold ran no correction");
+}

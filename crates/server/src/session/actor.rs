@@ -69,6 +69,10 @@ pub(super) struct Actor {
     generation: u64,
     /// Targets changed since the last solve started.
     dirty: bool,
+    /// When the last drag without a waiter (a WebSocket drag) was applied:
+    /// the coarse corrections wait until drags pause
+    /// ([`crate::session::CORRECTION_QUIET`]).
+    last_stream_drag: Option<std::time::Instant>,
     /// Nothing more to iterate (converged, budget spent or failed).
     settled: bool,
     iters_since_change: usize,
@@ -127,6 +131,7 @@ impl Actor {
             state: SessionState::Empty,
             generation: 0,
             dirty: false,
+            last_stream_drag: None,
             settled: true,
             iters_since_change: 0,
             last_seq: 0,
@@ -347,8 +352,9 @@ impl Actor {
         self.dirty = true;
         self.settled = false;
         self.uncommitted = true;
-        if let Some(w) = reply {
-            self.waiters.push(w);
+        match reply {
+            Some(w) => self.waiters.push(w),
+            None => self.last_stream_drag = Some(std::time::Instant::now()),
         }
     }
 

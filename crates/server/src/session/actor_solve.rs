@@ -45,6 +45,12 @@ impl Actor {
         } else {
             return;
         };
+        // a person is dragging (no one waits for a full solve and a drag
+        // came within the quiet time): the coarse corrections wait
+        let hold = self.waiters.is_empty()
+            && self
+                .last_stream_drag
+                .is_some_and(|t| t.elapsed() < crate::session::CORRECTION_QUIET);
         self.inflight = self.waiters.drain(..).map(|w| w.1).collect();
         self.dirty = false;
         let Some(mut deformer) = self.deformer.take() else {
@@ -77,6 +83,7 @@ impl Actor {
                 Ok(()) => {
                     let step = (|| {
                         let factor = cache.get_or_build(&rest, &params, &constraints)?;
+                        deformer.hold_corrections(hold);
                         Ok(deformer.step(&factor, &constraints, budget)?)
                     })();
                     (step, false)

@@ -34,6 +34,12 @@ use nalgebra::UnitQuaternion;
 use crate::store::StoreError;
 pub use dend::deform::BuildStage;
 
+/// How long after a WebSocket drag the session's solves hold the coarse
+/// corrections (`Deformer::hold_corrections`): drags closer together than
+/// this are one gesture, answered by fine iterations only; the settle's
+/// corrections start once the drags pause.
+pub const CORRECTION_QUIET: std::time::Duration = std::time::Duration::from_millis(100);
+
 /// A factor build's stage as the wire names it.
 pub fn wire_stage(s: BuildStage) -> dend_protocol::BuildStage {
     match s {

@@ -236,7 +236,7 @@ impl Deformer {
             }
             if st.corrections {
                 st.since_correction += 1;
-                if st.since_correction >= self.params.correction_period {
+                if st.since_correction >= self.params.correction_period && !self.corrections_held {
                     e = self.correct(factor, (el, set), constraints, e, &mut report);
                 }
             }
