@@ -347,7 +347,7 @@ fn peer_events_are_sent_as_their_own_json() {
 /// With a window of one frame, the connection sends nothing more until the
 /// client acknowledges the frame it has; then it sends the latest frame,
 /// skipping the ones the session produced meanwhile. The frames are
-/// version 3 in the encoding asked for.
+/// version 3 in the encoding asked for, a settled one in f32.
 #[tokio::test]
 async fn a_window_of_one_holds_frames_until_acked_then_sends_the_latest() {
     let s = session();
@@ -379,7 +379,13 @@ async fn a_window_of_one_holds_frames_until_acked_then_sends_the_latest() {
             break decode_frame_full(&b).expect("a version 3 frame");
         }
     };
-    assert_eq!((first.version, first.encoding), (3, FrameEncoding::Q16));
+    // q16 while the pose moves; a settled frame goes out in f32
+    let want = if first.header.settled {
+        FrameEncoding::F32
+    } else {
+        FrameEncoding::Q16
+    };
+    assert_eq!((first.version, first.encoding), (3, want));
     // a second drag while the window is full: the session solves it and
     // settles, and none of its frames is sent
     c.send(
@@ -398,7 +404,9 @@ async fn a_window_of_one_holds_frames_until_acked_then_sends_the_latest() {
         .await;
     let latest = loop {
         if let WsMsg::Binary(b) = c.next().await {
-            break decode_frame_full(&b).expect("frame").header;
+            let f = decode_frame_full(&b).expect("frame");
+            assert_eq!(f.encoding, FrameEncoding::F32, "a settled frame is f32");
+            break f.header;
         }
     };
     assert!(
