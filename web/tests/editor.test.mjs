@@ -100,6 +100,21 @@ async function main() {
     assert.ok(firstMove > 0.2, `the head moved (${firstMove})`);
     assert.ok(maxDiff(rest, pose, fixed) < 1e-5, 'the feet stay put');
     assert.ok(clicks <= 3, 'posed within 3 clicks');
+    // the status bar tells how the drag went: frames/s, the settle time
+    // (last drag → its settled frame) and the level of the frame shown;
+    // the settled frame came in f32 (exact), the stream is q16
+    const bar = await page.evaluate(() => ({
+      fps: document.getElementById('stFps').textContent,
+      settle: document.getElementById('stSettle').textContent,
+      level: document.getElementById('stLevel').textContent,
+      flow: window.dend.app.flow,
+    }));
+    log('status bar after the first drag:', JSON.stringify(bar));
+    assert.ok(Number(bar.fps) >= 1, `frames/s shown (${bar.fps})`);
+    assert.match(bar.settle, /^\d+ ms$/, 'the settle time shown');
+    assert.ok(bar.level.length > 0 && bar.level !== '–', `the level shown (${bar.level})`);
+    assert.equal(bar.flow.encoding, 'f32', 'the settled frame is full precision');
+    assert.equal(bar.flow.level, 0, 'the settled frame is the full mesh');
     assert.ok(await page.locator('#prompt').isHidden(), 'the prompt goes once the user drags');
     await page.locator('#helpClose').click();
     clicks++;
