@@ -67,6 +67,10 @@ pub(super) struct Actor {
     after_build: AfterBuild,
     state: SessionState,
     generation: u64,
+    /// Counts the poses set from outside the solver (undo, redo, reset,
+    /// restore): a solve started in an older epoch returns a pose that is
+    /// no longer the session's.
+    pose_epoch: u64,
     /// Targets changed since the last solve started.
     dirty: bool,
     /// When the last drag without a waiter (a WebSocket drag) was applied:
@@ -130,6 +134,7 @@ impl Actor {
             after_build: AfterBuild::Solve,
             state: SessionState::Empty,
             generation: 0,
+            pose_epoch: 0,
             dirty: false,
             last_stream_drag: None,
             settled: true,

@@ -90,9 +90,12 @@ impl Actor {
         pose: Arc<Vec<[f64; 3]>>,
         targets: &[RigidTransform],
     ) -> Result<PoseSnapshot, SessionError> {
+        // a solve in flight holds the deformer: it gets this pose when it
+        // returns (`pose_epoch`)
         if let Some(d) = self.deformer.as_mut() {
             d.set_pose(pose.to_vec())?;
         }
+        self.pose_epoch += 1;
         if let Some(c) = self.constraints.as_mut() {
             for (h, t) in Arc::make_mut(c).handles.iter_mut().zip(targets) {
                 h.target = *t;

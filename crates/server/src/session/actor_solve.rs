@@ -68,7 +68,8 @@ impl Actor {
             self.inner.params,
             self.internal_tx.clone(),
         );
-        let (applied_seq, generation) = (self.last_seq, self.generation);
+        let (applied_seq, generation, pose_epoch) =
+            (self.last_seq, self.generation, self.pose_epoch);
         self.opts.scheduler.submit(&self.inner.id, move || {
             let t0 = Instant::now();
             let appended = if journal.is_empty() {
@@ -101,6 +102,7 @@ impl Actor {
                 journal_failed,
                 constraints,
                 generation,
+                pose_epoch,
             });
         });
     }
@@ -164,7 +166,29 @@ impl Actor {
                 journal_failed,
                 constraints,
                 generation,
+                pose_epoch,
             } => {
+                if pose_epoch != self.pose_epoch {
+                    // an undo, redo, reset or restore replaced the pose while
+                    // this solve ran: its pose and frame are not the
+                    // session's; the deformer takes the current pose, and
+                    // the drags it carried were journaled (acknowledged)
+                    let mut deformer = deformer;
+                    if let Err(e) = deformer.set_pose(self.pose.to_vec()) {
+                        tracing::error!(session = %self.inner.id, error = %e, "restoring the pose after a solve");
+                    }
+                    self.deformer = Some(deformer);
+                    if generation == self.generation && !journal_failed {
+                        self.applied_seq = applied_seq;
+                    }
+                    let header = self.header();
+                    for w in std::mem::take(&mut self.inflight) {
+                        let _ = w.send(Ok(self.snapshot_for(&header)));
+                    }
+                    drop((result, body, constraints, seconds));
+                    self.sync_shared();
+                    return;
+                }
                 self.pose = Arc::new(deformer.pose().to_vec());
                 self.deformer = Some(deformer);
                 if generation == self.generation {

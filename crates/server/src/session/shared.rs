@@ -235,6 +235,9 @@ pub(super) enum Internal {
         constraints: Arc<Constraints>,
         /// The constraint generation it was started in.
         generation: u64,
+        /// The pose epoch it was started in (a restore during the solve
+        /// starts a new one, and the solve's pose is then dropped).
+        pose_epoch: u64,
     },
     /// A stage of the factor build of constraint generation `generation`
     /// started.
