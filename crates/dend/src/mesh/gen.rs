@@ -245,25 +245,21 @@ fn quad(out: &mut Vec<[u32; 3]>, q: [u32; 4]) {
     out.push([q[0], q[2], q[3]]);
 }
 
-/// The surface of the lattice box `[0,a]×[0,a]×[0,m]`, mapped to a
-/// `w × w × len` bar centred on the z axis with z ∈ [0, len].
-fn bar(a: u32, m: u32, w: Real, len: Real) -> Raw {
-    let n = [a, a, m];
+/// The surface of the lattice box `[0,n₀]×[0,n₁]×[0,n₂]`: its corners
+/// numbered in order of first use, and its cells as quads of those numbers,
+/// counter-clockwise seen from outside; the faces normal to each axis of
+/// `axes` in that order, the low side first.
+fn lattice_box(n: [u32; 3], axes: [usize; 3]) -> (Vec<[u32; 3]>, Vec<[u32; 4]>) {
     let mut index: HashMap<[u32; 3], u32> = HashMap::new();
-    let mut pos = Vec::new();
-    let mut tris = Vec::new();
+    let mut corners = Vec::new();
+    let mut quads = Vec::new();
     let mut vid = |c: [u32; 3]| -> u32 {
         *index.entry(c).or_insert_with(|| {
-            pos.push([
-                (c[0] as Real / a as Real - 0.5) * w,
-                (c[1] as Real / a as Real - 0.5) * w,
-                c[2] as Real / m as Real * len,
-            ]);
-            (pos.len() - 1) as u32
+            corners.push(c);
+            (corners.len() - 1) as u32
         })
     };
-    // Faces normal to z first (bottom, top), then x, then y.
-    for axis in [2usize, 0, 1] {
+    for axis in axes {
         let (u, v) = ((axis + 1) % 3, (axis + 2) % 3); // u × v = +axis
         for high in [false, true] {
             for i in 0..n[u] {
@@ -280,10 +276,32 @@ fn bar(a: u32, m: u32, w: Real, len: Real) -> Raw {
                     if !high {
                         q.reverse();
                     }
-                    quad(&mut tris, q);
+                    quads.push(q);
                 }
             }
         }
+    }
+    (corners, quads)
+}
+
+/// The surface of the lattice box `[0,a]×[0,a]×[0,m]`, mapped to a
+/// `w × w × len` bar centred on the z axis with z ∈ [0, len].
+fn bar(a: u32, m: u32, w: Real, len: Real) -> Raw {
+    // faces normal to z first (bottom, top), then x, then y
+    let (corners, quads) = lattice_box([a, a, m], [2, 0, 1]);
+    let pos = corners
+        .iter()
+        .map(|c| {
+            [
+                (c[0] as Real / a as Real - 0.5) * w,
+                (c[1] as Real / a as Real - 0.5) * w,
+                c[2] as Real / m as Real * len,
+            ]
+        })
+        .collect();
+    let mut tris = Vec::with_capacity(2 * quads.len());
+    for q in quads {
+        quad(&mut tris, q);
     }
     (pos, tris)
 }

@@ -36,38 +36,11 @@ struct Cage {
 impl Cage {
     /// The surface of the box `lo..hi` cut into `n[a]` cells along axis `a`.
     fn boxed(n: [u32; 3], lo: Point, hi: Point) -> Cage {
-        let mut index: HashMap<[u32; 3], u32> = HashMap::new();
-        let mut pos = Vec::new();
-        let mut quads = Vec::new();
-        let mut vid = |c: [u32; 3]| -> u32 {
-            *index.entry(c).or_insert_with(|| {
-                let p = [0, 1, 2].map(|a| lo[a] + (hi[a] - lo[a]) * c[a] as Real / n[a] as Real);
-                pos.push(p);
-                (pos.len() - 1) as u32
-            })
-        };
-        for axis in 0..3 {
-            let (u, v) = ((axis + 1) % 3, (axis + 2) % 3); // u × v = +axis
-            for high in [false, true] {
-                for i in 0..n[u] {
-                    for j in 0..n[v] {
-                        let corner = |di: u32, dj: u32| {
-                            let mut c = [0u32; 3];
-                            c[axis] = if high { n[axis] } else { 0 };
-                            c[u] = i + di;
-                            c[v] = j + dj;
-                            c
-                        };
-                        let mut q =
-                            [corner(0, 0), corner(1, 0), corner(1, 1), corner(0, 1)].map(&mut vid);
-                        if !high {
-                            q.reverse();
-                        }
-                        quads.push(q);
-                    }
-                }
-            }
-        }
+        let (corners, quads) = super::lattice_box(n, [0, 1, 2]);
+        let pos = corners
+            .iter()
+            .map(|c| [0, 1, 2].map(|a| lo[a] + (hi[a] - lo[a]) * c[a] as Real / n[a] as Real))
+            .collect();
         Cage { pos, quads }
     }
 
