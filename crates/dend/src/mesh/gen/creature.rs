@@ -93,27 +93,33 @@ impl Cage {
             [0, 1, 2].map(|a| ps.iter().map(|p| p[a]).sum::<Real>() / ps.len() as Real)
         };
         let face: Vec<Point> = (0..nf).map(|f| self.centroid(f)).collect();
-        // edges: (low, high) → (index, adjacent faces)
-        let mut edges: HashMap<(u32, u32), (usize, Vec<usize>)> = HashMap::new();
+        // edges in order of first use: (low, high) → index, and each
+        // edge's ends and adjacent faces (visited in that order, so that
+        // the sums below, and the mesh, are the same on every run)
+        let mut edge_index: HashMap<(u32, u32), usize> = HashMap::new();
+        let mut edges: Vec<((u32, u32), Vec<usize>)> = Vec::new();
         for (f, q) in self.quads.iter().enumerate() {
             for k in 0..4 {
                 let (a, b) = (q[k], q[(k + 1) % 4]);
                 let key = (a.min(b), a.max(b));
-                let n = edges.len();
-                edges.entry(key).or_insert((n, Vec::new())).1.push(f);
+                let e = *edge_index.entry(key).or_insert_with(|| {
+                    edges.push((key, Vec::new()));
+                    edges.len() - 1
+                });
+                edges[e].1.push(f);
             }
         }
-        let mut edge_pt = vec![[0.0; 3]; edges.len()];
+        let mut edge_pt = Vec::with_capacity(edges.len());
         let mut faces_of: Vec<Vec<usize>> = vec![Vec::new(); nv];
         let mut mids_of: Vec<Vec<Point>> = vec![Vec::new(); nv];
-        for (&(a, b), (e, fs)) in &edges {
-            let (pa, pb) = (self.pos[a as usize], self.pos[b as usize]);
+        for ((a, b), fs) in &edges {
+            let (pa, pb) = (self.pos[*a as usize], self.pos[*b as usize]);
             let mut ps = vec![pa, pb];
             ps.extend(fs.iter().map(|&f| face[f]));
-            edge_pt[*e] = avg(&ps);
+            edge_pt.push(avg(&ps));
             let mid = avg(&[pa, pb]);
-            mids_of[a as usize].push(mid);
-            mids_of[b as usize].push(mid);
+            mids_of[*a as usize].push(mid);
+            mids_of[*b as usize].push(mid);
         }
         for (f, q) in self.quads.iter().enumerate() {
             for &i in q {
@@ -131,7 +137,7 @@ impl Cage {
             .collect();
         pos.extend(&face);
         pos.extend(&edge_pt);
-        let e = |a: u32, b: u32| (nv + nf + edges[&(a.min(b), a.max(b))].0) as u32;
+        let e = |a: u32, b: u32| (nv + nf + edge_index[&(a.min(b), a.max(b))]) as u32;
         let mut quads = Vec::with_capacity(4 * nf);
         for (f, q) in self.quads.iter().enumerate() {
             let c = (nv + f) as u32;
