@@ -13,15 +13,11 @@
 // second tab; one mouse drag is one Undo step; a reload reopens the session
 // from the URL with its regions. Screenshots go to web/test-artifacts/.
 
-import { mkdtempSync, rmSync, writeFileSync, copyFileSync } from 'node:fs';
+import { mkdtempSync, writeFileSync, copyFileSync } from 'node:fs';
 import { tmpdir } from 'node:os';
 import { join } from 'node:path';
 import assert from 'node:assert/strict';
-import {
-  root, artifacts, log, launch, startServer as start, waitFor, waitForPose, serverPose, maxDiff,
-  pixelDiff, pngStats, screenBox, boxSelect,
-  presetsMissing,
-} from './lib.mjs';
+import { root, artifacts, log, launch, startServer as start, waitFor, waitForPose, serverPose, maxDiff, pixelDiff, pngStats, screenBox, boxSelect, presetsMissing, shutdown, runTest } from './lib.mjs';
 
 /** The server's store (SQLite), kept across its restart below. */
 const dataDir = mkdtempSync(join(tmpdir(), 'dend-web-test-'));
@@ -464,14 +460,8 @@ async function main() {
     writeFileSync(join(artifacts, 'result.txt'), `ok\nlatencies_ms ${stats.latencies.join(' ')}\n`);
     log('ok');
   } finally {
-    await browser.close();
-    proc.kill('SIGTERM');
-    await new Promise((res) => setTimeout(res, 200));
-    rmSync(dataDir, { recursive: true, force: true });
+    await shutdown(browser, proc, dataDir);
   }
 }
 
-main().catch((e) => {
-  console.error('[web-test] FAILED:', e && e.stack ? e.stack : e);
-  process.exit(1);
-});
+runTest(main);

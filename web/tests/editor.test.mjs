@@ -15,11 +15,11 @@
 // Screenshots of the first open and of a posed creature go to
 // web/test-artifacts/ (and to docs/ with DEND_UPDATE_SCREENSHOT=1).
 
-import { copyFileSync, mkdtempSync, rmSync } from 'node:fs';
+import { copyFileSync, mkdtempSync } from 'node:fs';
 import { tmpdir } from 'node:os';
 import { join } from 'node:path';
 import assert from 'node:assert/strict';
-import { root, artifacts, log, launch, startServer, waitFor, maxDiff, presetsMissing } from './lib.mjs';
+import { root, artifacts, log, launch, startServer, waitFor, maxDiff, presetsMissing, shutdown, runTest } from './lib.mjs';
 
 const dataDir = mkdtempSync(join(tmpdir(), 'dend-editor-test-'));
 
@@ -232,14 +232,8 @@ async function main() {
     assert.deepEqual(pageErrors, [], 'no page or console errors');
     log('editor ok');
   } finally {
-    await browser.close();
-    proc.kill('SIGTERM');
-    await new Promise((res) => setTimeout(res, 200));
-    rmSync(dataDir, { recursive: true, force: true });
+    await shutdown(browser, proc, dataDir);
   }
 }
 
-main().catch((e) => {
-  console.error('[web-test] FAILED:', e && e.stack ? e.stack : e);
-  process.exit(1);
-});
+runTest(main);

@@ -3,7 +3,7 @@
 // state, the server's pose, pixel comparisons, screen boxes.
 
 import { spawn } from 'node:child_process';
-import { mkdirSync } from 'node:fs';
+import { mkdirSync, rmSync } from 'node:fs';
 import { dirname, join, resolve } from 'node:path';
 import { fileURLToPath } from 'node:url';
 import assert from 'node:assert/strict';
@@ -17,6 +17,23 @@ const chromiumPath = process.env.CHROMIUM || '/usr/bin/chromium';
 mkdirSync(artifacts, { recursive: true });
 
 export function log(...a) { console.log('[web-test]', ...a); }
+
+/** The end of every browser test: closes the browser, stops the server
+ * (SIGTERM, then 200 ms to exit) and removes its data folder. */
+export async function shutdown(browser, proc, dataDir) {
+  await browser.close();
+  proc.kill('SIGTERM');
+  await new Promise((res) => setTimeout(res, 200));
+  rmSync(dataDir, { recursive: true, force: true });
+}
+
+/** Runs a test's `main`; any error is printed and exits with status 1. */
+export function runTest(main) {
+  main().catch((e) => {
+    console.error('[web-test] FAILED:', e && e.stack ? e.stack : e);
+    process.exit(1);
+  });
+}
 
 /** Whether a console message is the browser's report of a 404 from
  * `GET /v1/presets`: a server without the presets route (the editor then

@@ -19,11 +19,11 @@
 // top); the texture loaded; the `poses` animation keys weight 1 on each
 // target in turn.
 
-import { mkdtempSync, readFileSync, rmSync, existsSync } from 'node:fs';
+import { mkdtempSync, readFileSync, existsSync } from 'node:fs';
 import { tmpdir } from 'node:os';
 import { join, normalize } from 'node:path';
 import assert from 'node:assert/strict';
-import { root, log, launch, startServer } from './lib.mjs';
+import { root, log, launch, startServer, shutdown, runTest } from './lib.mjs';
 import { skinnedTubeGlb } from './skinned_tube.mjs';
 
 const threeDir = join(root, 'web', 'node_modules', 'three');
@@ -234,13 +234,8 @@ async function main() {
     log('morph test: OK');
     await ctx.close();
   } finally {
-    await browser.close();
-    proc.kill();
-    rmSync(dataDir, { recursive: true, force: true });
+    await shutdown(browser, proc, dataDir);
   }
 }
 
-main().catch((e) => {
-  console.error(e);
-  process.exit(1);
-});
+runTest(main);

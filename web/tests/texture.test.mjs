@@ -22,11 +22,11 @@
 // The posed tube's screenshot goes to web/test-artifacts/ (and to
 // docs/editor-textured.png with DEND_UPDATE_SCREENSHOT=1).
 
-import { copyFileSync, mkdtempSync, rmSync } from 'node:fs';
+import { copyFileSync, mkdtempSync } from 'node:fs';
 import { tmpdir } from 'node:os';
 import { join } from 'node:path';
 import assert from 'node:assert/strict';
-import { root, artifacts, log, launch, startServer, waitFor, pixelDiff, presetsMissing } from './lib.mjs';
+import { root, artifacts, log, launch, startServer, waitFor, pixelDiff, presetsMissing, shutdown, runTest } from './lib.mjs';
 import { skinnedTubeGlb, TUBE } from './skinned_tube.mjs';
 
 /** The test texture: magenta, orange / cyan, yellow (rows at v = 0, 1). */
@@ -216,14 +216,8 @@ async function main() {
     assert.deepEqual(pageErrors, [], 'no page or console errors');
     log('texture ok');
   } finally {
-    await browser.close();
-    proc.kill('SIGTERM');
-    await new Promise((res) => setTimeout(res, 200));
-    rmSync(dataDir, { recursive: true, force: true });
+    await shutdown(browser, proc, dataDir);
   }
 }
 
-main().catch((e) => {
-  console.error('[web-test] FAILED:', e && e.stack ? e.stack : e);
-  process.exit(1);
-});
+runTest(main);

@@ -12,11 +12,11 @@
 // drag turning the handle about z); touch orbit, pinch-zoom and two-finger
 // pan with CDP touch events. Screenshots go to web/test-artifacts/.
 
-import { mkdtempSync, rmSync } from 'node:fs';
+import { mkdtempSync } from 'node:fs';
 import { tmpdir } from 'node:os';
 import { join } from 'node:path';
 import assert from 'node:assert/strict';
-import { artifacts, log, launch, startServer, waitFor, waitForPose, serverPose, screenBox, boxSelect, pngStats, presetsMissing } from './lib.mjs';
+import { artifacts, log, launch, startServer, waitFor, waitForPose, serverPose, screenBox, boxSelect, pngStats, presetsMissing, shutdown, runTest } from './lib.mjs';
 
 const dataDir = mkdtempSync(join(tmpdir(), 'dend-web-tools-'));
 
@@ -394,14 +394,8 @@ async function main() {
     assert.deepEqual(pageErrors, [], 'no page or console errors');
     log('tools ok');
   } finally {
-    await browser.close();
-    proc.kill('SIGTERM');
-    await new Promise((res) => setTimeout(res, 200));
-    rmSync(dataDir, { recursive: true, force: true });
+    await shutdown(browser, proc, dataDir);
   }
 }
 
-main().catch((e) => {
-  console.error('[web-test] FAILED:', e && e.stack ? e.stack : e);
-  process.exit(1);
-});
+runTest(main);
