@@ -7,6 +7,9 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 export DEND_MESHES="${DEND_MESHES:-$(cd .. && pwd)/shared/meshes}"
 export DEND_PYTHON="${DEND_PYTHON:-$(pwd)/.venv/bin/python}"
+# a build from scratch (CI's) gains nothing from incremental compilation,
+# whose caches were 7 GB of target/debug
+if [ "${CI:-}" = true ]; then export CARGO_INCREMENTAL="${CARGO_INCREMENTAL:-0}"; fi
 bash scripts/setup-test-env.sh
 cargo fmt --all -- --check
 cargo clippy --workspace --all-targets -- -D warnings
