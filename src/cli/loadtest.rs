@@ -39,6 +39,9 @@ pub enum StreamMode {
     F32,
     /// One frame in flight, acknowledged; version 3 q16 frames.
     Q16,
+    /// One frame in flight, acknowledged; version 3 delta frames (what the
+    /// editor uses).
+    Delta,
 }
 
 impl StreamMode {
@@ -47,6 +50,7 @@ impl StreamMode {
             StreamMode::Legacy => StreamOptions::default(),
             StreamMode::F32 => StreamOptions::flow(1, FrameEncoding::F32),
             StreamMode::Q16 => StreamOptions::flow(1, FrameEncoding::Q16),
+            StreamMode::Delta => StreamOptions::flow(1, FrameEncoding::Delta),
         }
     }
     fn name(self) -> &'static str {
@@ -54,6 +58,7 @@ impl StreamMode {
             StreamMode::Legacy => "legacy",
             StreamMode::F32 => "f32",
             StreamMode::Q16 => "q16",
+            StreamMode::Delta => "delta",
         }
     }
 }
@@ -133,8 +138,9 @@ pub struct LoadtestArgs {
     #[arg(long, default_value_t = 0)]
     slow_ms: u64,
     /// Stream modes to run, one after the other on the same mesh
-    /// (comma-separated): legacy (version 2 client), f32, q16.
-    #[arg(long, value_enum, value_delimiter = ',', default_value = "q16")]
+    /// (comma-separated): legacy (version 2 client), f32, q16, delta
+    /// (the editor's).
+    #[arg(long, value_enum, value_delimiter = ',', default_value = "delta")]
     stream: Vec<StreamMode>,
 }
 

@@ -248,3 +248,86 @@ async fn bad_stream_options_are_refused_before_the_upgrade() -> R {
     }
     Ok(())
 }
+
+/// A `delta` connection (the editor's) decodes every frame of a drag,
+/// each within 1e-4 of its box's diagonal of the f32 frame of the same
+/// revision (a connection without flow control gets every frame),
+/// in fewer bytes than `q16` spends on the same drag (most of the grid is
+/// still or moves a few grid steps between frames), and ends on the
+/// settled frame in f32, exact.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn delta_frames_are_within_the_grid_and_cost_what_moved() -> R {
+    let n = 40;
+    let (_c, s) = ready_session(n, serde_json::json!({"tol": 1e-12})).await?;
+    let mut delta = s
+        .connect_with(StreamOptions::flow(1, FrameEncoding::Delta))
+        .await?;
+    let mut q16 = s
+        .connect_with(StreamOptions::flow(1, FrameEncoding::Q16))
+        .await?;
+    // no flow control: every frame, in f32, to compare with
+    let mut every = s.connect_with(StreamOptions::default()).await?;
+    let q = [0.0, 0.0, (0.25f64).sin(), (0.25f64).cos()];
+    delta.drag(0, [0.0, 3.0, 5.0], Some(q), 1).await?;
+    let fd = until_settled(&mut delta).await?;
+    let fq = until_settled(&mut q16).await?;
+    let ff = until_settled(&mut every).await?;
+    let v = (n * n) as u64;
+    let by_revision: std::collections::HashMap<u64, &dend_protocol::DecodedFrame> =
+        ff.iter().map(|(f, _)| (f.header.revision, f)).collect();
+    let (mut compared, mut delta_bytes, mut delta_frames) = (0, 0, 0);
+    for (f, bytes) in &fd[..fd.len() - 1] {
+        if f.header.settled {
+            continue;
+        }
+        assert_eq!((f.version, f.encoding), (3, FrameEncoding::Delta));
+        delta_bytes += bytes;
+        delta_frames += 1;
+        let b = f.bbox.expect("a version 3 frame has a box");
+        let diag = (0..3)
+            .map(|k| (b[1][k] - b[0][k]).powi(2))
+            .sum::<f64>()
+            .sqrt();
+        if let Some(exact) = by_revision.get(&f.header.revision) {
+            let exact: Vec<[f64; 3]> = exact.positions.iter().map(|p| p.map(f64::from)).collect();
+            let worst = frame_error(&exact, &f.positions);
+            assert!(
+                worst <= 1e-4 * diag,
+                "delta error {worst} of diagonal {diag}"
+            );
+            compared += 1;
+        }
+    }
+    let moving_q16 = fq[..fq.len() - 1]
+        .iter()
+        .filter(|(f, _)| !f.header.settled)
+        .count() as u64;
+    eprintln!(
+        "{delta_frames} delta frames, {} B each on average (q16: {} B), {compared} compared with f32",
+        delta_bytes / delta_frames.max(1),
+        96 + 6 * v
+    );
+    assert!(delta_frames > 1 && moving_q16 > 0, "the drag took frames");
+    assert!(compared > 0, "some delta frame had an f32 twin");
+    assert!(
+        delta_bytes / delta_frames < 96 + 6 * v,
+        "delta frames average {} B, q16's are {} B",
+        delta_bytes / delta_frames,
+        96 + 6 * v
+    );
+    let (last, _) = fd.last().unwrap();
+    assert_eq!(
+        last.encoding,
+        FrameEncoding::F32,
+        "the settled frame is f32"
+    );
+    let pose = s.pose().await?;
+    assert!(frame_error(&pose.positions, &last.positions) < 1e-5);
+    // a second drag after the settled f32 frame starts from a key frame
+    delta.drag(0, [0.0, 1.0, 0.0], None, 2).await?;
+    let again = until_settled(&mut delta).await?;
+    assert!(again
+        .iter()
+        .any(|(f, _)| f.encoding == FrameEncoding::Delta));
+    Ok(())
+}

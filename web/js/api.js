@@ -1,6 +1,8 @@
 // The dend public API as the client uses it: HTTP `/v1` JSON routes
 // (api/openapi.yaml) and the session WebSocket (api/ws-protocol.md).
 
+import { parseFrame, FrameDecoder } from './frame.js';
+
 /** An API error with the server's `code` and readable `message`. */
 export class ApiError extends Error {
   constructor(code, message, status) {
@@ -23,69 +25,12 @@ async function checked(res) {
 }
 
 /** How the editor's socket streams frames (api/ws-protocol.md, "Stream
- * options"): one frame in flight, acknowledged once drawn, in the compact
- * q16 encoding (16 bits per coordinate in the frame's box). */
-export const STREAM = { window: 1, encoding: 'q16' };
+ * options"): one frame in flight, acknowledged once drawn, in the `delta`
+ * encoding (grid-index changes since the previous frame, deflated: what
+ * did not move costs nothing). */
+export const STREAM = { window: 1, encoding: 'delta' };
 
-/** Parses a binary pose frame: version 2 (40-byte header, f32 xyz) or
- * version 3 (96-byte header with level, encoding and box; f32 or q16 xyz).
- * Throws on anything else. */
-export function parseFrame(buf) {
-  const dv = new DataView(buf);
-  if (buf.byteLength < 40) throw new Error('truncated frame header');
-  const magic = String.fromCharCode(dv.getUint8(0), dv.getUint8(1), dv.getUint8(2), dv.getUint8(3));
-  if (magic !== 'DEND') throw new Error(`bad frame magic ${JSON.stringify(magic)}`);
-  const version = dv.getUint16(4, true);
-  if (version !== 2 && version !== 3) throw new Error(`unsupported frame version ${version}`);
-  const flags = dv.getUint16(6, true);
-  const n = dv.getUint32(28, true);
-  const frame = {
-    version,
-    converged: (flags & 1) !== 0,
-    settled: (flags & 2) !== 0,
-    revision: Number(dv.getBigUint64(8, true)),
-    ackSeq: Number(dv.getBigUint64(16, true)),
-    iteration: dv.getUint32(24, true),
-    objective: dv.getFloat64(32, true),
-    level: 0,
-    encoding: 'f32',
-    bytes: buf.byteLength,
-  };
-  if (version === 2) {
-    if (buf.byteLength !== 40 + 12 * n) throw new Error('frame length does not match its vertex count');
-    frame.positions = new Float32Array(buf, 40, 3 * n);
-    return frame;
-  }
-  if (buf.byteLength < 96) throw new Error('truncated frame header');
-  frame.level = dv.getUint8(40);
-  if (frame.level > 1) throw new Error(`unknown frame level ${frame.level}`);
-  const enc = dv.getUint8(41);
-  if (enc > 1) throw new Error(`unknown frame encoding ${enc}`);
-  frame.encoding = enc === 0 ? 'f32' : 'q16';
-  const lo = [0, 1, 2].map((k) => dv.getFloat64(48 + 8 * k, true));
-  const hi = [0, 1, 2].map((k) => dv.getFloat64(72 + 8 * k, true));
-  if (![0, 1, 2].every((k) => Number.isFinite(lo[k]) && Number.isFinite(hi[k]) && lo[k] <= hi[k])) {
-    throw new Error('the frame box is not a finite box');
-  }
-  frame.bbox = [lo, hi];
-  if (buf.byteLength !== 96 + (enc === 0 ? 12 : 6) * n) throw new Error('frame length does not match its vertex count');
-  if (enc === 0) {
-    frame.positions = new Float32Array(buf, 96, 3 * n);
-    return frame;
-  }
-  // q16: min + q * (max - min) / 65535 per axis (the payload starts at
-  // offset 96, a multiple of 2: a typed view is aligned)
-  const q = new Uint16Array(buf, 96, 3 * n);
-  const out = new Float32Array(3 * n);
-  const step = [0, 1, 2].map((k) => (hi[k] - lo[k]) / 65535);
-  for (let i = 0; i < 3 * n; i += 3) {
-    out[i] = lo[0] + q[i] * step[0];
-    out[i + 1] = lo[1] + q[i + 1] * step[1];
-    out[i + 2] = lo[2] + q[i + 2] * step[2];
-  }
-  frame.positions = out;
-  return frame;
-}
+export { parseFrame, FrameDecoder };
 
 export class Api {
   constructor(base = '') {
@@ -161,24 +106,37 @@ export class Api {
     const ack = (revision) => {
       if (ws.readyState === WebSocket.OPEN) ws.send(JSON.stringify({ type: 'ack', revision }));
     };
-    ws.onmessage = (m) => {
+    // frames decode asynchronously (a delta frame inflates): messages are
+    // handled one after another, in the order they came
+    const decoder = new FrameDecoder();
+    let queue = Promise.resolve();
+    const handle = async (m) => {
       if (typeof m.data === 'string') {
         on.event(JSON.parse(m.data));
         return;
       }
       let frame;
       try {
-        frame = parseFrame(m.data);
+        frame = await decoder.decode(m.data);
       } catch (e) {
+        console.error(e);
+        if (m.data.byteLength > 41 && new DataView(m.data).getUint8(41) === 2) {
+          // a delta stream that lost its base: reopen the socket (its first
+          // frame is a key frame)
+          ws.close(4000, 'frame_decode');
+          return;
+        }
         // a frame that does not parse is taken too (acknowledging every
         // frame sent so far): the stream goes on
         ack(Number.MAX_SAFE_INTEGER);
-        console.error(e);
         return;
       }
       if (typeof requestAnimationFrame === 'function') requestAnimationFrame(() => ack(frame.revision));
       else ack(frame.revision);
       on.frame(frame);
+    };
+    ws.onmessage = (m) => {
+      queue = queue.then(() => handle(m)).catch((e) => console.error(e));
     };
     ws.onclose = (e) => on.close(e.code, e.reason);
     return new Promise((resolve, reject) => {

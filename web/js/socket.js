@@ -12,11 +12,12 @@ const $ = (id) => document.getElementById(id);
 
 /** The stream as the status bar shows it: frames/s over the last second,
  * the settle time (last drag sent → its settled frame), the frame's level. */
-const flow = { times: [], lastDragSent: null, settleMs: null, bytes: 0 };
+const flow = { times: [], lastDragSent: null, settleMs: null, bytes: 0, encodings: {} };
 
 function showFlow(f, now) {
   flow.times.push(now);
   flow.bytes += f.bytes || 0;
+  flow.encodings[f.encoding] = (flow.encodings[f.encoding] || 0) + 1;
   while (flow.times.length && flow.times[0] < now - 1000) flow.times.shift();
   if (f.settled && flow.lastDragSent !== null) {
     flow.settleMs = now - flow.lastDragSent;
@@ -28,7 +29,7 @@ function showFlow(f, now) {
   if (settle) settle.textContent = flow.lastDragSent !== null ? '…' : flow.settleMs === null ? '–' : `${flow.settleMs.toFixed(0)} ms`;
   const level = $('stLevel');
   if (level) level.textContent = f.level === 1 ? 'coarse' : 'full';
-  app.flow = { fps: flow.times.length, settleMs: flow.settleMs, level: f.level, bytes: flow.bytes, encoding: f.encoding };
+  app.flow = { fps: flow.times.length, settleMs: flow.settleMs, level: f.level, bytes: flow.bytes, encoding: f.encoding, encodings: { ...flow.encodings } };
 }
 
 function onFrame(f) {
@@ -129,8 +130,9 @@ function onClose(code, reason) {
   if (code === 1000) return;
   // 4004: the session closed here (deleted, expired, or moved to another
   // instance: its owner died or handed it over); 1001/1006/1011/1012: the
-  // server went away. Reopen it while the server says it exists.
-  if (app.session && [4004, 1001, 1006, 1011, 1012].includes(code)) {
+  // server went away; 4000: this tab closed it, a delta frame did not
+  // decode. Reopen it while the server says it exists.
+  if (app.session && [4000, 4004, 1001, 1006, 1011, 1012].includes(code)) {
     reconnect(app.session, 250);
     return;
   }

@@ -102,7 +102,7 @@ async function main() {
     assert.ok(clicks <= 3, 'posed within 3 clicks');
     // the status bar tells how the drag went: frames/s, the settle time
     // (last drag → its settled frame) and the level of the frame shown;
-    // the settled frame came in f32 (exact), the stream is q16
+    // the settled frame came in f32 (exact), the frames before it in delta
     const bar = await page.evaluate(() => ({
       fps: document.getElementById('stFps').textContent,
       settle: document.getElementById('stSettle').textContent,
@@ -114,6 +114,7 @@ async function main() {
     assert.match(bar.settle, /^\d+ ms$/, 'the settle time shown');
     assert.ok(bar.level.length > 0 && bar.level !== '–', `the level shown (${bar.level})`);
     assert.equal(bar.flow.encoding, 'f32', 'the settled frame is full precision');
+    assert.ok((bar.flow.encodings.delta || 0) > 0, `the drag's frames came in delta (${JSON.stringify(bar.flow.encodings)})`);
     assert.equal(bar.flow.level, 0, 'the settled frame is the full mesh');
     assert.ok(await page.locator('#prompt').isHidden(), 'the prompt goes once the user drags');
     await page.locator('#helpClose').click();

@@ -1,10 +1,12 @@
 // The editor's pose frame decoder (web/js/api.js `parseFrame`) on frames
 // laid out as api/ws-protocol.md says: version 2, version 3 in f32 and in
-// q16 (within 1e-4 of the box diagonal), and malformed frames refused.
+// q16 (within 1e-4 of the box diagonal), a stream of delta frames (made
+// here from the protocol's text, independently of the server's encoder),
+// and malformed frames refused.
 // Plain node, no browser: `node web/tests/frame.test.mjs`.
 
 import assert from 'node:assert/strict';
-import { parseFrame } from '../js/api.js';
+import { parseFrame, FrameDecoder } from '../js/api.js';
 
 function header(version, n, size) {
   const buf = new ArrayBuffer(size);
@@ -84,4 +86,62 @@ const broken = [
 for (const [what, make] of broken) {
   assert.throws(() => parseFrame(make()), Error, what);
 }
+// delta: key frame then changes, written from api/ws-protocol.md's layout
+async function deflateRaw(bytes) {
+  const stream = new Blob([bytes]).stream().pipeThrough(new CompressionStream('deflate-raw'));
+  return new Uint8Array(await new Response(stream).arrayBuffer());
+}
+function varints(values) {
+  const out = [];
+  for (const d of values) {
+    let z = d >= 0 ? 2 * d : -2 * d - 1;
+    while (z >= 0x80) { out.push((z & 0x7f) | 0x80); z = Math.floor(z / 128); }
+    out.push(z);
+  }
+  return new Uint8Array(out);
+}
+const step = diag / 16384;
+const grid = (p) => p.map((v) => v.map((x, k) => Math.round((x - lo[k]) / step)));
+async function delta(p, revision, key, base, prev) {
+  const q = grid(p);
+  const changes = [];
+  for (let k = 0; k < 3; k++) for (let i = 0; i < p.length; i++) changes.push(q[i][k] - (key ? 0 : prev[i][k]));
+  const raw = varints(changes);
+  const z = await deflateRaw(raw);
+  const { buf, dv } = header(3, p.length, 148 + z.length);
+  dv.setBigUint64(8, BigInt(revision), true);
+  dv.setUint8(41, 2);
+  for (let k = 0; k < 3; k++) {
+    dv.setFloat64(48 + 8 * k, lo[k], true);
+    dv.setFloat64(72 + 8 * k, hi[k], true);
+    dv.setFloat64(120 + 8 * k, lo[k], true);
+  }
+  dv.setUint8(96, key ? 1 : 0);
+  dv.setBigUint64(104, BigInt(base), true);
+  dv.setFloat64(112, step, true);
+  dv.setUint32(144, raw.length, true);
+  new Uint8Array(buf, 148).set(z);
+  return { buf, q };
+}
+const dec = new FrameDecoder();
+const k = await delta(pose, 20, true, 20);
+const d0 = await dec.decode(k.buf);
+assert.equal(d0.encoding, 'delta');
+near(d0, 0.87 * step + 1e-6);
+const moved = pose.map((p, i) => (i === 1 ? [p[0] - 0.4, p[1] + 0.25, p[2]] : p));
+const m = await delta(moved, 21, false, 20, k.q);
+const d1 = await dec.decode(m.buf);
+moved.flat().forEach((x, i) => assert.ok(Math.abs(d1.positions[i] - x) <= 0.87 * step + 1e-6, `delta coordinate ${i}`));
+// changes against a frame the decoder does not hold are refused
+const skip = await delta(pose, 23, false, 22, grid(moved));
+await assert.rejects(dec.decode(skip.buf), /applies to revision 22/);
+await assert.rejects(new FrameDecoder().decode(m.buf), /applies to revision 20/);
+// a damaged stream is an error, and the decoder then wants a key frame
+const bad = k.buf.slice(0);
+new DataView(bad).setUint32(144, 999, true);
+const dec2 = new FrameDecoder();
+await assert.rejects(dec2.decode(bad), /stream/);
+await assert.rejects(dec2.decode(m.buf), /applies to revision 20/);
+await dec2.decode(k.buf);
+await dec2.decode(m.buf);
 console.log('frame.test.mjs: ok');

@@ -24,7 +24,7 @@ use dend_protocol::ws::{
     ClientMsg, CreateSession, Created, DeltaJson, DragRequest, HandleRef, ServerMsg, SessionInfo,
     SessionState, StreamOptions,
 };
-use dend_protocol::{decode_frame_full, DecodedFrame, FrameError, FrameHeader};
+use dend_protocol::{DecodedFrame, FrameDecoder, FrameError, FrameHeader};
 
 /// Client errors.
 #[derive(Debug, thiserror::Error)]
@@ -444,6 +444,7 @@ impl SessionClient {
             flow: opts.window.is_some(),
             to_ack: None,
             bytes: 0,
+            decoder: FrameDecoder::new(),
         })
     }
 }
@@ -472,6 +473,8 @@ pub struct WsClient {
     to_ack: Option<u64>,
     /// Bytes of the binary frames received.
     bytes: u64,
+    /// Holds the last `delta` frame, which the next one's changes apply to.
+    decoder: FrameDecoder,
 }
 
 impl std::fmt::Debug for WsClient {
@@ -537,7 +540,7 @@ impl WsClient {
                 Some(Err(e)) => return Err(Box::new(e).into()),
                 Some(Ok(Message::Binary(b))) => {
                     self.bytes += b.len() as u64;
-                    let f = decode_frame_full(&b)?;
+                    let f = self.decoder.decode(&b)?;
                     if self.flow {
                         self.to_ack = Some(f.header.revision);
                     }

@@ -23,11 +23,11 @@
 //! | offset | type | field |
 //! |---|---|---|
 //! | 40 | `u8` | level: 0 = the full mesh, 1 = a coarse preview (prolongated to every vertex) |
-//! | 41 | `u8` | encoding: 0 = `f32`, 1 = `q16` |
+//! | 41 | `u8` | encoding: 0 = `f32`, 1 = `q16`, 2 = `delta` |
 //! | 42 | `[u8; 6]` | reserved, zero |
 //! | 48 | `f64 × 3` | box min: the pose's own bounding box |
 //! | 72 | `f64 × 3` | box max |
-//! | 96 | payload | `f32 × 3n` (`f32`) or `u16 × 3n` (`q16`) |
+//! | 96 | payload | `f32 × 3n` (`f32`), `u16 × 3n` (`q16`), or the `delta` payload ([`crate::delta`]) |
 //!
 //! In `q16`, coordinate `k` of a vertex is `min[k] + q · (max[k] −
 //! min[k]) / 65535`: the error is at most 1/131070 of the box's extent
@@ -69,6 +69,9 @@ pub enum FrameEncoding {
     F32,
     /// 16 bits per coordinate in the frame's box, 6 bytes per vertex.
     Q16,
+    /// Grid-index changes since the connection's previous frame,
+    /// varint-coded and deflated ([`crate::delta`]): what moved costs bytes.
+    Delta,
 }
 
 impl FrameEncoding {
@@ -77,6 +80,7 @@ impl FrameEncoding {
         match self {
             FrameEncoding::F32 => 0,
             FrameEncoding::Q16 => 1,
+            FrameEncoding::Delta => 2,
         }
     }
 
@@ -85,6 +89,7 @@ impl FrameEncoding {
         match c {
             0 => Some(FrameEncoding::F32),
             1 => Some(FrameEncoding::Q16),
+            2 => Some(FrameEncoding::Delta),
             _ => None,
         }
     }
@@ -94,14 +99,17 @@ impl FrameEncoding {
         match self {
             FrameEncoding::F32 => "f32",
             FrameEncoding::Q16 => "q16",
+            FrameEncoding::Delta => "delta",
         }
     }
 
-    /// Bytes per vertex of the payload.
-    pub fn vertex_bytes(self) -> usize {
+    /// Bytes per vertex of the payload (`None`: `delta`, whose length
+    /// depends on what moved).
+    pub fn vertex_bytes(self) -> Option<usize> {
         match self {
-            FrameEncoding::F32 => 12,
-            FrameEncoding::Q16 => 6,
+            FrameEncoding::F32 => Some(12),
+            FrameEncoding::Q16 => Some(6),
+            FrameEncoding::Delta => None,
         }
     }
 }
@@ -184,30 +192,46 @@ pub fn bounding_box<P: Copy + Into<f64>>(positions: &[[P; 3]]) -> [[f64; 3]; 2] 
     [lo, hi]
 }
 
-/// Encodes a version 3 frame of `positions` (its box computed from them).
-/// The header's `vertex_count` is taken from `positions`.
-pub fn encode_frame_v3<P: Copy + Into<f64>>(
+/// Writes the first 96 bytes of a version 3 frame (header, level,
+/// encoding, box) into `b`.
+pub(crate) fn write_v3_header(
+    b: &mut [u8],
     h: &FrameHeader,
-    positions: &[[P; 3]],
     encoding: FrameEncoding,
-) -> Bytes {
-    let n = positions.len();
-    let [lo, hi] = bounding_box(positions);
-    let mut b = vec![0u8; FRAME_V3_HEADER_BYTES + n * encoding.vertex_bytes()];
-    let h = FrameHeader {
-        vertex_count: n as u32,
-        ..*h
-    };
-    write_common(&mut b, &h, FRAME_VERSION_3);
+    [lo, hi]: [[f64; 3]; 2],
+) {
+    write_common(b, h, FRAME_VERSION_3);
     b[40] = h.level;
     b[41] = encoding.code();
     for k in 0..3 {
         b[48 + 8 * k..56 + 8 * k].copy_from_slice(&lo[k].to_le_bytes());
         b[72 + 8 * k..80 + 8 * k].copy_from_slice(&hi[k].to_le_bytes());
     }
+}
+
+/// Encodes a version 3 frame of `positions` (its box computed from them).
+/// The header's `vertex_count` is taken from `positions`. In `delta`, a
+/// key frame: changes against a previous frame are a connection's
+/// [`crate::delta::DeltaEncoder`]'s.
+pub fn encode_frame_v3<P: Copy + Into<f64>>(
+    h: &FrameHeader,
+    positions: &[[P; 3]],
+    encoding: FrameEncoding,
+) -> Bytes {
+    let Some(vertex_bytes) = encoding.vertex_bytes() else {
+        return crate::delta::DeltaEncoder::new().encode(h, positions);
+    };
+    let n = positions.len();
+    let [lo, hi] = bounding_box(positions);
+    let mut b = vec![0u8; FRAME_V3_HEADER_BYTES + n * vertex_bytes];
+    let h = FrameHeader {
+        vertex_count: n as u32,
+        ..*h
+    };
+    write_v3_header(&mut b, &h, encoding, [lo, hi]);
     let out = &mut b[FRAME_V3_HEADER_BYTES..];
     match encoding {
-        FrameEncoding::F32 => {
+        FrameEncoding::F32 | FrameEncoding::Delta => {
             for (p, o) in positions.iter().zip(out.chunks_exact_mut(12)) {
                 for k in 0..3 {
                     let x: f64 = p[k].into();
@@ -273,6 +297,18 @@ pub enum FrameError {
     /// A version 3 box with a non-finite bound, or a minimum above its maximum.
     #[error("the frame's box is not a finite box (min above max or NaN)")]
     Box,
+    /// A `delta` payload that does not decode.
+    #[error("bad delta frame: {0}")]
+    Delta(&'static str),
+    /// A `delta` frame against a frame this decoder does not hold (a
+    /// client that missed a frame reconnects).
+    #[error("the delta frame applies to revision {base}, the decoder holds {have:?}")]
+    Base {
+        /// The revision the frame's changes apply to.
+        base: u64,
+        /// The revision the decoder holds.
+        have: Option<u64>,
+    },
 }
 
 /// A decoded frame: its header, positions and (version 3) box and encoding.
@@ -313,8 +349,36 @@ pub fn decode_frame(b: &[u8]) -> Result<(FrameHeader, Vec<[f32; 3]>), FrameError
     decode_frame_full(b).map(|f| (f.header, f.positions))
 }
 
-/// Decodes a frame of version 2 or 3, with its box and encoding.
+/// Decodes a frame of version 2 or 3, with its box and encoding (a
+/// `delta` frame only if it is a key frame: a stream of them needs a
+/// [`FrameDecoder`]).
 pub fn decode_frame_full(b: &[u8]) -> Result<DecodedFrame, FrameError> {
+    FrameDecoder::new().decode(b)
+}
+
+/// A connection's frame decoder: it holds the last `delta` frame, which
+/// the next one's changes apply to.
+#[derive(Debug, Clone, Default)]
+pub struct FrameDecoder {
+    delta: crate::delta::DeltaDecoder,
+}
+
+impl FrameDecoder {
+    /// A decoder that has seen no frame.
+    pub fn new() -> Self {
+        Self::default()
+    }
+
+    /// Decodes the next frame of the connection.
+    pub fn decode(&mut self, b: &[u8]) -> Result<DecodedFrame, FrameError> {
+        decode_with(b, &mut self.delta)
+    }
+}
+
+fn decode_with(
+    b: &[u8],
+    delta: &mut crate::delta::DeltaDecoder,
+) -> Result<DecodedFrame, FrameError> {
     if b.len() < FRAME_HEADER_BYTES {
         return Err(FrameError::Length {
             got: b.len(),
@@ -361,8 +425,18 @@ pub fn decode_frame_full(b: &[u8]) -> Result<DecodedFrame, FrameError> {
         }
         v => return Err(FrameError::Version(v)),
     };
+    let Some(vertex_bytes) = encoding.vertex_bytes() else {
+        let positions = delta.positions(b, &h)?;
+        return Ok(DecodedFrame {
+            header: h,
+            positions,
+            version,
+            encoding,
+            bbox,
+        });
+    };
     let expected = n
-        .checked_mul(encoding.vertex_bytes())
+        .checked_mul(vertex_bytes)
         .and_then(|p| p.checked_add(start))
         .unwrap_or(usize::MAX);
     if b.len() != expected {

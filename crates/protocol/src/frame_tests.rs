@@ -123,8 +123,8 @@ fn malformed_version_3_frames_get_typed_errors() {
     b[4] = 4;
     assert_eq!(decode_frame(&b), Err(FrameError::Version(4)));
     let mut b = good.clone();
-    b[41] = 2;
-    assert_eq!(decode_frame(&b), Err(FrameError::Encoding(2)));
+    b[41] = 3;
+    assert_eq!(decode_frame(&b), Err(FrameError::Encoding(3)));
     let mut b = good.clone();
     b[40] = 2;
     assert_eq!(decode_frame(&b), Err(FrameError::Level(2)));

@@ -4,13 +4,15 @@
 //! JSON of the HTTP API (this module). `api/ws-protocol.md` and
 //! `api/openapi.yaml` describe them for clients in other languages.
 
+pub mod delta;
 pub mod frame;
 pub mod ws;
 
+pub use delta::DeltaEncoder;
 pub use frame::{
     bounding_box, decode_frame, decode_frame_full, encode_frame_v3, reencode_v2, DecodedFrame,
-    FrameBody, FrameEncoding, FrameError, FrameHeader, FRAME_HEADER_BYTES, FRAME_MAGIC,
-    FRAME_V3_HEADER_BYTES, FRAME_VERSION, FRAME_VERSION_3, LEVEL_COARSE, LEVEL_FULL,
+    FrameBody, FrameDecoder, FrameEncoding, FrameError, FrameHeader, FRAME_HEADER_BYTES,
+    FRAME_MAGIC, FRAME_V3_HEADER_BYTES, FRAME_VERSION, FRAME_VERSION_3, LEVEL_COARSE, LEVEL_FULL,
 };
 pub use ws::{
     AxisAngle, BuildStage, ClientId, ClientMsg, CreateSession, Created, DeltaJson, DragRequest,

@@ -22,6 +22,7 @@ pub const FILES: &[(&str, &[u8])] = &[
     ("js/api.js", include_bytes!("../../../web/js/api.js")),
     ("js/app.js", include_bytes!("../../../web/js/app.js")),
     ("js/camera.js", include_bytes!("../../../web/js/camera.js")),
+    ("js/frame.js", include_bytes!("../../../web/js/frame.js")),
     ("js/gizmo.js", include_bytes!("../../../web/js/gizmo.js")),
     (
         "js/interact.js",

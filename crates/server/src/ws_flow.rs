@@ -13,7 +13,7 @@
 use std::collections::VecDeque;
 
 use bytes::Bytes;
-use dend_protocol::{reencode_v2, FrameEncoding, StreamOptions};
+use dend_protocol::{decode_frame, reencode_v2, DeltaEncoder, FrameEncoding, StreamOptions};
 
 use crate::session::Frame;
 
@@ -26,6 +26,9 @@ pub(super) struct Flow {
     in_flight: VecDeque<u64>,
     /// Version 3 frames in this encoding (`None`: the session's version 2 frames).
     encoding: Option<FrameEncoding>,
+    /// In `delta`: the grid indices of the last frame sent, which the
+    /// next frame's changes apply to.
+    delta: DeltaEncoder,
 }
 
 impl Flow {
@@ -35,6 +38,7 @@ impl Flow {
             window: opts.window.map(|w| w.max(1) as usize),
             in_flight: VecDeque::new(),
             encoding: opts.encoding,
+            delta: DeltaEncoder::new(),
         }
     }
 
@@ -58,18 +62,27 @@ impl Flow {
     /// its own encoder never produces.
     pub(super) fn take(&mut self, f: &Frame) -> Option<Bytes> {
         let encoding = match self.encoding {
-            Some(FrameEncoding::Q16) if f.header.settled => Some(FrameEncoding::F32),
+            Some(FrameEncoding::Q16 | FrameEncoding::Delta) if f.header.settled => {
+                Some(FrameEncoding::F32)
+            }
             e => e,
         };
-        let bytes = match encoding {
-            None => f.bytes.clone(),
-            Some(e) => match reencode_v2(&f.bytes, &f.header, e) {
-                Ok(b) => b,
-                Err(err) => {
-                    tracing::error!(%err, "a session frame does not decode");
-                    return None;
-                }
-            },
+        let encoded = match encoding {
+            None => Ok(f.bytes.clone()),
+            Some(FrameEncoding::Delta) => decode_frame(&f.bytes)
+                .map(|(_, positions)| self.delta.encode(&f.header, &positions)),
+            Some(e) => reencode_v2(&f.bytes, &f.header, e),
+        };
+        if encoding != Some(FrameEncoding::Delta) {
+            // the client's pose is not the last delta frame any more
+            self.delta.reset();
+        }
+        let bytes = match encoded {
+            Ok(b) => b,
+            Err(err) => {
+                tracing::error!(%err, "a session frame does not decode");
+                return None;
+            }
         };
         if self.window.is_some() {
             self.in_flight.push_back(f.header.revision);
