@@ -78,6 +78,7 @@ export class FrameDecoder {
   constructor() {
     this.base = null;
     this.q = null;
+    this.dq = null;
   }
 
   /** The frame `buf` with its positions. Throws on a malformed frame, or on
@@ -93,6 +94,8 @@ export class FrameDecoder {
     const dv = new DataView(buf);
     const key = dv.getUint8(96);
     if (key > 1) throw new Error('bad delta frame: the key byte is neither 0 nor 1');
+    const predict = dv.getUint8(97);
+    if (predict > 1 || (key && predict)) throw new Error('bad delta frame: unknown prediction');
     const base = Number(dv.getBigUint64(104, true));
     const step = dv.getFloat64(112, true);
     const origin = [0, 1, 2].map((k) => dv.getFloat64(120 + 8 * k, true));
@@ -105,6 +108,7 @@ export class FrameDecoder {
     const stream = await inflateRaw(new Uint8Array(buf, 148));
     if (stream.length !== len) throw new Error('bad delta frame: the stream is not as long as announced');
     const q = key ? new Int32Array(3 * n) : this.q;
+    const dq = key ? new Int32Array(3 * n) : this.dq;
     let at = 0;
     for (let k = 0; k < 3; k++) {
       for (let i = 0; i < n; i++) {
@@ -118,13 +122,21 @@ export class FrameDecoder {
           shift += 7;
           if (shift > 28) throw new Error('bad delta frame: a varint overflows 32 bits');
         }
-        // zigzag, then wrapping i32 addition as the encoder's
-        const d = z % 2 === 0 ? z / 2 : -(z + 1) / 2;
-        q[3 * i + k] = (q[3 * i + k] + d) | 0;
+        // zigzag, then wrapping i32 arithmetic as the encoder's
+        const v = z % 2 === 0 ? z / 2 : -(z + 1) / 2;
+        const j = 3 * i + k;
+        if (key) {
+          q[j] = v;
+        } else {
+          const d = predict ? (v + dq[j]) | 0 : v;
+          q[j] = (q[j] + d) | 0;
+          dq[j] = d;
+        }
       }
     }
     if (at !== len) throw new Error('bad delta frame: the stream has bytes past its last varint');
     this.q = q;
+    this.dq = dq;
     this.base = frame.revision;
     const out = new Float32Array(3 * n);
     for (let i = 0; i < 3 * n; i += 3) {

@@ -102,10 +102,15 @@ function varints(values) {
 }
 const step = diag / 16384;
 const grid = (p) => p.map((v) => v.map((x, k) => Math.round((x - lo[k]) / step)));
-async function delta(p, revision, key, base, prev) {
+async function delta(p, revision, key, base, prev, prevChange) {
   const q = grid(p);
   const changes = [];
-  for (let k = 0; k < 3; k++) for (let i = 0; i < p.length; i++) changes.push(q[i][k] - (key ? 0 : prev[i][k]));
+  for (let k = 0; k < 3; k++) {
+    for (let i = 0; i < p.length; i++) {
+      const d = q[i][k] - (key ? 0 : prev[i][k]);
+      changes.push(prevChange ? d - prevChange[i][k] : d);
+    }
+  }
   const raw = varints(changes);
   const z = await deflateRaw(raw);
   const { buf, dv } = header(3, p.length, 148 + z.length);
@@ -117,6 +122,7 @@ async function delta(p, revision, key, base, prev) {
     dv.setFloat64(120 + 8 * k, lo[k], true);
   }
   dv.setUint8(96, key ? 1 : 0);
+  dv.setUint8(97, prevChange ? 1 : 0);
   dv.setBigUint64(104, BigInt(base), true);
   dv.setFloat64(112, step, true);
   dv.setUint32(144, raw.length, true);
@@ -132,9 +138,15 @@ const moved = pose.map((p, i) => (i === 1 ? [p[0] - 0.4, p[1] + 0.25, p[2]] : p)
 const m = await delta(moved, 21, false, 20, k.q);
 const d1 = await dec.decode(m.buf);
 moved.flat().forEach((x, i) => assert.ok(Math.abs(d1.positions[i] - x) <= 0.87 * step + 1e-6, `delta coordinate ${i}`));
+// prediction 1: the change minus the vertex's previous change
+const further = moved.map((p, i) => (i === 1 ? [p[0] - 0.35, p[1] + 0.3, p[2]] : p));
+const change = grid(moved).map((v, i) => v.map((x, a) => x - k.q[i][a]));
+const m2 = await delta(further, 22, false, 21, m.q, change);
+const d2 = await dec.decode(m2.buf);
+further.flat().forEach((x, i) => assert.ok(Math.abs(d2.positions[i] - x) <= 0.87 * step + 1e-6, `predicted coordinate ${i}`));
 // changes against a frame the decoder does not hold are refused
-const skip = await delta(pose, 23, false, 22, grid(moved));
-await assert.rejects(dec.decode(skip.buf), /applies to revision 22/);
+const skip = await delta(pose, 24, false, 23, grid(moved));
+await assert.rejects(dec.decode(skip.buf), /applies to revision 23/);
 await assert.rejects(new FrameDecoder().decode(m.buf), /applies to revision 20/);
 // a damaged stream is an error, and the decoder then wants a key frame
 const bad = k.buf.slice(0);
