@@ -4,11 +4,10 @@
 //! JSON of the HTTP API (this module). `api/ws-protocol.md` and
 //! `api/openapi.yaml` describe them for clients in other languages.
 
-pub mod delta;
 pub mod frame;
 pub mod ws;
 
-pub use delta::DeltaEncoder;
+pub use frame::delta::{self, DeltaEncoder};
 pub use frame::{
     bounding_box, decode_frame, decode_frame_full, encode_frame_v3, reencode_v2, DecodedFrame,
     FrameBody, FrameDecoder, FrameEncoding, FrameError, FrameHeader, FRAME_HEADER_BYTES,

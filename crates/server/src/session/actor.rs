@@ -108,7 +108,7 @@ pub(super) struct Actor {
     /// The named poses (None until read from the store, see `actor_poses.rs`).
     named: Option<Vec<crate::store::NamedPose>>,
     /// Named-pose commands waiting for the pose to settle.
-    settle_queue: VecDeque<super::poses::PoseCmd>,
+    settle_queue: VecDeque<super::shared::PoseCmd>,
 }
 
 impl Actor {

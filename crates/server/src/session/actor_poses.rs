@@ -5,9 +5,10 @@
 use std::sync::Arc;
 
 use super::{Actor, AfterBuild, InstalledSet};
-use crate::session::poses::{pose_list, PoseCmd, PoseInfo, MAX_NAMED_POSES};
+use crate::session::poses::{pose_list, PoseInfo, MAX_NAMED_POSES};
 use crate::session::recovery::transform;
 use crate::session::shared::off_worker;
+use crate::session::shared::PoseCmd;
 use crate::session::{Event, PoseSnapshot, SessionError, SessionState};
 use crate::store::{NamedPose, StoreError, StoredTransform};
 use dend::deform::{ConstraintsSpec, RigidTransform};

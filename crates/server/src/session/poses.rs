@@ -6,7 +6,7 @@
 
 use std::sync::Arc;
 
-use super::shared::{Cmd, Reply};
+use super::shared::{Cmd, PoseCmd, Reply};
 use super::{PoseSnapshot, SessionError, SessionHandle};
 use crate::store::NamedPose;
 
@@ -30,40 +30,6 @@ pub fn pose_list(poses: &[NamedPose]) -> Vec<PoseInfo> {
             created_unix: p.created_unix,
         })
         .collect()
-}
-
-/// What a handle asks the actor to do with named poses.
-pub(super) enum PoseCmd {
-    /// Save the settled pose as `name` (replacing one of that name).
-    Save {
-        name: String,
-        reply: Reply<PoseInfo>,
-    },
-    /// The named poses, with their positions.
-    List(Reply<Arc<Vec<NamedPose>>>),
-    Rename {
-        from: String,
-        to: String,
-        reply: Reply<()>,
-    },
-    Delete {
-        name: String,
-        reply: Reply<()>,
-    },
-    /// Make the named pose the current one (an undo step).
-    Restore {
-        name: String,
-        reply: Reply<PoseSnapshot>,
-    },
-}
-
-impl PoseCmd {
-    /// Whether the command reads or replaces the pose, so it waits until
-    /// the session has settled (no solve running or to come, no factor
-    /// being built).
-    pub(super) fn waits_for_settle(&self) -> bool {
-        matches!(self, PoseCmd::Save { .. } | PoseCmd::Restore { .. })
-    }
 }
 
 /// Checks a pose name: 1 to [`MAX_POSE_NAME_BYTES`] bytes, no control

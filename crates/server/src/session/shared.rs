@@ -12,8 +12,10 @@ use tokio::sync::{broadcast, mpsc, watch};
 
 use tokio::sync::oneshot;
 
-use super::{ClientId, Delta, Event, Frame, Observer, PoseSnapshot, SessionError, SessionState};
-use crate::store::Store;
+use super::{
+    ClientId, Delta, Event, Frame, Observer, PoseInfo, PoseSnapshot, SessionError, SessionState,
+};
+use crate::store::{NamedPose, Store};
 use dend::deform::{BuildStage, Constraints, ConstraintsSpec, Deformer, StepReport};
 
 use super::frame::FrameBody;
@@ -184,7 +186,7 @@ pub(super) enum Cmd {
     /// A grab ended: the gesture's settled pose may become a history entry.
     GestureEnded,
     /// A named-pose command (`poses.rs`).
-    Poses(super::poses::PoseCmd),
+    Poses(PoseCmd),
     Close,
 }
 
@@ -248,4 +250,38 @@ pub(super) enum Internal {
         /// Wall time of the factor's lookup or build.
         seconds: f64,
     },
+}
+
+/// What a handle asks the actor to do with named poses.
+pub(super) enum PoseCmd {
+    /// Save the settled pose as `name` (replacing one of that name).
+    Save {
+        name: String,
+        reply: Reply<PoseInfo>,
+    },
+    /// The named poses, with their positions.
+    List(Reply<Arc<Vec<NamedPose>>>),
+    Rename {
+        from: String,
+        to: String,
+        reply: Reply<()>,
+    },
+    Delete {
+        name: String,
+        reply: Reply<()>,
+    },
+    /// Make the named pose the current one (an undo step).
+    Restore {
+        name: String,
+        reply: Reply<PoseSnapshot>,
+    },
+}
+
+impl PoseCmd {
+    /// Whether the command reads or replaces the pose, so it waits until
+    /// the session has settled (no solve running or to come, no factor
+    /// being built).
+    pub(super) fn waits_for_settle(&self) -> bool {
+        matches!(self, PoseCmd::Save { .. } | PoseCmd::Restore { .. })
+    }
 }

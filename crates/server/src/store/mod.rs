@@ -40,22 +40,14 @@ mod codec;
 mod lease_rule;
 mod memory;
 mod postgres;
-mod postgres_leases;
-mod postgres_liveness;
-mod postgres_poses;
 mod sqlite;
-mod sqlite_assets;
-mod sqlite_leases;
-mod sqlite_poses;
 #[cfg(test)]
 mod suite;
-#[cfg(test)]
-mod suite_poses;
 
 pub use codec::{decode_entry, encode_entry};
 pub use memory::MemoryStore;
+pub use postgres::liveness_name;
 pub use postgres::{PgStore, PG_SCHEMA_VERSION};
-pub use postgres_liveness::liveness_name;
 pub use sqlite::{SqliteStore, DB_FILE, SCHEMA_VERSION};
 
 use std::sync::Arc;

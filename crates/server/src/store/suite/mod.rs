@@ -8,13 +8,15 @@
 //! PostgreSQL cases are skipped with a line in `$DEND_SKIP_LOG`, and fail
 //! under `CI=true`.
 
+mod poses;
+
 use std::sync::Arc;
 use std::time::Duration;
 
 use super::*;
 use dend::mesh::Mesh;
 
-use super::suite_poses::named_poses_round_trip;
+use poses::named_poses_round_trip;
 
 /// Re-opens a durable backend's storage.
 type Reopen = Box<dyn Fn() -> Result<Arc<dyn Store>, StoreError>>;

@@ -90,7 +90,7 @@ fn a_frozen_fenced_write_does_not_block_a_takeover() -> Result<(), StoreError> {
     // instance a's write, frozen between its fence check and its commit
     let mut frozen = a.conn()?;
     let mut tx = frozen.transaction().map_err(pg_err)?;
-    postgres_leases::check_fence(&mut tx, "s", revision)?;
+    leases::check_fence(&mut tx, "s", revision)?;
     std::thread::sleep(ttl * 2); // the lease expires meanwhile
     let (done_tx, done) = std::sync::mpsc::channel();
     let taker = std::thread::spawn(move || {

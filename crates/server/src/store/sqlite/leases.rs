@@ -1,5 +1,5 @@
-//! Session leases in [`super::SqliteStore`] (the `leases` table, schema
-//! version 2): the rule of [`super::lease_rule`], shared with the other
+//! Session leases in [`crate::store::SqliteStore`] (the `leases` table, schema
+//! version 2): the rule of [`crate::store::lease_rule`], shared with the other
 //! backends, on rows of this table. A SQLite file serves one instance;
 //! expiry uses this machine's wall clock (`expires_ms`, 0 once released).
 
@@ -7,8 +7,8 @@ use std::time::{Duration, SystemTime, UNIX_EPOCH};
 
 use rusqlite::{params, Connection, OptionalExtension, TransactionBehavior};
 
-use super::lease_rule::{self, Expiry, LeaseRow};
-use super::{Fence, LeaseGrant, StoreError};
+use crate::store::lease_rule::{self, Expiry, LeaseRow};
+use crate::store::{Fence, LeaseGrant, StoreError};
 
 /// The table (added by schema version 2).
 pub(super) const SCHEMA: &str = "
@@ -38,7 +38,7 @@ fn ttl_ms(ttl: Duration) -> i64 {
 /// Refuses a write fenced by `fence` unless it is `id`'s lease revision
 /// (inside the write's transaction).
 pub(super) fn check_fence(conn: &Connection, id: &str, fence: Fence) -> Result<(), StoreError> {
-    if fence == super::NO_FENCE {
+    if fence == crate::store::NO_FENCE {
         return Ok(()); // the unfenced mode reads nothing
     }
     let row: Option<(String, i64)> = conn
@@ -53,7 +53,7 @@ pub(super) fn check_fence(conn: &Connection, id: &str, fence: Fence) -> Result<(
     lease_rule::check_fence(id, fence, current)
 }
 
-/// [`super::Store::acquire_lease`].
+/// [`crate::store::Store::acquire_lease`].
 pub(super) fn acquire(
     conn: &mut Connection,
     id: &str,
@@ -97,7 +97,7 @@ pub(super) fn acquire(
     Ok(grant)
 }
 
-/// [`super::Store::renew_leases`]: the leases [`lease_rule::holds`].
+/// [`crate::store::Store::renew_leases`]: the leases [`lease_rule::holds`].
 pub(super) fn renew(
     conn: &mut Connection,
     owner: &str,
@@ -122,7 +122,7 @@ pub(super) fn renew(
     Ok(lost)
 }
 
-/// [`super::Store::release_lease`]: expires the lease, keeping its revision,
+/// [`crate::store::Store::release_lease`]: expires the lease, keeping its revision,
 /// if `owner` [`lease_rule::holds`] it.
 pub(super) fn release(
     conn: &Connection,
@@ -139,7 +139,7 @@ pub(super) fn release(
     Ok(())
 }
 
-/// [`super::Store::handoffs_wanted`]: the rows of [`lease_rule::wants_handoff`].
+/// [`crate::store::Store::handoffs_wanted`]: the rows of [`lease_rule::wants_handoff`].
 pub(super) fn wanted(conn: &Connection, owner: &str) -> Result<Vec<String>, StoreError> {
     let mut stmt = conn
         .prepare(

@@ -30,8 +30,8 @@ use std::time::Duration;
 
 use postgres::NoTls;
 
-use super::postgres::pg_err;
-use super::StoreError;
+use super::pg_err;
+use crate::store::StoreError;
 
 /// How long after a PostgreSQL start the liveness check stays off: the
 /// instances' liveness connections are back well within it.
@@ -147,7 +147,7 @@ pub(super) fn owner_gone(
 
 #[cfg(test)]
 mod tests {
-    use super::liveness_name;
+    use crate::store::liveness_name;
 
     #[test]
     fn liveness_names_fit_postgres() {

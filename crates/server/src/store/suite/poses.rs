@@ -1,8 +1,8 @@
 //! The store suite's cases for named poses (run on every backend by
 //! `suite.rs`'s `every_case!`).
 
-use super::suite::{checkpoint, drag, record, Backend};
-use super::*;
+use super::{checkpoint, drag, record, Backend};
+use crate::store::*;
 
 /// A named pose `name` saved `ordinal`-th, over `n` vertices.
 fn named(name: &str, ordinal: u64, n: usize) -> NamedPose {

@@ -1,4 +1,4 @@
-//! Session leases in [`super::PgStore`] (the `leases` table, migration 2).
+//! Session leases in [`crate::store::PgStore`] (the `leases` table, migration 2).
 //!
 //! Expiry uses the database's clock (`now()`), so instances' clocks need
 //! not agree. A fenced write reads the lease row `FOR SHARE` in its own
@@ -6,17 +6,17 @@
 //! for a fenced write in flight, and a write that starts after a takeover
 //! sees the new revision and is refused. If the writer froze inside its
 //! transaction, the server ends that connection after
-//! [`super::postgres::IDLE_IN_TRANSACTION_TIMEOUT`], which lets the
+//! [`crate::store::IDLE_IN_TRANSACTION_TIMEOUT`], which lets the
 //! takeover through and makes the frozen write fail when it wakes. A
 //! released lease keeps its row (expired, `expires` NULL), so revisions
-//! only grow. The rule itself is [`super::lease_rule`]'s, shared with the
+//! only grow. The rule itself is [`crate::store::lease_rule`]'s, shared with the
 //! other backends.
 
 use std::time::Duration;
 
-use super::lease_rule::{self, Expiry, LeaseRow};
-use super::postgres::{pg_err, Conn};
-use super::{Fence, LeaseGrant, StoreError, NO_FENCE};
+use super::{pg_err, Conn};
+use crate::store::lease_rule::{self, Expiry, LeaseRow};
+use crate::store::{Fence, LeaseGrant, StoreError, NO_FENCE};
 
 /// The lifetime in milliseconds, as the `FLOAT8` that multiplies an interval.
 fn ttl_ms(ttl: Duration) -> f64 {
@@ -44,7 +44,7 @@ pub(super) fn check_fence(
     lease_rule::check_fence(id, fence, current)
 }
 
-/// [`super::Store::acquire_lease`].
+/// [`crate::store::Store::acquire_lease`].
 pub(super) fn acquire(
     c: &mut Conn,
     id: &str,
@@ -78,8 +78,7 @@ pub(super) fn acquire(
         // a live lease of a dead owner (its liveness connection is gone):
         // as good as expired
         (true, true)
-            if holder != owner
-                && super::postgres_liveness::owner_gone(&mut tx, owner, &holder)? =>
+            if holder != owner && super::liveness::owner_gone(&mut tx, owner, &holder)? =>
         {
             Expiry::Expired
         }
@@ -110,7 +109,7 @@ pub(super) fn acquire(
     Ok(grant)
 }
 
-/// [`super::Store::renew_leases`]: one statement for all of them (the
+/// [`crate::store::Store::renew_leases`]: one statement for all of them (the
 /// leases [`lease_rule::holds`]).
 pub(super) fn renew(
     c: &mut Conn,
@@ -142,7 +141,7 @@ pub(super) fn renew(
         .collect())
 }
 
-/// [`super::Store::release_lease`]: expires the lease, keeping its revision,
+/// [`crate::store::Store::release_lease`]: expires the lease, keeping its revision,
 /// if `owner` [`lease_rule::holds`] it.
 pub(super) fn release(
     c: &mut Conn,
@@ -159,7 +158,7 @@ pub(super) fn release(
     Ok(())
 }
 
-/// [`super::Store::handoffs_wanted`]: the rows of [`lease_rule::wants_handoff`].
+/// [`crate::store::Store::handoffs_wanted`]: the rows of [`lease_rule::wants_handoff`].
 pub(super) fn wanted(c: &mut Conn, owner: &str) -> Result<Vec<String>, StoreError> {
     Ok(c.query(
         "SELECT session FROM leases

@@ -1,12 +1,12 @@
-//! The `mesh_assets` table of [`super::SqliteStore`]: the uploaded file of a
-//! mesh whose export keeps the file's layout (see [`super::StoredAsset`]),
+//! The `mesh_assets` table of [`crate::store::SqliteStore`]: the uploaded file of a
+//! mesh whose export keeps the file's layout (see [`crate::store::StoredAsset`]),
 //! and the deletion of a mesh with its file.
 //! The table was added without a schema version bump: `CREATE TABLE IF NOT
 //! EXISTS` adds it to older databases, and older programs ignore it.
 
 use rusqlite::{params, Connection, OptionalExtension};
 
-use super::{StoreError, StoredAsset};
+use crate::store::{StoreError, StoredAsset};
 
 /// Stores (or replaces) the asset of mesh `id`.
 pub(super) fn put(conn: &Connection, id: &str, a: &StoredAsset) -> Result<(), StoreError> {

@@ -16,6 +16,10 @@
 //! One connection behind a mutex: the server's store calls are short and
 //! the per-drag append is dominated by its fsync.
 
+mod assets;
+mod leases;
+mod poses;
+
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
@@ -27,13 +31,13 @@ use super::codec::{
     encode_points, encode_targets, encode_triangles, RecordRow, SELECT_SESSION,
 };
 use super::{
-    sqlite_assets, sqlite_leases, sqlite_poses, Checkpoint, Fence, JournalEntry, LeaseGrant,
-    NamedPose, SessionRecord, Store, StoreError, StoredAsset,
+    Checkpoint, Fence, JournalEntry, LeaseGrant, NamedPose, SessionRecord, Store, StoreError,
+    StoredAsset,
 };
 use dend::mesh::Mesh;
 
 /// Version of the schema below (`PRAGMA user_version`): 1 the tables
-/// below, 2 added `leases` (see `sqlite_leases`).
+/// below, 2 added `leases` (see `leases`).
 pub const SCHEMA_VERSION: i64 = 2;
 
 /// The database file name inside the data directory.
@@ -115,8 +119,8 @@ impl SqliteStore {
             ));
         }
         conn.execute_batch(SCHEMA).map_err(backend)?;
-        conn.execute_batch(sqlite_leases::SCHEMA).map_err(backend)?;
-        conn.execute_batch(sqlite_poses::SCHEMA).map_err(backend)?;
+        conn.execute_batch(leases::SCHEMA).map_err(backend)?;
+        conn.execute_batch(poses::SCHEMA).map_err(backend)?;
         conn.pragma_update(None, "user_version", SCHEMA_VERSION)
             .map_err(backend)?;
         Ok(SqliteStore {
@@ -173,7 +177,7 @@ pub(super) fn fenced<'c>(
     if !session_exists(&tx, id)? {
         return Err(missing(id));
     }
-    sqlite_leases::check_fence(&tx, id, fence)?;
+    leases::check_fence(&tx, id, fence)?;
     Ok(tx)
 }
 
@@ -228,15 +232,15 @@ impl Store for SqliteStore {
     }
 
     fn put_asset(&self, id: &str, asset: &StoredAsset) -> Result<(), StoreError> {
-        sqlite_assets::put(&self.conn.lock(), id, asset)
+        assets::put(&self.conn.lock(), id, asset)
     }
 
     fn get_asset(&self, id: &str) -> Result<Option<StoredAsset>, StoreError> {
-        sqlite_assets::get(&self.conn.lock(), id)
+        assets::get(&self.conn.lock(), id)
     }
 
     fn delete_mesh(&self, id: &str) -> Result<bool, StoreError> {
-        sqlite_assets::delete_mesh(&mut self.conn.lock(), id)
+        assets::delete_mesh(&mut self.conn.lock(), id)
     }
 
     fn put_session(&self, r: &SessionRecord) -> Result<(), StoreError> {
@@ -308,7 +312,7 @@ impl Store for SqliteStore {
         let tx = conn
             .transaction_with_behavior(TransactionBehavior::Immediate)
             .map_err(backend)?;
-        sqlite_leases::check_fence(&tx, id, fence)?;
+        leases::check_fence(&tx, id, fence)?;
         let n = tx.execute(
             "UPDATE sessions SET constraints = ?2 WHERE id = ?1",
             params![id, spec.to_string()],
@@ -400,7 +404,7 @@ impl Store for SqliteStore {
         owner: &str,
         ttl: std::time::Duration,
     ) -> Result<LeaseGrant, StoreError> {
-        sqlite_leases::acquire(&mut self.conn.lock(), id, owner, ttl)
+        leases::acquire(&mut self.conn.lock(), id, owner, ttl)
     }
 
     fn renew_leases(
@@ -409,19 +413,19 @@ impl Store for SqliteStore {
         leases: &[(String, Fence)],
         ttl: std::time::Duration,
     ) -> Result<Vec<String>, StoreError> {
-        sqlite_leases::renew(&mut self.conn.lock(), owner, leases, ttl)
+        leases::renew(&mut self.conn.lock(), owner, leases, ttl)
     }
 
     fn release_lease(&self, id: &str, owner: &str, revision: Fence) -> Result<(), StoreError> {
-        sqlite_leases::release(&self.conn.lock(), id, owner, revision)
+        leases::release(&self.conn.lock(), id, owner, revision)
     }
 
     fn handoffs_wanted(&self, owner: &str) -> Result<Vec<String>, StoreError> {
-        sqlite_leases::wanted(&self.conn.lock(), owner)
+        leases::wanted(&self.conn.lock(), owner)
     }
 
     fn put_named_pose(&self, id: &str, fence: Fence, pose: &NamedPose) -> Result<(), StoreError> {
-        sqlite_poses::put(&mut self.conn.lock(), id, fence, pose)
+        poses::put(&mut self.conn.lock(), id, fence, pose)
     }
 
     fn rename_named_pose(
@@ -431,18 +435,17 @@ impl Store for SqliteStore {
         from: &str,
         to: &str,
     ) -> Result<(), StoreError> {
-        sqlite_poses::rename(&mut self.conn.lock(), id, fence, from, to)
+        poses::rename(&mut self.conn.lock(), id, fence, from, to)
     }
 
     fn delete_named_pose(&self, id: &str, fence: Fence, name: &str) -> Result<(), StoreError> {
-        sqlite_poses::delete(&mut self.conn.lock(), id, fence, name)
+        poses::delete(&mut self.conn.lock(), id, fence, name)
     }
 
     fn named_poses(&self, id: &str) -> Result<Vec<NamedPose>, StoreError> {
-        sqlite_poses::list(&self.conn.lock(), id)
+        poses::list(&self.conn.lock(), id)
     }
 }
 
 #[cfg(test)]
-#[path = "sqlite_tests.rs"]
 mod tests;

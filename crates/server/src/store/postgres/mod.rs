@@ -15,6 +15,12 @@
 //! - Errors: a lost or refused connection, a server shutting down or a pool
 //!   timeout is [`StoreError::Unavailable`]; other failures `Backend`.
 
+mod leases;
+mod liveness;
+mod poses;
+
+pub use liveness::liveness_name;
+
 use std::sync::Arc;
 use std::time::Duration;
 
@@ -26,8 +32,8 @@ use super::codec::{
     encode_points, encode_targets, encode_triangles, RecordRow, SELECT_SESSION,
 };
 use super::{
-    postgres_leases, postgres_poses, Checkpoint, Fence, JournalEntry, LeaseGrant, NamedPose,
-    SessionRecord, Store, StoreError, StoredAsset,
+    Checkpoint, Fence, JournalEntry, LeaseGrant, NamedPose, SessionRecord, Store, StoreError,
+    StoredAsset,
 };
 use dend::mesh::Mesh;
 
@@ -94,7 +100,7 @@ pub const MIGRATIONS: &[(i32, &str)] = &[
              session TEXT PRIMARY KEY, owner TEXT NOT NULL,
              revision BIGINT NOT NULL, expires TIMESTAMPTZ, wanted_by TEXT);",
     ),
-    (3, postgres_poses::MIGRATION),
+    (3, poses::MIGRATION),
 ];
 
 type Pool = r2d2::Pool<PostgresConnectionManager<NoTls>>;
@@ -107,7 +113,7 @@ pub struct PgStore {
     /// The pool's connection settings (for the liveness connection).
     config: postgres::Config,
     /// The liveness connection, once announced ([`Store::announce_liveness`]).
-    liveness: parking_lot::Mutex<Option<super::postgres_liveness::Liveness>>,
+    liveness: parking_lot::Mutex<Option<liveness::Liveness>>,
 }
 
 /// Classifies a client error: connection-level failures are
@@ -418,7 +424,7 @@ impl Store for PgStore {
     ) -> Result<(), StoreError> {
         let mut c = self.conn()?;
         let mut tx = c.transaction().map_err(pg_err)?;
-        postgres_leases::check_fence(&mut tx, id, fence)?;
+        leases::check_fence(&mut tx, id, fence)?;
         let n = tx
             .execute(
                 "UPDATE sessions SET constraints = $2 WHERE id = $1",
@@ -443,7 +449,7 @@ impl Store for PgStore {
         if !session_exists(&mut tx, id)? {
             return Err(missing(id));
         }
-        postgres_leases::check_fence(&mut tx, id, fence)?;
+        leases::check_fence(&mut tx, id, fence)?;
         let stmt = tx
             .prepare("INSERT INTO journal (session, entry) VALUES ($1, $2)")
             .map_err(pg_err)?;
@@ -480,7 +486,7 @@ impl Store for PgStore {
         if !session_exists(&mut tx, id)? {
             return Err(missing(id));
         }
-        postgres_leases::check_fence(&mut tx, id, fence)?;
+        leases::check_fence(&mut tx, id, fence)?;
         let _ = tx
             .execute(
                 "INSERT INTO checkpoints (session, revision, ack_seq, pose, targets)
@@ -517,7 +523,7 @@ impl Store for PgStore {
         owner: &str,
         ttl: Duration,
     ) -> Result<LeaseGrant, StoreError> {
-        postgres_leases::acquire(&mut self.conn()?, id, owner, ttl)
+        leases::acquire(&mut self.conn()?, id, owner, ttl)
     }
 
     fn renew_leases(
@@ -526,21 +532,21 @@ impl Store for PgStore {
         leases: &[(String, Fence)],
         ttl: Duration,
     ) -> Result<Vec<String>, StoreError> {
-        postgres_leases::renew(&mut self.conn()?, owner, leases, ttl)
+        leases::renew(&mut self.conn()?, owner, leases, ttl)
     }
 
     fn release_lease(&self, id: &str, owner: &str, revision: Fence) -> Result<(), StoreError> {
-        postgres_leases::release(&mut self.conn()?, id, owner, revision)
+        leases::release(&mut self.conn()?, id, owner, revision)
     }
 
     fn handoffs_wanted(&self, owner: &str) -> Result<Vec<String>, StoreError> {
-        postgres_leases::wanted(&mut self.conn()?, owner)
+        leases::wanted(&mut self.conn()?, owner)
     }
 
     /// A connection within [`PING_TIMEOUT`] (tested on checkout), so that
     /// readiness answers fast when the server is gone.
     fn put_named_pose(&self, id: &str, fence: Fence, pose: &NamedPose) -> Result<(), StoreError> {
-        postgres_poses::put(&mut self.conn()?, id, fence, pose)
+        poses::put(&mut self.conn()?, id, fence, pose)
     }
 
     fn rename_named_pose(
@@ -550,15 +556,15 @@ impl Store for PgStore {
         from: &str,
         to: &str,
     ) -> Result<(), StoreError> {
-        postgres_poses::rename(&mut self.conn()?, id, fence, from, to)
+        poses::rename(&mut self.conn()?, id, fence, from, to)
     }
 
     fn delete_named_pose(&self, id: &str, fence: Fence, name: &str) -> Result<(), StoreError> {
-        postgres_poses::delete(&mut self.conn()?, id, fence, name)
+        poses::delete(&mut self.conn()?, id, fence, name)
     }
 
     fn named_poses(&self, id: &str) -> Result<Vec<NamedPose>, StoreError> {
-        postgres_poses::list(&mut self.conn()?, id)
+        poses::list(&mut self.conn()?, id)
     }
 
     fn ping(&self) -> Result<(), StoreError> {
@@ -573,15 +579,14 @@ impl Store for PgStore {
         Ok(())
     }
 
-    /// Opens the liveness connection (`postgres_liveness`) on a thread of
+    /// Opens the liveness connection (`liveness`) on a thread of
     /// its own; call it outside an async runtime's worker.
     fn announce_liveness(&self, instance: &str) -> Result<(), StoreError> {
-        let live = super::postgres_liveness::start(&self.config, instance)?;
+        let live = liveness::start(&self.config, instance)?;
         *self.liveness.lock() = Some(live);
         Ok(())
     }
 }
 
 #[cfg(test)]
-#[path = "postgres_tests.rs"]
 mod tests;

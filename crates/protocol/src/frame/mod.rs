@@ -27,13 +27,15 @@
 //! | 42 | `[u8; 6]` | reserved, zero |
 //! | 48 | `f64 × 3` | box min: the pose's own bounding box |
 //! | 72 | `f64 × 3` | box max |
-//! | 96 | payload | `f32 × 3n` (`f32`), `u16 × 3n` (`q16`), or the `delta` payload ([`crate::delta`]) |
+//! | 96 | payload | `f32 × 3n` (`f32`), `u16 × 3n` (`q16`), or the `delta` payload ([`delta`]) |
 //!
 //! In `q16`, coordinate `k` of a vertex is `min[k] + q · (max[k] −
 //! min[k]) / 65535`: the error is at most 1/131070 of the box's extent
 //! along that axis, so under 1e-5 of its diagonal, at half the bytes of
 //! `f32`. The box is the pose's, sent with every frame, so it always
 //! covers the pose however far it moves from the rest mesh.
+
+pub mod delta;
 
 use bytes::Bytes;
 use serde::{Deserialize, Serialize};
@@ -70,7 +72,7 @@ pub enum FrameEncoding {
     /// 16 bits per coordinate in the frame's box, 6 bytes per vertex.
     Q16,
     /// Grid-index changes since the connection's previous frame,
-    /// varint-coded and deflated ([`crate::delta`]): what moved costs bytes.
+    /// varint-coded and deflated ([`delta`]): what moved costs bytes.
     Delta,
 }
 
@@ -212,14 +214,14 @@ pub(crate) fn write_v3_header(
 /// Encodes a version 3 frame of `positions` (its box computed from them).
 /// The header's `vertex_count` is taken from `positions`. In `delta`, a
 /// key frame: changes against a previous frame are a connection's
-/// [`crate::delta::DeltaEncoder`]'s.
+/// [`delta::DeltaEncoder`]'s.
 pub fn encode_frame_v3<P: Copy + Into<f64>>(
     h: &FrameHeader,
     positions: &[[P; 3]],
     encoding: FrameEncoding,
 ) -> Bytes {
     let Some(vertex_bytes) = encoding.vertex_bytes() else {
-        return crate::delta::DeltaEncoder::new().encode(h, positions);
+        return delta::DeltaEncoder::new().encode(h, positions);
     };
     let n = positions.len();
     let [lo, hi] = bounding_box(positions);
@@ -360,7 +362,7 @@ pub fn decode_frame_full(b: &[u8]) -> Result<DecodedFrame, FrameError> {
 /// the next one's changes apply to.
 #[derive(Debug, Clone, Default)]
 pub struct FrameDecoder {
-    delta: crate::delta::DeltaDecoder,
+    delta: delta::DeltaDecoder,
 }
 
 impl FrameDecoder {
@@ -375,10 +377,7 @@ impl FrameDecoder {
     }
 }
 
-fn decode_with(
-    b: &[u8],
-    delta: &mut crate::delta::DeltaDecoder,
-) -> Result<DecodedFrame, FrameError> {
+fn decode_with(b: &[u8], delta: &mut delta::DeltaDecoder) -> Result<DecodedFrame, FrameError> {
     if b.len() < FRAME_HEADER_BYTES {
         return Err(FrameError::Length {
             got: b.len(),
@@ -471,5 +470,4 @@ fn decode_with(
 }
 
 #[cfg(test)]
-#[path = "frame_tests.rs"]
 mod tests;

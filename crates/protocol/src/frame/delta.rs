@@ -40,7 +40,7 @@ use std::io::{Read, Write};
 use bytes::Bytes;
 use flate2::{read::DeflateDecoder, write::DeflateEncoder, Compression};
 
-use crate::frame::{
+use super::{
     bounding_box, write_v3_header, FrameEncoding, FrameError, FrameHeader, FRAME_V3_HEADER_BYTES,
 };
 

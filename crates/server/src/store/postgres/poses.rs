@@ -1,10 +1,10 @@
-//! The named poses of [`PgStore`](super::PgStore): table `named_poses`
+//! The named poses of [`PgStore`](crate::store::PgStore): table `named_poses`
 //! (schema migration 3), one row per pose, deleted with their session;
 //! writes fenced like the journal's.
 
-use super::codec::{NamedPoseRow, SELECT_NAMED_POSE};
-use super::postgres::{pg_err, Conn};
-use super::{postgres_leases, Fence, NamedPose, StoreError};
+use super::{leases, pg_err, Conn};
+use crate::store::codec::{NamedPoseRow, SELECT_NAMED_POSE};
+use crate::store::{Fence, NamedPose, StoreError};
 
 /// Migration 3: the table.
 pub(super) const MIGRATION: &str = "CREATE TABLE named_poses (
@@ -30,12 +30,12 @@ fn fenced_write(
     {
         return Err(StoreError::Missing(id.to_string()));
     }
-    postgres_leases::check_fence(&mut tx, id, fence)?;
+    leases::check_fence(&mut tx, id, fence)?;
     let _ = write(&mut tx).map_err(pg_err)?;
     tx.commit().map_err(pg_err)
 }
 
-/// [`super::Store::put_named_pose`].
+/// [`crate::store::Store::put_named_pose`].
 pub(super) fn put(c: &mut Conn, id: &str, fence: Fence, p: &NamedPose) -> Result<(), StoreError> {
     let r = NamedPoseRow::encode(p);
     fenced_write(c, id, fence, |tx| {
@@ -61,7 +61,7 @@ pub(super) fn put(c: &mut Conn, id: &str, fence: Fence, p: &NamedPose) -> Result
     })
 }
 
-/// [`super::Store::rename_named_pose`].
+/// [`crate::store::Store::rename_named_pose`].
 pub(super) fn rename(
     c: &mut Conn,
     id: &str,
@@ -77,7 +77,7 @@ pub(super) fn rename(
     })
 }
 
-/// [`super::Store::delete_named_pose`].
+/// [`crate::store::Store::delete_named_pose`].
 pub(super) fn delete(c: &mut Conn, id: &str, fence: Fence, name: &str) -> Result<(), StoreError> {
     fenced_write(c, id, fence, |tx| {
         tx.execute(
@@ -87,7 +87,7 @@ pub(super) fn delete(c: &mut Conn, id: &str, fence: Fence, name: &str) -> Result
     })
 }
 
-/// [`super::Store::named_poses`].
+/// [`crate::store::Store::named_poses`].
 pub(super) fn list(c: &mut Conn, id: &str) -> Result<Vec<NamedPose>, StoreError> {
     c.query(
         &format!("{SELECT_NAMED_POSE} WHERE session = $1 ORDER BY ordinal, name"),

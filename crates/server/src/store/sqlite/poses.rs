@@ -1,4 +1,4 @@
-//! The named poses of [`SqliteStore`](super::SqliteStore): one row per
+//! The named poses of [`SqliteStore`](crate::store::SqliteStore): one row per
 //! pose in table `named_poses` (pose and targets as the checkpoints'
 //! blobs), deleted with their session. The table is additive (created if
 //! missing at open): a database of an older program gains it, and an older
@@ -6,9 +6,9 @@
 
 use rusqlite::{params, Connection};
 
-use super::codec::{NamedPoseRow, SELECT_NAMED_POSE};
-use super::sqlite::{backend, fenced};
-use super::{Fence, NamedPose, StoreError};
+use super::{backend, fenced};
+use crate::store::codec::{NamedPoseRow, SELECT_NAMED_POSE};
+use crate::store::{Fence, NamedPose, StoreError};
 
 /// The table, created at open.
 pub(super) const SCHEMA: &str = "
@@ -25,7 +25,7 @@ CREATE TABLE IF NOT EXISTS named_poses (
 );
 ";
 
-/// [`super::Store::put_named_pose`].
+/// [`crate::store::Store::put_named_pose`].
 pub(super) fn put(
     conn: &mut Connection,
     id: &str,
@@ -54,7 +54,7 @@ pub(super) fn put(
     tx.commit().map_err(backend)
 }
 
-/// [`super::Store::rename_named_pose`].
+/// [`crate::store::Store::rename_named_pose`].
 pub(super) fn rename(
     conn: &mut Connection,
     id: &str,
@@ -72,7 +72,7 @@ pub(super) fn rename(
     tx.commit().map_err(backend)
 }
 
-/// [`super::Store::delete_named_pose`].
+/// [`crate::store::Store::delete_named_pose`].
 pub(super) fn delete(
     conn: &mut Connection,
     id: &str,
@@ -89,7 +89,7 @@ pub(super) fn delete(
     tx.commit().map_err(backend)
 }
 
-/// [`super::Store::named_poses`].
+/// [`crate::store::Store::named_poses`].
 pub(super) fn list(conn: &Connection, id: &str) -> Result<Vec<NamedPose>, StoreError> {
     let rows: Vec<NamedPoseRow> = {
         let mut stmt = conn
