@@ -32,8 +32,6 @@ KNOWN = {
     # Rest caches the elastic operators and the coarse levels, which are
     # built from a Rest (the caches want their own type)
     ('dend', ('deform::coarse', 'deform::constraints', 'deform::factor', 'deform::rest')),
-    # mesh::io welds with mesh::asset's weld; asset reads with io
-    ('dend', ('mesh::asset', 'mesh::io')),
 }
 
 

@@ -16,6 +16,7 @@ pub mod asset;
 pub mod gen;
 pub mod io;
 mod topology;
+pub mod weld;
 
 pub(crate) use topology::corner_offsets;
 pub use topology::Topology;

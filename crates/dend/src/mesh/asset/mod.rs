@@ -30,7 +30,7 @@ pub mod normals;
 mod obj;
 mod ply;
 pub mod sample;
-pub mod weld;
+pub use crate::mesh::weld;
 
 use std::path::Path;
 
@@ -103,20 +103,6 @@ pub struct AssetInfo {
     /// [`groups`]).
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub groups: Vec<GroupInfo>,
-}
-
-/// Leaves degenerate triangles (a repeated vertex, or zero area as
-/// [`Mesh::new`] judges it) out of a welded surface: exported game assets
-/// often hold some. Triangles with an index out of range stay, for
-/// [`Mesh::new`] to report.
-pub(crate) fn drop_degenerate(welded: &[Point], tris: &mut Vec<[u32; 3]>) {
-    tris.retain(|t| {
-        t.iter().any(|&i| i as usize >= welded.len())
-            || !(t[0] == t[1]
-                || t[1] == t[2]
-                || t[0] == t[2]
-                || crate::mesh::is_zero_area(welded, t))
-    });
 }
 
 fn parse_error(format: Format, e: io::ParseError) -> IoError {
@@ -213,7 +199,7 @@ impl Asset {
         let mut tris = weld.triangles(&triangles);
         let all = tris.len();
         if !matches!(source, Source::Plain) {
-            drop_degenerate(&welded, &mut tris);
+            weld::drop_degenerate(&welded, &mut tris);
         }
         let dropped = all - tris.len();
         let mesh = Mesh::new(welded, tris)?;

@@ -274,10 +274,10 @@ pub fn parse_bytes(bytes: &[u8], format: Format) -> Result<RawMesh, ParseError> 
 
 fn parse_gltf(bytes: &[u8], sidecars: gltf::Sidecars<'_>) -> Result<RawMesh, ParseError> {
     let g = gltf::GltfAsset::parse(bytes, sidecars).map_err(|e| gltf_parse_error(&e))?;
-    let w = crate::mesh::asset::weld::weld(g.positions(), g.triangles());
+    let w = crate::mesh::weld::weld(g.positions(), g.triangles());
     let positions = w.positions(g.positions());
     let mut triangles = w.triangles(g.triangles());
-    crate::mesh::asset::drop_degenerate(&positions, &mut triangles);
+    crate::mesh::weld::drop_degenerate(&positions, &mut triangles);
     Ok(RawMesh {
         positions,
         triangles,

@@ -135,6 +135,20 @@ impl Weld {
     }
 }
 
+/// Leaves degenerate triangles (a repeated vertex, or zero area as
+/// [`Mesh::new`] judges it) out of a welded surface: exported game assets
+/// often hold some. Triangles with an index out of range stay, for
+/// [`Mesh::new`] to report.
+pub(crate) fn drop_degenerate(welded: &[Point], tris: &mut Vec<[u32; 3]>) {
+    tris.retain(|t| {
+        t.iter().any(|&i| i as usize >= welded.len())
+            || !(t[0] == t[1]
+                || t[1] == t[2]
+                || t[0] == t[2]
+                || crate::mesh::is_zero_area(welded, t))
+    });
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
