@@ -2,6 +2,7 @@
 # Browser tests of the web client (web/tests/browser.test.mjs, then
 # web/tests/tools.test.mjs for the posing tools, then
 # web/tests/editor.test.mjs for the first minutes of a new user, then
+# web/tests/feline.test.mjs for a person's drag of a 50k-vertex character, then
 # web/tests/morph.test.mjs for the morph-target GLB in three.js's
 # GLTFLoader, then web/tests/texture.test.mjs for textured glTF uploads):
 # installs what it needs if missing (Debian's chromium,
@@ -61,5 +62,6 @@ node web/tests/frame.test.mjs
 node web/tests/browser.test.mjs
 node web/tests/tools.test.mjs
 node web/tests/editor.test.mjs
+node web/tests/feline.test.mjs
 node web/tests/morph.test.mjs
 node web/tests/texture.test.mjs
