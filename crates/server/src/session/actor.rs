@@ -67,6 +67,9 @@ pub(super) struct Actor {
     after_build: AfterBuild,
     state: SessionState,
     generation: u64,
+    /// The factor of the installed set once built (`None` while it
+    /// builds): every solve of the set uses it, no cache lookup per solve.
+    factor: Option<Arc<dend::deform::Factor>>,
     /// Counts the poses set from outside the solver (undo, redo, reset,
     /// restore): a solve started in an older epoch returns a pose that is
     /// no longer the session's.
@@ -134,6 +137,7 @@ impl Actor {
             after_build: AfterBuild::Solve,
             state: SessionState::Empty,
             generation: 0,
+            factor: None,
             pose_epoch: 0,
             dirty: false,
             last_stream_drag: None,
@@ -437,6 +441,7 @@ impl Actor {
     /// `building`); every grab ends, visibly.
     fn activate(&mut self, set: Arc<InstalledSet>, after: AfterBuild) {
         self.generation += 1;
+        self.factor = None;
         self.state = SessionState::Building;
         self.after_build = after;
         self.inner.shared.lock().handles = set
@@ -501,7 +506,6 @@ impl Actor {
             };
             let result = cache
                 .get_or_build_reporting(&rest, &params, &constraints, &report)
-                .map(|_| ())
                 .map_err(SessionError::from);
             let _ = tx.send(Internal::Built {
                 generation,

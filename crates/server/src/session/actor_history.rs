@@ -34,11 +34,21 @@ impl Actor {
         let Some(set) = self.set.clone() else {
             return;
         };
-        self.history.push(Snapshot {
-            pose: self.pose.clone(),
-            targets: self.targets(),
-            set,
-        });
+        let targets = self.targets();
+        match self.history.last_mut() {
+            // a gesture that left the set and the targets as they were (a
+            // zero drag, a drag back to where it started, the settle of a
+            // set's first solve that a drag joined late) is not an undo
+            // step of its own: the step it would repeat takes its pose
+            Some(top) if top.set.id == set.id && top.targets == targets => {
+                top.pose = self.pose.clone();
+            }
+            _ => self.history.push(Snapshot {
+                pose: self.pose.clone(),
+                targets,
+                set,
+            }),
+        }
         if self.history.len() > HISTORY_LIMIT {
             let _ = self.history.remove(0);
         }

@@ -70,6 +70,7 @@ impl Actor {
         );
         let (applied_seq, generation, pose_epoch) =
             (self.last_seq, self.generation, self.pose_epoch);
+        let installed = self.factor.clone();
         self.opts.scheduler.submit(&self.inner.id, move || {
             let t0 = Instant::now();
             let appended = if journal.is_empty() {
@@ -83,7 +84,10 @@ impl Actor {
             let (result, journal_failed) = match appended {
                 Ok(()) => {
                     let step = (|| {
-                        let factor = cache.get_or_build(&rest, &params, &constraints)?;
+                        let factor = match installed {
+                            Some(f) => f,
+                            None => cache.get_or_build(&rest, &params, &constraints)?,
+                        };
                         deformer.hold_corrections(hold);
                         Ok(deformer.step(&factor, &constraints, budget)?)
                     })();
@@ -131,7 +135,8 @@ impl Actor {
                 }
                 self.revision += 1;
                 match result {
-                    Ok(()) => {
+                    Ok(factor) => {
+                        self.factor = Some(factor);
                         self.state = SessionState::Ready;
                         if self.after_build == AfterBuild::Solve {
                             // solve towards the set's targets; the settled

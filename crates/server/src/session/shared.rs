@@ -246,7 +246,8 @@ pub(super) enum Internal {
     Stage { generation: u64, stage: BuildStage },
     Built {
         generation: u64,
-        result: Result<(), SessionError>,
+        /// The set's factor, kept by the actor for every solve of the set.
+        result: Result<Arc<dend::deform::Factor>, SessionError>,
         /// Wall time of the factor's lookup or build.
         seconds: f64,
     },
