@@ -29,7 +29,9 @@ use thiserror::Error;
 use super::{Mesh, MeshError, Point, Real};
 
 mod creature;
+mod patch;
 pub use creature::{creature_constraints, BELLY_HEIGHT, FOOT_HEIGHT, HEAD_DEPTH};
+pub use patch::{irregular_patch, PatchSurface};
 
 /// The generated shapes.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize, clap::ValueEnum)]

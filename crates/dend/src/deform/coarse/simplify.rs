@@ -3,7 +3,7 @@
 
 use meshopt::SimplifyOptions;
 
-use crate::mesh::{Mesh, Real};
+use crate::mesh::{Mesh, Point, Real};
 
 /// A coarse mesh with about `#V / ratio` vertices whose vertices are fine
 /// vertices: `fine_of[c]` is the fine index of coarse vertex `c`, strictly
@@ -22,31 +22,30 @@ use crate::mesh::{Mesh, Real};
 /// the regularised simplification is then retried without `Regularize`
 /// (measured: camel_9770 non-manifold with it, valid without; dino_6013,
 /// eth_hand_14k valid with both).
-pub fn coarse_mesh(mesh: &Mesh, ratio: usize) -> Option<(Mesh, Vec<u32>)> {
+///
+/// meshoptimizer sees `normalised`, the mesh's positions centred and in
+/// mean edge lengths (the rest operators' copy), as f32: the collapses
+/// then do not depend on the mesh's unit of length or placement. Given
+/// the raw coordinates, their f32 rounding (and meshoptimizer's own float
+/// arithmetic) changed with the unit: a 1600-vertex patch scaled by 37
+/// got another coarse mesh, and its solve another path (issue #33).
+pub fn coarse_mesh(mesh: &Mesh, normalised: &[Point], ratio: usize) -> Option<(Mesh, Vec<u32>)> {
     [SimplifyOptions::Regularize, SimplifyOptions::None]
         .into_iter()
-        .find_map(|options| simplify_with(mesh, ratio, options))
+        .find_map(|options| simplify_with(mesh, normalised, ratio, options))
 }
 
 /// One attempt of [`coarse_mesh`] with meshoptimizer's `options`.
-fn simplify_with(mesh: &Mesh, ratio: usize, options: SimplifyOptions) -> Option<(Mesh, Vec<u32>)> {
+fn simplify_with(
+    mesh: &Mesh,
+    normalised: &[Point],
+    ratio: usize,
+    options: SimplifyOptions,
+) -> Option<(Mesh, Vec<u32>)> {
     let fine = mesh.positions();
-    let (lo, hi) = mesh.bounding_box();
-    let centre = [
-        0.5 * (lo[0] + hi[0]),
-        0.5 * (lo[1] + hi[1]),
-        0.5 * (lo[2] + hi[2]),
-    ];
-    // f32 positions, centred (the rest mesh may sit far from the origin)
-    let positions: Vec<[f32; 3]> = fine
+    let positions: Vec<[f32; 3]> = normalised
         .iter()
-        .map(|p| {
-            [
-                (p[0] - centre[0]) as f32,
-                (p[1] - centre[1]) as f32,
-                (p[2] - centre[2]) as f32,
-            ]
-        })
+        .map(|p| [p[0] as f32, p[1] as f32, p[2] as f32])
         .collect();
     let indices: Vec<u32> = mesh.triangles().iter().flatten().copied().collect();
     let target = 3 * (mesh.num_triangles() / ratio.max(1)).max(1);
@@ -111,7 +110,8 @@ mod tests {
             },
         };
         let mesh = gen::generate(&spec).expect("torus");
-        let (coarse, fine_of) = coarse_mesh(&mesh, 8).expect("simplifies");
+        let ops = crate::operators::Operators::new(&mesh);
+        let (coarse, fine_of) = coarse_mesh(&mesh, &ops.positions, 8).expect("simplifies");
         let n = mesh.num_vertices();
         let nc = coarse.num_vertices();
         assert!(nc * 5 < n && nc * 16 > n, "{nc} of {n}");
