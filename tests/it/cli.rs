@@ -46,6 +46,8 @@ fn gen_every_shape_in_every_format() {
         ("plane", 2115, 1),
         ("bumpy-plane", 2115, 1),
         ("torus", 576, 0),
+        ("saddle", 2025, 1),
+        ("wavy-sheet", 2025, 1),
     ] {
         for ext in ["obj", "off", "ply", "stl"] {
             let f = dir.path().join(format!("{shape}.{ext}"));

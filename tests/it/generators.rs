@@ -20,13 +20,15 @@ fn normal(m: &Mesh, f: usize) -> [f64; 3] {
 }
 
 /// (shape, V, F, boundary loops, genus)
-const TABLE: [(Shape, usize, usize, usize, i64); 6] = [
+const TABLE: [(Shape, usize, usize, usize, i64); 8] = [
     (Shape::Bar, 856, 1708, 0, 0),
     (Shape::Cylinder, 1088, 2112, 2, 0),
     (Shape::Flag, 289, 512, 1, 0),
     (Shape::Plane, 2115, 4048, 1, 0),
     (Shape::BumpyPlane, 2115, 4048, 1, 0),
     (Shape::Torus, 576, 1152, 0, 1),
+    (Shape::Saddle, 2025, 3872, 1, 0),
+    (Shape::WavySheet, 2025, 3872, 1, 0),
 ];
 
 #[test]

@@ -13,6 +13,8 @@
 //! | `bumpy-plane` | as `plane`, plus 9 Gaussian bumps of height 0.1 | 2115 | height field, 1 boundary loop |
 //! | `torus` | 24 × 24; radii 1 and 0.4 | 576 | closed, genus 1, axis z |
 //! | `creature` | 2 Catmull–Clark levels of a 146-vertex quadruped cage | 2306 | closed, genus 0, +y up, head at +x, 4 legs, neck + head, tail (`gen/creature.rs`) |
+//! | `saddle` | 45 × 45 jittered grid over `[-1, 1]²`, `z = ½(x² − y²)`, random diagonals | 2025 | **open**, 1 boundary loop; obtuse and skinny triangles (`gen/patch.rs`) |
+//! | `wavy-sheet` | as `saddle`, `z = 0.15 sin(2.5πx) cos(1.5πy)` | 2025 | **open**, 1 boundary loop; obtuse and skinny triangles |
 //!
 //! The bar and the cylinder have their long axis along z with the end that is
 //! usually fixed at z = 0, so constraints can be picked by a z range, as in
@@ -29,7 +31,9 @@ use thiserror::Error;
 use super::{Mesh, MeshError, Point, Real};
 
 mod creature;
+mod patch;
 pub use creature::{creature_constraints, BELLY_HEIGHT, FOOT_HEIGHT, HEAD_DEPTH};
+pub use patch::{irregular_patch, PatchSurface};
 
 /// The generated shapes.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize, clap::ValueEnum)]
@@ -51,6 +55,11 @@ pub enum Shape {
     /// head and tail (default 2 subdivision levels); its default edit is
     /// [`creature_constraints`].
     Creature,
+    /// An irregular open saddle patch (default 45 × 45 = 2025 vertices):
+    /// obtuse and skinny triangles, a free boundary ([`irregular_patch`]).
+    Saddle,
+    /// An irregular open wavy sheet (default 2025 vertices), as `saddle`.
+    WavySheet,
 }
 
 /// Optional size parameters; `None` takes the shape's default (module table).
@@ -60,7 +69,7 @@ pub struct ShapeParams {
     /// First resolution. bar: segments across each side [7]; cylinder:
     /// vertices around [32]; flag/plane: vertices along x [17/47]; torus:
     /// vertices around the z axis [24]; creature: Catmull–Clark levels
-    /// (0..=4) [2].
+    /// (0..=4) [2]; saddle/wavy-sheet: vertices per side [45].
     #[arg(long)]
     pub nu: Option<u32>,
     /// Second resolution. bar: segments along z [27]; cylinder: rings along z
@@ -69,7 +78,7 @@ pub struct ShapeParams {
     pub nv: Option<u32>,
     /// First size. bar: side of the square cross-section [1]; cylinder:
     /// radius [1]; flag/plane: extent along x [1]; torus: major radius [1];
-    /// creature: scale [1].
+    /// creature, saddle, wavy-sheet: scale [1].
     #[arg(long)]
     pub size: Option<Real>,
     /// Second size. bar/cylinder: length along z [6]; flag/plane: extent
@@ -233,11 +242,27 @@ pub fn generate(spec: &ShapeSpec) -> Result<Mesh, GenError> {
             }
             creature::creature(levels, size(p.size, 1.0, "size")?)
         }
+        Shape::Saddle | Shape::WavySheet => {
+            let surface = if spec.shape == Shape::Saddle {
+                PatchSurface::Saddle
+            } else {
+                PatchSurface::Wavy
+            };
+            let n = res(p.nu, 45, "nu", 3)?;
+            let s = size(p.size, 1.0, "size")?;
+            let m = irregular_patch(surface, n as usize, PATCH_JITTER, PATCH_SEED);
+            let pos = m.positions().iter().map(|q| q.map(|c| s * c)).collect();
+            (pos, m.triangles().to_vec())
+        }
     };
     Ok(Mesh::new(positions, triangles)?)
 }
 
 type Raw = (Vec<Point>, Vec<[u32; 3]>);
+
+/// The `saddle` and `wavy-sheet` shapes' jitter, in cells, and seed.
+const PATCH_JITTER: Real = 0.4;
+const PATCH_SEED: u64 = 1;
 
 /// Splits quad `q` (counter-clockwise) into two triangles.
 fn quad(out: &mut Vec<[u32; 3]>, q: [u32; 4]) {

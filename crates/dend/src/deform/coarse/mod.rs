@@ -94,7 +94,7 @@ impl CoarseLevel {
         if n < MIN_VERTICES {
             return None;
         }
-        let (coarse, fine_of) = coarse_mesh(mesh, ratio)?;
+        let (coarse, fine_of) = coarse_mesh(mesh, &rest.ops.positions, ratio)?;
         let rest_c = Rest::single_level(coarse).ok()?;
         let mut coarse_of = vec![u32::MAX; n];
         for (c, &v) in fine_of.iter().enumerate() {

@@ -8,7 +8,9 @@ use crate::mesh::{norm, sub, Point, Real, Topology};
 /// For each vertex, the source (index into `sources`) nearest to it along
 /// the mesh's edges, by multi-source Dijkstra with edge lengths
 /// `|x_i − x_j|` of `positions`; `u32::MAX` for vertices no source reaches
-/// (unreferenced vertices, components without a source). O(E log V).
+/// (unreferenced vertices, components without a source); between sources
+/// at the same distance (to a relative [`TIE`]) the one listed first.
+/// O(E log V).
 pub fn nearest_sources(topo: &Topology, positions: &[Point], sources: &[u32]) -> Vec<u32> {
     let n = positions.len();
     let mut dist = vec![Real::INFINITY; n];
@@ -27,15 +29,27 @@ pub fn nearest_sources(topo: &Topology, positions: &[Point], sources: &[u32]) ->
         for &w in topo.ring(v) {
             let w = w as usize;
             let dw = d + norm(sub(positions[w], positions[v]));
-            if dw < dist[w] {
-                dist[w] = dw;
+            // distances within TIE of each other are equal: the smaller
+            // source index wins, so rounding (which differs with the
+            // unit of length) does not pick between equidistant sources
+            let tie = TIE * dw;
+            let closer = dw < dist[w] - tie;
+            if closer || (dw <= dist[w] + tie && near[v] < near[w]) {
                 near[w] = near[v];
-                heap.push(Entry(dw, w as u32));
+                if dw < dist[w] {
+                    dist[w] = dw;
+                    heap.push(Entry(dw, w as u32));
+                }
             }
         }
     }
     near
 }
+
+/// Relative difference under which two path lengths count as equal in
+/// [`nearest_sources`] (symmetric meshes have many equidistant sources,
+/// whose computed lengths differ by rounding).
+const TIE: Real = 1e-9;
 
 /// A heap entry, smallest distance first.
 struct Entry(Real, u32);

@@ -3,7 +3,9 @@
 
 use meshopt::SimplifyOptions;
 
-use crate::mesh::{Mesh, Real};
+use std::collections::HashMap;
+
+use crate::mesh::{cross, dot, norm, sub, Mesh, Point, Real};
 
 /// A coarse mesh with about `#V / ratio` vertices whose vertices are fine
 /// vertices: `fine_of[c]` is the fine index of coarse vertex `c`, strictly
@@ -22,31 +24,43 @@ use crate::mesh::{Mesh, Real};
 /// the regularised simplification is then retried without `Regularize`
 /// (measured: camel_9770 non-manifold with it, valid without; dino_6013,
 /// eth_hand_14k valid with both).
-pub fn coarse_mesh(mesh: &Mesh, ratio: usize) -> Option<(Mesh, Vec<u32>)> {
+///
+/// meshoptimizer sees `normalised` (the rest operators' copy: centred, in
+/// mean edge lengths) centred on its bounding box and divided by the box's
+/// largest side, as f32: the collapses then do not depend on the mesh's
+/// unit of length or placement. Given the raw coordinates, their f32
+/// rounding (and meshoptimizer's float arithmetic) changed with the unit:
+/// a 1600-vertex patch scaled by 37 got another coarse mesh, and its solve
+/// another path (issue #33). The collapses of regular meshes are that
+/// sensitive to rounding: feeding the copy in mean edge lengths instead
+/// changed the survey cylinder's edit from 37 + 188 coarse iterations to
+/// 49 + 173, the survey bar's from 41 + 244 to 31 + 592, the creature's
+/// from 21 + 43 to 17 + 87.
+pub fn coarse_mesh(mesh: &Mesh, normalised: &[Point], ratio: usize) -> Option<(Mesh, Vec<u32>)> {
     [SimplifyOptions::Regularize, SimplifyOptions::None]
         .into_iter()
-        .find_map(|options| simplify_with(mesh, ratio, options))
+        .find_map(|options| simplify_with(mesh, normalised, ratio, options))
 }
 
 /// One attempt of [`coarse_mesh`] with meshoptimizer's `options`.
-fn simplify_with(mesh: &Mesh, ratio: usize, options: SimplifyOptions) -> Option<(Mesh, Vec<u32>)> {
+fn simplify_with(
+    mesh: &Mesh,
+    normalised: &[Point],
+    ratio: usize,
+    options: SimplifyOptions,
+) -> Option<(Mesh, Vec<u32>)> {
     let fine = mesh.positions();
-    let (lo, hi) = mesh.bounding_box();
-    let centre = [
-        0.5 * (lo[0] + hi[0]),
-        0.5 * (lo[1] + hi[1]),
-        0.5 * (lo[2] + hi[2]),
-    ];
-    // f32 positions, centred (the rest mesh may sit far from the origin)
-    let positions: Vec<[f32; 3]> = fine
+    // centred on the bounding box and divided by its largest side, as
+    // meshoptimizer does itself: a mesh already of unit size keeps the
+    // collapses it had with its raw coordinates
+    let (lo, hi) = crate::mesh::bounding_box(normalised);
+    let centre = [0, 1, 2].map(|k| 0.5 * (lo[k] + hi[k]));
+    let extent = (0..3)
+        .map(|k| hi[k] - lo[k])
+        .fold(Real::MIN_POSITIVE, Real::max);
+    let positions: Vec<[f32; 3]> = normalised
         .iter()
-        .map(|p| {
-            [
-                (p[0] - centre[0]) as f32,
-                (p[1] - centre[1]) as f32,
-                (p[2] - centre[2]) as f32,
-            ]
-        })
+        .map(|p| [0, 1, 2].map(|k| ((p[k] - centre[k]) / extent) as f32))
         .collect();
     let indices: Vec<u32> = mesh.triangles().iter().flatten().copied().collect();
     let target = 3 * (mesh.num_triangles() / ratio.max(1)).max(1);
@@ -76,23 +90,96 @@ fn simplify_with(mesh: &Mesh, ratio: usize, options: SimplifyOptions) -> Option<
             ]
         })
         .collect();
+    // on flat regions meshoptimizer can leave caps: triangles whose three
+    // vertices are collinear (the survey bumpy plane, 40401 vertices at
+    // ratio 3: 37 of 26666, so the mesh had no coarse level); each is
+    // flipped away with its neighbour across its longest edge
+    let mut triangles = triangles;
+    let at: Vec<Point> = fine_of.iter().map(|&v| normalised[v as usize]).collect();
+    flip_caps(&mut triangles, &at)?;
     let positions = fine_of.iter().map(|&v| fine[v as usize]).collect();
     let coarse = Mesh::new(positions, triangles).ok()?;
     // every triangle of a usable energy has a non-negligible area
     let h = coarse.mean_edge_length();
     let tiny = 1e-8 * h * h;
     let degenerate = coarse.triangles().iter().any(|t| {
-        let p = |k: usize| coarse.positions()[t[k] as usize];
-        let (a, b, c) = (p(0), p(1), p(2));
-        let e1 = [b[0] - a[0], b[1] - a[1], b[2] - a[2]];
-        let e2 = [c[0] - a[0], c[1] - a[1], c[2] - a[2]];
-        let n = crate::mesh::cross(e1, e2);
-        0.5 * crate::mesh::norm(n) < tiny as Real
+        let [a, b, c] = t.map(|i| coarse.positions()[i as usize]);
+        0.5 * norm(cross(sub(b, a), sub(c, a))) < tiny
     });
     if degenerate {
         return None;
     }
     Some((coarse, fine_of))
+}
+
+/// Whether triangle `t` has (numerically) no area: under `1e-8` of its
+/// longest edge squared, or below rounding ([`crate::mesh::is_zero_area`]).
+fn is_cap(at: &[Point], t: &[u32; 3]) -> bool {
+    let [a, b, c] = t.map(|i| at[i as usize]);
+    let (e0, e1, e2) = (sub(b, a), sub(c, a), sub(c, b));
+    let lmax = dot(e0, e0).max(dot(e1, e1)).max(dot(e2, e2));
+    norm(cross(e0, e1)) <= 2e-8 * lmax || crate::mesh::is_zero_area(at, t)
+}
+
+/// Removes the caps ([`is_cap`]) of a simplified mesh (positions `at`) by
+/// flipping each one's longest edge: a cap `(b, u, w)` with `b` on the
+/// segment `u w` and its neighbour `(d, w, u)` across it become
+/// `(b, u, d)` and `(b, d, w)`, the same quad split the other way. `None`
+/// when a cap lies on the boundary, the new edge `b d` exists already, or
+/// a new triangle is a cap too.
+fn flip_caps(triangles: &mut [[u32; 3]], at: &[Point]) -> Option<()> {
+    let caps: Vec<usize> = (0..triangles.len())
+        .filter(|&t| is_cap(at, &triangles[t]))
+        .collect();
+    if caps.is_empty() {
+        return Some(());
+    }
+    // directed edge → triangle, kept up to date by the flips
+    let mut owner: HashMap<(u32, u32), usize> = HashMap::with_capacity(3 * triangles.len());
+    for (i, t) in triangles.iter().enumerate() {
+        for k in 0..3 {
+            owner.insert((t[k], t[(k + 1) % 3]), i);
+        }
+    }
+    let len2 = |a: u32, b: u32| {
+        let d = sub(at[b as usize], at[a as usize]);
+        dot(d, d)
+    };
+    for c in caps {
+        let t = triangles[c];
+        if !is_cap(at, &t) {
+            continue; // an earlier flip took it
+        }
+        // rotate so that the longest edge is (u, w), opposite b
+        let k = (0..3)
+            .max_by(|&i, &j| {
+                let li = len2(t[(i + 1) % 3], t[(i + 2) % 3]);
+                let lj = len2(t[(j + 1) % 3], t[(j + 2) % 3]);
+                li.total_cmp(&lj)
+            })
+            .expect("three corners");
+        let (b, u, w) = (t[k], t[(k + 1) % 3], t[(k + 2) % 3]);
+        let n = *owner.get(&(w, u))?;
+        let d = *triangles[n].iter().find(|&&v| v != w && v != u)?;
+        if owner.contains_key(&(b, d)) || owner.contains_key(&(d, b)) {
+            return None;
+        }
+        let (t1, t2) = ([b, u, d], [b, d, w]);
+        if is_cap(at, &t1) || is_cap(at, &t2) {
+            return None;
+        }
+        for (x, y) in [(b, u), (u, w), (w, b), (d, w), (w, u), (u, d)] {
+            owner.remove(&(x, y));
+        }
+        triangles[c] = t1;
+        triangles[n] = t2;
+        for (i, t) in [(c, t1), (n, t2)] {
+            for k in 0..3 {
+                owner.insert((t[k], t[(k + 1) % 3]), i);
+            }
+        }
+    }
+    Some(())
 }
 
 #[cfg(test)]
@@ -111,7 +198,8 @@ mod tests {
             },
         };
         let mesh = gen::generate(&spec).expect("torus");
-        let (coarse, fine_of) = coarse_mesh(&mesh, 8).expect("simplifies");
+        let ops = crate::operators::Operators::new(&mesh);
+        let (coarse, fine_of) = coarse_mesh(&mesh, &ops.positions, 8).expect("simplifies");
         let n = mesh.num_vertices();
         let nc = coarse.num_vertices();
         assert!(nc * 5 < n && nc * 16 > n, "{nc} of {n}");
@@ -121,5 +209,28 @@ mod tests {
         }
         // the surface keeps its topology (a torus: χ = 0)
         assert_eq!(coarse.euler_characteristic(), 0);
+    }
+
+    /// A flat grid keeps its coarse level: meshoptimizer leaves caps
+    /// (collinear triangles) on flat regions, which are flipped away
+    /// instead of dropping the level (the survey bumpy plane had none).
+    #[test]
+    fn flat_grids_have_a_coarse_level() {
+        for (nu, nv) in [(101, 101), (140, 90)] {
+            let spec = gen::ShapeSpec {
+                shape: gen::Shape::Plane,
+                params: gen::ShapeParams {
+                    nu: Some(nu),
+                    nv: Some(nv),
+                    ..Default::default()
+                },
+            };
+            let mesh = gen::generate(&spec).expect("plane");
+            let ops = crate::operators::Operators::new(&mesh);
+            let (coarse, _) = coarse_mesh(&mesh, &ops.positions, 3).expect("a coarse level");
+            let n = mesh.num_vertices();
+            assert!(coarse.num_vertices() * 4 > n && coarse.num_vertices() * 2 < n);
+            assert_eq!(coarse.euler_characteristic(), 1, "a disc");
+        }
     }
 }

@@ -14,6 +14,9 @@ mod elastic;
 mod least_squares;
 mod propagate;
 
+#[cfg(test)]
+mod open_tests;
+
 pub use coarse::{Levels, COARSE_MAX_ITERS, CORRECTION_MAX_ITERS};
 
 use least_squares::Scratch;
