@@ -251,9 +251,9 @@ async fn bad_stream_options_are_refused_before_the_upgrade() -> R {
 
 /// A `delta` connection (the editor's) decodes every frame of a drag,
 /// each within 1e-4 of its box's diagonal of the f32 frame of the same
-/// revision (a connection without flow control gets every frame),
-/// in fewer bytes than `q16` spends on the same drag (most of the grid is
-/// still or moves a few grid steps between frames), and ends on the
+/// revision (a connection without flow control gets every frame), in
+/// fewer bytes than a `q16` frame's fixed 6 per vertex (most of the grid
+/// is still or moves a few grid steps between frames), and ends on the
 /// settled frame in f32, exact.
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn delta_frames_are_within_the_grid_and_cost_what_moved() -> R {
@@ -262,15 +262,11 @@ async fn delta_frames_are_within_the_grid_and_cost_what_moved() -> R {
     let mut delta = s
         .connect_with(StreamOptions::flow(1, FrameEncoding::Delta))
         .await?;
-    let mut q16 = s
-        .connect_with(StreamOptions::flow(1, FrameEncoding::Q16))
-        .await?;
     // no flow control: every frame, in f32, to compare with
     let mut every = s.connect_with(StreamOptions::default()).await?;
     let q = [0.0, 0.0, (0.25f64).sin(), (0.25f64).cos()];
     delta.drag(0, [0.0, 3.0, 5.0], Some(q), 1).await?;
     let fd = until_settled(&mut delta).await?;
-    let fq = until_settled(&mut q16).await?;
     let ff = until_settled(&mut every).await?;
     let v = (n * n) as u64;
     let by_revision: std::collections::HashMap<u64, &dend_protocol::DecodedFrame> =
@@ -298,16 +294,12 @@ async fn delta_frames_are_within_the_grid_and_cost_what_moved() -> R {
             compared += 1;
         }
     }
-    let moving_q16 = fq[..fq.len() - 1]
-        .iter()
-        .filter(|(f, _)| !f.header.settled)
-        .count() as u64;
     eprintln!(
         "{delta_frames} delta frames, {} B each on average (q16: {} B), {compared} compared with f32",
         delta_bytes / delta_frames.max(1),
         96 + 6 * v
     );
-    assert!(delta_frames > 1 && moving_q16 > 0, "the drag took frames");
+    assert!(delta_frames > 1, "the drag took frames");
     assert!(compared > 0, "some delta frame had an f32 twin");
     assert!(
         delta_bytes / delta_frames < 96 + 6 * v,
