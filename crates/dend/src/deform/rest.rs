@@ -16,18 +16,23 @@ use crate::operators::Operators;
 
 static NEXT_REST_ID: AtomicU64 = AtomicU64::new(1);
 
-/// Everything computed once per rest mesh: the operators (design.md §2), STEP 1
-/// `μ` for both modes (§6.1) and the Procrustes weights. Share as `Arc<Rest>`.
+/// Everything computed once per rest mesh: the operators (design.md §2),
+/// and on first use STEP 1 `μ` of each mode (§6.1), the Procrustes
+/// weights, the energies, the elastic operators and the coarse levels.
+/// Share as `Arc<Rest>`.
 #[derive(Debug)]
 pub struct Rest {
     id: u64,
     pub(super) mesh: Mesh,
     pub(super) ops: Operators,
-    mu_default: Mu,
-    /// STEP 1 of the literal paper, built on first use (most sessions never
-    /// use it).
+    /// STEP 1 (§6.1) of the least-squares formulations, each mode's built
+    /// on first use: the default elastic formulation never uses them
+    /// (issue #34).
+    mu_default: std::sync::OnceLock<Mu>,
     mu_paper: std::sync::OnceLock<Mu>,
-    pub(super) weights: RingWeights,
+    /// The Procrustes weights of the least-squares formulations' local
+    /// rotations, built on first use ([`Rest::weights`]).
+    weights: std::sync::OnceLock<RingWeights>,
     active: Vec<bool>,
     /// The energy matrices built so far (most recent last), at most
     /// [`ENERGY_CACHE`]: every constraint set of a session reuses its
@@ -60,7 +65,8 @@ pub(crate) struct EnergyOperator {
 }
 
 impl Rest {
-    /// Builds the operators and STEP 1 on `mesh`. O(#F).
+    /// Builds the operators on `mesh` (STEP 1 and the Procrustes weights
+    /// wait for a least-squares solve). O(#F).
     pub fn new(mesh: Mesh) -> Result<Rest, DeformError> {
         let ops = Operators::new(&mesh);
         if !(ops.scale.is_finite() && ops.scale > 0.0) {
@@ -69,8 +75,6 @@ impl Rest {
             });
         }
         let topo = mesh.topology();
-        let mu_default = Mu::new(Mode::Default, topo, &ops.positions, &ops.delta);
-        let weights = RingWeights::new(topo, &ops.lbar);
         let active = (0..mesh.num_vertices())
             .map(|v| !topo.ring(v).is_empty())
             .collect();
@@ -78,9 +82,9 @@ impl Rest {
             id: NEXT_REST_ID.fetch_add(1, Ordering::Relaxed),
             mesh,
             ops,
-            mu_default,
+            mu_default: std::sync::OnceLock::new(),
             mu_paper: std::sync::OnceLock::new(),
-            weights,
+            weights: std::sync::OnceLock::new(),
             active,
             energies: Mutex::new(Vec::new()),
             elastics: Mutex::new(Vec::new()),
@@ -184,17 +188,24 @@ impl Rest {
     }
 
     pub(super) fn mu(&self, mode: Mode) -> &Mu {
-        match mode {
+        let cell = match mode {
             Mode::Default => &self.mu_default,
-            Mode::Paper => self.mu_paper.get_or_init(|| {
-                Mu::new(
-                    Mode::Paper,
-                    self.mesh.topology(),
-                    &self.ops.positions,
-                    &self.ops.delta,
-                )
-            }),
-        }
+            Mode::Paper => &self.mu_paper,
+        };
+        cell.get_or_init(|| {
+            Mu::new(
+                mode,
+                self.mesh.topology(),
+                &self.ops.positions,
+                &self.ops.delta,
+            )
+        })
+    }
+
+    /// The Procrustes weights of the least-squares local rotations.
+    pub(super) fn weights(&self) -> &RingWeights {
+        self.weights
+            .get_or_init(|| RingWeights::new(self.mesh.topology(), &self.ops.lbar))
     }
 }
 

@@ -376,7 +376,7 @@ impl Deformer {
         }
         // Internal target: P (T δ) in the default mode (design.md §4.3), A X otherwise.
         if rotated {
-            local_rotations(topo, &rest.weights, &ops.positions, &self.y, &mut s.rot);
+            local_rotations(topo, rest.weights(), &ops.positions, &self.y, &mut s.rot);
             let base = if factor.energy == Energy::TotalCurvaturePaper {
                 &factor.ax
             } else {
