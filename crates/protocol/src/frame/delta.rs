@@ -41,7 +41,8 @@ use bytes::Bytes;
 use flate2::{read::DeflateDecoder, write::DeflateEncoder, Compression};
 
 use super::{
-    bounding_box, write_v3_header, FrameEncoding, FrameError, FrameHeader, FRAME_V3_HEADER_BYTES,
+    bounding_box, f64_at, u32_at, u64_at, write_v3_header, FrameEncoding, FrameError, FrameHeader,
+    FRAME_V3_HEADER_BYTES,
 };
 
 /// Grid steps along the diagonal of a key frame's box.
@@ -63,11 +64,10 @@ struct Grid {
 }
 
 impl Grid {
-    /// The grid of a key frame of `positions`: origin at its box's
-    /// minimum, `DELTA_GRID_DIVISIONS` steps along its diagonal.
-    fn of<P: Copy + Into<f64>>(positions: &[[P; 3]]) -> Self {
-        let [lo, hi] = bounding_box(positions);
-        let diag = (0..3).map(|k| (hi[k] - lo[k]).powi(2)).sum::<f64>().sqrt();
+    /// The grid of a key frame whose pose has the box `[lo, _]` and the
+    /// diagonal `diag`: origin at the box's minimum,
+    /// `DELTA_GRID_DIVISIONS` steps along its diagonal.
+    fn of([lo, _]: [[f64; 3]; 2], diag: f64) -> Self {
         let step = if diag.is_finite() && diag > 0.0 {
             diag / DELTA_GRID_DIVISIONS
         } else {
@@ -182,7 +182,7 @@ impl DeltaEncoder {
             }
             _ => {
                 against = None;
-                let g = Grid::of(positions);
+                let g = Grid::of(bbox, diag);
                 if g.quantise(positions, None, &mut self.next).is_none() {
                     // non-finite or astronomically spread positions: all at
                     // the origin rather than a panic (the solver never
@@ -290,11 +290,6 @@ impl DeltaDecoder {
             });
         }
         let p = FRAME_V3_HEADER_BYTES;
-        let f64_at = |o: usize| {
-            let mut a = [0; 8];
-            a.copy_from_slice(&b[o..o + 8]);
-            f64::from_le_bytes(a)
-        };
         let key = match b[p] {
             0 => false,
             1 => true,
@@ -305,17 +300,13 @@ impl DeltaDecoder {
             (1, false) => true,
             _ => return Err(FrameError::Delta("unknown prediction")),
         };
-        let mut base = [0; 8];
-        base.copy_from_slice(&b[p + 8..p + 16]);
-        let base = u64::from_le_bytes(base);
-        let step = f64_at(p + 16);
-        let origin: [f64; 3] = std::array::from_fn(|k| f64_at(p + 24 + 8 * k));
+        let base = u64_at(b, p + 8);
+        let step = f64_at(b, p + 16);
+        let origin: [f64; 3] = std::array::from_fn(|k| f64_at(b, p + 24 + 8 * k));
         if !(step.is_finite() && step > 0.0 && origin.iter().all(|o| o.is_finite())) {
             return Err(FrameError::Delta("the grid is not a finite grid"));
         }
-        let mut len = [0; 4];
-        len.copy_from_slice(&b[p + 48..p + 52]);
-        let len = u32::from_le_bytes(len) as usize;
+        let len = u32_at(b, p + 48) as usize;
         // every index change is 1 to 5 bytes
         let need = n.saturating_mul(3);
         if len < need || len > need.saturating_mul(5) {
