@@ -141,6 +141,22 @@ fn frame_error(pose: &[[f64; 3]], frame: &[[f32; 3]]) -> f64 {
         .fold(0.0, f64::max)
 }
 
+/// The error of version 3 frame `f` against the f32 frame of the same
+/// revision in `by_revision`, if there is one, and the diagonal of `f`'s box.
+fn error_against_twin(
+    f: &dend_protocol::DecodedFrame,
+    by_revision: &std::collections::HashMap<u64, &dend_protocol::DecodedFrame>,
+) -> Option<(f64, f64)> {
+    let b = f.bbox.expect("a version 3 frame has a box");
+    let diag = (0..3)
+        .map(|k| (b[1][k] - b[0][k]).powi(2))
+        .sum::<f64>()
+        .sqrt();
+    let exact = by_revision.get(&f.header.revision)?;
+    let exact: Vec<[f64; 3]> = exact.positions.iter().map(|p| p.map(f64::from)).collect();
+    Some((frame_error(&exact, &f.positions), diag))
+}
+
 /// A q16 connection gets the frames of a drag in half the bytes of f32
 /// (6 bytes per vertex against 12), each within 1e-4 of its box's diagonal
 /// of the same frame in f32, and the settled frame in f32, exactly the
@@ -212,14 +228,7 @@ async fn q16_frames_are_half_the_bytes_and_the_settled_frame_is_exact() -> R {
         moving += 1;
         assert_eq!((f.version, f.encoding), (3, FrameEncoding::Q16));
         assert_eq!(*bytes, 96 + 6 * v);
-        let b = f.bbox.expect("a version 3 frame has a box");
-        let diag = (0..3)
-            .map(|k| (b[1][k] - b[0][k]).powi(2))
-            .sum::<f64>()
-            .sqrt();
-        if let Some(exact) = by_revision.get(&f.header.revision) {
-            let exact: Vec<[f64; 3]> = exact.positions.iter().map(|p| p.map(f64::from)).collect();
-            let worst = frame_error(&exact, &f.positions);
+        if let Some((worst, diag)) = error_against_twin(f, &by_revision) {
             assert!(worst <= 1e-4 * diag, "q16 error {worst} of diagonal {diag}");
             compared += 1;
         }
@@ -279,14 +288,7 @@ async fn delta_frames_are_within_the_grid_and_cost_what_moved() -> R {
         assert_eq!((f.version, f.encoding), (3, FrameEncoding::Delta));
         delta_bytes += bytes;
         delta_frames += 1;
-        let b = f.bbox.expect("a version 3 frame has a box");
-        let diag = (0..3)
-            .map(|k| (b[1][k] - b[0][k]).powi(2))
-            .sum::<f64>()
-            .sqrt();
-        if let Some(exact) = by_revision.get(&f.header.revision) {
-            let exact: Vec<[f64; 3]> = exact.positions.iter().map(|p| p.map(f64::from)).collect();
-            let worst = frame_error(&exact, &f.positions);
+        if let Some((worst, diag)) = error_against_twin(f, &by_revision) {
             assert!(
                 worst <= 1e-4 * diag,
                 "delta error {worst} of diagonal {diag}"
