@@ -8,7 +8,7 @@
 //! ```text
 //! cargo run --release --example drag_sim -- MESH [--drags 60] [--per-drag 1]
 //!     [--path line|arc] [--preset characters|elastica]
-//!     [--correction-period K] [--coarse-ratio R]
+//!     [--correction-period K] [--coarse-ratio R] [--tol T]
 //! ```
 //!
 //! MESH is a file, `tube:N` or `creature:LEVELS` (`dend gen creature`). The edit is the load test's: the lowest
@@ -91,6 +91,9 @@ fn run() -> Result<(), String> {
     }
     if let Some(r) = arg(&args, "--coarse-ratio") {
         params.coarse_ratio = r;
+    }
+    if let Some(t) = arg(&args, "--tol") {
+        params.tol = t;
     }
     let (lo, hi) = bbox(&mesh);
     let axis = (0..3)

@@ -29,6 +29,7 @@ mod no_panic;
 mod operators;
 mod operators_invariance;
 mod paper_reproduction;
+mod path_independence;
 mod server_e2e;
 mod server_errors;
 mod server_gltf;
