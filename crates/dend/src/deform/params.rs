@@ -3,49 +3,8 @@
 
 use serde::{Deserialize, Serialize};
 
+use super::energy::Energy;
 use super::DeformError;
-
-/// The internal (elastic) energy, i.e. the matrix `A` of the term `A (X' - X)`
-/// (design.md §3; paper table in §5).
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize, Default)]
-#[serde(rename_all = "kebab-case", deny_unknown_fields)]
-pub enum Energy {
-    /// `E_M`, paper eq. (10): `A = L`.
-    Membrane,
-    /// `E_B`, paper eq. (9): `A = L²`.
-    ThinPlate,
-    /// `E_C`, paper eq. (11): `A = k_s L + k_b L²`.
-    Combined {
-        /// Stretching weight `k_s`.
-        ks: f64,
-        /// Bending weight `k_b`.
-        kb: f64,
-    },
-    /// `E_T`, paper eq. (12) derived through `H n ≈ (L X)/2`: `A = L² - 2 G L`
-    /// (translation invariant: `G L 1 = 0`). The default.
-    #[default]
-    #[serde(rename = "total")]
-    TotalCurvature,
-    /// The paper's table read literally: `A = L² - 2 L G` (not translation
-    /// invariant, since `L G 1 ≠ 0`; kept for comparison).
-    #[serde(rename = "total-paper")]
-    TotalCurvaturePaper,
-}
-
-impl Energy {
-    /// Parses the CLI spelling: `total`, `total-paper`, `thin-plate`,
-    /// `membrane`, `combined` (with `k_s = k_b = 1`).
-    pub fn from_name(name: &str) -> Option<Self> {
-        Some(match name {
-            "total" | "total-curvature" => Energy::TotalCurvature,
-            "total-paper" | "total-curvature-paper" => Energy::TotalCurvaturePaper,
-            "thin-plate" => Energy::ThinPlate,
-            "membrane" => Energy::Membrane,
-            "combined" => Energy::Combined { ks: 1.0, kb: 1.0 },
-            _ => return None,
-        })
-    }
-}
 
 /// How the detail term's target `δ̂` is computed (design.md §6).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default, Hash)]
@@ -406,7 +365,7 @@ impl From<ParamsSpec> for Params {
 impl Default for Params {
     fn default() -> Self {
         Params {
-            energy: Energy::TotalCurvature,
+            energy: Energy::default(),
             lambda1: 0.0,
             lambda2: 1.0,
             detail: DetailTerm::Nonlinear,
@@ -488,13 +447,10 @@ impl Params {
             // the elastic formulation's bending energy is total curvature
             // (or thin plate), in our reading: the others belong to the
             // paper's formulations (least_squares, square)
-            match self.energy {
-                Energy::TotalCurvature | Energy::ThinPlate => {}
-                Energy::Membrane | Energy::Combined { .. } | Energy::TotalCurvaturePaper => {
-                    return Err(DeformError::Unsupported {
-                        what: "this energy with the elastic formulation (use total or thin-plate, or formulation least_squares)",
-                    });
-                }
+            if !self.energy.has_elastic_form() {
+                return Err(DeformError::Unsupported {
+                    what: "this energy with the elastic formulation (use total or thin-plate, or formulation least_squares)",
+                });
             }
             if self.mode == Mode::Paper {
                 return Err(DeformError::Unsupported {

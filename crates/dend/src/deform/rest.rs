@@ -9,7 +9,8 @@ use sprs::CsMat;
 use super::coarse::CoarseLevel;
 use super::detail::{Mu, RingWeights};
 use super::elastic::ElasticOps;
-use super::params::{Energy, Mode, Params};
+use super::energy::Energy;
+use super::params::{Mode, Params};
 use super::DeformError;
 use crate::mesh::{Mesh, Point, Real};
 use crate::operators::Operators;
@@ -165,7 +166,7 @@ impl Rest {
     /// `energy`'s matrix and `A X`, built on first use and kept.
     pub(crate) fn energy(&self, energy: Energy) -> Arc<EnergyOperator> {
         cached(&self.energies, energy, || {
-            let a = super::system::energy_matrix(&self.ops, energy);
+            let a = energy.matrix(&self.ops);
             let ax = crate::operators::laplacian_coordinates(&a, &self.ops.positions);
             Arc::new(EnergyOperator { a, ax })
         })

@@ -58,7 +58,7 @@ use nalgebra::{Matrix3, UnitQuaternion, Vector3};
 use rayon::prelude::*;
 use sprs::{CsMat, TriMat};
 
-use super::params::{Energy, Params};
+use super::params::Params;
 use super::rotation::{fit_rotation_quat, fit_rotation_quat4, LANES};
 use super::system::{add_soft_diagonal, partition, System};
 use crate::mesh::{Mesh, Point, Real};
@@ -126,10 +126,7 @@ impl ElasticOps {
         let topo = mesh.topology();
         let surface: Real = ops.area.iter().sum();
         let kb = params.bending * surface;
-        let kg = match params.energy {
-            Energy::ThinPlate => 0.0,
-            _ => kb,
-        };
+        let kg = kb * params.energy.gaussian_share();
         let kbl = params.lambda2 * params.laplacian * kb;
         let g: Vec<Real> = (0..n)
             .map(|i| {

@@ -19,7 +19,8 @@ use crate::deform::cg::Cg;
 use crate::deform::cholesky::analyse;
 use crate::deform::constraints::Constraints;
 use crate::deform::elastic::{ElasticOps, ElasticSet};
-use crate::deform::params::{Energy, Formulation, Mode, Params};
+use crate::deform::energy::Energy;
+use crate::deform::params::{Formulation, Mode, Params};
 use crate::deform::rest::Rest;
 use crate::deform::square::{self, Square};
 use crate::deform::system::{Prepared, System};
@@ -73,16 +74,9 @@ pub struct FactorKey {
 impl FactorKey {
     /// The key of `params` and the constrained set of `constraints` on `rest`.
     pub fn new(rest: &Rest, params: &Params, constraints: &Constraints) -> Self {
-        let energy = match params.energy {
-            Energy::Membrane => (0, 0, 0),
-            Energy::ThinPlate => (1, 0, 0),
-            Energy::Combined { ks, kb } => (2, ks.to_bits(), kb.to_bits()),
-            Energy::TotalCurvature => (3, 0, 0),
-            Energy::TotalCurvaturePaper => (4, 0, 0),
-        };
         FactorKey {
             rest_id: rest.id(),
-            energy,
+            energy: params.energy.key(),
             lambda1: params.lambda1.to_bits(),
             lambda2: params.lambda2.to_bits(),
             mode: params.mode,

@@ -2,6 +2,7 @@
 //! assembled `J`.
 
 use super::*;
+use crate::deform::energy::Energy;
 use crate::deform::factor::tests::{edit, grid, pseudo_random};
 use crate::deform::params::Params;
 use crate::deform::rest::Rest;
