@@ -45,10 +45,10 @@ pub use factor::{
     BuildStage, Factor, FactorKey, FactorPrecision, FactorTimings, SolveOptions, SolverChoice,
 };
 pub use params::{
-    Corrections, DetailTerm, Formulation, Mode, Params, ParamsSpec, Preset, DEFAULT_AREA,
-    DEFAULT_BENDING, DEFAULT_COARSE_RATIO, DEFAULT_CORRECTION_PERIOD, DEFAULT_LAPLACIAN,
-    DEFAULT_STRETCH, ELASTICA_COARSE_RATIO, ELASTICA_CORRECTION_PERIOD, ELASTICA_LAPLACIAN,
-    ELASTICA_STRETCH,
+    Corrections, DetailTerm, ElasticParams, Formulation, FormulationParams, Mode, PaperParams,
+    Params, ParamsSpec, Preset, DEFAULT_AREA, DEFAULT_BENDING, DEFAULT_COARSE_RATIO,
+    DEFAULT_CORRECTION_PERIOD, DEFAULT_LAPLACIAN, DEFAULT_STRETCH, ELASTICA_COARSE_RATIO,
+    ELASTICA_CORRECTION_PERIOD, ELASTICA_LAPLACIAN, ELASTICA_STRETCH,
 };
 pub use rest::Rest;
 pub use rotation::{best_rotation, fit_rotation, fit_rotation_quat, rotation_from_covariance};

@@ -10,7 +10,7 @@ use super::coarse::CoarseLevel;
 use super::detail::{Mu, RingWeights};
 use super::elastic::ElasticOps;
 use super::energy::Energy;
-use super::params::{Mode, Params};
+use super::params::{ElasticParams, Mode, Params};
 use super::DeformError;
 use crate::mesh::{Mesh, Point, Real};
 use crate::operators::Operators;
@@ -112,10 +112,10 @@ impl Rest {
     }
 
     /// [`Rest::coarse`] simplified at most `max_ratio` times
-    /// ([`Params::coarse_ratio`]); levels are kept by their actual ratio,
+    /// ([`ElasticParams::coarse_ratio`]); levels are kept by their actual ratio,
     /// so small meshes share one.
     ///
-    /// [`Params::coarse_ratio`]: super::Params::coarse_ratio
+    /// [`ElasticParams::coarse_ratio`]: super::ElasticParams::coarse_ratio
     pub(crate) fn coarse_at_most(&self, max_ratio: usize) -> Option<Arc<CoarseLevel>> {
         if self.single_level {
             return None;
@@ -135,12 +135,13 @@ impl Rest {
     }
 
     /// [`Rest::prepare_coarse_level`] for `params`' coarse ratio
-    /// ([`Params::coarse_ratio`]; a server calls it when a session with a
-    /// non-default ratio opens).
-    ///
-    /// [`Params::coarse_ratio`]: super::Params::coarse_ratio
+    /// ([`ElasticParams::coarse_ratio`]; a server calls it when a session
+    /// with a non-default ratio opens); `false` for the paper formulations,
+    /// which have no coarse level.
     pub fn prepare_coarse_level_for(&self, params: &super::Params) -> bool {
-        self.coarse_at_most(params.coarse_ratio).is_some()
+        params
+            .elastic()
+            .is_some_and(|e| self.coarse_at_most(e.coarse_ratio).is_some())
     }
 
     /// A process-unique id (factor cache keys refer to it).
@@ -174,17 +175,17 @@ impl Rest {
 
     /// The elastic formulation's operators for `params`' weights, built on
     /// first use and kept.
-    pub(crate) fn elastic(&self, params: &Params) -> Arc<ElasticOps> {
+    pub(crate) fn elastic(&self, params: &Params, weights: &ElasticParams) -> Arc<ElasticOps> {
         let key: ElasticKey = (
             params.energy == Energy::ThinPlate,
-            params.stretch.to_bits(),
-            params.bending.to_bits(),
+            weights.stretch.to_bits(),
+            weights.bending.to_bits(),
             params.lambda2.to_bits(),
-            params.area.to_bits(),
-            params.laplacian.to_bits(),
+            weights.area.to_bits(),
+            weights.laplacian.to_bits(),
         );
         cached(&self.elastics, key, || {
-            Arc::new(ElasticOps::new(&self.mesh, &self.ops, params))
+            Arc::new(ElasticOps::new(&self.mesh, &self.ops, params, weights))
         })
     }
 

@@ -113,7 +113,7 @@ pub(crate) fn assemble(
     if soft {
         m = add_soft_diagonal(&m, constrained, &col_of, params.lambda1);
     }
-    let k_uu = (params.formulation != Formulation::LeastSquares).then(|| {
+    let k_uu = (params.formulation.kind() != Formulation::LeastSquares).then(|| {
         let mut k_uu = select(&k_full, &unknowns, unknowns.len(), col);
         if soft {
             k_uu = add_soft_diagonal(&k_uu, constrained, &col_of, params.lambda1);

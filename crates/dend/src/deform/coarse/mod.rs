@@ -52,9 +52,9 @@ pub const RATIO: usize = crate::deform::params::ELASTICA_COARSE_RATIO;
 
 /// The simplification ratio of a mesh with `n >= MIN_VERTICES` vertices:
 /// `clamp(n / MIN_COARSE_VERTICES, 2, max_ratio)`, `max_ratio` being
-/// [`RATIO`] by default ([`Params::coarse_ratio`]).
+/// [`RATIO`] by default ([`ElasticParams::coarse_ratio`]).
 ///
-/// [`Params::coarse_ratio`]: crate::deform::Params::coarse_ratio
+/// [`ElasticParams::coarse_ratio`]: crate::deform::ElasticParams::coarse_ratio
 pub fn ratio_at_most(n: usize, max_ratio: usize) -> usize {
     (n / MIN_COARSE_VERTICES).clamp(2, max_ratio.max(2))
 }

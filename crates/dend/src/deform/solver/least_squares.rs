@@ -367,10 +367,10 @@ impl Deformer {
         let topo = rest.mesh.topology();
         let s = &mut self.scratch;
         let nonlinear = self.params.detail == DetailTerm::Nonlinear;
-        let rotated = nonlinear && self.params.mode == Mode::Default;
+        let rotated = nonlinear && self.params.mode() == Mode::Default;
         // δ̂ (paper eqs. 27–28), or δ for the linear term.
         if nonlinear {
-            rest.mu(self.params.mode)
+            rest.mu(self.params.mode())
                 .delta_hat(topo, &self.y, &mut s.dhat);
         } else {
             s.dhat.copy_from_slice(&ops.delta);

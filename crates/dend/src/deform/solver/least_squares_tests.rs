@@ -33,7 +33,7 @@ fn matrix_free_residual_and_rhs_match_assembled_j() {
     ] {
         for detail in [DetailTerm::Linear, DetailTerm::Nonlinear] {
             let params = Params {
-                formulation: crate::deform::Formulation::LeastSquares,
+                formulation: crate::deform::FormulationParams::LeastSquares(Default::default()),
                 energy,
                 detail,
                 lambda2: 0.3,
