@@ -29,9 +29,6 @@ KNOWN = {
     # mesh::asset::groups and mesh::gen::creature build deform's
     # ConstraintsSpec (the selection types belong below both)
     ('dend', ('deform', 'mesh', 'operators')),
-    # Rest caches the elastic operators and the coarse levels, which are
-    # built from a Rest (the caches want their own type)
-    ('dend', ('deform::coarse', 'deform::constraints', 'deform::factor', 'deform::rest')),
 }
 
 
