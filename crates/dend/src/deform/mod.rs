@@ -33,8 +33,8 @@ mod system;
 mod warnings;
 
 pub use constraints::{
-    select, BoxSel, Constraints, ConstraintsSpec, HandleGroup, HandleSpec, RigidTransform,
-    RotationSpec, SphereSel, VertexSet,
+    names_groups, resolve_groups, select, BoxSel, Constraints, ConstraintsSpec, HandleGroup,
+    HandleSpec, RigidTransform, RotationSpec, SphereSel, VertexSet,
 };
 pub use dend_linalg::ordering::{FillOrdering, NESTED_DISSECTION_MIN_UNKNOWNS};
 pub use detail::{local_rotations, Mu, RingWeights};

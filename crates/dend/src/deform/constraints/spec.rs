@@ -4,59 +4,12 @@
 //! the anchored spec a session stores after a constraint edit.
 
 use nalgebra::UnitQuaternion;
-use serde::{Deserialize, Serialize};
 
-use super::{centroid, select, Constraints, HandleGroup, RigidTransform, RotationSpec, VertexSet};
+use super::{
+    centroid, select, Constraints, ConstraintsSpec, HandleGroup, HandleSpec, RigidTransform,
+};
 use crate::deform::DeformError;
 use crate::mesh::{Mesh, Point};
-
-/// One handle in the constraints JSON.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct HandleSpec {
-    /// Name (defaults to `handle<k>`).
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub name: Option<String>,
-    /// The handle's vertices.
-    pub vertices: VertexSet,
-    /// Translation (default zero).
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub translate: Option<Point>,
-    /// Rotation (default identity).
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub rotate: Option<RotationSpec>,
-    /// Rotation centre (default: the handle's rest centroid).
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub pivot: Option<Point>,
-    /// Explicit target positions, one per handle vertex in increasing index
-    /// order; the rigid transform then applies to these instead of the rest
-    /// positions.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub positions: Option<Vec<Point>>,
-}
-
-/// The constraints JSON: `{"fixed": VERTEX_SET, "handles": [HANDLE...]}`.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct ConstraintsSpec {
-    /// Vertices that stay where they are: at their rest positions, or at
-    /// `fixed_positions`.
-    #[serde(default = "empty_set")]
-    pub fixed: VertexSet,
-    /// Explicit positions of the fixed vertices, one per fixed vertex in
-    /// increasing index order (default: their rest positions). A constraint
-    /// edit on a posed session pins the new set where the pose has it
-    /// ([`ConstraintsSpec::resolve_at`], [`ConstraintsSpec::anchored`]).
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub fixed_positions: Option<Vec<Point>>,
-    /// Handle groups.
-    #[serde(default)]
-    pub handles: Vec<HandleSpec>,
-}
-
-fn empty_set() -> VertexSet {
-    VertexSet::Indices(Vec::new())
-}
 
 impl ConstraintsSpec {
     /// Selects the vertex sets on the rest mesh and validates the result.

@@ -1,6 +1,7 @@
 //! Tests of the constraints JSON and its resolution (`spec.rs`).
 
 use super::*;
+use crate::deform::VertexSet;
 
 #[test]
 fn constraints_json_parses_all_selector_forms() {
