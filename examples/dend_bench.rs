@@ -122,10 +122,7 @@ fn run() -> Result<(), String> {
     let mut lines = Vec::new();
     for formulation in formulations {
         for &precision in &precisions {
-            let params = Params {
-                formulation,
-                ..Params::default()
-            };
+            let params = Params::default().with_formulation(formulation);
             let out = bench(
                 spec,
                 &mesh,
@@ -231,7 +228,7 @@ fn bench(
     let n = mesh.num_vertices();
     let mut out = serde_json::json!({
         "mesh": spec,
-        "formulation": params.formulation,
+        "formulation": params.formulation.kind(),
         "precision": precision,
         "vertices": n,
         "unknowns": factor.num_unknowns(),

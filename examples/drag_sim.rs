@@ -85,13 +85,18 @@ fn run() -> Result<(), String> {
         .map(|p| Preset::from_name(&p).ok_or(format!("unknown preset {p}")))
         .transpose()?
         .unwrap_or_default();
-    let mut params = preset.params();
-    if let Some(k) = arg(&args, "--correction-period") {
-        params.correction_period = k;
-    }
-    if let Some(r) = arg(&args, "--coarse-ratio") {
-        params.coarse_ratio = r;
-    }
+    let (period, ratio) = (
+        arg(&args, "--correction-period"),
+        arg(&args, "--coarse-ratio"),
+    );
+    let mut params = preset.params().with_elastic(|e| {
+        if let Some(k) = period {
+            e.correction_period = k;
+        }
+        if let Some(r) = ratio {
+            e.coarse_ratio = r;
+        }
+    });
     if let Some(t) = arg(&args, "--tol") {
         params.tol = t;
     }

@@ -129,9 +129,8 @@ fn twist_rows(bar: &Mesh, energy: Energy, max_iters: usize) {
                 m,
                 Params {
                     energy,
-                    formulation: f,
                     max_iters,
-                    ..Params::default()
+                    ..Params::default().with_formulation(f)
                 },
                 c,
             );
@@ -156,9 +155,8 @@ fn cylinder_rows(energy: Energy, max_iters: usize) {
             &cyl,
             Params {
                 energy,
-                formulation: f,
                 max_iters,
-                ..Params::default()
+                ..Params::default().with_formulation(f)
             },
             &c,
         );
@@ -228,10 +226,9 @@ fn invariance_table(bar: &Mesh, energy: Energy) {
         for f in FORMS {
             let params = Params {
                 energy,
-                formulation: f,
                 tol: 1e-10,
                 max_iters: 300,
-                ..Params::default()
+                ..Params::default().with_formulation(f)
             };
             let r = run(bar, params, &c);
             let err = dend_testkit::max_dist(&r.pose, &want) / bar.diagonal();

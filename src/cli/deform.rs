@@ -8,7 +8,7 @@ use std::time::{Duration, Instant};
 use anyhow::{bail, Context};
 use dend::deform::{
     Constraints, ConstraintsSpec, Corrections, Deformer, DetailTerm, Energy, Factor, Formulation,
-    Levels, Mode, Params, Rest, RigidTransform, StepReport,
+    Levels, Mode, Params, ParamsSpec, Rest, RigidTransform, StepReport,
 };
 use dend::mesh::asset::Asset;
 use dend::mesh::io::{self, survey};
@@ -226,45 +226,48 @@ fn params_of(args: &Args) -> anyhow::Result<Params> {
         None if args.paper => Energy::TotalCurvaturePaper,
         None => Energy::TotalCurvature,
     };
-    let weights = args.preset.params();
-    let params = Params {
-        energy,
-        lambda1: args.soft.unwrap_or(0.0),
-        lambda2: args.lambda2,
-        detail: if args.linear {
-            DetailTerm::Linear
-        } else {
-            DetailTerm::Nonlinear
-        },
-        mode: if args.paper {
+    let detail = if args.linear {
+        DetailTerm::Linear
+    } else {
+        DetailTerm::Nonlinear
+    };
+    let formulation = match &args.formulation {
+        Some(name) => Formulation::from_name(name).with_context(|| {
+            format!("unknown formulation {name:?} (elastic, least_squares, square, square_lu)")
+        })?,
+        None if args.paper || !energy.has_elastic_form() => Formulation::LeastSquares,
+        None => Formulation::Elastic,
+    };
+    // the flags as the overrides of the preset a client would send: the
+    // elastic weights are checked whatever the formulation, and kept by
+    // the elastic one only
+    let spec = ParamsSpec {
+        preset: Some(args.preset.preset()),
+        energy: Some(energy),
+        lambda1: Some(args.soft.unwrap_or(0.0)),
+        lambda2: Some(args.lambda2),
+        detail: Some(detail),
+        mode: Some(if args.paper {
             Mode::Paper
         } else {
             Mode::Default
-        },
-        tol: args.tol,
-        max_iters: args.max_iters,
-        anderson: args.anderson,
-        stretch: args.stretch.unwrap_or(weights.stretch),
-        bending: args.bending,
-        laplacian: args.laplacian.unwrap_or(weights.laplacian),
-        coarse_ratio: args.coarse_ratio.unwrap_or(weights.coarse_ratio),
-        corrections: match args.corrections.as_deref() {
-            Some("while-gaining") => Corrections::WhileGaining,
-            Some(_) => Corrections::WhileFaster,
-            None => weights.corrections,
-        },
-        correction_period: args.correction_period.unwrap_or(weights.correction_period),
-        area: args.area,
-        formulation: match &args.formulation {
-            Some(name) => Formulation::from_name(name).with_context(|| {
-                format!("unknown formulation {name:?} (elastic, least_squares, square, square_lu)")
-            })?,
-            None if args.paper || !matches!(energy, Energy::TotalCurvature | Energy::ThinPlate) => {
-                Formulation::LeastSquares
-            }
-            None => Formulation::Elastic,
-        },
+        }),
+        tol: Some(args.tol),
+        max_iters: Some(args.max_iters),
+        anderson: Some(args.anderson),
+        formulation: Some(formulation),
+        stretch: args.stretch,
+        bending: Some(args.bending),
+        area: Some(args.area),
+        laplacian: args.laplacian,
+        coarse_ratio: args.coarse_ratio,
+        corrections: args.corrections.as_deref().map(|c| match c {
+            "while-gaining" => Corrections::WhileGaining,
+            _ => Corrections::WhileFaster,
+        }),
+        correction_period: args.correction_period,
     };
+    let params = Params::try_from(spec)?;
     params.validate()?;
     Ok(params)
 }
@@ -399,7 +402,7 @@ impl Solved {
         let median = sorted.get(sorted.len() / 2).copied().unwrap_or(0.0);
         let factor_ms = ms(ft.assembly) + ms(ft.symbolic) + ms(ft.numeric);
         serde_json::json!({
-            "formulation": params.formulation,
+            "formulation": params.formulation.kind(),
             "vertices": vertices,
             "unknowns": factor.num_unknowns(),
             "iterations": self.iterations,

@@ -6,7 +6,7 @@
 use std::process::ExitCode;
 
 use clap::{Parser, Subcommand, ValueEnum};
-use dend::deform::{Params, Preset};
+use dend::deform::Preset;
 
 mod curvature;
 mod deform;
@@ -35,11 +35,6 @@ impl PresetArg {
             PresetArg::Characters => Preset::Characters,
             PresetArg::Elastica => Preset::Elastica,
         }
-    }
-
-    /// The parameters this preset names.
-    fn params(self) -> Params {
-        self.preset().params()
     }
 }
 

@@ -73,8 +73,11 @@ fn assert_monotone(obj: &[f64]) {
 
 #[test]
 fn elastic_is_the_default_and_the_paper_mode_is_least_squares() {
-    assert_eq!(Params::default().formulation, Formulation::Elastic);
-    assert_eq!(Params::paper().formulation, Formulation::LeastSquares);
+    assert_eq!(Params::default().formulation.kind(), Formulation::Elastic);
+    assert_eq!(
+        Params::paper().formulation.kind(),
+        Formulation::LeastSquares
+    );
 }
 
 proptest! {
@@ -205,12 +208,11 @@ fn elastica_keeps_the_pose_under_subdivision() {
 /// tolerance); docs/posing.md compares with libigl's ARAP.
 #[test]
 fn the_default_moves_under_subdivision_no_more_than_arap() {
-    let arap = Params {
-        bending: 0.0,
-        area: 0.0,
-        stretch: 1.0,
-        ..Params::default()
-    };
+    let arap = Params::default().with_elastic(|e| {
+        e.bending = 0.0;
+        e.area = 0.0;
+        e.stretch = 1.0;
+    });
     for (per_side, rings) in [(5, 17), (9, 33)] {
         let ours = subdivision_gap(square_tube(1.0, 4.0, per_side, rings), Params::default());
         let theirs = subdivision_gap(square_tube(1.0, 4.0, per_side, rings), arap);
@@ -342,11 +344,10 @@ fn a_pulled_limb_grows_no_spike() {
     let (mean, worst) = stretch(Params::default());
     // ARAP's spokes alone (no bending, no area term): the stretch
     // resistance the default must keep
-    let (arap_mean, arap_worst) = stretch(Params {
-        bending: 0.0,
-        area: 0.0,
-        ..Params::default()
-    });
+    let (arap_mean, arap_worst) = stretch(Params::default().with_elastic(|e| {
+        e.bending = 0.0;
+        e.area = 0.0;
+    }));
     let (el_mean, el_worst) = stretch(Params::elastica());
     eprintln!("limb stretch mean/max: default {mean:.3}/{worst:.3}, elastica {el_mean:.3}/{el_worst:.3}, spokes only {arap_mean:.3}/{arap_worst:.3}");
     assert!(
@@ -527,9 +528,9 @@ fn soft_constraints_build_and_approach_their_targets() {
     let miss = |lambda1: f64, area: f64| {
         let params = Params {
             lambda1,
-            area,
             ..Params::default()
-        };
+        }
+        .with_elastic(|e| e.area = area);
         let (obj, converged, pose) = objectives(&rest, params, &c, 300);
         assert!(converged, "λ1 {lambda1}, area {area}");
         assert_monotone(&obj);
@@ -553,7 +554,7 @@ fn soft_constraints_build_and_approach_their_targets() {
 /// typed error naming the way out, never silently ignored.
 #[test]
 fn the_elastic_formulation_refuses_what_it_does_not_have() {
-    use dend::deform::{DeformError, Energy, Mode};
+    use dend::deform::{DeformError, Energy, Mode, ParamsSpec};
     for params in [
         Params {
             energy: Energy::Membrane,
@@ -563,23 +564,32 @@ fn the_elastic_formulation_refuses_what_it_does_not_have() {
             energy: Energy::TotalCurvaturePaper,
             ..Params::default()
         },
-        Params {
-            mode: Mode::Paper,
-            ..Params::default()
-        },
     ] {
         assert!(
             matches!(params.validate(), Err(DeformError::Unsupported { .. })),
             "{params:?}"
         );
     }
+    // the paper mode is the paper formulations' own parameter: asked for
+    // with the elastic formulation, the parameters are refused as they
+    // are read
+    let paper_mode = ParamsSpec {
+        mode: Some(Mode::Paper),
+        ..ParamsSpec::default()
+    };
+    assert!(matches!(
+        Params::try_from(paper_mode),
+        Err(DeformError::Unsupported { .. })
+    ));
     // nothing would hold the free vertices: refused, not a singular factor
     let none = Params {
-        stretch: 0.0,
-        area: 0.0,
         lambda2: 0.0,
         ..Params::default()
-    };
+    }
+    .with_elastic(|e| {
+        e.stretch = 0.0;
+        e.area = 0.0;
+    });
     assert!(matches!(
         none.validate(),
         Err(DeformError::InvalidParam { .. })

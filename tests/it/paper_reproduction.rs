@@ -30,10 +30,7 @@ use dend::mesh::{Mesh, Point};
 /// linear variant (thin plate + linear detail term, eq. (24)) and eq. (24)
 /// least squares with our reading (the default before the elastic one).
 fn modes() -> [(&'static str, Params); 4] {
-    let least_squares = Params {
-        formulation: Formulation::LeastSquares,
-        ..Params::default()
-    };
+    let least_squares = Params::default().with_formulation(Formulation::LeastSquares);
     [
         ("elastica", Params::elastica()),
         ("paper", Params::paper()),

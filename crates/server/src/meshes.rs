@@ -18,7 +18,7 @@ use super::error::{ApiError, Path, Query};
 use super::AppState;
 use crate::store::StoredAsset;
 use dend::deform::ConstraintsSpec;
-use dend::mesh::asset::{groups, Asset};
+use dend::mesh::asset::Asset;
 use dend::mesh::gen::{self, ShapeSpec};
 use dend::mesh::io::gltf::Sidecars;
 use dend::mesh::io::{self, Format, IoError};
@@ -96,12 +96,12 @@ pub(crate) async fn resolve_groups(
     let Ok(parsed) = serde_json::from_value::<ConstraintsSpec>(spec.clone()) else {
         return Ok(spec);
     };
-    if !groups::names_groups(&parsed) {
+    if !dend::deform::names_groups(&parsed) {
         return Ok(spec);
     }
     let asset = stored_asset(st, mesh_id).await?;
     let resolved =
-        tokio::task::spawn_blocking(move || groups::resolve_groups(asset.as_ref(), &parsed))
+        tokio::task::spawn_blocking(move || dend::deform::resolve_groups(asset.as_ref(), &parsed))
             .await
             .map_err(|e| ApiError::Internal(e.to_string()))??;
     serde_json::to_value(resolved).map_err(|e| ApiError::Internal(format!("constraints: {e}")))

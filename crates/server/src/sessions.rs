@@ -85,7 +85,8 @@ pub async fn create(
         None
     } else {
         let rest = rest_for(&st, &req.mesh_id).await?;
-        if params.coarse_ratio != dend::deform::ELASTICA_COARSE_RATIO {
+        let ratio = params.elastic().map(|e| e.coarse_ratio);
+        if ratio.is_some_and(|r| r != dend::deform::ELASTICA_COARSE_RATIO) {
             // this ratio's coarse level, off the first settle's path (the
             // default one is built when the mesh's rest state is)
             let (rest, params) = (rest.clone(), params);

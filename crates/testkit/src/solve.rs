@@ -24,10 +24,7 @@ pub fn max_dist(a: &[Point], b: &[Point]) -> f64 {
 /// the parameters of the tests of that formulation's properties; the
 /// elastic default's are in tests/it/elastic.rs.
 pub fn ls() -> Params {
-    Params {
-        formulation: Formulation::LeastSquares,
-        ..Params::default()
-    }
+    Params::default().with_formulation(Formulation::LeastSquares)
 }
 
 /// Solves `spec` on `mesh` from rest with up to `iters` iterations.

@@ -21,6 +21,7 @@ mod coarse;
 mod constraints;
 mod detail;
 mod elastic;
+mod energy;
 mod factor;
 mod params;
 mod rest;
@@ -32,26 +33,26 @@ mod system;
 mod warnings;
 
 pub use constraints::{
-    select, BoxSel, Constraints, ConstraintsSpec, HandleGroup, HandleSpec, RigidTransform,
-    RotationSpec, SphereSel, VertexSet,
+    names_groups, resolve_groups, select, BoxSel, Constraints, ConstraintsSpec, HandleGroup,
+    HandleSpec, RigidTransform, RotationSpec, SphereSel, VertexSet,
 };
 pub use dend_linalg::ordering::{FillOrdering, NESTED_DISSECTION_MIN_UNKNOWNS};
 pub use detail::{local_rotations, Mu, RingWeights};
 pub use elastic::{ElasticOps, ElasticSet};
+pub use energy::{energy_matrix, Energy};
 pub use factor::FactorCache;
 pub use factor::{
     BuildStage, Factor, FactorKey, FactorPrecision, FactorTimings, SolveOptions, SolverChoice,
 };
 pub use params::{
-    Corrections, DetailTerm, Energy, Formulation, Mode, Params, ParamsSpec, Preset, DEFAULT_AREA,
-    DEFAULT_BENDING, DEFAULT_COARSE_RATIO, DEFAULT_CORRECTION_PERIOD, DEFAULT_LAPLACIAN,
-    DEFAULT_STRETCH, ELASTICA_COARSE_RATIO, ELASTICA_CORRECTION_PERIOD, ELASTICA_LAPLACIAN,
-    ELASTICA_STRETCH,
+    Corrections, DetailTerm, ElasticParams, Formulation, FormulationParams, Mode, PaperParams,
+    Params, ParamsSpec, Preset, DEFAULT_AREA, DEFAULT_BENDING, DEFAULT_COARSE_RATIO,
+    DEFAULT_CORRECTION_PERIOD, DEFAULT_LAPLACIAN, DEFAULT_STRETCH, ELASTICA_COARSE_RATIO,
+    ELASTICA_CORRECTION_PERIOD, ELASTICA_LAPLACIAN, ELASTICA_STRETCH,
 };
 pub use rest::Rest;
 pub use rotation::{best_rotation, fit_rotation, fit_rotation_quat, rotation_from_covariance};
 pub use solver::{Deformer, Levels, StepReport, COARSE_MAX_ITERS, CORRECTION_MAX_ITERS};
-pub use system::energy_matrix;
 pub use warnings::{ConstraintWarning, STRAY_LISTED};
 
 use thiserror::Error;

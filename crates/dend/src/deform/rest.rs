@@ -6,10 +6,10 @@ use std::sync::{Arc, Mutex};
 
 use sprs::CsMat;
 
-use super::coarse::CoarseLevel;
 use super::detail::{Mu, RingWeights};
 use super::elastic::ElasticOps;
-use super::params::{Energy, Mode, Params};
+use super::energy::Energy;
+use super::params::{ElasticParams, Mode, Params};
 use super::DeformError;
 use crate::mesh::{Mesh, Point, Real};
 use crate::operators::Operators;
@@ -44,9 +44,9 @@ pub struct Rest {
     /// The coarse levels of the elastic solver (`deform::coarse`) by
     /// simplification ratio (`None`: the mesh has none), built on first
     /// use, at most [`ENERGY_CACHE`].
-    coarse: Mutex<Vec<(usize, Option<Arc<CoarseLevel>>)>>,
+    pub(super) coarse: Mutex<Vec<(usize, Option<Arc<CoarseLevel>>)>>,
     /// Whether this is a coarse level itself (two levels, not more).
-    single_level: bool,
+    pub(super) single_level: bool,
 }
 
 /// What an [`ElasticOps`] depends on besides the rest mesh.
@@ -62,6 +62,21 @@ const ENERGY_CACHE: usize = 4;
 pub(crate) struct EnergyOperator {
     pub a: CsMat<Real>,
     pub ax: Vec<Point>,
+}
+
+/// A rest mesh's coarse level (built by `deform::coarse`, kept by its
+/// [`Rest`]): the coarse rest state and the maps between the levels.
+#[derive(Debug)]
+pub struct CoarseLevel {
+    /// The coarse rest state (it has no coarse level itself).
+    pub rest: Arc<Rest>,
+    /// Fine index of each coarse vertex, increasing, `#Vc`.
+    pub fine_of: Vec<u32>,
+    /// Coarse index of each fine vertex, `u32::MAX` if it is not one, `#V`.
+    pub coarse_of: Vec<u32>,
+    /// The coarse vertex nearest to each fine vertex along the fine edges
+    /// (`u32::MAX` for unreferenced vertices), `#V`.
+    pub near: Vec<u32>,
 }
 
 impl Rest {
@@ -102,46 +117,6 @@ impl Rest {
         })
     }
 
-    /// The coarse level of this mesh (`deform::coarse`), built on first
-    /// call (about the cost of one `Rest::new` of the fine mesh and a
-    /// simplification) and kept; `None` for meshes under
-    /// `coarse::MIN_VERTICES` vertices or whose simplification failed.
-    pub(crate) fn coarse(&self) -> Option<Arc<CoarseLevel>> {
-        self.coarse_at_most(super::coarse::RATIO)
-    }
-
-    /// [`Rest::coarse`] simplified at most `max_ratio` times
-    /// ([`Params::coarse_ratio`]); levels are kept by their actual ratio,
-    /// so small meshes share one.
-    ///
-    /// [`Params::coarse_ratio`]: super::Params::coarse_ratio
-    pub(crate) fn coarse_at_most(&self, max_ratio: usize) -> Option<Arc<CoarseLevel>> {
-        if self.single_level {
-            return None;
-        }
-        let ratio = super::coarse::ratio_at_most(self.mesh.num_vertices(), max_ratio);
-        cached(&self.coarse, ratio, || {
-            CoarseLevel::new(self, ratio).map(Arc::new)
-        })
-    }
-
-    /// Builds the coarse level now if the mesh has one (it is otherwise
-    /// built by the first elastic step that needs it), returning whether
-    /// it has one. A server calls this in the background when a mesh is
-    /// opened, so that the first settle of a session does not pay for it.
-    pub fn prepare_coarse_level(&self) -> bool {
-        self.coarse().is_some()
-    }
-
-    /// [`Rest::prepare_coarse_level`] for `params`' coarse ratio
-    /// ([`Params::coarse_ratio`]; a server calls it when a session with a
-    /// non-default ratio opens).
-    ///
-    /// [`Params::coarse_ratio`]: super::Params::coarse_ratio
-    pub fn prepare_coarse_level_for(&self, params: &super::Params) -> bool {
-        self.coarse_at_most(params.coarse_ratio).is_some()
-    }
-
     /// A process-unique id (factor cache keys refer to it).
     pub fn id(&self) -> u64 {
         self.id
@@ -165,7 +140,7 @@ impl Rest {
     /// `energy`'s matrix and `A X`, built on first use and kept.
     pub(crate) fn energy(&self, energy: Energy) -> Arc<EnergyOperator> {
         cached(&self.energies, energy, || {
-            let a = super::system::energy_matrix(&self.ops, energy);
+            let a = energy.matrix(&self.ops);
             let ax = crate::operators::laplacian_coordinates(&a, &self.ops.positions);
             Arc::new(EnergyOperator { a, ax })
         })
@@ -173,17 +148,17 @@ impl Rest {
 
     /// The elastic formulation's operators for `params`' weights, built on
     /// first use and kept.
-    pub(crate) fn elastic(&self, params: &Params) -> Arc<ElasticOps> {
+    pub(crate) fn elastic(&self, params: &Params, weights: &ElasticParams) -> Arc<ElasticOps> {
         let key: ElasticKey = (
             params.energy == Energy::ThinPlate,
-            params.stretch.to_bits(),
-            params.bending.to_bits(),
+            weights.stretch.to_bits(),
+            weights.bending.to_bits(),
             params.lambda2.to_bits(),
-            params.area.to_bits(),
-            params.laplacian.to_bits(),
+            weights.area.to_bits(),
+            weights.laplacian.to_bits(),
         );
         cached(&self.elastics, key, || {
-            Arc::new(ElasticOps::new(&self.mesh, &self.ops, params))
+            Arc::new(ElasticOps::new(&self.mesh, &self.ops, params, weights))
         })
     }
 
@@ -213,7 +188,7 @@ impl Rest {
 /// [`ENERGY_CACHE`] entries, built by `build` (outside the lock) when
 /// missing; a value another thread stored meanwhile wins. Values are
 /// cheap clones (`Arc`s).
-fn cached<K: PartialEq + Copy, V: Clone>(
+pub(super) fn cached<K: PartialEq + Copy, V: Clone>(
     cache: &Mutex<Vec<(K, V)>>,
     key: K,
     build: impl FnOnce() -> V,

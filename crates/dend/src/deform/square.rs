@@ -33,7 +33,8 @@
 
 use sprs::{CsMat, TriMat};
 
-use super::params::{Energy, Formulation, Params};
+use super::energy::{Energy, Shape};
+use super::params::{Formulation, Params};
 use super::system::{add_soft_diagonal, partition, System};
 use super::DeformError;
 use crate::mesh::{Point, Real};
@@ -54,35 +55,6 @@ pub(crate) struct Square {
     /// ([`Formulation::SquareLu`]) or solved by GMRES preconditioned with
     /// the Cholesky of `N` ([`Formulation::Square`]).
     pub(crate) k_uu: Option<CsMat<Real>>,
-}
-
-/// The internal term over all vertices: `(D⁻¹ P L` exact, its symmetric
-/// positive semi-definite stand-in`)` (module docs).
-fn internal_operators(ops: &Operators, energy: Energy) -> (CsMat<Real>, CsMat<Real>) {
-    let lbar = &ops.lbar;
-    let neg_lbar = || lbar.map(|v| -v);
-    let ldl = || matmul(lbar, &ops.l); // Lbar D Lbar
-    let g = &ops.g;
-    // 2 G^{1/2} (−Lbar) G^{1/2}
-    let g_sym = || scale_entries(lbar, |i, j| -2.0 * (g[i] * g[j]).sqrt());
-    match energy {
-        Energy::Membrane => (neg_lbar(), neg_lbar()),
-        Energy::ThinPlate => (ldl(), ldl()),
-        Energy::Combined { ks, kb } => {
-            let k = &neg_lbar().map(|v| ks * v) + &ldl().map(|v| kb * v);
-            (k.clone(), k)
-        }
-        Energy::TotalCurvature => {
-            let ldl = ldl();
-            let g_lbar = scale_entries(lbar, |i, _| -2.0 * g[i]); // −2 G Lbar
-            (&ldl + &g_lbar, &ldl + &g_sym())
-        }
-        Energy::TotalCurvaturePaper => {
-            let ldl = ldl();
-            let lbar_g = scale_entries(lbar, |_, j| -2.0 * g[j]); // −2 Lbar G
-            (&ldl + &lbar_g, &ldl + &g_sym())
-        }
-    }
 }
 
 /// Rows `rows` of `m`, columns mapped through `col` (dropped where `None`).
@@ -118,7 +90,7 @@ pub(crate) fn assemble(
     let n = ops.num_vertices();
     let soft = params.lambda1 > 0.0;
     let (rows, unknowns, col_of) = partition(n, constrained, active, soft);
-    let (k_int, n_int) = internal_operators(ops, params.energy);
+    let (k_int, n_int) = params.energy.square_operators(ops);
     // rest target A X = D (K_int X)
     let kx = crate::operators::laplacian_coordinates(&k_int, &ops.positions);
     let ax: Vec<Point> = kx
@@ -141,7 +113,7 @@ pub(crate) fn assemble(
     if soft {
         m = add_soft_diagonal(&m, constrained, &col_of, params.lambda1);
     }
-    let k_uu = (params.formulation != Formulation::LeastSquares).then(|| {
+    let k_uu = (params.formulation.kind() != Formulation::LeastSquares).then(|| {
         let mut k_uu = select(&k_full, &unknowns, unknowns.len(), col);
         if soft {
             k_uu = add_soft_diagonal(&k_uu, constrained, &col_of, params.lambda1);
@@ -233,14 +205,15 @@ pub(super) fn apply_p(
     v: &mut [Point],
     lv: &mut [Point],
 ) {
-    let (ci, cl, g2) = match energy {
-        Energy::TotalCurvaturePaper => return,
-        Energy::Membrane if sign == 1.0 => return,
-        Energy::Membrane => (sign, 0.0, false),
-        Energy::ThinPlate => (0.0, 1.0, false),
-        Energy::Combined { ks, kb } => (sign * ks, kb, false),
-        Energy::TotalCurvature => (0.0, 1.0, true),
+    let Shape::Left { ci, cl, g } = energy.shape() else {
+        return;
     };
+    if (ci, cl, g) == (1.0, 0.0, 0.0) && sign == 1.0 {
+        return;
+    }
+    // (a zero stays +0: the sum below keeps the signs of zeros it had)
+    let ci = if ci == 0.0 { 0.0 } else { sign * ci };
+    let g2 = g != 0.0;
     for (i, row) in ops.l.outer_iterator().enumerate() {
         let mut acc = [0.0; 3];
         for (j, &w) in row.iter() {

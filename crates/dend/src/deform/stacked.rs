@@ -26,51 +26,13 @@
 use rayon::prelude::*;
 use sprs::CsMat;
 
-use super::params::Energy;
+use super::energy::Shape;
 use crate::mesh::{Point, Real};
 use crate::operators::Operators;
 
 /// Rows from which the products with `L` run on the rayon pool.
 const PARALLEL_MIN: usize = 4096;
 const CHUNK: usize = 2048;
-
-/// How `A` factors through `L` (module docs).
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub(crate) enum Shape {
-    /// `A = P L`, `P = ci I + cl L − 2 g G` (`g` 0 or 1).
-    Left { ci: Real, cl: Real, g: Real },
-    /// `A = L (L − 2G)` (the paper's literal `L² − 2 L G`).
-    Right,
-}
-
-impl Shape {
-    /// The shape of `energy`'s matrix ([`super::energy_matrix`]).
-    pub(crate) fn of(energy: Energy) -> Shape {
-        match energy {
-            Energy::Membrane => Shape::Left {
-                ci: 1.0,
-                cl: 0.0,
-                g: 0.0,
-            },
-            Energy::ThinPlate => Shape::Left {
-                ci: 0.0,
-                cl: 1.0,
-                g: 0.0,
-            },
-            Energy::Combined { ks, kb } => Shape::Left {
-                ci: ks,
-                cl: kb,
-                g: 0.0,
-            },
-            Energy::TotalCurvature => Shape::Left {
-                ci: 0.0,
-                cl: 1.0,
-                g: 1.0,
-            },
-            Energy::TotalCurvaturePaper => Shape::Right,
-        }
-    }
-}
 
 /// `(M x)_i` for a CSR matrix `m` whose entry `(i, j)` is scaled by
 /// `col_scale[j]` when given.

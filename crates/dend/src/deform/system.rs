@@ -16,30 +16,10 @@
 
 use sprs::{CsMat, TriMat};
 
-use super::params::{Energy, Params};
+use super::params::Params;
 use crate::mesh::{Point, Real};
 use crate::operators::Operators;
-use dend_linalg::sparse::{matmul, product_pattern, product_values, scale_and_shift_diagonal};
-
-/// The energy matrix `A` of design.md §3 (paper table, §5), `#V×#V`, CSR.
-///
-/// Each `A` with `L²` in it is one sparse product `P L` (or `L P`), never
-/// a sum of products: `k_s L + k_b L² = (k_s I + k_b L) L`,
-/// `L² − 2GL = (L − 2G) L` (eq. (12) as design.md §3 reads it) and the paper's
-/// literal `L² − 2LG = L (L − 2G)`. A product keeps every structural
-/// entry of the sum, also where its terms cancel.
-pub fn energy_matrix(ops: &Operators, energy: Energy) -> CsMat<Real> {
-    let l = &ops.l;
-    match energy {
-        Energy::Membrane => l.clone(),
-        Energy::ThinPlate => matmul(l, l),
-        Energy::Combined { ks, kb } => matmul(&scale_and_shift_diagonal(l, kb, |_| ks), l),
-        Energy::TotalCurvature => matmul(&scale_and_shift_diagonal(l, 1.0, |i| -2.0 * ops.g[i]), l),
-        Energy::TotalCurvaturePaper => {
-            matmul(l, &scale_and_shift_diagonal(l, 1.0, |i| -2.0 * ops.g[i]))
-        }
-    }
-}
+use dend_linalg::sparse::{product_pattern, product_values};
 
 /// The free rows `R` (active, not constrained), the unknowns `U` (`R`, or
 /// every active vertex with soft constraints) and vertex → position in `U`
@@ -291,6 +271,7 @@ impl System {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::deform::energy::{energy_matrix, Energy};
     use crate::mesh::Mesh;
 
     fn strip() -> Mesh {

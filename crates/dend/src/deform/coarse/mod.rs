@@ -29,13 +29,16 @@ mod nearest;
 mod simplify;
 mod transfer;
 
+use std::sync::Arc;
+
 use nalgebra::UnitQuaternion;
 
+pub use super::rest::CoarseLevel;
 pub use simplify::coarse_mesh;
 pub use transfer::{PROLONGATION_PASSES, RESTRICTION_PASSES};
 
 use super::constraints::{Constraints, HandleGroup};
-use super::rest::Rest;
+use super::rest::{cached, Rest};
 use crate::mesh::{Point, Real};
 
 /// Fine vertex count from which a mesh gets a coarse level
@@ -52,9 +55,9 @@ pub const RATIO: usize = crate::deform::params::ELASTICA_COARSE_RATIO;
 
 /// The simplification ratio of a mesh with `n >= MIN_VERTICES` vertices:
 /// `clamp(n / MIN_COARSE_VERTICES, 2, max_ratio)`, `max_ratio` being
-/// [`RATIO`] by default ([`Params::coarse_ratio`]).
+/// [`RATIO`] by default ([`ElasticParams::coarse_ratio`]).
 ///
-/// [`Params::coarse_ratio`]: crate::deform::Params::coarse_ratio
+/// [`ElasticParams::coarse_ratio`]: crate::deform::ElasticParams::coarse_ratio
 pub fn ratio_at_most(n: usize, max_ratio: usize) -> usize {
     (n / MIN_COARSE_VERTICES).clamp(2, max_ratio.max(2))
 }
@@ -69,19 +72,49 @@ pub const MIN_GROUP: usize = 3;
 /// error the fine iteration then spends iterations on).
 pub const SMOOTHING_PASSES: usize = 3;
 
-/// A rest mesh's coarse level: the coarse rest state and the maps between
-/// the levels.
-#[derive(Debug)]
-pub struct CoarseLevel {
-    /// The coarse rest state (it has no coarse level itself).
-    pub rest: std::sync::Arc<Rest>,
-    /// Fine index of each coarse vertex, increasing, `#Vc`.
-    pub fine_of: Vec<u32>,
-    /// Coarse index of each fine vertex, `u32::MAX` if it is not one, `#V`.
-    pub coarse_of: Vec<u32>,
-    /// The coarse vertex nearest to each fine vertex along the fine edges
-    /// (`u32::MAX` for unreferenced vertices), `#V`.
-    pub near: Vec<u32>,
+/// The coarse levels a [`Rest`] keeps (its cache is in `rest.rs`, the
+/// levels are built here).
+impl Rest {
+    /// The coarse level of this mesh (`deform::coarse`), built on first
+    /// call (about the cost of one `Rest::new` of the fine mesh and a
+    /// simplification) and kept; `None` for meshes under
+    /// `coarse::MIN_VERTICES` vertices or whose simplification failed.
+    pub(crate) fn coarse(&self) -> Option<Arc<CoarseLevel>> {
+        self.coarse_at_most(RATIO)
+    }
+
+    /// [`Rest::coarse`] simplified at most `max_ratio` times
+    /// ([`ElasticParams::coarse_ratio`]); levels are kept by their actual ratio,
+    /// so small meshes share one.
+    ///
+    /// [`ElasticParams::coarse_ratio`]: crate::deform::ElasticParams::coarse_ratio
+    pub(crate) fn coarse_at_most(&self, max_ratio: usize) -> Option<Arc<CoarseLevel>> {
+        if self.single_level {
+            return None;
+        }
+        let ratio = ratio_at_most(self.mesh.num_vertices(), max_ratio);
+        cached(&self.coarse, ratio, || {
+            CoarseLevel::new(self, ratio).map(Arc::new)
+        })
+    }
+
+    /// Builds the coarse level now if the mesh has one (it is otherwise
+    /// built by the first elastic step that needs it), returning whether
+    /// it has one. A server calls this in the background when a mesh is
+    /// opened, so that the first settle of a session does not pay for it.
+    pub fn prepare_coarse_level(&self) -> bool {
+        self.coarse().is_some()
+    }
+
+    /// [`Rest::prepare_coarse_level`] for `params`' coarse ratio
+    /// ([`ElasticParams::coarse_ratio`]; a server calls it when a session
+    /// with a non-default ratio opens); `false` for the paper formulations,
+    /// which have no coarse level.
+    pub fn prepare_coarse_level_for(&self, params: &crate::deform::Params) -> bool {
+        params
+            .elastic()
+            .is_some_and(|e| self.coarse_at_most(e.coarse_ratio).is_some())
+    }
 }
 
 impl CoarseLevel {

@@ -205,11 +205,10 @@ fn a_swung_limb_reaches_the_same_pose() {
 #[test]
 fn the_fine_objective_never_grows_through_the_coarse_start_and_corrections() {
     for period in [crate::deform::ELASTICA_CORRECTION_PERIOD, 5] {
-        let params = Params {
-            correction_period: period,
-            corrections: crate::deform::Corrections::WhileGaining,
-            ..Params::elastica()
-        };
+        let params = Params::elastica().with_elastic(|e| {
+            e.correction_period = period;
+            e.corrections = crate::deform::Corrections::WhileGaining;
+        });
         objective_never_grows_through_corrections(params);
     }
 }
@@ -218,7 +217,7 @@ fn the_fine_objective_never_grows_through_the_coarse_start_and_corrections() {
 /// `params.correction_period`-th fine iteration, the objective never
 /// growing, and a drag of the solved pose after it.
 fn objective_never_grows_through_corrections(params: Params) {
-    let period = params.correction_period;
+    let period = params.elastic().unwrap().correction_period;
     let mesh = limb();
     let rest = Arc::new(Rest::new(mesh.clone()).unwrap());
     let c = limb_constraints(&mesh, swing);
@@ -441,7 +440,7 @@ fn prolongation_keeps_a_constant_field_away_from_the_fixed_part() {
     }
 }
 
-/// `Params::coarse_ratio` picks the level: the 4160-vertex limb gets about
+/// `ElasticParams::coarse_ratio` picks the level: the 4160-vertex limb gets about
 /// `#V / 8` coarse vertices by default and about `#V / 3` at ratio 3, the
 /// rest state keeps both, and a deformer whose ratio changes between two
 /// steps (same fine factor) solves with the new level: its pose equals a
@@ -463,10 +462,7 @@ fn the_coarse_ratio_parameter_picks_the_level() {
         tol: 1e-2,
         ..Params::elastica()
     };
-    let at3 = Params {
-        coarse_ratio: 3,
-        ..base
-    };
+    let at3 = base.with_elastic(|e| e.coarse_ratio = 3);
     let factor = Factor::build(&rest, &base, &c).unwrap();
     let mut switched = Deformer::new(rest.clone(), base);
     switched.step(&factor, &c, 3).unwrap();
@@ -492,10 +488,7 @@ fn the_coarse_ratio_parameter_picks_the_level() {
         gap(&switched, &default)
     );
     for bad in [0, 1] {
-        let p = Params {
-            coarse_ratio: bad,
-            ..Params::elastica()
-        };
+        let p = Params::elastica().with_elastic(|e| e.coarse_ratio = bad);
         assert!(p.validate().is_err());
     }
 }
@@ -522,15 +515,11 @@ fn corrections_until_converged(params: Params) -> (usize, usize) {
 #[test]
 fn corrections_while_gaining_go_on_at_least_as_long() {
     use crate::deform::Corrections;
-    let slow = Params {
-        laplacian: 0.1,
-        ..Params::elastica()
-    };
+    let slow = Params::elastica().with_elastic(|e| e.laplacian = 0.1);
     let (faster, its_faster) = corrections_until_converged(slow);
-    let (gaining, its_gaining) = corrections_until_converged(Params {
-        corrections: Corrections::WhileGaining,
-        ..slow
-    });
+    let (gaining, its_gaining) = corrections_until_converged(
+        slow.with_elastic(|e| e.corrections = Corrections::WhileGaining),
+    );
     assert!(
         gaining >= faster && gaining >= 1,
         "while gaining {gaining} corrections ({its_gaining} iterations), while faster {faster} ({its_faster})"

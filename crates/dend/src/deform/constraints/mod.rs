@@ -9,13 +9,17 @@
 //!   resolution into the validated set below, at rest or anchored at a pose;
 //! - here: the validated set ([`Constraints`], [`HandleGroup`]).
 
+mod groups;
 mod select;
 mod spec;
 mod transform;
 
-pub use select::{select, BoxSel, SphereSel, VertexSet};
-pub use spec::{ConstraintsSpec, HandleSpec};
-pub use transform::{RigidTransform, RotationSpec};
+pub use crate::mesh::selection::{
+    BoxSel, ConstraintsSpec, HandleSpec, RotationSpec, SphereSel, VertexSet,
+};
+pub use groups::{names_groups, resolve_groups};
+pub use select::select;
+pub use transform::RigidTransform;
 
 use super::DeformError;
 use crate::mesh::{Mesh, Point};

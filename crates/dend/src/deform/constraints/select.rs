@@ -2,57 +2,10 @@
 //! boxes, spheres, asset groups) and [`select`], which picks them on the
 //! rest mesh.
 
-use serde::{Deserialize, Serialize};
-
 use crate::deform::DeformError;
 use crate::mesh::asset::groups::GroupSel;
+use crate::mesh::selection::VertexSet;
 use crate::mesh::Mesh;
-use crate::mesh::Point;
-
-/// A set of vertices, as written in the constraints JSON: an index list, a box
-/// or a sphere (selected on the rest mesh, in the mesh's own units), or a
-/// named part of the asset file (resolved by
-/// [`Asset::resolve_groups`](crate::mesh::asset::Asset::resolve_groups)).
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-#[serde(untagged)]
-pub enum VertexSet {
-    /// Explicit indices `[0, 5, 9]`.
-    Indices(Vec<u64>),
-    /// `{"box": {"min": [x,y,z], "max": [x,y,z]}}` (inclusive).
-    Box {
-        /// The box.
-        #[serde(rename = "box")]
-        bbox: BoxSel,
-    },
-    /// `{"sphere": {"center": [x,y,z], "radius": r}}` (inclusive).
-    Sphere {
-        /// The sphere.
-        sphere: SphereSel,
-    },
-    /// `{"group": "LeftArm"}`, `{"group": {"node": "Arm"}}`, … : a named
-    /// part of the asset (see [`crate::mesh::asset::groups`]).
-    Group(GroupSel),
-}
-
-/// An axis-aligned box selector.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct BoxSel {
-    /// Lower corner.
-    pub min: Point,
-    /// Upper corner.
-    pub max: Point,
-}
-
-/// A ball selector.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct SphereSel {
-    /// Centre.
-    pub center: Point,
-    /// Radius (≥ 0).
-    pub radius: f64,
-}
 
 /// The vertices a [`VertexSet`] selects on the rest mesh, sorted; errors on
 /// indices out of range and on NaN in selectors. Unreferenced vertices are

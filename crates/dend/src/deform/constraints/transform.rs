@@ -3,9 +3,9 @@
 //! constraints JSON ([`RotationSpec`]).
 
 use nalgebra::{Matrix3, Rotation3, Unit, UnitQuaternion, Vector3};
-use serde::{Deserialize, Serialize};
 
 use crate::deform::DeformError;
+use crate::mesh::selection::RotationSpec;
 use crate::mesh::Point;
 
 /// A rigid handle target `p' = pivot + R (p - pivot) + translation`
@@ -122,32 +122,6 @@ impl RigidTransform {
             pivot,
         })
     }
-}
-
-/// A rotation in the constraints JSON: axis–angle in degrees, or a unit
-/// quaternion. Quaternions are `[x, y, z, w]` across the whole API (as in
-/// drags, WebSocket messages, the store and glTF); `[w, x, y, z]` is
-/// accepted only under its explicit name `quaternion_wxyz`.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-#[serde(untagged)]
-pub enum RotationSpec {
-    /// `{"axis": [x,y,z], "degrees": a}`.
-    AxisAngle {
-        /// Rotation axis (any non-zero length).
-        axis: Point,
-        /// Angle in degrees (right-hand rule).
-        degrees: f64,
-    },
-    /// `{"quaternion": [x, y, z, w]}` (normalised on use).
-    Quaternion {
-        /// `[x, y, z, w]`.
-        quaternion: [f64; 4],
-    },
-    /// `{"quaternion_wxyz": [w, x, y, z]}` (normalised on use).
-    QuaternionWxyz {
-        /// `[w, x, y, z]`.
-        quaternion_wxyz: [f64; 4],
-    },
 }
 
 impl RotationSpec {

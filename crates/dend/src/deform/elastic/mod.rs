@@ -58,7 +58,7 @@ use nalgebra::{Matrix3, UnitQuaternion, Vector3};
 use rayon::prelude::*;
 use sprs::{CsMat, TriMat};
 
-use super::params::{Energy, Params};
+use super::params::{ElasticParams, Params};
 use super::rotation::{fit_rotation_quat, fit_rotation_quat4, LANES};
 use super::system::{add_soft_diagonal, partition, System};
 use crate::mesh::{Mesh, Point, Real};
@@ -119,18 +119,16 @@ pub struct ElasticSet {
 }
 
 impl ElasticOps {
-    /// Builds the spokes, bending weights and area elements of `params`'
-    /// weights on the rest mesh `mesh` with operators `ops`.
-    pub fn new(mesh: &Mesh, ops: &Operators, params: &Params) -> Self {
+    /// Builds the spokes, bending weights and area elements of the elastic
+    /// `weights`, with `params`' energy and `λ2`, on the rest mesh `mesh`
+    /// with operators `ops`.
+    pub fn new(mesh: &Mesh, ops: &Operators, params: &Params, weights: &ElasticParams) -> Self {
         let n = ops.num_vertices();
         let topo = mesh.topology();
         let surface: Real = ops.area.iter().sum();
-        let kb = params.bending * surface;
-        let kg = match params.energy {
-            Energy::ThinPlate => 0.0,
-            _ => kb,
-        };
-        let kbl = params.lambda2 * params.laplacian * kb;
+        let kb = weights.bending * surface;
+        let kg = kb * params.energy.gaussian_share();
+        let kbl = params.lambda2 * weights.laplacian * kb;
         let g: Vec<Real> = (0..n)
             .map(|i| {
                 if topo.is_boundary(i) {
@@ -149,7 +147,7 @@ impl ElasticOps {
                 let ju = j as usize;
                 let w = ops.lbar.get(i, ju).copied().unwrap_or(0.0).max(0.0);
                 nbr.push(j);
-                c.push((params.stretch + kg * 0.5 * (g[i] + g[ju])) * w);
+                c.push((weights.stretch + kg * 0.5 * (g[i] + g[ju])) * w);
                 e.push([x[ju][0] - x[i][0], x[ju][1] - x[i][1], x[ju][2] - x[i][2]]);
             }
             ptr.push(nbr.len());
@@ -163,7 +161,7 @@ impl ElasticOps {
                 spokes + b[i] * Vector3::from(ops.delta[i]).norm_squared()
             })
             .collect();
-        let ka = params.area;
+        let ka = weights.area;
         let area = if ka > 0.0 {
             mesh.triangles()
                 .iter()

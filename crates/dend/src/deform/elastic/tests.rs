@@ -25,7 +25,7 @@ fn dropping_rows_equals_assembling_the_kept_ones() {
     let mesh = grid(9);
     let rest = Rest::new(mesh.clone()).unwrap();
     let ops = rest.operators();
-    let el = ElasticOps::new(&mesh, ops, &Params::default());
+    let el = ElasticOps::new(&mesh, ops, &Params::default(), &ElasticParams::default());
     let n = mesh.num_vertices();
     let mut free = vec![true; n];
     for v in (0..9).chain(40..44).chain(72..81) {
@@ -53,13 +53,12 @@ fn in_place_assembly_equals_the_triplet_one() {
     for v in (0..8).chain(30..35).chain(56..64) {
         some[v] = false;
     }
-    for area in [Params::default().area, 0.0] {
-        let params = Params {
-            area,
-            laplacian: 0.6,
-            ..Params::default()
-        };
-        let el = ElasticOps::new(&mesh, ops, &params);
+    for area in [ElasticParams::default().area, 0.0] {
+        let params = Params::default().with_elastic(|e| {
+            e.area = area;
+            e.laplacian = 0.6;
+        });
+        let el = ElasticOps::new(&mesh, ops, &params, params.elastic().unwrap());
         for free in [vec![true; n], some.clone()] {
             let fast = el.assemble_q(ops, &free);
             let slow = el.assemble_q_from_triplets(ops, &free);
@@ -80,11 +79,13 @@ fn in_place_assembly_equals_the_triplet_one() {
 #[test]
 fn the_residual_is_minus_half_the_energy_gradient() {
     residual_is_minus_half_the_gradient(Params::default());
-    residual_is_minus_half_the_gradient(Params {
-        laplacian: 0.37,
-        lambda2: 1.3,
-        ..Params::default()
-    });
+    residual_is_minus_half_the_gradient(
+        Params {
+            lambda2: 1.3,
+            ..Params::default()
+        }
+        .with_elastic(|e| e.laplacian = 0.37),
+    );
 }
 
 fn residual_is_minus_half_the_gradient(params: Params) {
@@ -92,7 +93,7 @@ fn residual_is_minus_half_the_gradient(params: Params) {
     let rest = Rest::new(mesh.clone()).unwrap();
     let ops = rest.operators();
     let n = mesh.num_vertices();
-    let el = ElasticOps::new(&mesh, ops, &params);
+    let el = ElasticOps::new(&mesh, ops, &params, params.elastic().unwrap());
     let constrained: Vec<u32> = (0..7).chain(42..49).collect();
     let set = el.system(ops, &constrained);
     let mut state = 12345u64;
@@ -151,12 +152,12 @@ fn the_laplacian_share_and_lambda2_enter_as_a_product() {
     let ops = rest.operators();
     let q = |laplacian: Real, lambda2: Real| {
         let p = Params {
-            laplacian,
             lambda2,
             ..Params::default()
-        };
+        }
+        .with_elastic(|e| e.laplacian = laplacian);
         p.validate().unwrap();
-        ElasticOps::new(&mesh, ops, &p).q_all
+        ElasticOps::new(&mesh, ops, &p, p.elastic().unwrap()).q_all
     };
     let (a, b, c) = (q(0.5, 2.0), q(1.0, 1.0), q(0.5, 1.0));
     let n = mesh.num_vertices();
@@ -173,10 +174,7 @@ fn the_laplacian_share_and_lambda2_enter_as_a_product() {
     assert!(diff(&a, &b) < 1e-12, "{}", diff(&a, &b));
     assert!(diff(&b, &c) > 1e-3, "k_L changed nothing");
     for bad in [-0.1, Real::NAN] {
-        let p = Params {
-            laplacian: bad,
-            ..Params::default()
-        };
+        let p = Params::default().with_elastic(|e| e.laplacian = bad);
         assert!(p.validate().is_err(), "k_L = {bad} accepted");
     }
 }

@@ -19,7 +19,8 @@ use crate::deform::cg::Cg;
 use crate::deform::cholesky::analyse;
 use crate::deform::constraints::Constraints;
 use crate::deform::elastic::{ElasticOps, ElasticSet};
-use crate::deform::params::{Energy, Formulation, Mode, Params};
+use crate::deform::energy::Energy;
+use crate::deform::params::{Formulation, FormulationParams, Mode, Params};
 use crate::deform::rest::Rest;
 use crate::deform::square::{self, Square};
 use crate::deform::system::{Prepared, System};
@@ -61,36 +62,41 @@ pub struct FactorKey {
     energy: (u8, u64, u64),
     lambda1: u64,
     lambda2: u64,
-    mode: Mode,
-    formulation: Formulation,
-    stretch: u64,
-    bending: u64,
-    area: u64,
-    laplacian: u64,
+    formulation: FormulationKey,
     constrained: Vec<u32>,
+}
+
+/// The part of a [`FactorKey`] that its formulation's own parameters
+/// make: the elastic weights that shape `Q` (not the coarse-level
+/// schedule), or a paper formulation and its mode.
+#[derive(Debug, Clone, PartialEq, Eq, Hash)]
+enum FormulationKey {
+    Elastic {
+        stretch: u64,
+        bending: u64,
+        area: u64,
+        laplacian: u64,
+    },
+    Paper(Formulation, Mode),
 }
 
 impl FactorKey {
     /// The key of `params` and the constrained set of `constraints` on `rest`.
     pub fn new(rest: &Rest, params: &Params, constraints: &Constraints) -> Self {
-        let energy = match params.energy {
-            Energy::Membrane => (0, 0, 0),
-            Energy::ThinPlate => (1, 0, 0),
-            Energy::Combined { ks, kb } => (2, ks.to_bits(), kb.to_bits()),
-            Energy::TotalCurvature => (3, 0, 0),
-            Energy::TotalCurvaturePaper => (4, 0, 0),
-        };
         FactorKey {
             rest_id: rest.id(),
-            energy,
+            energy: params.energy.key(),
             lambda1: params.lambda1.to_bits(),
             lambda2: params.lambda2.to_bits(),
-            mode: params.mode,
-            formulation: params.formulation,
-            stretch: params.stretch.to_bits(),
-            bending: params.bending.to_bits(),
-            area: params.area.to_bits(),
-            laplacian: params.laplacian.to_bits(),
+            formulation: match params.elastic() {
+                Some(e) => FormulationKey::Elastic {
+                    stretch: e.stretch.to_bits(),
+                    bending: e.bending.to_bits(),
+                    area: e.area.to_bits(),
+                    laplacian: e.laplacian.to_bits(),
+                },
+                None => FormulationKey::Paper(params.formulation.kind(), params.mode()),
+            },
             constrained: constraints.constrained(),
         }
     }
@@ -197,7 +203,7 @@ impl Factor {
         let single_ok = square.is_none() && elastic.is_none();
         let built = Backend::build(
             &sys,
-            params.formulation,
+            params.formulation.kind(),
             square.as_ref(),
             single_ok,
             options,
@@ -428,8 +434,8 @@ fn assemble(
     let ops = rest.operators();
     let mut analysed = None;
     let mut elastic = None;
-    let (sys, square, ax) = match params.formulation {
-        Formulation::LeastSquares => {
+    let (sys, square, ax) = match &params.formulation {
+        FormulationParams::LeastSquares(_) => {
             let energy = rest.energy(params.energy);
             let prep = Prepared::new(ops, &energy.a, params, constrained, rest.active());
             let values = if options.solver != SolverChoice::Cg && prep.num_unknowns() > 0 {
@@ -448,12 +454,12 @@ fn assemble(
             };
             (prep.into_system(values), None, energy.ax.clone())
         }
-        Formulation::Square | Formulation::SquareLu => {
+        FormulationParams::Square(_) | FormulationParams::SquareLu(_) => {
             let (sys, sq, ax) = square::assemble(ops, params, constrained, rest.active())?;
             (sys, Some(sq), ax)
         }
-        Formulation::Elastic => {
-            let el = rest.elastic(params);
+        FormulationParams::Elastic(weights) => {
+            let el = rest.elastic(params, weights);
             let set = el.system(ops, constrained);
             let sys = elastic_system(&set, params, constrained, rest.active());
             elastic = Some((el, set));

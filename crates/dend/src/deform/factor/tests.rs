@@ -96,7 +96,7 @@ fn cg_and_cholesky_agree_to_the_cg_tolerance() {
     let rest = Rest::new(mesh.clone()).unwrap();
     let c = edit(&mesh, k);
     let params = Params {
-        formulation: crate::deform::Formulation::LeastSquares,
+        formulation: crate::deform::FormulationParams::LeastSquares(Default::default()),
         ..Params::default()
     };
     let direct =
@@ -133,7 +133,7 @@ fn over_a_tiny_budget_the_mesh_still_deforms_by_cg() {
     let rest = Arc::new(Rest::new(mesh.clone()).unwrap());
     let c = edit(&mesh, k);
     let params = Params {
-        formulation: crate::deform::Formulation::LeastSquares,
+        formulation: crate::deform::FormulationParams::LeastSquares(Default::default()),
         ..Params::default()
     };
     let tiny = SolveOptions {
@@ -180,7 +180,7 @@ fn a_single_precision_factor_halves_the_values_and_keeps_the_deformation() {
     let rest = Arc::new(Rest::new(mesh.clone()).unwrap());
     let c = edit(&mesh, k);
     let params = Params {
-        formulation: crate::deform::Formulation::LeastSquares,
+        formulation: crate::deform::FormulationParams::LeastSquares(Default::default()),
         ..Params::default()
     };
     let build = |precision| {
@@ -245,7 +245,7 @@ fn both_orderings_factor_and_solve_the_same_system() {
     let rest = Rest::new(mesh.clone()).unwrap();
     let c = edit(&mesh, k);
     let params = Params {
-        formulation: crate::deform::Formulation::LeastSquares,
+        formulation: crate::deform::FormulationParams::LeastSquares(Default::default()),
         ..Params::default()
     };
     let build = |ordering| {

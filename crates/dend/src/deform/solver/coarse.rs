@@ -6,7 +6,7 @@
 //!   take its rotations to the fine mesh, then iterate on the fine mesh as
 //!   after [`Deformer::propagate_rotations`].
 //! - **Corrections** (a full approximation scheme, Brandt 1977, in rotation
-//!   space; prototype FINDINGS2): every [`Params::correction_period`] fine
+//!   space; prototype FINDINGS2): every [`ElasticParams::correction_period`] fine
 //!   iterations of a sequence (a drag's too, never in the frame that
 //!   answers it), with `r_f = g_f − Q_f Y` the fine residual (`−½ ∇E_f`),
 //!   the fine pose is injected into the coarse mesh (its vertices are fine
@@ -33,7 +33,7 @@
 //!   that reaches [`CORRECTION_MAX_ITERS`] still gives its rotations (the
 //!   energy test above keeps or drops them, as for any correction).
 //!
-//! [`Params::correction_period`]: crate::deform::Params::correction_period
+//! [`ElasticParams::correction_period`]: crate::deform::ElasticParams::correction_period
 //! [`Corrections::WhileFaster`]: crate::deform::Corrections::WhileFaster
 //! [`Corrections::WhileGaining`]: crate::deform::Corrections::WhileGaining
 
@@ -127,7 +127,7 @@ fn coarse_problem(
     params: &Params,
     constraints: &Constraints,
 ) -> Option<CoarseProblem> {
-    let level: Arc<CoarseLevel> = rest.coarse_at_most(params.coarse_ratio)?;
+    let level: Arc<CoarseLevel> = rest.coarse_at_most(params.elastic()?.coarse_ratio)?;
     let cc = level.restrict(constraints)?;
     let factor = Arc::new(Factor::build(&level.rest, params, &cc).ok()?);
     let mut fine_fixed = vec![false; rest.mesh.num_vertices()];
@@ -222,7 +222,7 @@ impl Deformer {
         if self.levels == Levels::One {
             return None;
         }
-        let key = (factor.id(), self.params.coarse_ratio);
+        let key = (factor.id(), self.params.elastic()?.coarse_ratio);
         let mut problem = match self.coarse.take() {
             Some((k, p)) if k == key => p,
             _ => coarse_problem(&self.rest, &self.params, constraints).map(Box::new),
@@ -280,7 +280,7 @@ impl Deformer {
     /// the same one, run earlier).
     pub fn build_factor(&mut self, constraints: &Constraints) -> Result<Factor, DeformError> {
         let ahead = self.levels == Levels::Two
-            && self.params.formulation == Formulation::Elastic
+            && self.params.formulation.kind() == Formulation::Elastic
             && self.params.detail == DetailTerm::Nonlinear
             && self.elastic.starts_from_rest();
         let (rest, params) = (&self.rest, &self.params);
@@ -299,8 +299,8 @@ impl Deformer {
             },
         );
         let factor = factor?;
-        if let Some(p) = solved {
-            self.coarse = Some(((factor.id(), self.params.coarse_ratio), Some(p)));
+        if let (Some(p), Some(e)) = (solved, self.params.elastic()) {
+            self.coarse = Some(((factor.id(), e.coarse_ratio), Some(p)));
         }
         Ok(factor)
     }

@@ -137,6 +137,10 @@ impl Deformer {
         max_iters: usize,
     ) -> Result<StepReport, DeformError> {
         let moved = self.load_targets(factor, constraints)?;
+        // (the factor's key, checked above, has the elastic weights)
+        let Some(&weights) = self.params.elastic() else {
+            return Err(DeformError::FactorMismatch);
+        };
         let nu = factor.sys.unknowns.len();
         self.size_state(factor, el);
         let fit = self.params.detail == DetailTerm::Nonlinear;
@@ -236,7 +240,7 @@ impl Deformer {
             }
             if st.corrections {
                 st.since_correction += 1;
-                if st.since_correction >= self.params.correction_period && !self.corrections_held {
+                if st.since_correction >= weights.correction_period && !self.corrections_held {
                     e = self.correct(factor, (el, set), constraints, e, &mut report);
                 }
             }
@@ -340,7 +344,7 @@ impl Deformer {
     /// A coarse correction (`solver/coarse.rs`) of the pose with energy
     /// `e`; returns the energy after it. Corrections stop for the sequence
     /// once one gains less than the fine iterations since the last one
-    /// (`Params::corrections`: or once one gains nothing).
+    /// (`ElasticParams::corrections`: or once one gains nothing).
     fn correct(
         &mut self,
         factor: &Factor,
@@ -367,9 +371,10 @@ impl Deformer {
         report.coarse_ms += run.ms;
         let st = &mut self.elastic;
         st.since_correction = 0;
-        st.corrections = match self.params.corrections {
-            Corrections::WhileFaster => gain >= gain_before,
-            Corrections::WhileGaining => gain > 0.0,
+        st.corrections = match self.params.elastic().map(|e| e.corrections) {
+            Some(Corrections::WhileFaster) => gain >= gain_before,
+            Some(Corrections::WhileGaining) => gain > 0.0,
+            None => false,
         };
         st.e_mark = e;
         e

@@ -13,10 +13,11 @@ use super::{Deformer, StepReport};
 use crate::deform::anderson::Anderson;
 use crate::deform::constraints::Constraints;
 use crate::deform::detail::local_rotations;
+use crate::deform::energy::Shape;
 use crate::deform::factor::Factor;
-use crate::deform::params::{DetailTerm, Energy, Mode};
+use crate::deform::params::{DetailTerm, Mode};
 use crate::deform::square::apply_p;
-use crate::deform::stacked::{self, Shape};
+use crate::deform::stacked;
 use crate::deform::DeformError;
 use crate::mesh::{Point, Real};
 
@@ -366,10 +367,10 @@ impl Deformer {
         let topo = rest.mesh.topology();
         let s = &mut self.scratch;
         let nonlinear = self.params.detail == DetailTerm::Nonlinear;
-        let rotated = nonlinear && self.params.mode == Mode::Default;
+        let rotated = nonlinear && self.params.mode() == Mode::Default;
         // δ̂ (paper eqs. 27–28), or δ for the linear term.
         if nonlinear {
-            rest.mu(self.params.mode)
+            rest.mu(self.params.mode())
                 .delta_hat(topo, &self.y, &mut s.dhat);
         } else {
             s.dhat.copy_from_slice(&ops.delta);
@@ -377,7 +378,7 @@ impl Deformer {
         // Internal target: P (T δ) in the default mode (design.md §4.3), A X otherwise.
         if rotated {
             local_rotations(topo, rest.weights(), &ops.positions, &self.y, &mut s.rot);
-            let base = if factor.energy == Energy::TotalCurvaturePaper {
+            let base = if factor.energy.shape() == Shape::Right {
                 &factor.ax
             } else {
                 &ops.delta
@@ -410,7 +411,7 @@ impl Deformer {
         let nr = sys.rows.len();
         let nrows = 2 * nr;
         let y = &self.y;
-        let shape = Shape::of(factor.energy);
+        let shape = factor.energy.shape();
         stacked::mul_l(ops, y, &mut s.lv);
         let ly = &s.lv;
         // A = P L: t - A Y = P(base - L Y); A = L (L - 2G): t - L (L Y - 2 G Y)
@@ -476,7 +477,7 @@ impl Deformer {
         // J_Uᵀ r = (Aᵀ u + Lᵀ v)_U with u = W r_A, v = √λ2 W r_L (stacked.rs)
         let ops = &self.rest.ops;
         let nr = sys.rows.len();
-        let shape = Shape::of(factor.energy);
+        let shape = factor.energy.shape();
         let r = &s.r;
         s.gu.fill([0.0; 3]);
         s.gv.fill([0.0; 3]);

@@ -2,6 +2,7 @@
 //! assembled `J`.
 
 use super::*;
+use crate::deform::energy::Energy;
 use crate::deform::factor::tests::{edit, grid, pseudo_random};
 use crate::deform::params::Params;
 use crate::deform::rest::Rest;
@@ -32,7 +33,7 @@ fn matrix_free_residual_and_rhs_match_assembled_j() {
     ] {
         for detail in [DetailTerm::Linear, DetailTerm::Nonlinear] {
             let params = Params {
-                formulation: crate::deform::Formulation::LeastSquares,
+                formulation: crate::deform::FormulationParams::LeastSquares(Default::default()),
                 energy,
                 detail,
                 lambda2: 0.3,

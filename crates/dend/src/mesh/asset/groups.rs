@@ -18,7 +18,7 @@
 //! the part has a corner on it, so a seam vertex shared by two groups
 //! belongs to both. Vertices no solver triangle uses (unreferenced, or only
 //! in degenerate triangles) are never selected, as with boxes and spheres.
-//! A name no part has is [`DeformError::UnknownGroup`], which lists the
+//! A name no part has is [`DeformError::UnknownGroup`](crate::deform::DeformError::UnknownGroup), which lists the
 //! parts the asset has. Group selectors are resolved against the asset
 //! *before* the constraints are resolved on the mesh
 //! ([`Asset::resolve_groups`](super::Asset::resolve_groups) turns them into
@@ -30,7 +30,6 @@ use std::ops::Range;
 
 use serde::{Deserialize, Serialize};
 
-use crate::deform::{ConstraintsSpec, DeformError, VertexSet};
 use crate::mesh::io::gltf::PrimitivePart;
 use crate::mesh::Mesh;
 
@@ -258,7 +257,7 @@ impl fmt::Display for GroupRef {
     }
 }
 
-/// The list in [`DeformError::UnknownGroup`]'s message.
+/// The list in [`DeformError::UnknownGroup`](crate::deform::DeformError::UnknownGroup)'s message.
 pub fn describe_available(available: &[String]) -> String {
     const SHOWN: usize = 40;
     if available.is_empty() {
@@ -338,17 +337,14 @@ impl super::Asset {
     }
 
     /// The welded vertices `group` selects (sorted): the union of the
-    /// matching parts' vertices; [`DeformError::UnknownGroup`] when no part
-    /// matches.
-    pub fn group_vertices(&self, group: &GroupRef) -> Result<Vec<u32>, DeformError> {
+    /// matching parts' vertices; `None` when no part matches (see
+    /// `Asset::group_vertices`, which says which parts there are).
+    pub(crate) fn matching_vertices(&self, group: &GroupRef) -> Option<Vec<u32>> {
         let hits: Vec<&Part> = self.parts.iter().filter(|p| p.matches(group)).collect();
         if hits.is_empty() {
-            return Err(DeformError::UnknownGroup {
-                group: group.to_string(),
-                available: self.parts.iter().map(Part::to_string).collect(),
-            });
+            return None;
         }
-        Ok(welded_vertices(
+        Some(welded_vertices(
             hits,
             &self.triangles,
             &self.weld.to_welded,
@@ -356,48 +352,8 @@ impl super::Asset {
         ))
     }
 
-    /// `spec` with every `{"group": …}` vertex set replaced by the index
-    /// list it selects on this asset; other sets are kept as they are.
-    pub fn resolve_groups(&self, spec: &ConstraintsSpec) -> Result<ConstraintsSpec, DeformError> {
-        resolve_groups(Some(self), spec)
+    /// The asset's parts, as an unknown group's error lists them.
+    pub(crate) fn part_names(&self) -> Vec<String> {
+        self.parts.iter().map(Part::to_string).collect()
     }
-}
-
-/// [`Asset::resolve_groups`](super::Asset::resolve_groups) on `asset`; with
-/// no asset (a mesh uploaded as JSON, OFF, STL or generated) any group is
-/// [`DeformError::UnknownGroup`].
-pub fn resolve_groups(
-    asset: Option<&super::Asset>,
-    spec: &ConstraintsSpec,
-) -> Result<ConstraintsSpec, DeformError> {
-    let resolve = |set: &VertexSet| -> Result<VertexSet, DeformError> {
-        Ok(match (set, asset) {
-            (VertexSet::Group(GroupSel { group }), Some(a)) => VertexSet::Indices(
-                a.group_vertices(group)?
-                    .into_iter()
-                    .map(u64::from)
-                    .collect(),
-            ),
-            (VertexSet::Group(GroupSel { group }), None) => {
-                return Err(DeformError::UnknownGroup {
-                    group: group.to_string(),
-                    available: Vec::new(),
-                })
-            }
-            (other, _) => other.clone(),
-        })
-    };
-    let mut out = spec.clone();
-    out.fixed = resolve(&spec.fixed)?;
-    for h in &mut out.handles {
-        h.vertices = resolve(&h.vertices)?;
-    }
-    Ok(out)
-}
-
-/// Whether `spec` names a group anywhere (so resolving it needs the asset).
-pub fn names_groups(spec: &ConstraintsSpec) -> bool {
-    std::iter::once(&spec.fixed)
-        .chain(spec.handles.iter().map(|h| &h.vertices))
-        .any(|s| matches!(s, VertexSet::Group(_)))
 }
