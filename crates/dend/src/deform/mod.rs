@@ -52,7 +52,10 @@ pub use params::{
 };
 pub use rest::Rest;
 pub use rotation::{best_rotation, fit_rotation, fit_rotation_quat, rotation_from_covariance};
-pub use solver::{Deformer, Levels, StepReport, COARSE_MAX_ITERS, CORRECTION_MAX_ITERS};
+pub use solver::{
+    Deformer, Levels, PreviewReport, StepReport, COARSE_MAX_ITERS, CORRECTION_MAX_ITERS,
+    PREVIEW_ITERATIONS, PREVIEW_MIN_VERTICES, PREVIEW_PASSES, PREVIEW_VERTICES,
+};
 pub use warnings::{ConstraintWarning, STRAY_LISTED};
 
 use thiserror::Error;

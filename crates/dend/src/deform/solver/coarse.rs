@@ -88,9 +88,9 @@ pub enum Levels {
 
 /// The coarse problem of one fine constraint set.
 pub(super) struct CoarseProblem {
-    level: Arc<CoarseLevel>,
-    factor: Arc<Factor>,
-    deformer: Box<Deformer>,
+    pub(super) level: Arc<CoarseLevel>,
+    pub(super) factor: Arc<Factor>,
+    pub(super) deformer: Box<Deformer>,
     /// Constrained vertices of the fine and of the coarse mesh.
     fine_fixed: Vec<bool>,
     coarse_fixed: Vec<bool>,
@@ -115,19 +115,21 @@ pub(super) type CoarseSlot = ((u64, usize), Option<Box<CoarseProblem>>);
 
 /// The coarse parameters of a fine problem: the fine ones, with the fine
 /// tolerance in the coarse level's mean edge lengths.
-fn coarse_params(rest: &Rest, params: &Params, level: &CoarseLevel) -> Params {
+pub(super) fn coarse_params(rest: &Rest, params: &Params, level: &CoarseLevel) -> Params {
     let mut p = *params;
     p.tol = params.tol * rest.ops.scale / level.rest.ops.scale;
     p
 }
 
-/// Builds the coarse problem of `constraints`' set (module docs).
-fn coarse_problem(
+/// Builds the coarse problem of `constraints`' set on the level of at
+/// most `ratio` (module docs).
+pub(super) fn coarse_problem(
     rest: &Arc<Rest>,
     params: &Params,
+    ratio: usize,
     constraints: &Constraints,
 ) -> Option<CoarseProblem> {
-    let level: Arc<CoarseLevel> = rest.coarse_at_most(params.elastic()?.coarse_ratio)?;
+    let level: Arc<CoarseLevel> = rest.coarse_at_most(ratio)?;
     let cc = level.restrict(constraints)?;
     let factor = Arc::new(Factor::build(&level.rest, params, &cc).ok()?);
     let mut fine_fixed = vec![false; rest.mesh.num_vertices()];
@@ -225,7 +227,7 @@ impl Deformer {
         let key = (factor.id(), self.params.elastic()?.coarse_ratio);
         let mut problem = match self.coarse.take() {
             Some((k, p)) if k == key => p,
-            _ => coarse_problem(&self.rest, &self.params, constraints).map(Box::new),
+            _ => coarse_problem(&self.rest, &self.params, key.1, constraints).map(Box::new),
         };
         let out = match problem.as_deref_mut() {
             Some(p) => match p.level.restrict(constraints) {
@@ -291,7 +293,8 @@ impl Deformer {
                     return None;
                 }
                 let t0 = Instant::now();
-                let mut p = coarse_problem(rest, params, constraints)?;
+                let ratio = params.elastic()?.coarse_ratio;
+                let mut p = coarse_problem(rest, params, ratio, constraints)?;
                 let cc = p.level.restrict(constraints)?;
                 p.deformer.params = coarse_params(rest, params, &p.level);
                 p.solved_start = Some(solve_start(&mut p, &cc, constraints, t0)?);

@@ -116,6 +116,24 @@ impl State {
         self.start = Start::Refit;
     }
 
+    /// Continues from a pose set with `set_pose` with these rotations and
+    /// the handles' rotations it was solved for (a coarse preview's first
+    /// step from the fine state): the next step turns them by the
+    /// handles' change of rotation.
+    pub(super) fn warm_from(
+        &mut self,
+        rot: Vec<UnitQuaternion<Real>>,
+        handle_rot: Vec<UnitQuaternion<Real>>,
+    ) {
+        self.chain = None;
+        self.start = Start::Warm;
+        self.rot_try = rot.clone();
+        self.rot = rot;
+        self.handle_rot = handle_rot;
+        // recomputed from the rotations when the iteration is sized
+        self.proj.clear();
+    }
+
     /// Back to the rest pose: identity rotations, propagated again on the
     /// next step.
     pub(super) fn reset(&mut self) {
@@ -148,7 +166,7 @@ impl Deformer {
             .elastic
             .chain
             .take()
-            .filter(|&(id, _)| id == factor.id() && !moved);
+            .filter(|&(id, _)| id == factor.id() && !moved && !self.shows_preview());
         let (mut e, coarse) = match chain {
             Some((_, e)) => (e, None),
             None => self.start_sequence(factor, (el, set), constraints, moved),
@@ -259,9 +277,12 @@ impl Deformer {
         let nu = factor.sys.unknowns.len();
         let window = self.params.anderson;
         let st = &mut self.elastic;
-        if st.rot.len() != n {
-            st.rot = vec![UnitQuaternion::identity(); n];
-            st.rot_try = vec![UnitQuaternion::identity(); n];
+        if st.ly.len() != n {
+            if st.rot.len() != n {
+                // (rotations set before the first step are kept: `warm_from`)
+                st.rot = vec![UnitQuaternion::identity(); n];
+            }
+            st.rot_try = st.rot.clone();
             st.ly = vec![[0.0; 3]; n];
             st.t = vec![[0.0; 3]; n];
             st.rm = vec![Matrix3::zeros(); n];
@@ -323,6 +344,9 @@ impl Deformer {
                     st.rot[v as usize] = h.target.rotation;
                 }
             }
+        }
+        if fit && self.adopt_preview(el, set) {
+            return (self.local_step(factor, (el, set), false, false), None);
         }
         match start {
             Start::Rest if fit => {

@@ -12,12 +12,16 @@ use crate::mesh::{Point, Real};
 mod coarse;
 mod elastic;
 mod least_squares;
+mod preview;
 mod propagate;
 
 #[cfg(test)]
 mod open_tests;
 
 pub use coarse::{Levels, COARSE_MAX_ITERS, CORRECTION_MAX_ITERS};
+pub use preview::{
+    PreviewReport, PREVIEW_ITERATIONS, PREVIEW_MIN_VERTICES, PREVIEW_PASSES, PREVIEW_VERTICES,
+};
 
 use least_squares::Scratch;
 
@@ -70,6 +74,8 @@ pub struct Deformer {
     /// Whether coarse corrections wait (a gesture is under way; see
     /// [`Deformer::hold_corrections`]).
     corrections_held: bool,
+    /// The coarse previews' problem and last pose ([`Deformer::preview`]).
+    preview: Option<Box<preview::Preview>>,
 }
 
 impl Deformer {
@@ -87,6 +93,7 @@ impl Deformer {
             levels: Levels::default(),
             coarse: None,
             corrections_held: false,
+            preview: None,
         }
     }
 
@@ -147,6 +154,7 @@ impl Deformer {
         }
         self.y = pose.iter().map(|&p| self.rest.ops.normalise(p)).collect();
         self.pose = pose;
+        self.drop_preview();
         self.scratch.evaluated = None;
         self.elastic.invalidate();
         Ok(())
@@ -154,6 +162,7 @@ impl Deformer {
 
     /// Back to the rest pose.
     pub fn reset(&mut self) {
+        self.drop_preview();
         self.scratch.evaluated = None;
         self.elastic.reset();
         self.y = self.rest.ops.positions.clone();
@@ -175,6 +184,9 @@ impl Deformer {
         constraints: &Constraints,
         max_iters: usize,
     ) -> Result<StepReport, DeformError> {
+        if factor.elastic.is_none() {
+            self.drop_preview();
+        }
         match &factor.elastic {
             Some((el, set)) => self.step_elastic(factor, (el, set), constraints, max_iters),
             None => self.step_least_squares(factor, constraints, max_iters),

@@ -1,0 +1,353 @@
+//! Coarse previews of a drag ([`Deformer::preview`], issue #32): while a
+//! person drags faster than the full mesh can follow, a frame can show the
+//! solve of a coarse level of about [`PREVIEW_VERTICES`] vertices instead,
+//! prolongated to every vertex with its detail; the full mesh refines from
+//! that pose when the drag pauses (the next [`Deformer::step`] starts from
+//! it).
+//!
+//! The coarse problem is the restricted one of the coarse corrections
+//! (`solver/coarse.rs`): the same energy and constraints on the coarse
+//! mesh, warm-started across the drags of a gesture. Its pose reaches the
+//! fine vertices as a linear blend of the coarse vertices' rigid motions
+//! (Magnenat-Thalmann et al. 1988's skinning, with the coarse vertices as
+//! bones and the smoothed-aggregation prolongation `P = Sᵏ P₀` of
+//! `coarse/transfer.rs` as weights):
+//!
+//! ```text
+//! y_i = Σ_c P_ic (y_c + R_c (x_i − x_c)) = M_i x_i + t_i,
+//! M_i = Σ_c P_ic R_c,   t_i = Σ_c P_ic (y_c − R_c x_c)
+//! ```
+//!
+//! (`x` the rest positions, `y_c`, `R_c` the coarse pose and rotations).
+//! Rows of `P` sum to one, so a rigid motion of the whole mesh is
+//! reproduced exactly, and the fine rest detail `x_i − x_c` turns with the
+//! surface around it. Hard-constrained vertices are put on their targets.
+
+use std::time::Instant;
+
+use nalgebra::{Matrix3, Vector3};
+use rayon::prelude::*;
+
+use super::coarse::{coarse_params, coarse_problem, CoarseProblem};
+use super::Deformer;
+use crate::deform::constraints::Constraints;
+use crate::deform::elastic::{ElasticOps, ElasticSet};
+use crate::deform::factor::Factor;
+use crate::deform::params::{DetailTerm, Formulation};
+use crate::deform::{DeformError, FactorKey};
+use crate::mesh::{Point, Real};
+
+/// The vertex count a preview level aims at: its iteration costs about
+/// what a 4,000-vertex mesh's does, whatever the mesh's size.
+pub const PREVIEW_VERTICES: usize = 4000;
+
+/// Meshes with fewer vertices have no preview (their own iteration is
+/// already about as cheap as a preview's).
+pub const PREVIEW_MIN_VERTICES: usize = 3 * PREVIEW_VERTICES;
+
+/// Coarse iterations per preview frame.
+pub const PREVIEW_ITERATIONS: usize = 3;
+
+/// Passes of 1-ring averaging of the blended rigid motions (`k` in
+/// `P = Sᵏ P₀`).
+pub const PREVIEW_PASSES: usize = 3;
+
+/// What one [`Deformer::preview`] did.
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
+pub struct PreviewReport {
+    /// Coarse iterations run.
+    pub iterations: usize,
+    /// Vertices of the preview level.
+    pub coarse_vertices: usize,
+    /// Wall time, ms (the level and its factor when first needed, the
+    /// coarse iterations and the prolongation).
+    pub ms: Real,
+}
+
+/// The preview state of a deformer.
+pub(super) struct Preview {
+    /// The fine factor id and the level's ratio the problem was built for.
+    key: (u64, usize),
+    problem: Option<Box<CoarseProblem>>,
+    /// Whether the coarse pose follows the current gesture (else the next
+    /// preview injects the fine pose first).
+    following: bool,
+    /// Whether `pose` is newer than the fine pose: the next
+    /// [`Deformer::step`] starts from it.
+    pub(super) pending: bool,
+    /// The prolongated pose (mesh units, `#V`).
+    pub(super) pose: Vec<Point>,
+    /// The blended rigid motions `(M_i, t_i)` and their next pass.
+    blend: Vec<Motion>,
+    next: Vec<Motion>,
+}
+
+/// An affine motion `x ↦ M x + t` (a blend of rigid ones).
+type Motion = (Matrix3<Real>, Vector3<Real>);
+
+/// The ratio of the preview level of a mesh of `n` vertices (at least the
+/// corrections' ratio).
+fn preview_ratio(n: usize, coarse_ratio: usize) -> usize {
+    coarse_ratio.max(n / PREVIEW_VERTICES)
+}
+
+impl Deformer {
+    /// Whether this deformer can preview (the elastic formulation with the
+    /// nonlinear detail term, on a mesh of at least
+    /// [`PREVIEW_MIN_VERTICES`] vertices); a constraint set that does not
+    /// survive on the preview level still has none ([`Deformer::preview`]
+    /// returns `None`).
+    pub fn can_preview(&self) -> bool {
+        self.params.formulation.kind() == Formulation::Elastic
+            && self.params.detail == DetailTerm::Nonlinear
+            && self.rest.mesh.num_vertices() >= PREVIEW_MIN_VERTICES
+    }
+
+    /// Runs up to `max_iters` iterations of the coarse preview problem
+    /// towards `constraints`' targets and prolongates its pose to every
+    /// vertex (module docs): [`Deformer::shown_pose`] returns it, and the
+    /// next [`Deformer::step`] starts from it. The fine pose is not
+    /// changed. `None` when there is no preview ([`Deformer::can_preview`],
+    /// or the set does not survive on the preview level).
+    ///
+    /// `factor` must be the fine factor of `constraints`' set (it keys the
+    /// preview's coarse problem).
+    pub fn preview(
+        &mut self,
+        factor: &Factor,
+        constraints: &Constraints,
+        max_iters: usize,
+    ) -> Result<Option<PreviewReport>, DeformError> {
+        if factor.sys.constrained != constraints.constrained()
+            || factor.key() != &FactorKey::new(&self.rest, &self.params, constraints)
+        {
+            return Err(DeformError::FactorMismatch);
+        }
+        let Some(elastic) = self.params.elastic().copied() else {
+            return Ok(None);
+        };
+        if !self.can_preview() {
+            return Ok(None);
+        }
+        let t0 = Instant::now();
+        let n = self.rest.mesh.num_vertices();
+        let key = (factor.id(), preview_ratio(n, elastic.coarse_ratio));
+        let mut pv = match self.preview.take() {
+            Some(p) if p.key == key => p,
+            _ => Box::new(Preview {
+                key,
+                problem: coarse_problem(&self.rest, &self.params, key.1, constraints).map(Box::new),
+                following: false,
+                pending: false,
+                pose: Vec::new(),
+                blend: vec![(Matrix3::identity(), Vector3::zeros()); n],
+                next: vec![(Matrix3::identity(), Vector3::zeros()); n],
+            }),
+        };
+        let out = self.preview_with(&mut pv, constraints, max_iters);
+        self.preview = Some(pv);
+        Ok(out.map(|(iterations, coarse_vertices)| PreviewReport {
+            iterations,
+            coarse_vertices,
+            ms: t0.elapsed().as_secs_f64() * 1e3,
+        }))
+    }
+
+    /// [`Deformer::preview`] with its state `pv`: (coarse iterations,
+    /// coarse vertices), or `None` without a coarse problem.
+    fn preview_with(
+        &self,
+        pv: &mut Preview,
+        constraints: &Constraints,
+        max_iters: usize,
+    ) -> Option<(usize, usize)> {
+        let p = pv.problem.as_deref_mut()?;
+        let cc = p.level.restrict(constraints)?;
+        if !pv.following {
+            // the gesture's first preview starts from the fine state: the
+            // rest pose's start (handle rotations spread by harmonic
+            // weights) or the fine pose with its rotations, so that the
+            // handles' change of rotation turns the coarse rotations
+            p.deformer.params = coarse_params(&self.rest, &self.params, &p.level);
+            if self.elastic.starts_from_rest() {
+                p.deformer.reset();
+            } else {
+                let injected: Vec<Point> = p
+                    .level
+                    .fine_of
+                    .iter()
+                    .map(|&v| self.pose[v as usize])
+                    .collect();
+                p.deformer.set_pose(injected).ok()?;
+                if self.elastic.rot.len() == self.pose.len() {
+                    let rot = p
+                        .level
+                        .fine_of
+                        .iter()
+                        .map(|&v| self.elastic.rot[v as usize])
+                        .collect();
+                    p.deformer
+                        .elastic
+                        .warm_from(rot, self.elastic.handle_rot.clone());
+                }
+            }
+            pv.following = true;
+        }
+        let report = p.deformer.step(&p.factor, &cc, max_iters).ok()?;
+        if !report.objective.is_finite() {
+            pv.following = false;
+            return None;
+        }
+        prolongate_rigid(
+            &self.rest.mesh,
+            &p.level.fine_of,
+            &p.level.near,
+            p.deformer.pose(),
+            p.deformer.rotations(),
+            (&mut pv.blend, &mut pv.next),
+            &mut pv.pose,
+        );
+        if p.factor.sys.lambda1 == 0.0 {
+            for (&v, &at) in constraints.fixed.iter().zip(&constraints.fixed_at) {
+                pv.pose[v as usize] = at;
+            }
+            for h in &constraints.handles {
+                for (v, at) in h.target_positions() {
+                    pv.pose[v as usize] = at;
+                }
+            }
+        }
+        pv.pending = true;
+        Some((report.iterations, p.level.num_vertices()))
+    }
+
+    /// The pose a frame shows: the last preview's when it is newer than
+    /// the fine pose ([`Deformer::preview`]), else [`Deformer::pose`].
+    pub fn shown_pose(&self) -> &[Point] {
+        match &self.preview {
+            Some(p) if p.pending => &p.pose,
+            _ => &self.pose,
+        }
+    }
+
+    /// Whether [`Deformer::shown_pose`] is a preview's.
+    pub fn shows_preview(&self) -> bool {
+        self.preview.as_ref().is_some_and(|p| p.pending)
+    }
+
+    /// At the start of a fine sequence after previews: the fine rotations
+    /// of the vertices with `set.fit` become the preview level's,
+    /// prolongated as a coarse start's are (`CoarseLevel::prolongate_rotations`),
+    /// with their area targets; the fine pose keeps its free vertices, and
+    /// the first global step brings them to those rotations (the cascadic
+    /// start of `solver/coarse.rs`, from the gesture's last preview).
+    /// Returns whether there was a preview to adopt; the next preview
+    /// injects the fine state again.
+    pub(super) fn adopt_preview(&mut self, el: &ElasticOps, set: &ElasticSet) -> bool {
+        let Some(pv) = self.preview.as_deref_mut() else {
+            return false;
+        };
+        pv.following = false;
+        if !std::mem::take(&mut pv.pending) {
+            return false;
+        }
+        let Some(p) = pv.problem.as_deref() else {
+            return false;
+        };
+        let st = &mut self.elastic;
+        if st.rot.len() != self.pose.len() {
+            return false;
+        }
+        p.level
+            .prolongate_rotations(&self.rest, p.deformer.rotations(), &set.fit, &mut st.rot);
+        el.rotated_rest_projections(&self.rest.ops.positions, &st.rot, &mut st.proj);
+        true
+    }
+
+    /// Forgets a pending preview (the pose was set from outside).
+    pub(super) fn drop_preview(&mut self) {
+        if let Some(pv) = self.preview.as_deref_mut() {
+            pv.pending = false;
+            pv.following = false;
+        }
+    }
+
+    /// The preview level's coarse problem, built now (its level, the
+    /// restricted set and its coarse factor) so that the first preview of
+    /// `constraints`' set does not pay for it; false when there is none.
+    pub fn prepare_preview(
+        &mut self,
+        factor: &Factor,
+        constraints: &Constraints,
+    ) -> Result<bool, DeformError> {
+        // zero iterations: builds the problem, changes no pose
+        let had = self.preview.as_ref().map(|p| (p.pending, p.following));
+        let out = self.preview(factor, constraints, 0)?;
+        if let (Some(pv), Some((pending, following))) = (self.preview.as_deref_mut(), had) {
+            pv.pending = pending;
+            pv.following = following;
+        } else if let Some(pv) = self.preview.as_deref_mut() {
+            pv.pending = false;
+            pv.following = false;
+        }
+        Ok(out.is_some())
+    }
+}
+
+/// The linear blend of the coarse vertices' rigid motions (module docs):
+/// `blend` starts as each fine vertex's nearest coarse vertex's motion
+/// (`P₀`), [`PREVIEW_PASSES`] closed 1-ring averages make it `P`, and
+/// `out_i = M_i x_i + t_i`. Unreferenced vertices stay at rest.
+fn prolongate_rigid(
+    mesh: &crate::mesh::Mesh,
+    fine_of: &[u32],
+    near: &[u32],
+    coarse_pose: &[Point],
+    coarse_rot: &[nalgebra::UnitQuaternion<Real>],
+    (blend, next): (&mut Vec<Motion>, &mut Vec<Motion>),
+    out: &mut Vec<Point>,
+) {
+    let rest = mesh.positions();
+    let motion: Vec<Motion> = coarse_pose
+        .iter()
+        .zip(coarse_rot)
+        .zip(fine_of)
+        .map(|((y, q), &v)| {
+            let r = q.to_rotation_matrix().into_inner();
+            (r, Vector3::from(*y) - r * Vector3::from(rest[v as usize]))
+        })
+        .collect();
+    blend.par_iter_mut().zip(near).for_each(|(b, &c)| {
+        *b = if c == u32::MAX {
+            (Matrix3::identity(), Vector3::zeros())
+        } else {
+            motion[c as usize]
+        };
+    });
+    let topo = mesh.topology();
+    for _ in 0..PREVIEW_PASSES {
+        let src: &[Motion] = blend;
+        next.par_iter_mut().enumerate().for_each(|(i, o)| {
+            let ring = topo.ring(i);
+            let (mut m, mut t) = src[i];
+            for &j in ring {
+                m += src[j as usize].0;
+                t += src[j as usize].1;
+            }
+            let w = 1.0 / (ring.len() + 1) as Real;
+            *o = (m * w, t * w);
+        });
+        std::mem::swap(blend, next);
+    }
+    out.clear();
+    out.extend(
+        blend
+            .iter()
+            .zip(rest)
+            .map(|((m, t), x)| -> Point { (m * Vector3::from(*x) + t).into() }),
+    );
+}
+
+#[cfg(test)]
+#[path = "preview_tests.rs"]
+mod tests;
