@@ -23,10 +23,11 @@ use nalgebra::{UnitQuaternion, Vector3};
 
 type R<T = ()> = Result<T, Box<dyn std::error::Error>>;
 
-/// The creature at 3 levels (about 9,200 vertices: it has a coarse level).
-fn creature() -> Mesh {
+/// The creature at `levels` levels (3: about 9,200 vertices, with a
+/// coarse level; 4: with a preview level too).
+fn creature(levels: u32) -> Mesh {
     let mut s = ShapeSpec::default_for(Shape::Creature);
-    s.params.nu = Some(3);
+    s.params.nu = Some(levels);
     generate(&s).expect("creature")
 }
 
@@ -63,6 +64,8 @@ fn translation_at(s: f64, axis: usize, extent: f64) -> [f64; 3] {
 struct Settled {
     pose: Vec<[f64; 3]>,
     objective: f64,
+    /// Frames of each level (full, coarse preview) before the settled one.
+    levels: [usize; 2],
 }
 
 /// A session dragged to the final target (translation along the arc,
@@ -84,6 +87,7 @@ async fn drag_in(base: &str, mesh: &Mesh, drags: u64) -> R<Settled> {
     a[axis] = 60f64.to_radians() / drags as f64;
     let q = UnitQuaternion::from_scaled_axis(a);
     let q = [q.i, q.j, q.k, q.w];
+    let mut levels = [0; 2];
     for k in 1..=drags {
         let (t0, t1) = (
             translation_at((k - 1) as f64 / drags as f64, axis, extent),
@@ -92,8 +96,9 @@ async fn drag_in(base: &str, mesh: &Mesh, drags: u64) -> R<Settled> {
         let dt = [t1[0] - t0[0], t1[1] - t0[1], t1[2] - t0[2]];
         ws.drag(0, dt, Some(q), k).await?;
         if k < drags {
-            // the frame that answers this drag (one iteration) comes first
-            ws.frame_acking(k, false).await?;
+            // the frame that answers this drag comes first
+            let (h, _) = ws.frame_acking(k, false).await?;
+            levels[usize::from(h.level)] += 1;
         }
     }
     let objective = loop {
@@ -104,15 +109,25 @@ async fn drag_in(base: &str, mesh: &Mesh, drags: u64) -> R<Settled> {
                     "{drags} drags: settled at iteration {} without converging",
                     f.header.iteration
                 );
+                assert_eq!(
+                    f.header.level,
+                    dend_protocol::LEVEL_FULL,
+                    "a settled preview"
+                );
                 break f.header.objective;
             }
+            WsFull::Frame(f) => levels[usize::from(f.header.level)] += 1,
             WsFull::Event(e @ ServerMsg::Error { .. }) => return Err(format!("{e:?}").into()),
             WsFull::Closed(c) => return Err(format!("closed {c:?}").into()),
             _ => {}
         }
     };
     let pose = s.pose().await?.positions;
-    Ok(Settled { pose, objective })
+    Ok(Settled {
+        pose,
+        objective,
+        levels,
+    })
 }
 
 fn max_distance(a: &[[f64; 3]], b: &[[f64; 3]]) -> f64 {
@@ -126,7 +141,7 @@ fn max_distance(a: &[[f64; 3]], b: &[[f64; 3]]) -> f64 {
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn a_creature_dragged_in_1_10_or_40_drags_settles_to_the_same_pose() -> R {
-    let mesh = creature();
+    let mesh = creature(3);
     let diag = mesh.diagonal();
     let (base, _state) = start(Config {
         ws_max_messages_per_sec: 100_000,
@@ -148,5 +163,51 @@ async fn a_creature_dragged_in_1_10_or_40_drags_settles_to_the_same_pose() -> R 
             "{drags} drags settled at {ratio:.4} × the one-drag objective"
         );
     }
+    Ok(())
+}
+
+/// Coarse previews (`preview_above_ms` 0: every drag of a gesture is
+/// answered by one) on a creature with a preview level: the drag's frames
+/// show level 1, the settled frame is the full mesh's, converged, and it
+/// settles where a session without previews does.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn previews_answer_the_drags_and_the_full_mesh_settles_where_it_would_without() -> R {
+    let mesh = creature(4);
+    assert!(mesh.num_vertices() >= dend::deform::PREVIEW_MIN_VERTICES);
+    let diag = mesh.diagonal();
+    let mut settled = vec![];
+    for preview_above_ms in [0.0, -1.0] {
+        let (base, _state) = start(Config {
+            ws_max_messages_per_sec: 100_000,
+            preview_above_ms,
+            ..Config::default()
+        })
+        .await;
+        settled.push(drag_in(&base, &mesh, 12).await?);
+    }
+    let [with, without] = &settled[..] else {
+        unreachable!()
+    };
+    eprintln!(
+        "frames with previews {:?}, without {:?}",
+        with.levels, without.levels
+    );
+    assert!(
+        with.levels[1] >= 6,
+        "previews answered {} of 11 drags",
+        with.levels[1]
+    );
+    assert_eq!(without.levels[1], 0, "a preview while they were off");
+    let gap = max_distance(&with.pose, &without.pose) / diag;
+    let ratio = with.objective / without.objective;
+    eprintln!("with previews: pose gap {gap:.2e} of the diagonal, objective ratio {ratio:.6}");
+    assert!(
+        gap <= 1e-3,
+        "settled {gap:.2e} of the diagonal from the pose without previews"
+    );
+    assert!(
+        ratio <= 1.01,
+        "settled at {ratio:.4} × the objective without previews"
+    );
     Ok(())
 }

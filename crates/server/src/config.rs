@@ -57,6 +57,20 @@ pub struct Config {
     /// DEND iterations per pushed WebSocket frame while a drag settles.
     #[arg(long, env = "DEND_ITERS_PER_FRAME", default_value_t = 1)]
     pub iters_per_frame: usize,
+    /// WebSocket drags are answered by coarse previews (frames of level 1:
+    /// a level of about 4,000 vertices solved and prolongated to every
+    /// vertex; meshes of 12,000+ vertices, the elastic formulation) while a
+    /// fine iteration of the session takes longer than this many ms; the
+    /// full mesh refines once the drags pause. 0: always; a negative
+    /// value: never. Default 20 (a 50 frames/s budget: the 9,770-vertex
+    /// camel's 5 ms iteration is never previewed, the 50k feline's 30 ms is).
+    #[arg(
+        long,
+        env = "DEND_PREVIEW_ABOVE_MS",
+        default_value_t = 20.0,
+        allow_negative_numbers = true
+    )]
+    pub preview_above_ms: f64,
     /// Directory of the session store (SQLite file `dend.sqlite3`, created
     /// if missing): meshes, sessions, constraints, checkpoints and the drag
     /// journal survive restarts and crashes.
@@ -125,6 +139,7 @@ impl Default for Config {
             ws_max_message_bytes: 64 << 10,
             ws_max_messages_per_sec: 500,
             iters_per_frame: 1,
+            preview_above_ms: 20.0,
             data_dir: PathBuf::from("./dend-data"),
             in_memory: false,
             store: None,

@@ -105,6 +105,7 @@ impl AppState {
             store: self.store.clone(),
             observer: self.metrics.clone(),
             iters_per_frame: self.config.iters_per_frame,
+            preview_above_ms: self.config.preview_above_ms,
             build_wait: self.config.build_wait(),
             scheduler: self.scheduler.clone(),
             fence,

@@ -22,6 +22,7 @@ fn session() -> SessionHandle {
         store: Arc::new(MemoryStore::new()),
         observer: Arc::new(NoObserver),
         iters_per_frame: 1,
+        preview_above_ms: -1.0,
         build_wait: std::time::Duration::from_secs(30),
         scheduler: Arc::new(crate::scheduler::Scheduler::new(1, None)),
         fence: crate::store::NO_FENCE,

@@ -80,6 +80,13 @@ pub(super) struct Actor {
     /// the coarse corrections wait until drags pause
     /// ([`crate::session::CORRECTION_QUIET`]).
     last_stream_drag: Option<std::time::Instant>,
+    /// The last fine solve's time per iteration, ms, coarse corrections
+    /// left out (NaN before one): coarse previews answer drags while it
+    /// is above `SessionOptions::preview_above_ms`.
+    fine_iter_ms: f64,
+    /// The level the current frame shows (`LEVEL_FULL` or, for a coarse
+    /// preview, `LEVEL_COARSE`).
+    level: u8,
     /// Nothing more to iterate (converged, budget spent or failed).
     settled: bool,
     iters_since_change: usize,
@@ -141,6 +148,8 @@ impl Actor {
             pose_epoch: 0,
             dirty: false,
             last_stream_drag: None,
+            fine_iter_ms: f64::NAN,
+            level: dend_protocol::LEVEL_FULL,
             settled: true,
             iters_since_change: 0,
             last_seq: 0,
@@ -225,8 +234,7 @@ impl Actor {
             settled: self.settled,
             objective: self.objective,
             vertex_count: self.pose.len() as u32,
-            // the full mesh's solve: a coarse preview sets `LEVEL_COARSE`
-            level: dend_protocol::LEVEL_FULL,
+            level: self.level,
         }
     }
 

@@ -51,6 +51,15 @@ impl Actor {
             && self
                 .last_stream_drag
                 .is_some_and(|t| t.elapsed() < crate::session::CORRECTION_QUIET);
+        // drags faster than the full mesh can follow: a coarse preview
+        // answers them (`Deformer::preview`), the full mesh refines once
+        // they pause
+        let threshold = self.opts.preview_above_ms;
+        let preview = hold
+            && self.dirty
+            && threshold >= 0.0
+            && (threshold == 0.0 || self.fine_iter_ms > threshold)
+            && self.deformer.as_ref().is_some_and(|d| d.can_preview());
         self.inflight = self.waiters.drain(..).map(|w| w.1).collect();
         self.dirty = false;
         let Some(mut deformer) = self.deformer.take() else {
@@ -89,17 +98,28 @@ impl Actor {
                             None => cache.get_or_build(&rest, &params, &constraints)?,
                         };
                         deformer.hold_corrections(hold);
-                        Ok(deformer.step(&factor, &constraints, budget)?)
+                        if preview {
+                            let its = dend::deform::PREVIEW_ITERATIONS;
+                            if let Some(r) = deformer.preview(&factor, &constraints, its)? {
+                                return Ok((preview_report(&r), true));
+                            }
+                        }
+                        Ok((deformer.step(&factor, &constraints, budget)?, false))
                     })();
                     (step, false)
                 }
                 Err(e) => (Err(SessionError::Store(e)), true),
             };
             let seconds = t0.elapsed().as_secs_f64();
-            let body = FrameBody::from_pose(deformer.pose());
+            let body = FrameBody::from_pose(deformer.shown_pose());
+            let (result, preview) = match result {
+                Ok((report, preview)) => (Ok(report), preview),
+                Err(e) => (Err(e), false),
+            };
             let _ = tx.send(Internal::Solved {
                 deformer,
                 result,
+                preview,
                 body,
                 seconds,
                 applied_seq,
@@ -165,6 +185,7 @@ impl Actor {
             Internal::Solved {
                 deformer,
                 result,
+                preview,
                 body,
                 seconds,
                 applied_seq,
@@ -194,7 +215,7 @@ impl Actor {
                     self.sync_shared();
                     return;
                 }
-                self.pose = Arc::new(deformer.pose().to_vec());
+                self.pose = Arc::new(deformer.shown_pose().to_vec());
                 self.deformer = Some(deformer);
                 if generation == self.generation {
                     if journal_failed {
@@ -204,8 +225,25 @@ impl Actor {
                         self.confirmed = Some(constraints);
                     }
                 }
+                self.level = if preview {
+                    dend_protocol::LEVEL_COARSE
+                } else {
+                    dend_protocol::LEVEL_FULL
+                };
                 let error = match result {
+                    Ok(_) if preview => {
+                        // a picture of where the drag goes: not converged,
+                        // no fine objective, never settled
+                        self.converged = false;
+                        self.objective = f64::NAN;
+                        self.settled = false;
+                        None
+                    }
                     Ok(report) => {
+                        if report.iterations > 0 {
+                            self.fine_iter_ms = (seconds * 1e3 - report.coarse_ms).max(0.0)
+                                / report.iterations as f64;
+                        }
                         self.iters_since_change += report.iterations;
                         self.converged = report.converged;
                         self.objective = report.objective;
@@ -277,5 +315,20 @@ impl Actor {
             header: *h,
             positions: self.pose.clone(),
         }
+    }
+}
+
+/// The step report of a frame that shows a coarse preview: no fine
+/// iteration, no fine objective, the preview's coarse work.
+fn preview_report(r: &dend::deform::PreviewReport) -> dend::deform::StepReport {
+    dend::deform::StepReport {
+        iterations: 0,
+        last_update: f64::NAN,
+        converged: false,
+        diverged: false,
+        objective: f64::NAN,
+        initial_objective: f64::NAN,
+        coarse_iterations: r.iterations,
+        coarse_ms: r.ms,
     }
 }

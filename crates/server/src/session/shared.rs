@@ -32,6 +32,9 @@ pub struct SessionOptions {
     pub observer: Arc<dyn Observer>,
     /// DEND iterations per frame while settling.
     pub iters_per_frame: usize,
+    /// Coarse previews answer drags while a fine iteration takes longer
+    /// than this, ms (`Config::preview_above_ms`; negative: never).
+    pub preview_above_ms: f64,
     /// The session's lease revision, carried by every store write
     /// ([`NO_FENCE`](crate::store::NO_FENCE) without leases).
     pub fence: crate::store::Fence,
@@ -227,6 +230,8 @@ pub(super) enum Internal {
     Solved {
         deformer: Deformer,
         result: Result<StepReport, SessionError>,
+        /// Whether the frame shows a coarse preview (`Deformer::preview`).
+        preview: bool,
         body: FrameBody,
         seconds: f64,
         applied_seq: u64,
