@@ -81,6 +81,11 @@ pub struct LoadtestArgs {
     /// Iterations per frame of the in-process server.
     #[arg(long, default_value_t = 1)]
     iters_per_frame: usize,
+    /// The in-process server's `--preview-above-ms`: drags are answered by
+    /// coarse previews while a fine iteration takes longer (0 always, a
+    /// negative value never).
+    #[arg(long, default_value_t = 20.0, allow_negative_numbers = true)]
+    preview_above_ms: f64,
     /// Side of the generated grid mesh (vertices per side) when no `--mesh`.
     #[arg(long, default_value_t = 100)]
     grid: usize,
@@ -415,6 +420,7 @@ async fn in_process_server(args: &LoadtestArgs) -> anyhow::Result<String> {
     let config = Config {
         addr: ([127, 0, 0, 1], 0).into(),
         iters_per_frame: args.iters_per_frame,
+        preview_above_ms: args.preview_above_ms,
         ws_max_messages_per_sec: 1_000_000,
         factor_cache_bytes: args.factor_cache_bytes,
         max_sessions: (args.sessions + args.idle + 8).max(256),

@@ -145,7 +145,7 @@ export function updateStats() {
   $('stConv').textContent = !f
     ? '–'
     : !f.settled
-      ? 'iterating…'
+      ? f.level === 1 ? 'coarse preview…' : 'iterating…'
       : f.converged
         ? 'settled'
         : `not settled after ${f.iteration} iterations`;

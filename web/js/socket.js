@@ -12,12 +12,13 @@ const $ = (id) => document.getElementById(id);
 
 /** The stream as the status bar shows it: frames/s over the last second,
  * the settle time (last drag sent → its settled frame), the frame's level. */
-const flow = { times: [], lastDragSent: null, settleMs: null, bytes: 0, encodings: {} };
+const flow = { times: [], lastDragSent: null, settleMs: null, bytes: 0, encodings: {}, levels: [0, 0] };
 
 function showFlow(f, now) {
   flow.times.push(now);
   flow.bytes += f.bytes || 0;
   flow.encodings[f.encoding] = (flow.encodings[f.encoding] || 0) + 1;
+  flow.levels[f.level === 1 ? 1 : 0]++;
   while (flow.times.length && flow.times[0] < now - 1000) flow.times.shift();
   if (f.settled && flow.lastDragSent !== null) {
     flow.settleMs = now - flow.lastDragSent;
@@ -29,7 +30,7 @@ function showFlow(f, now) {
   if (settle) settle.textContent = flow.lastDragSent !== null ? '…' : flow.settleMs === null ? '–' : `${flow.settleMs.toFixed(0)} ms`;
   const level = $('stLevel');
   if (level) level.textContent = f.level === 1 ? 'coarse' : 'full';
-  app.flow = { fps: flow.times.length, settleMs: flow.settleMs, level: f.level, bytes: flow.bytes, encoding: f.encoding, encodings: { ...flow.encodings } };
+  app.flow = { fps: flow.times.length, settleMs: flow.settleMs, level: f.level, bytes: flow.bytes, encoding: f.encoding, encodings: { ...flow.encodings }, levels: [...flow.levels] };
 }
 
 function onFrame(f) {

@@ -113,12 +113,18 @@ async function main() {
     const last = lat.slice(-Math.max(1, Math.floor(lat.length / 3)));
     log(`drag: ${seq} drags in ${dragMs} ms; frames/s shown ${during.fps}; drag→frame median ${median(lat).toFixed(0)} ms `
       + `(first third ${median(first).toFixed(0)}, last third ${median(last).toFixed(0)}, max ${Math.max(...lat).toFixed(0)}); `
-      + `encodings ${JSON.stringify(after.flow.encodings)}; ${(after.flow.bytes / 1e6).toFixed(2)} MB in all; settle shown ${after.settle}, level ${after.level}`);
+      + `encodings ${JSON.stringify(after.flow.encodings)}; frames by level (full, coarse) ${JSON.stringify(after.flow.levels)}; `
+      + `${(after.flow.bytes / 1e6).toFixed(2)} MB in all; settle shown ${after.settle}, level ${after.level}`);
     await page.screenshot({ path: join(artifacts, 'feline-dragged.png') });
 
     assert.ok(Number(during.fps) >= 1, `frames/s shown while dragging (${during.fps})`);
     assert.ok(lat.length >= 5, `the drag's frames were timed (${lat.length})`);
     assert.ok((during.flow.encodings.delta || 0) > 0, `the drag's frames came in delta (${JSON.stringify(during.flow.encodings)})`);
+    // a fine iteration of the feline takes longer than the server's 20 ms
+    // preview threshold: coarse previews answered the drag, and the
+    // settled frame is the full mesh's
+    assert.ok(after.flow.levels[1] > 0, `coarse previews during the drag (${JSON.stringify(after.flow.levels)})`);
+    assert.equal(after.level, 'full', 'the settled frame shows the full mesh');
     // bounded: no queue builds up over the drag (the latest frame wins);
     // one settle-free frame of the feline is well under a second
     assert.ok(median(last) <= median(first) + 1000, `drag→frame grew over the drag: ${median(first)} → ${median(last)} ms`);
