@@ -92,6 +92,11 @@ pub async fn create(
             let (rest, params) = (rest.clone(), params);
             tokio::task::spawn_blocking(move || rest.prepare_coarse_level_for(&params));
         }
+        {
+            // the coarse previews' level, before the first drag
+            let (rest, params) = (rest.clone(), params);
+            tokio::task::spawn_blocking(move || rest.prepare_preview_level(&params));
+        }
         Some(rest)
     };
     let id = new_id();

@@ -84,6 +84,12 @@ pub(super) struct Actor {
     /// left out (NaN before one): coarse previews answer drags while it
     /// is above `SessionOptions::preview_above_ms`.
     fine_iter_ms: f64,
+    /// Whether the last frame's coarse preview converged (the next solve
+    /// of the gesture without a new drag is then the full mesh's).
+    preview_converged: bool,
+    /// When the next solve is due although nothing changes: the end of
+    /// the quiet time of a gesture answered by converged previews.
+    wake_at: Option<std::time::Instant>,
     /// The level the current frame shows (`LEVEL_FULL` or, for a coarse
     /// preview, `LEVEL_COARSE`).
     level: u8,
@@ -149,6 +155,8 @@ impl Actor {
             dirty: false,
             last_stream_drag: None,
             fine_iter_ms: f64::NAN,
+            preview_converged: true,
+            wake_at: None,
             level: dend_protocol::LEVEL_FULL,
             settled: true,
             iters_since_change: 0,
@@ -204,6 +212,10 @@ impl Actor {
                 Some(msg) = internal_rx.recv() => self.on_internal(msg),
                 () = tokio::time::sleep_until(deadline), if !self.queued.is_empty() => {
                     self.expire_queued();
+                }
+                () = sleep_until_opt(self.wake_at), if self.wake_at.is_some() => {
+                    // the loop's `maybe_start_solve` starts the full mesh's solve
+                    self.wake_at = None;
                 }
                 cmd = rx.recv() => match cmd {
                     Some(cmd) => if !self.on_cmd(cmd) { return self.closed() },
@@ -540,3 +552,11 @@ mod queue;
 mod named_poses;
 #[path = "actor_solve.rs"]
 mod solve;
+
+/// Sleeps until `at` (forever when `None`; the branch is disabled then).
+async fn sleep_until_opt(at: Option<std::time::Instant>) {
+    match at {
+        Some(at) => tokio::time::sleep_until(tokio::time::Instant::from_std(at)).await,
+        None => std::future::pending().await,
+    }
+}

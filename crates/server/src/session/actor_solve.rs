@@ -51,15 +51,25 @@ impl Actor {
             && self
                 .last_stream_drag
                 .is_some_and(|t| t.elapsed() < crate::session::CORRECTION_QUIET);
-        // drags faster than the full mesh can follow: a coarse preview
-        // answers them (`Deformer::preview`), the full mesh refines once
-        // they pause
+        // drags faster than the full mesh can follow: coarse previews
+        // answer them (`Deformer::preview`) and, between drags, refine
+        // until they converge; then nothing runs until the next drag or
+        // the end of the quiet time, when the full mesh refines (a fine
+        // frame in the middle of a gesture would show a pose one fine
+        // iteration from the preview's, and make the next preview start
+        // from it)
         let threshold = self.opts.preview_above_ms;
         let preview = hold
-            && self.dirty
             && threshold >= 0.0
             && (threshold == 0.0 || self.fine_iter_ms > threshold)
             && self.deformer.as_ref().is_some_and(|d| d.can_preview());
+        self.wake_at = None;
+        if preview && !self.dirty && self.preview_converged {
+            self.wake_at = self
+                .last_stream_drag
+                .map(|t| t + crate::session::CORRECTION_QUIET);
+            return;
+        }
         self.inflight = self.waiters.drain(..).map(|w| w.1).collect();
         self.dirty = false;
         let Some(mut deformer) = self.deformer.take() else {
@@ -231,7 +241,8 @@ impl Actor {
                     dend_protocol::LEVEL_FULL
                 };
                 let error = match result {
-                    Ok(_) if preview => {
+                    Ok(report) if preview => {
+                        self.preview_converged = report.converged;
                         // a picture of where the drag goes: not converged,
                         // no fine objective, never settled
                         self.converged = false;
@@ -324,7 +335,8 @@ fn preview_report(r: &dend::deform::PreviewReport) -> dend::deform::StepReport {
     dend::deform::StepReport {
         iterations: 0,
         last_update: f64::NAN,
-        converged: false,
+        // the coarse problem's (the frame itself is never converged)
+        converged: r.converged,
         diverged: false,
         objective: f64::NAN,
         initial_objective: f64::NAN,

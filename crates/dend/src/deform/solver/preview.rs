@@ -57,6 +57,9 @@ pub const PREVIEW_PASSES: usize = 3;
 pub struct PreviewReport {
     /// Coarse iterations run.
     pub iterations: usize,
+    /// Whether the coarse problem converged for these targets (more
+    /// previews would not change the picture).
+    pub converged: bool,
     /// Vertices of the preview level.
     pub coarse_vertices: usize,
     /// Wall time, ms (the level and its factor when first needed, the
@@ -89,6 +92,23 @@ type Motion = (Matrix3<Real>, Vector3<Real>);
 /// corrections' ratio).
 fn preview_ratio(n: usize, coarse_ratio: usize) -> usize {
     coarse_ratio.max(n / PREVIEW_VERTICES)
+}
+
+impl crate::deform::Rest {
+    /// Builds the preview level of sessions with `params` now (a server
+    /// calls it in the background when a session opens, so that the first
+    /// preview does not pay for the simplification); `false` when they
+    /// have none (a mesh under [`PREVIEW_MIN_VERTICES`], the paper
+    /// formulations).
+    pub fn prepare_preview_level(&self, params: &crate::deform::Params) -> bool {
+        let n = self.mesh.num_vertices();
+        match params.elastic() {
+            Some(e) if n >= PREVIEW_MIN_VERTICES && params.detail == DetailTerm::Nonlinear => self
+                .coarse_at_most(preview_ratio(n, e.coarse_ratio))
+                .is_some(),
+            _ => false,
+        }
+    }
 }
 
 impl Deformer {
@@ -146,21 +166,24 @@ impl Deformer {
         };
         let out = self.preview_with(&mut pv, constraints, max_iters);
         self.preview = Some(pv);
-        Ok(out.map(|(iterations, coarse_vertices)| PreviewReport {
-            iterations,
-            coarse_vertices,
-            ms: t0.elapsed().as_secs_f64() * 1e3,
-        }))
+        Ok(
+            out.map(|(iterations, converged, coarse_vertices)| PreviewReport {
+                iterations,
+                converged,
+                coarse_vertices,
+                ms: t0.elapsed().as_secs_f64() * 1e3,
+            }),
+        )
     }
 
     /// [`Deformer::preview`] with its state `pv`: (coarse iterations,
-    /// coarse vertices), or `None` without a coarse problem.
+    /// converged, coarse vertices), or `None` without a coarse problem.
     fn preview_with(
         &self,
         pv: &mut Preview,
         constraints: &Constraints,
         max_iters: usize,
-    ) -> Option<(usize, usize)> {
+    ) -> Option<(usize, bool, usize)> {
         let p = pv.problem.as_deref_mut()?;
         let cc = p.level.restrict(constraints)?;
         if !pv.following {
@@ -218,7 +241,7 @@ impl Deformer {
             }
         }
         pv.pending = true;
-        Some((report.iterations, p.level.num_vertices()))
+        Some((report.iterations, report.converged, p.level.num_vertices()))
     }
 
     /// The pose a frame shows: the last preview's when it is newer than
