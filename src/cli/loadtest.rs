@@ -86,6 +86,9 @@ pub struct LoadtestArgs {
     /// negative value never).
     #[arg(long, default_value_t = 20.0, allow_negative_numbers = true)]
     preview_above_ms: f64,
+    /// The clients declare this frame rate cap (`max_fps`). Default: none.
+    #[arg(long)]
+    max_fps: Option<u32>,
     /// Side of the generated grid mesh (vertices per side) when no `--mesh`.
     #[arg(long, default_value_t = 100)]
     grid: usize,
@@ -274,6 +277,7 @@ async fn run_mode(
         tokio::spawn(async move { extra_sessions(client, mesh_id, n, progress, at).await })
     });
     let mut tasks = vec![];
+    let max_fps = args.max_fps;
     for _ in 0..args.sessions {
         let (client, mesh_id, spec, params, progress) = (
             client.clone(),
@@ -284,7 +288,9 @@ async fn run_mode(
         );
         tasks.push(tokio::spawn(async move {
             let run = (client, mesh_id, params, spec);
-            one_session(run, mode.options(), path, pace, &progress).await
+            let mut opts = mode.options();
+            opts.max_fps = max_fps;
+            one_session(run, opts, path, pace, &progress).await
         }));
     }
     let mut sum = Summary::default();

@@ -245,11 +245,15 @@ async fn bad_stream_options_are_refused_before_the_upgrade() -> R {
     for opts in [
         StreamOptions {
             window: Some(0),
-            encoding: None,
+            ..StreamOptions::default()
         },
         StreamOptions {
             window: Some(1000),
-            encoding: None,
+            ..StreamOptions::default()
+        },
+        StreamOptions {
+            max_fps: Some(0),
+            ..StreamOptions::default()
         },
     ] {
         let e = s.connect_with(opts).await.err().ok_or("connected")?;
@@ -323,5 +327,76 @@ async fn delta_frames_are_within_the_grid_and_cost_what_moved() -> R {
     assert!(again
         .iter()
         .any(|(f, _)| f.encoding == FrameEncoding::Delta));
+    Ok(())
+}
+
+/// A client that declares `max_fps` gets no more frames than that rate
+/// allows over the time it is connected, still gets the settled frame,
+/// and gets fewer frames than a client without the cap on the same drags.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_declared_frame_rate_caps_the_frames_and_the_settled_one_still_comes() -> R {
+    let (_c, s) = ready_session(30, serde_json::json!({"tol": 1e-6})).await?;
+    let max_fps = 20;
+    let mut capped = s
+        .connect_with(StreamOptions::flow(1, FrameEncoding::Delta).at_most_fps(max_fps))
+        .await?;
+    let mut free = s
+        .connect_with(StreamOptions::flow(1, FrameEncoding::Delta))
+        .await?;
+    let start = Instant::now();
+    let drags = 40u64;
+    // (frames, whether the settled frame of the last drag came)
+    let mut seen = [(0usize, false); 2];
+    /// Reads what `c` gets until `until`, or until the settled frame of
+    /// drag `last`.
+    async fn read(
+        c: &mut dend_client::WsClient,
+        until: Instant,
+        last: u64,
+        seen: &mut (usize, bool),
+    ) -> R {
+        while !seen.1 {
+            let Ok(msg) = tokio::time::timeout_at(until.into(), c.next_full()).await else {
+                return Ok(());
+            };
+            match msg? {
+                WsFull::Frame(f) => {
+                    seen.0 += 1;
+                    seen.1 = f.header.ack_seq >= last && f.header.settled;
+                }
+                WsFull::Event(e @ ServerMsg::Error { .. }) => return Err(format!("{e:?}").into()),
+                WsFull::Event(_) => {}
+                WsFull::Closed(c) => return Err(format!("closed {c:?}").into()),
+            }
+        }
+        Ok(())
+    }
+    for seq in 1..=drags {
+        capped.drag(0, [0.01, 0.02, 0.0], None, seq).await?;
+        let until = Instant::now() + Duration::from_millis(10);
+        read(&mut capped, until, drags, &mut seen[0]).await?;
+        read(&mut free, until, drags, &mut seen[1]).await?;
+    }
+    // then each reads until the settled frame answering the last drag
+    let mut counts = vec![];
+    for (c, seen) in [&mut capped, &mut free].into_iter().zip(&mut seen) {
+        read(c, Instant::now() + Duration::from_secs(60), drags, seen).await?;
+        assert!(seen.1, "no settled frame for the last drag");
+        counts.push((seen.0, start.elapsed().as_secs_f64()));
+    }
+    let ((capped_frames, capped_secs), (free_frames, _)) = (counts[0], counts[1]);
+    eprintln!(
+        "max_fps {max_fps}: {capped_frames} frames in {capped_secs:.2} s; without a cap {free_frames}"
+    );
+    // the state frame at connection plus one per interval at most
+    let allowed = 2 + (capped_secs * f64::from(max_fps)).ceil() as usize;
+    assert!(
+        capped_frames <= allowed,
+        "{capped_frames} frames in {capped_secs:.2} s at max_fps {max_fps}"
+    );
+    assert!(
+        capped_frames < free_frames,
+        "the cap did not reduce the frames: {capped_frames} against {free_frames}"
+    );
     Ok(())
 }

@@ -240,10 +240,18 @@ pub struct StreamOptions {
     /// frames in that encoding.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub encoding: Option<FrameEncoding>,
+    /// At most this many frames per second (1 to [`MAX_FPS`]): a frame
+    /// produced sooner than `1/max_fps` after the last one sent waits (the
+    /// latest one is sent when the interval ends). `None`: no cap.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub max_fps: Option<u32>,
 }
 
 /// The largest flow-control window a client may declare.
 pub const MAX_WINDOW: u32 = 64;
+
+/// The largest frame rate a client may declare.
+pub const MAX_FPS: u32 = 1000;
 
 impl StreamOptions {
     /// Flow control with `window` frames in flight and version 3 frames
@@ -252,6 +260,15 @@ impl StreamOptions {
         StreamOptions {
             window: Some(window),
             encoding: Some(encoding),
+            max_fps: None,
+        }
+    }
+
+    /// These options with frames capped at `max_fps` per second.
+    pub fn at_most_fps(self, max_fps: u32) -> Self {
+        StreamOptions {
+            max_fps: Some(max_fps),
+            ..self
         }
     }
 
@@ -265,14 +282,20 @@ impl StreamOptions {
         if let Some(e) = self.encoding {
             parts.push(format!("encoding={}", e.name()));
         }
+        if let Some(f) = self.max_fps {
+            parts.push(format!("max_fps={f}"));
+        }
         parts.join("&")
     }
 
     /// Checks the window's range; the message says what is wrong.
     pub fn validate(&self) -> Result<(), String> {
-        match self.window {
-            Some(w) if !(1..=MAX_WINDOW).contains(&w) => Err(format!(
+        match (self.window, self.max_fps) {
+            (Some(w), _) if !(1..=MAX_WINDOW).contains(&w) => Err(format!(
                 "`window` must be between 1 and {MAX_WINDOW}, got {w}"
+            )),
+            (_, Some(f)) if !(1..=MAX_FPS).contains(&f) => Err(format!(
+                "`max_fps` must be between 1 and {MAX_FPS}, got {f}"
             )),
             _ => Ok(()),
         }

@@ -231,7 +231,21 @@ where
         tokens: rate,
         at: Instant::now(),
     };
+    // a frame seen while the frame rate cap held it back
+    let mut held = false;
     loop {
+        if held && flow.open(Instant::now()) {
+            held = false;
+            let frame = frames.borrow_and_update().clone();
+            if let Some(f) = frame {
+                send_frame(sink, &mut flow, &f).await?;
+            }
+        }
+        // when the frame rate cap lets a waiting frame go
+        let waiting = held || frames.has_changed().unwrap_or(false);
+        let rate_wait = flow
+            .rate_wait(Instant::now())
+            .filter(|_| flow.window_open() && waiting);
         tokio::select! {
             msg = stream.next() => {
                 let text = match msg {
@@ -247,7 +261,8 @@ where
                 if let Ok(ClientMsg::Ack { revision }) = parsed {
                     // not rate limited: a client acks at most the frames it got
                     flow.ack(revision);
-                    if flow.open() && frames.has_changed().unwrap_or(false) {
+                    if flow.open(Instant::now()) && (held || frames.has_changed().unwrap_or(false)) {
+                        held = false;
                         let latest = frames.borrow_and_update().clone();
                         if let Some(f) = latest {
                             send_frame(sink, &mut flow, &f).await?;
@@ -280,14 +295,31 @@ where
             }
             // while the window is full the latest frame waits in the
             // channel (later ones replace it) until an ack opens it
-            changed = frames.changed(), if flow.open() => {
+            changed = frames.changed(), if flow.window_open() && !held => {
                 if changed.is_err() {
                     send(sink, session_end(s)).await?;
                     return Ok(());
                 }
-                let frame = frames.borrow_and_update().clone();
-                if let Some(f) = frame {
-                    send_frame(sink, &mut flow, &f).await?;
+                if flow.open(Instant::now()) {
+                    let frame = frames.borrow_and_update().clone();
+                    if let Some(f) = frame {
+                        send_frame(sink, &mut flow, &f).await?;
+                    }
+                } else {
+                    // the rate cap: sent when its interval ends (the
+                    // latest frame by then)
+                    held = true;
+                }
+            }
+            // a frame held back by the frame rate cap goes out when its
+            // interval ends (the latest one, if the window is open)
+            () = sleep_until_or_never(rate_wait), if rate_wait.is_some() => {
+                if flow.open(Instant::now()) && (held || frames.has_changed().unwrap_or(false)) {
+                    held = false;
+                    let frame = frames.borrow_and_update().clone();
+                    if let Some(f) = frame {
+                        send_frame(sink, &mut flow, &f).await?;
+                    }
                 }
             }
             ev = events.recv() => {
@@ -412,6 +444,8 @@ pub struct WsQuery {
     pub window: Option<u32>,
     /// Frame encoding ([`StreamOptions::encoding`]).
     pub encoding: Option<FrameEncoding>,
+    /// Frame rate cap ([`StreamOptions::max_fps`]).
+    pub max_fps: Option<u32>,
 }
 
 /// `GET /v1/sessions/{id}/ws`: upgrades after checking the token when one
@@ -427,6 +461,7 @@ pub async fn upgrade(
     let stream = StreamOptions {
         window: q.window,
         encoding: q.encoding,
+        max_fps: q.max_fps,
     };
     stream.validate().map_err(ApiError::InvalidParams)?;
     let token = q.token.or_else(|| bearer(&headers).map(str::to_owned));
@@ -496,3 +531,11 @@ fn from_axum(m: Result<Message, axum::Error>) -> Option<Result<WsMsg, axum::Erro
 #[cfg(test)]
 #[path = "ws_tests.rs"]
 mod tests;
+
+/// Sleeps until `at` (never when `None`; the branch is disabled then).
+async fn sleep_until_or_never(at: Option<Instant>) {
+    match at {
+        Some(at) => tokio::time::sleep_until(at).await,
+        None => std::future::pending().await,
+    }
+}

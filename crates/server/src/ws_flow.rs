@@ -11,6 +11,9 @@
 //! window and the frame the client gets next is the latest one.
 
 use std::collections::VecDeque;
+use std::time::Duration;
+
+use tokio::time::Instant;
 
 use bytes::Bytes;
 use dend_protocol::{decode_frame, reencode_v2, DeltaEncoder, FrameEncoding, StreamOptions};
@@ -29,6 +32,10 @@ pub(super) struct Flow {
     /// In `delta`: the grid indices of the last frame sent, which the
     /// next frame's changes apply to.
     delta: DeltaEncoder,
+    /// The shortest time between two frames (`max_fps`), and when the
+    /// last one was sent.
+    interval: Option<Duration>,
+    last_sent: Option<Instant>,
 }
 
 impl Flow {
@@ -39,12 +46,28 @@ impl Flow {
             in_flight: VecDeque::new(),
             encoding: opts.encoding,
             delta: DeltaEncoder::new(),
+            interval: opts
+                .max_fps
+                .map(|f| Duration::from_secs_f64(1.0 / f64::from(f.max(1)))),
+            last_sent: None,
         }
     }
 
-    /// Whether a frame may be sent now.
-    pub(super) fn open(&self) -> bool {
+    /// Whether the window lets a frame go.
+    pub(super) fn window_open(&self) -> bool {
         self.window.is_none_or(|w| self.in_flight.len() < w)
+    }
+
+    /// When the frame rate cap lets the next frame go, if that is after
+    /// `now`.
+    pub(super) fn rate_wait(&self, now: Instant) -> Option<Instant> {
+        let next = self.last_sent? + self.interval?;
+        (next > now).then_some(next)
+    }
+
+    /// Whether a frame may be sent at `now`.
+    pub(super) fn open(&self, now: Instant) -> bool {
+        self.window_open() && self.rate_wait(now).is_none()
     }
 
     /// The client took every frame up to `revision`.
@@ -87,6 +110,7 @@ impl Flow {
         if self.window.is_some() {
             self.in_flight.push_back(f.header.revision);
         }
+        self.last_sent = Some(Instant::now());
         Some(bytes)
     }
 }
