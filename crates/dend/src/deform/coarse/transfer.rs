@@ -1,5 +1,5 @@
 //! Transfers between the levels for the coarse corrections (full
-//! approximation scheme in rotation space, `solver/coarse.rs`): fine forces
+//! approximation scheme in rotation space, `solver/multilevel.rs`): fine forces
 //! restricted to the coarse vertices, coarse rotation vectors prolongated
 //! to the fine ones.
 //!

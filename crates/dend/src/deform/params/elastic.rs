@@ -6,7 +6,7 @@ use serde::{Deserialize, Serialize};
 use crate::deform::DeformError;
 
 /// When the elastic iteration's coarse corrections stop within one
-/// sequence (`solver/coarse.rs`; every [`ElasticParams::correction_period`] fine
+/// sequence (`solver/multilevel.rs`; every [`ElasticParams::correction_period`] fine
 /// iterations while they go).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default, Hash)]
 #[serde(rename_all = "kebab-case")]

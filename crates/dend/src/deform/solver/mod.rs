@@ -9,16 +9,16 @@ use super::rest::Rest;
 use super::DeformError;
 use crate::mesh::{Point, Real};
 
-mod coarse;
-mod elastic;
 mod least_squares;
+mod local_global;
+mod multilevel;
 mod preview;
 mod propagate;
 
 #[cfg(test)]
 mod open_tests;
 
-pub use coarse::{Levels, COARSE_MAX_ITERS, CORRECTION_MAX_ITERS};
+pub use multilevel::{Levels, COARSE_MAX_ITERS, CORRECTION_MAX_ITERS};
 pub use preview::{
     PreviewReport, PREVIEW_ITERATIONS, PREVIEW_MIN_VERTICES, PREVIEW_PASSES, PREVIEW_VERTICES,
 };
@@ -45,7 +45,7 @@ pub struct StepReport {
     pub initial_objective: Real,
     /// Coarse iterations this step ran (elastic sequences with
     /// [`Levels::Two`]: the coarse start of a sequence from the rest pose
-    /// and the coarse corrections, `solver/coarse.rs`; each costs about
+    /// and the coarse corrections, `solver/multilevel.rs`; each costs about
     /// `#Vc / #V` of a fine iteration), not counted in `iterations`.
     pub coarse_iterations: usize,
     /// Wall time of that coarse work (level and coarse factor when first
@@ -65,12 +65,12 @@ pub struct Deformer {
     pose: Vec<Point>,
     scratch: Scratch,
     /// The elastic formulation's state (rotations, projections, Anderson).
-    elastic: elastic::State,
+    elastic: local_global::State,
     /// Whether sequences from rest start on the coarse level.
     levels: Levels,
     /// The coarse problem of the last fine factor a coarse start or
     /// correction used.
-    coarse: Option<coarse::CoarseSlot>,
+    coarse: Option<multilevel::CoarseSlot>,
     /// Whether coarse corrections wait (a gesture is under way; see
     /// [`Deformer::hold_corrections`]).
     corrections_held: bool,
@@ -89,7 +89,7 @@ impl Deformer {
             y,
             pose,
             scratch: Scratch::default(),
-            elastic: elastic::State::default(),
+            elastic: local_global::State::default(),
             levels: Levels::default(),
             coarse: None,
             corrections_held: false,
@@ -172,7 +172,7 @@ impl Deformer {
     /// Runs up to `max_iters` iterations towards the handle targets of
     /// `constraints`, warm-started from the current pose (design.md §9), with
     /// the formulation `factor` was built for: the elastic one
-    /// (`elastic.rs`: exact local and global steps, the objective never
+    /// (`local_global.rs`: exact local and global steps, the objective never
     /// grows) or the paper's (`least_squares.rs`: STEP 2 and one solve per
     /// iteration, safeguarded).
     ///

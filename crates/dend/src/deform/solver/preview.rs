@@ -6,7 +6,7 @@
 //! it).
 //!
 //! The coarse problem is the restricted one of the coarse corrections
-//! (`solver/coarse.rs`): the same energy and constraints on the coarse
+//! (`solver/multilevel.rs`): the same energy and constraints on the coarse
 //! mesh, warm-started across the drags of a gesture. Its pose reaches the
 //! fine vertices as a linear blend of the coarse vertices' rigid motions
 //! (Magnenat-Thalmann et al. 1988's skinning, with the coarse vertices as
@@ -28,7 +28,7 @@ use std::time::Instant;
 use nalgebra::{Matrix3, Vector3};
 use rayon::prelude::*;
 
-use super::coarse::{coarse_params, coarse_problem, CoarseProblem};
+use super::multilevel::{coarse_params, coarse_problem, CoarseProblem};
 use super::Deformer;
 use crate::deform::constraints::Constraints;
 use crate::deform::elastic::{ElasticOps, ElasticSet};
@@ -263,7 +263,7 @@ impl Deformer {
     /// prolongated as a coarse start's are (`CoarseLevel::prolongate_rotations`),
     /// with their area targets; the fine pose keeps its free vertices, and
     /// the first global step brings them to those rotations (the cascadic
-    /// start of `solver/coarse.rs`, from the gesture's last preview).
+    /// start of `solver/multilevel.rs`, from the gesture's last preview).
     /// Returns whether there was a preview to adopt; the next preview
     /// injects the fine state again.
     pub(super) fn adopt_preview(&mut self, el: &ElasticOps, set: &ElasticSet) -> bool {

@@ -21,7 +21,7 @@
 //! targets or the pose change.
 //!
 //! A sequence from the rest pose starts from the rotations of the same
-//! problem solved on a coarse mesh (`solver/coarse.rs`, `deform::coarse`)
+//! problem solved on a coarse mesh (`solver/multilevel.rs`, `deform::coarse`)
 //! where the mesh has one and the constraint set survives on it, else from
 //! the handles' rotations spread by harmonic weights.
 //!
@@ -31,7 +31,7 @@ use faer::dyn_stack::{MemBuffer, MemStack};
 use faer::MatMut;
 use nalgebra::{Matrix3, UnitQuaternion, Vector3};
 
-use super::coarse::{CoarseRun, Correction, Levels};
+use super::multilevel::{CoarseRun, Correction, Levels};
 use super::{Deformer, StepReport};
 use crate::deform::anderson::Anderson;
 use crate::deform::constraints::Constraints;
@@ -80,7 +80,7 @@ pub(super) struct State {
     /// handle, 0 off the free vertices), for the factor with this id.
     pub(super) harmonic: Option<(u64, Vec<Vec<Real>>)>,
     /// A linear term `−2⟨s, Y⟩` added to the objective (`#V`, empty for
-    /// none): the coarse problem of a correction (`solver/coarse.rs`).
+    /// none): the coarse problem of a correction (`solver/multilevel.rs`).
     pub(super) linear: Vec<Point>,
     /// Whether this sequence still tries coarse corrections, the fine
     /// iterations since the last one, and the energy after it.
@@ -365,7 +365,7 @@ impl Deformer {
         }
     }
 
-    /// A coarse correction (`solver/coarse.rs`) of the pose with energy
+    /// A coarse correction (`solver/multilevel.rs`) of the pose with energy
     /// `e`; returns the energy after it. Corrections stop for the sequence
     /// once one gains less than the fine iterations since the last one
     /// (`ElasticParams::corrections`: or once one gains nothing).
