@@ -294,27 +294,6 @@ impl Deformer {
             pv.following = false;
         }
     }
-
-    /// The preview level's coarse problem, built now (its level, the
-    /// restricted set and its coarse factor) so that the first preview of
-    /// `constraints`' set does not pay for it; false when there is none.
-    pub fn prepare_preview(
-        &mut self,
-        factor: &Factor,
-        constraints: &Constraints,
-    ) -> Result<bool, DeformError> {
-        // zero iterations: builds the problem, changes no pose
-        let had = self.preview.as_ref().map(|p| (p.pending, p.following));
-        let out = self.preview(factor, constraints, 0)?;
-        if let (Some(pv), Some((pending, following))) = (self.preview.as_deref_mut(), had) {
-            pv.pending = pending;
-            pv.following = following;
-        } else if let Some(pv) = self.preview.as_deref_mut() {
-            pv.pending = false;
-            pv.following = false;
-        }
-        Ok(out.is_some())
-    }
 }
 
 /// The linear blend of the coarse vertices' rigid motions (module docs):
