@@ -61,7 +61,8 @@ impl Actor {
         let threshold = self.opts.preview_above_ms;
         let preview = hold
             && threshold >= 0.0
-            && (threshold == 0.0 || self.fine_iter_ms > threshold)
+            // (unknown before the first fine solve: previewed)
+            && (self.fine_iter_ms.is_nan() || self.fine_iter_ms > threshold)
             && self.deformer.as_ref().is_some_and(|d| d.can_preview());
         self.wake_at = None;
         if preview && !self.dirty && self.preview_converged {
