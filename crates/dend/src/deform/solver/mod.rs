@@ -203,12 +203,7 @@ impl Deformer {
         factor: &Factor,
         constraints: &Constraints,
     ) -> Result<bool, DeformError> {
-        let constrained = constraints.constrained();
-        if factor.sys.constrained != constrained
-            || factor.key() != &super::FactorKey::new(&self.rest, &self.params, constraints)
-        {
-            return Err(DeformError::FactorMismatch);
-        }
+        self.check_factor(factor, constraints)?;
         let ops = &self.rest.ops;
         let s = &mut self.scratch;
         s.targets.clear();
@@ -243,6 +238,17 @@ impl Deformer {
             }
         }
         Ok(moved)
+    }
+
+    /// Checks that `factor` was built for `constraints`' constrained set,
+    /// this rest mesh and these parameters.
+    fn check_factor(&self, factor: &Factor, constraints: &Constraints) -> Result<(), DeformError> {
+        if factor.sys.constrained != constraints.constrained()
+            || factor.key() != &super::FactorKey::new(&self.rest, &self.params, constraints)
+        {
+            return Err(DeformError::FactorMismatch);
+        }
+        Ok(())
     }
 
     /// The mesh-unit pose from `Y`. Hard-constrained vertices get their

@@ -33,8 +33,8 @@ use super::Deformer;
 use crate::deform::constraints::Constraints;
 use crate::deform::elastic::{ElasticOps, ElasticSet};
 use crate::deform::factor::Factor;
-use crate::deform::params::{DetailTerm, Formulation};
-use crate::deform::{DeformError, FactorKey};
+use crate::deform::params::{DetailTerm, Params};
+use crate::deform::DeformError;
 use crate::mesh::{Point, Real};
 
 /// The vertex count a preview level aims at: its iteration costs about
@@ -88,10 +88,14 @@ pub(super) struct Preview {
 /// An affine motion `x ↦ M x + t` (a blend of rigid ones).
 type Motion = (Matrix3<Real>, Vector3<Real>);
 
-/// The ratio of the preview level of a mesh of `n` vertices (at least the
-/// corrections' ratio).
-fn preview_ratio(n: usize, coarse_ratio: usize) -> usize {
-    coarse_ratio.max(n / PREVIEW_VERTICES)
+/// The ratio of the preview level of a mesh of `n` vertices solved with
+/// `params` (at least the corrections' ratio), `None` without previews
+/// (the paper formulations, the linear detail term, a mesh under
+/// [`PREVIEW_MIN_VERTICES`]).
+fn preview_ratio(n: usize, params: &Params) -> Option<usize> {
+    let e = params.elastic()?;
+    (params.detail == DetailTerm::Nonlinear && n >= PREVIEW_MIN_VERTICES)
+        .then(|| e.coarse_ratio.max(n / PREVIEW_VERTICES))
 }
 
 impl crate::deform::Rest {
@@ -100,14 +104,9 @@ impl crate::deform::Rest {
     /// preview does not pay for the simplification); `false` when they
     /// have none (a mesh under [`PREVIEW_MIN_VERTICES`], the paper
     /// formulations).
-    pub fn prepare_preview_level(&self, params: &crate::deform::Params) -> bool {
-        let n = self.mesh.num_vertices();
-        match params.elastic() {
-            Some(e) if n >= PREVIEW_MIN_VERTICES && params.detail == DetailTerm::Nonlinear => self
-                .coarse_at_most(preview_ratio(n, e.coarse_ratio))
-                .is_some(),
-            _ => false,
-        }
+    pub fn prepare_preview_level(&self, params: &Params) -> bool {
+        preview_ratio(self.mesh.num_vertices(), params)
+            .is_some_and(|ratio| self.coarse_at_most(ratio).is_some())
     }
 }
 
@@ -118,9 +117,7 @@ impl Deformer {
     /// survive on the preview level still has none ([`Deformer::preview`]
     /// returns `None`).
     pub fn can_preview(&self) -> bool {
-        self.params.formulation.kind() == Formulation::Elastic
-            && self.params.detail == DetailTerm::Nonlinear
-            && self.rest.mesh.num_vertices() >= PREVIEW_MIN_VERTICES
+        preview_ratio(self.rest.mesh.num_vertices(), &self.params).is_some()
     }
 
     /// Runs up to `max_iters` iterations of the coarse preview problem
@@ -138,20 +135,13 @@ impl Deformer {
         constraints: &Constraints,
         max_iters: usize,
     ) -> Result<Option<PreviewReport>, DeformError> {
-        if factor.sys.constrained != constraints.constrained()
-            || factor.key() != &FactorKey::new(&self.rest, &self.params, constraints)
-        {
-            return Err(DeformError::FactorMismatch);
-        }
-        let Some(elastic) = self.params.elastic().copied() else {
+        self.check_factor(factor, constraints)?;
+        let n = self.rest.mesh.num_vertices();
+        let Some(ratio) = preview_ratio(n, &self.params) else {
             return Ok(None);
         };
-        if !self.can_preview() {
-            return Ok(None);
-        }
         let t0 = Instant::now();
-        let n = self.rest.mesh.num_vertices();
-        let key = (factor.id(), preview_ratio(n, elastic.coarse_ratio));
+        let key = (factor.id(), ratio);
         let mut pv = match self.preview.take() {
             Some(p) if p.key == key => p,
             _ => Box::new(Preview {
