@@ -234,15 +234,17 @@ where
     // a frame seen while the frame rate cap held it back
     let mut held = false;
     loop {
-        if held && flow.open(Instant::now()) {
+        // the latest frame goes out once the window and the rate cap let
+        // it (after an ack, a new frame, or the end of the rate interval)
+        let waiting = held || frames.has_changed().unwrap_or(false);
+        if waiting && flow.open(Instant::now()) {
             held = false;
             let frame = frames.borrow_and_update().clone();
             if let Some(f) = frame {
                 send_frame(sink, &mut flow, &f).await?;
             }
+            continue;
         }
-        // when the frame rate cap lets a waiting frame go
-        let waiting = held || frames.has_changed().unwrap_or(false);
         let rate_wait = flow
             .rate_wait(Instant::now())
             .filter(|_| flow.window_open() && waiting);
@@ -261,13 +263,6 @@ where
                 if let Ok(ClientMsg::Ack { revision }) = parsed {
                     // not rate limited: a client acks at most the frames it got
                     flow.ack(revision);
-                    if flow.open(Instant::now()) && (held || frames.has_changed().unwrap_or(false)) {
-                        held = false;
-                        let latest = frames.borrow_and_update().clone();
-                        if let Some(f) = latest {
-                            send_frame(sink, &mut flow, &f).await?;
-                        }
-                    }
                     continue;
                 }
                 if !bucket.take() {
@@ -300,28 +295,12 @@ where
                     send(sink, session_end(s)).await?;
                     return Ok(());
                 }
-                if flow.open(Instant::now()) {
-                    let frame = frames.borrow_and_update().clone();
-                    if let Some(f) = frame {
-                        send_frame(sink, &mut flow, &f).await?;
-                    }
-                } else {
-                    // the rate cap: sent when its interval ends (the
-                    // latest frame by then)
-                    held = true;
-                }
+                // sent at the top of the loop, now or when the rate cap
+                // lets it (the latest frame by then)
+                held = true;
             }
-            // a frame held back by the frame rate cap goes out when its
-            // interval ends (the latest one, if the window is open)
-            () = sleep_until_or_never(rate_wait), if rate_wait.is_some() => {
-                if flow.open(Instant::now()) && (held || frames.has_changed().unwrap_or(false)) {
-                    held = false;
-                    let frame = frames.borrow_and_update().clone();
-                    if let Some(f) = frame {
-                        send_frame(sink, &mut flow, &f).await?;
-                    }
-                }
-            }
+            // a frame held back by the rate cap: the end of its interval
+            () = crate::session::sleep_until_or_never(rate_wait), if rate_wait.is_some() => {}
             ev = events.recv() => {
                 let msg = match ev {
                     Ok(Event::Closed) | Err(RecvError::Closed) => {
@@ -531,11 +510,3 @@ fn from_axum(m: Result<Message, axum::Error>) -> Option<Result<WsMsg, axum::Erro
 #[cfg(test)]
 #[path = "ws_tests.rs"]
 mod tests;
-
-/// Sleeps until `at` (never when `None`; the branch is disabled then).
-async fn sleep_until_or_never(at: Option<Instant>) {
-    match at {
-        Some(at) => tokio::time::sleep_until(at).await,
-        None => std::future::pending().await,
-    }
-}

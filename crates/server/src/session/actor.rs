@@ -213,7 +213,8 @@ impl Actor {
                 () = tokio::time::sleep_until(deadline), if !self.queued.is_empty() => {
                     self.expire_queued();
                 }
-                () = sleep_until_opt(self.wake_at), if self.wake_at.is_some() => {
+                () = super::sleep_until_or_never(self.wake_at.map(tokio::time::Instant::from_std)),
+                    if self.wake_at.is_some() => {
                     // the loop's `maybe_start_solve` starts the full mesh's solve
                     self.wake_at = None;
                 }
@@ -552,11 +553,3 @@ mod queue;
 mod named_poses;
 #[path = "actor_solve.rs"]
 mod solve;
-
-/// Sleeps until `at` (forever when `None`; the branch is disabled then).
-async fn sleep_until_opt(at: Option<std::time::Instant>) {
-    match at {
-        Some(at) => tokio::time::sleep_until(tokio::time::Instant::from_std(at)).await,
-        None => std::future::pending().await,
-    }
-}

@@ -40,6 +40,15 @@ pub use dend::deform::BuildStage;
 /// corrections start once the drags pause.
 pub const CORRECTION_QUIET: std::time::Duration = std::time::Duration::from_millis(100);
 
+/// Sleeps until `at`; never when `None` (for a `select!` branch that is
+/// disabled then: the session's wake-up, a connection's rate interval).
+pub(crate) async fn sleep_until_or_never(at: Option<tokio::time::Instant>) {
+    match at {
+        Some(at) => tokio::time::sleep_until(at).await,
+        None => std::future::pending().await,
+    }
+}
+
 /// A factor build's stage as the wire names it.
 pub fn wire_stage(s: BuildStage) -> dend_protocol::BuildStage {
     match s {
