@@ -54,17 +54,34 @@ For the generated bars and cylinders and the survey bar, a second table shows
 the *even pose* (`even_pose`): the twist spread evenly along the bar, or the
 free span laid on a circular arc, every cross-section kept and every
 constrained vertex exactly on its target. Its edge distortion against ARAP's
-is what the area, twist and bend rules cost by themselves: where it is above
-1.5 x ARAP's (bar-300 2.10, survey-bar 2.03, cylinder-120 1.78, cylinder-180
-2.62) the distortion rule and the shape rules pull against each other.
+is what the area, twist and bend rules cost by themselves (bar-300 2.10,
+survey-bar 2.03, cylinder-120 1.72, cylinder-180 2.54 x ARAP's mean): why
+the shape edits are not judged by distortion.
 
-PASS rules (our pose): mean distortion <= 1.5 x ARAP's, max distortion <= 2 x
-ARAP's; time to settle at least 5 x shorter than ARAP's (measured in the same
-run, or ARAP's from --arap-cache); every step converged within 30 iterations;
-the objectives monotone
-(objectives[k+1] <= objectives[k] * (1 + 1e-9), checked within each step);
-not diverged; bar-135 and survey-bar: min area >= 0.92 and twist dev <= 3
-degrees; bar-300: min area >= 0.8; cylinder-120: bend CV <= 0.15. A case
+PASS rules (issue #33, the owner's ruling on #18), on our pose against
+libigl ARAP's run to convergence on the same edit in the same run:
+- every edit: time to settle at least 5 x shorter than ARAP's on meshes of
+  5,000 vertices or more, 3 x below that (fixed costs dominate there);
+  every step converged; the objectives monotone
+  (objectives[k+1] <= objectives[k] * (1 + 1e-9), checked within each
+  step); not diverged.
+- character edits (and the survey cactus and bumpy plane, which have no
+  shape measure): mean edge distortion <= 1.5 x ARAP's, max <= 2 x
+  ARAP's, every step within 30 iterations.
+- shape edits (the bars and cylinders, generated and survey): judged by
+  their shape measures, at least as good as ARAP's: min cross-section
+  area >= ARAP's and twist deviation <= ARAP's (bars), bend CV <= ARAP's
+  (cylinders). ARAP keeps its distortion low by collapsing cross-sections
+  (0.31 on the 300 degree bar), so distortion is not judged there.
+- `--preset elastica` (the paper's even bend and twist) adds the paper's
+  figures: cylinder-120 and cylinder-180 bend CV <= 0.1, bar-300 min area
+  >= 0.8 with its direction kept (twist deviation <= 45 degrees: a bar
+  that unwinds to the handle's -60 degree equivalent deviates by over
+  300), bar-135 and survey-bar min area >= 0.92 and twist deviation <= 3
+  degrees.
+The bend edits are arc-consistent: the handle is turned and placed where a
+circular arc of the free length (from the fixed region's last ring to the
+handle's first) puts it, so that an even bend exists (`even_pose`). A case
 that cannot run is an ERROR row. Exit code 0 when every case passes, 1
 otherwise, 2 without a dend binary.
 
@@ -132,19 +149,33 @@ ARAP_MAX_ITERS = 1000
 FREE_MESHES = [("camel", "camel_9770.off"), ("dino", "dino_6013.obj"),
                ("hand", "hand_1502.obj"), ("eth_hand", "eth_hand_14k.off"),
                ("armadillo", "armadillo_43k.obj"), ("feline", "feline_50k.off")]
+# meshes of this many vertices or more must settle 5x sooner than ARAP, below 3x
+SETTLE_LARGE = 5000
+# a shape measure judged against ARAP's: (key, "higher" or "lower" is better)
+SHAPE_MEASURES = {"bar": [("min_area", "higher"), ("twist_dev_deg", "lower")],
+                  "bend": [("bend_cv", "lower")]}
 TWIST_135 = {"min_area": (">=", 0.92), "twist_dev_deg": ("<=", 3.0)}
+# the paper's figures a preset is held to, on top of the rules against ARAP
+PRESET_RULES = {
+    "elastica": {
+        "bar-135": TWIST_135,
+        "bar-300": {"min_area": (">=", 0.8), "twist_dev_deg": ("<=", 45.0)},
+        "survey-bar": TWIST_135,
+        "cylinder-120": {"bend_cv": ("<=", 0.1)},
+        "cylinder-180": {"bend_cv": ("<=", 0.1)},
+    },
+}
 # (name, `dend gen` shape or None for a survey set-up, examples/ file or survey
-#  name, steps, `dend measure` kind, pass rules on our figures, view az/el)
+#  name, steps, `dend measure` kind, view az/el)
 SHAPE_CASES = [
-    ("bar-135", "bar", "bar-twist-135.json", 1, "bar", TWIST_135, (30, 15)),
-    ("bar-300", "bar", "bar-twist-300.json", 5, "bar", {"min_area": (">=", 0.8)}, (30, 15)),
-    ("survey-bar", None, "bar", 1, "bar", TWIST_135, (30, 15)),
-    ("cylinder-120", "cylinder", "cylinder-bend-120.json", 1, "bend",
-     {"bend_cv": ("<=", 0.15)}, (0, 0)),
-    ("cylinder-180", "cylinder", "cylinder-bend-180.json", 3, "bend", {}, (0, 0)),
-    ("survey-cylinder", None, "cylinder", 1, "bend", {}, (0, 0)),
-    ("survey-cactus", None, "cactus", 1, None, {}, (90, 10)),
-    ("survey-bumpy_plane", None, "bumpy_plane", 1, None, {}, (0, 20)),
+    ("bar-135", "bar", "bar-twist-135.json", 1, "bar", (30, 15)),
+    ("bar-300", "bar", "bar-twist-300.json", 5, "bar", (30, 15)),
+    ("survey-bar", None, "bar", 1, "bar", (30, 15)),
+    ("cylinder-120", "cylinder", "cylinder-bend-120.json", 1, "bend", (0, 0)),
+    ("cylinder-180", "cylinder", "cylinder-bend-180.json", 3, "bend", (0, 0)),
+    ("survey-cylinder", None, "cylinder", 1, "bend", (0, 0)),
+    ("survey-cactus", None, "cactus", 1, None, (90, 10)),
+    ("survey-bumpy_plane", None, "bumpy_plane", 1, None, (0, 20)),
 ]
 
 
@@ -205,11 +236,11 @@ def free_mesh_case(name, tmp):
     with open(cons, "w") as fh:
         json.dump(spec, fh)
     return dict(name=name, rest=path, v=v, f=f, fixed=fixed, handle=handle, target=target,
-                steps=1, kind=None, rules={}, view=view, dend_args=["--constraints", cons])
+                steps=1, kind=None, view=view, dend_args=["--constraints", cons])
 
 
 def shape_case(name, tmp, dend):
-    _, shape, src, steps, kind, rules, view = next(c for c in SHAPE_CASES if c[0] == name)
+    _, shape, src, steps, kind, view = next(c for c in SHAPE_CASES if c[0] == name)
     if shape:
         rest = os.path.join(tmp, f"gen_{shape}.off")
         if not os.path.exists(rest):
@@ -226,7 +257,7 @@ def shape_case(name, tmp, dend):
         fixed, handle, target = AREF.from_survey(v, sel, dfile)
         dend_args = ["--sel", sel, "--def", dfile]
     return dict(name=name, rest=rest, v=v, f=f, fixed=fixed, handle=handle, target=target,
-                steps=steps, kind=kind, rules=rules, view=view, dend_args=dend_args,
+                steps=steps, kind=kind, view=view, dend_args=dend_args,
                 label=f"dend gen {shape}" if shape else rest)
 
 
@@ -317,6 +348,8 @@ def run_ours(dend, case, args, tmp):
            "--tol", repr(args.tol), "--report", rep_path]
     if args.formulation:
         cmd += ["--formulation", args.formulation]
+    if args.preset:
+        cmd += ["--preset", args.preset]
     cmd += args.dend_arg
     t0 = time.perf_counter()
     res = subprocess.run(cmd, capture_output=True, text=True, timeout=args.timeout)
@@ -496,7 +529,8 @@ def objective_failures(o):
 
 
 def judge(row):
-    """Fills row["failures"] and row["verdict"] (PASS / FAIL / ERROR)."""
+    """Fills row["failures"] and row["verdict"] (PASS / FAIL / ERROR) by the
+    rules of the module docstring."""
     if row.get("error"):
         row["verdict"] = "ERROR"
         return
@@ -504,18 +538,27 @@ def judge(row):
     o["distortion"]["mean_ratio"] = rm = o["distortion"]["mean"] / a["distortion"]["mean"]
     o["distortion"]["max_ratio"] = rx = o["distortion"]["max"] / a["distortion"]["max"]
     row["settle_ratio"] = a["settle_ms"] / o["settle_ms"] if o["settle_ms"] else float("nan")
-    if not rm <= 1.5:
-        fails.append(f"mean distortion x{rm:.2f} ARAP")
-    if not rx <= 2.0:
-        fails.append(f"max distortion x{rx:.2f} ARAP")
-    if not row["settle_ratio"] >= 5.0:
-        fails.append(f"settle only x{row['settle_ratio']:.1f} faster than ARAP")
+    need = 5.0 if row["vertices"] >= SETTLE_LARGE else 3.0
+    if not row["settle_ratio"] >= need:
+        fails.append(f"settle only x{row['settle_ratio']:.1f} faster than ARAP (need x{need:g})")
+    shape = row.get("kind") in SHAPE_MEASURES
     for k, s in enumerate(o["steps"], 1):
         if not s.get("converged"):
             fails.append(f"step {k}: not converged in {s.get('iterations')} it")
-        elif not (s.get("iterations") or 0) <= MAX_ITERS_PER_STEP:
+        elif not shape and not (s.get("iterations") or 0) <= MAX_ITERS_PER_STEP:
             fails.append(f"step {k}: {s.get('iterations')} it > {MAX_ITERS_PER_STEP}")
     fails += objective_failures(o)
+    if shape:
+        om, am = o["measure"], a["measure"]
+        for key, better in SHAPE_MEASURES[row["kind"]]:
+            x, y = om.get(key, float("nan")), am.get(key, float("nan"))
+            if not (x >= y if better == "higher" else x <= y):
+                fails.append(f"{key} {x:.3g} worse than ARAP's {y:.3g}")
+    else:
+        if not rm <= 1.5:
+            fails.append(f"mean distortion x{rm:.2f} ARAP")
+        if not rx <= 2.0:
+            fails.append(f"max distortion x{rx:.2f} ARAP")
     for key, (op, lim) in row["rules"].items():
         x = o["measure"].get(key, float("nan"))
         if not (x >= lim if op == ">=" else x <= lim):
@@ -608,7 +651,8 @@ def run_case(name, dend, args, tmp):
     except Exception as e:  # noqa: BLE001 -- a bad case is an error row
         row["error"] = f"set-up: {e}"
         return row, None
-    row.update(vertices=len(case["v"]), steps=case["steps"], rules=case["rules"],
+    rules = PRESET_RULES.get(args.preset or "", {}).get(name, {})
+    row.update(vertices=len(case["v"]), steps=case["steps"], rules=rules, kind=case["kind"],
                fixed=len(case["fixed"]), handle=len(case["handle"]),
                rest=case.get("label", case["rest"]))
     if args.skip_large and len(case["v"]) >= LARGE:
@@ -672,6 +716,9 @@ def main():
     ap.add_argument("--only", nargs="+", metavar="NAME", help="case names or patterns")
     ap.add_argument("--skip-large", action="store_true", help=f"skip meshes of {LARGE}+ vertices")
     ap.add_argument("--formulation", help="passed to dend deform (default: dend's default)")
+    ap.add_argument("--preset", choices=["characters", "elastica"],
+                    help="passed to dend deform (default: dend's default, characters); "
+                         "elastica adds the paper's figures to the rules")
     ap.add_argument("--dend-arg", action="append", default=[], metavar="ARG",
                     help="one more argument for every dend deform run (repeat: "
                          "--dend-arg=--lambda2 --dend-arg=0.5)")
@@ -729,12 +776,12 @@ def main():
     reported = {r["ours"]["report"].get("formulation") for r in rows if "ours" in r} - {None}
     formulation = args.formulation or "/".join(sorted(reported)) or "dend's default"
     print(f"\nPASS {passed}/{len(ran)} ({errors} errors, {len(rows) - len(ran)} skipped; "
-          f"formulation {formulation}, tol {args.tol:g}, "
+          f"formulation {formulation}, preset {args.preset or 'default'}, tol {args.tol:g}, "
           f"{time.perf_counter() - t0:.0f} s)")
     if args.json:
         with open(args.json, "w") as fh:
             json.dump(nan_to_none({
-                "dend": dend, "formulation": formulation, "tol": args.tol,
+                "dend": dend, "formulation": formulation, "preset": args.preset, "tol": args.tol,
                 "max_iters": args.max_iters, "arap_max_iters": ARAP_MAX_ITERS,
                 "passed": passed, "total": len(ran), "cases": rows}), fh, indent=1)
     return 0 if passed == len(ran) else 1
