@@ -89,6 +89,10 @@ pub struct LoadtestArgs {
     /// The clients declare this frame rate cap (`max_fps`). Default: none.
     #[arg(long)]
     max_fps: Option<u32>,
+    /// The clients declare this cap on refinement frames (`refine_fps`);
+    /// 0: none. The default is the web editor's.
+    #[arg(long, default_value_t = 30)]
+    refine_fps: u32,
     /// Side of the generated grid mesh (vertices per side) when no `--mesh`.
     #[arg(long, default_value_t = 100)]
     grid: usize,
@@ -278,6 +282,7 @@ async fn run_mode(
     });
     let mut tasks = vec![];
     let max_fps = args.max_fps;
+    let refine_fps = Some(args.refine_fps).filter(|f| *f > 0);
     for _ in 0..args.sessions {
         let (client, mesh_id, spec, params, progress) = (
             client.clone(),
@@ -290,6 +295,8 @@ async fn run_mode(
             let run = (client, mesh_id, params, spec);
             let mut opts = mode.options();
             opts.max_fps = max_fps;
+            // a version 2 client asks for nothing
+            opts.refine_fps = refine_fps.filter(|_| mode != StreamMode::Legacy);
             one_session(run, opts, path, pace, &progress).await
         }));
     }

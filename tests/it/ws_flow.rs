@@ -255,6 +255,10 @@ async fn bad_stream_options_are_refused_before_the_upgrade() -> R {
             max_fps: Some(0),
             ..StreamOptions::default()
         },
+        StreamOptions {
+            refine_fps: Some(1001),
+            ..StreamOptions::default()
+        },
     ] {
         let e = s.connect_with(opts).await.err().ok_or("connected")?;
         assert!(e.to_string().contains("422"), "{e}");
@@ -397,6 +401,78 @@ async fn a_declared_frame_rate_caps_the_frames_and_the_settled_one_still_comes()
     assert!(
         capped_frames < free_frames,
         "the cap did not reduce the frames: {capped_frames} against {free_frames}"
+    );
+    Ok(())
+}
+
+/// A client that declares `refine_fps` gets the frame answering each of
+/// its drags without waiting for the refinement interval, and over the
+/// settle at most one refinement per interval, then the settled frame;
+/// a client without the cap gets every refinement.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn refinements_wait_for_refine_fps_and_drag_answers_do_not() -> R {
+    let (_c, s) = ready_session(30, serde_json::json!({"tol": 1e-9})).await?;
+    // an answer held back like a refinement would make the drags below
+    // take a tenth of a second each
+    let refine_fps = 10;
+    let interval = 1.0 / f64::from(refine_fps);
+    let mut capped = s
+        .connect_with(StreamOptions::flow(1, FrameEncoding::Delta).refining_at_most(refine_fps))
+        .await?;
+    // no flow control: every frame the session makes waits in its socket
+    let mut free = s.connect_with(StreamOptions::default()).await?;
+    let drags = 40u64;
+    /// Reads `c` until a frame includes drag `seq` (and is settled, if
+    /// asked); the number of frames before it that include it and are
+    /// not settled.
+    async fn until(
+        c: &mut dend_client::WsClient,
+        seq: u64,
+        settled: bool,
+    ) -> Result<usize, Box<dyn std::error::Error>> {
+        let mut refinements = 0;
+        loop {
+            let msg = tokio::time::timeout(Duration::from_secs(120), c.next_full()).await??;
+            match msg {
+                WsFull::Frame(f) if f.header.ack_seq >= seq => {
+                    if f.header.settled || !settled {
+                        return Ok(refinements);
+                    }
+                    refinements += 1;
+                }
+                WsFull::Frame(_) => {}
+                WsFull::Event(e @ ServerMsg::Error { .. }) => return Err(format!("{e:?}").into()),
+                WsFull::Event(_) => {}
+                WsFull::Closed(c) => return Err(format!("closed {c:?}").into()),
+            }
+        }
+    }
+    let start = Instant::now();
+    for seq in 1..=drags {
+        capped.drag(0, [0.0, 0.03, 0.01], None, seq).await?;
+        until(&mut capped, seq, false).await?;
+    }
+    let drag_secs = start.elapsed().as_secs_f64();
+    let settle_start = Instant::now();
+    let capped_refinements = until(&mut capped, drags, true).await?;
+    let settle_secs = settle_start.elapsed().as_secs_f64();
+    let free_refinements = until(&mut free, drags, true).await?;
+    eprintln!(
+        "refine_fps {refine_fps}: {drags} drags in {drag_secs:.2} s; settle {settle_secs:.2} s \
+         with {capped_refinements} refinement frames (without the cap: {free_refinements})"
+    );
+    assert!(
+        drag_secs < drags as f64 * interval / 2.0,
+        "{drags} drags, each answered at once, took {drag_secs:.2} s at refine_fps {refine_fps}"
+    );
+    let allowed = 1 + (settle_secs / interval).ceil() as usize;
+    assert!(
+        capped_refinements <= allowed,
+        "{capped_refinements} refinements in {settle_secs:.2} s at refine_fps {refine_fps}"
+    );
+    assert!(
+        free_refinements > capped_refinements,
+        "the cap did not hold refinements back: {capped_refinements}, without it {free_refinements}"
     );
     Ok(())
 }

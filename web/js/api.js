@@ -27,8 +27,10 @@ async function checked(res) {
 /** How the editor's socket streams frames (api/ws-protocol.md, "Stream
  * options"): one frame in flight, acknowledged once drawn, in the `delta`
  * encoding (grid-index changes since the previous frame, deflated: what
- * did not move costs nothing). */
-export const STREAM = { window: 1, encoding: 'delta' };
+ * did not move costs nothing), and frames that only refine the pose
+ * already shown (no new drag) at most 30 per second: a frame answering a
+ * drag, and the settled one, come at once. */
+export const STREAM = { window: 1, encoding: 'delta', refine_fps: 30 };
 
 export { parseFrame, FrameDecoder };
 
@@ -100,7 +102,7 @@ export class Api {
   connect(id, token, on) {
     const proto = location.protocol === 'https:' ? 'wss:' : 'ws:';
     const host = this.base ? new URL(this.base).host : location.host;
-    const q = `token=${encodeURIComponent(token)}&window=${STREAM.window}&encoding=${STREAM.encoding}`;
+    const q = `token=${encodeURIComponent(token)}&window=${STREAM.window}&encoding=${STREAM.encoding}&refine_fps=${STREAM.refine_fps}`;
     const ws = new WebSocket(`${proto}//${host}/v1/sessions/${id}/ws?${q}`);
     ws.binaryType = 'arraybuffer';
     const ack = (revision) => {

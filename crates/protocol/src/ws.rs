@@ -245,6 +245,14 @@ pub struct StreamOptions {
     /// latest one is sent when the interval ends). `None`: no cap.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub max_fps: Option<u32>,
+    /// At most this many *refinement* frames per second (1 to
+    /// [`MAX_FPS`]): a frame that only refines the pose last sent (same
+    /// last drag, same level, more iterations, not settled) waits until
+    /// `1/refine_fps` after the last frame sent; a frame that answers a
+    /// drag, changes level or is settled goes out as soon as the window
+    /// and `max_fps` let it. `None`: refinements are not held back.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub refine_fps: Option<u32>,
 }
 
 /// The largest flow-control window a client may declare.
@@ -261,6 +269,7 @@ impl StreamOptions {
             window: Some(window),
             encoding: Some(encoding),
             max_fps: None,
+            refine_fps: None,
         }
     }
 
@@ -268,6 +277,15 @@ impl StreamOptions {
     pub fn at_most_fps(self, max_fps: u32) -> Self {
         StreamOptions {
             max_fps: Some(max_fps),
+            ..self
+        }
+    }
+
+    /// These options with refinement frames capped at `refine_fps` per
+    /// second.
+    pub fn refining_at_most(self, refine_fps: u32) -> Self {
+        StreamOptions {
+            refine_fps: Some(refine_fps),
             ..self
         }
     }
@@ -285,20 +303,25 @@ impl StreamOptions {
         if let Some(f) = self.max_fps {
             parts.push(format!("max_fps={f}"));
         }
+        if let Some(f) = self.refine_fps {
+            parts.push(format!("refine_fps={f}"));
+        }
         parts.join("&")
     }
 
     /// Checks the window's range; the message says what is wrong.
     pub fn validate(&self) -> Result<(), String> {
-        match (self.window, self.max_fps) {
-            (Some(w), _) if !(1..=MAX_WINDOW).contains(&w) => Err(format!(
+        if let Some(w) = self.window.filter(|w| !(1..=MAX_WINDOW).contains(w)) {
+            return Err(format!(
                 "`window` must be between 1 and {MAX_WINDOW}, got {w}"
-            )),
-            (_, Some(f)) if !(1..=MAX_FPS).contains(&f) => Err(format!(
-                "`max_fps` must be between 1 and {MAX_FPS}, got {f}"
-            )),
-            _ => Ok(()),
+            ));
         }
+        for (name, fps) in [("max_fps", self.max_fps), ("refine_fps", self.refine_fps)] {
+            if let Some(f) = fps.filter(|f| !(1..=MAX_FPS).contains(f)) {
+                return Err(format!("`{name}` must be between 1 and {MAX_FPS}, got {f}"));
+            }
+        }
+        Ok(())
     }
 }
 

@@ -231,23 +231,23 @@ where
         tokens: rate,
         at: Instant::now(),
     };
-    // a frame seen while the frame rate cap held it back
-    let mut held = false;
+    // the latest frame seen and not sent (the window or a rate cap held
+    // it back); a newer one replaces it
+    let mut pending: Option<crate::session::Frame> = None;
     loop {
-        // the latest frame goes out once the window and the rate cap let
-        // it (after an ack, a new frame, or the end of the rate interval)
-        let waiting = held || frames.has_changed().unwrap_or(false);
-        if waiting && flow.open(Instant::now()) {
-            held = false;
-            let frame = frames.borrow_and_update().clone();
-            if let Some(f) = frame {
+        // the latest frame goes out once the window and the rate caps let
+        // it (after an ack, a new frame, or the end of a rate interval)
+        let now = Instant::now();
+        if pending.as_ref().is_some_and(|f| flow.open(now, &f.header)) {
+            if let Some(f) = pending.take() {
                 send_frame(sink, &mut flow, &f).await?;
             }
             continue;
         }
-        let rate_wait = flow
-            .rate_wait(Instant::now())
-            .filter(|_| flow.window_open() && waiting);
+        let rate_wait = pending
+            .as_ref()
+            .filter(|_| flow.window_open())
+            .and_then(|f| flow.rate_wait(now, &f.header));
         tokio::select! {
             msg = stream.next() => {
                 let text = match msg {
@@ -290,16 +290,17 @@ where
             }
             // while the window is full the latest frame waits in the
             // channel (later ones replace it) until an ack opens it
-            changed = frames.changed(), if flow.window_open() && !held => {
+            changed = frames.changed(), if flow.window_open() => {
                 if changed.is_err() {
                     send(sink, session_end(s)).await?;
                     return Ok(());
                 }
-                // sent at the top of the loop, now or when the rate cap
-                // lets it (the latest frame by then)
-                held = true;
+                // sent at the top of the loop, now or when the rate caps
+                // let it; a frame answering a drag replaces a refinement
+                // held back by `refine_fps` at once
+                pending = frames.borrow_and_update().clone();
             }
-            // a frame held back by the rate cap: the end of its interval
+            // a frame held back by a rate cap: the end of its interval
             () = crate::session::sleep_until_or_never(rate_wait), if rate_wait.is_some() => {}
             ev = events.recv() => {
                 let msg = match ev {
@@ -413,7 +414,7 @@ async fn handle_message(
 }
 
 /// The query of the upgrade request: `?token=` and the stream options
-/// (`window`, `encoding`).
+/// (`window`, `encoding`, `max_fps`, `refine_fps`).
 #[derive(Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct WsQuery {
@@ -425,6 +426,8 @@ pub struct WsQuery {
     pub encoding: Option<FrameEncoding>,
     /// Frame rate cap ([`StreamOptions::max_fps`]).
     pub max_fps: Option<u32>,
+    /// Refinement frame rate cap ([`StreamOptions::refine_fps`]).
+    pub refine_fps: Option<u32>,
 }
 
 /// `GET /v1/sessions/{id}/ws`: upgrades after checking the token when one
@@ -441,6 +444,7 @@ pub async fn upgrade(
         window: q.window,
         encoding: q.encoding,
         max_fps: q.max_fps,
+        refine_fps: q.refine_fps,
     };
     stream.validate().map_err(ApiError::InvalidParams)?;
     let token = q.token.or_else(|| bearer(&headers).map(str::to_owned));
