@@ -3,11 +3,16 @@
 //! `--per-drag` iterations after each (what the session's frames run while
 //! a person drags), then the settle (one-iteration steps until converged or
 //! `max_iters` since the last change), against the one-shot solve of the
-//! final target from rest. Prints one JSON line.
+//! final target from rest. Prints one JSON line. With `--previews` each
+//! drag is answered as a session answers a WebSocket drag on a large mesh
+//! (`Deformer::preview`, corrections held; meshes without a preview level
+//! step as without it), and the settle starts by refining the preview
+//! until its coarse problem converges (`settle.preview_*`), as a session
+//! does before its quiet time ends.
 //!
 //! ```text
 //! cargo run --release --example drag_sim -- MESH [--drags 60] [--per-drag 1]
-//!     [--path line|arc] [--preset characters|elastica]
+//!     [--path line|arc] [--preset characters|elastica] [--previews]
 //!     [--correction-period K] [--coarse-ratio R] [--tol T]
 //! ```
 //!
@@ -81,6 +86,7 @@ fn run() -> Result<(), String> {
     let drags: usize = arg(&args, "--drags").unwrap_or(60);
     let per_drag: usize = arg(&args, "--per-drag").unwrap_or(1);
     let arc = arg::<String>(&args, "--path").as_deref() == Some("arc");
+    let previews = args.iter().any(|a| a == "--previews");
     let preset = arg::<String>(&args, "--preset")
         .map(|p| Preset::from_name(&p).ok_or(format!("unknown preset {p}")))
         .transpose()?
@@ -132,13 +138,40 @@ fn run() -> Result<(), String> {
     let mut d = Deformer::new(rest.clone(), params);
     let t = Instant::now();
     let mut drag_iters = 0;
+    let (mut preview_its, mut preview_ms) = (0, 0.0);
     for k in 1..=drags {
         c.handles[0].target = target_at(k as f64 / drags as f64, arc, axis, extent, pivot);
+        if previews {
+            // what a session answers a WebSocket drag with on a large mesh
+            d.hold_corrections(true);
+            let its = dend::deform::PREVIEW_ITERATIONS;
+            if d.preview(&factor, &c, its).map_err(|e| e.to_string())?.is_some() {
+                continue;
+            }
+        }
         let r = d.step(&factor, &c, per_drag).map_err(|e| e.to_string())?;
         drag_iters += r.iterations;
     }
     let drag_ms = t.elapsed().as_secs_f64() * 1e3;
     let t = Instant::now();
+    if previews {
+        // between the last drag and the end of the quiet time the session
+        // refines the preview until its coarse problem converges
+        for _ in 0..100 {
+            let its = dend::deform::PREVIEW_ITERATIONS;
+            match d.preview(&factor, &c, its).map_err(|e| e.to_string())? {
+                Some(r) => {
+                    preview_its += r.iterations;
+                    preview_ms += r.ms;
+                    if r.converged {
+                        break;
+                    }
+                }
+                None => break,
+            }
+        }
+        d.hold_corrections(false);
+    }
     let (mut settle_iters, mut last) = (0, None);
     let (mut coarse_its, mut coarse_ms) = (0, 0.0);
     while settle_iters < params.max_iters {
@@ -193,7 +226,8 @@ fn run() -> Result<(), String> {
         "drag_iterations": drag_iters,
         "settle": {"iterations": settle_iters, "converged": last.converged,
                    "objective": last.objective, "ms": settle_ms,
-                   "coarse_iterations": coarse_its, "coarse_ms": coarse_ms},
+                   "coarse_iterations": coarse_its, "coarse_ms": coarse_ms,
+                   "preview_iterations": preview_its, "preview_ms": preview_ms},
         "reference": {"objective": r_ref.objective, "iterations": r_ref.iterations,
                       "one_shot_gap": dist(one.pose(), reference.pose()) / diag,
                       "settled_gap": dist(d.pose(), reference.pose()) / diag},
