@@ -220,7 +220,7 @@ async fn run_async(args: LoadtestArgs) -> anyhow::Result<()> {
     let params = session_params(args.preset);
     println!(
         "mesh: {} vertices, {} triangles; {} session(s) x {} drags; preset {}; path {:?}; \
-         drags {}; client spends {} ms per frame",
+         drags {}; client spends {} ms per frame; max_fps {}, refine_fps {}",
         mesh.vertices,
         mesh.triangles,
         args.sessions,
@@ -236,6 +236,12 @@ async fn run_async(args: LoadtestArgs) -> anyhow::Result<()> {
             "closed loop".into()
         },
         args.slow_ms,
+        args.max_fps.map_or("none".into(), |f| f.to_string()),
+        if args.refine_fps > 0 {
+            args.refine_fps.to_string()
+        } else {
+            "none".into()
+        },
     );
     println!("upload {:.1} ms", upload.as_secs_f64() * 1e3);
     let mut failed = vec![];
