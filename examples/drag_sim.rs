@@ -145,7 +145,10 @@ fn run() -> Result<(), String> {
             // what a session answers a WebSocket drag with on a large mesh
             d.hold_corrections(true);
             let its = dend::deform::PREVIEW_ITERATIONS;
-            if d.preview(&factor, &c, its).map_err(|e| e.to_string())?.is_some() {
+            if d.preview(&factor, &c, its)
+                .map_err(|e| e.to_string())?
+                .is_some()
+            {
                 continue;
             }
         }

@@ -235,3 +235,75 @@ fn open_patches_converge_within_30_iterations() {
         }
     }
 }
+
+/// The stalled solve of a slow coarse problem's correction
+/// (`multilevel::solve_until_stalled`) runs the same iterates as one
+/// `step` call of as many iterations (its chunks continue one sequence),
+/// never raises the objective, and decides when to stop by a ratio of
+/// energies: the patch scaled by 37 stops after the same iterations at
+/// the same pose.
+#[test]
+fn a_stalled_coarse_solve_is_one_sequence_cut_short_by_a_unit_free_rule() {
+    use super::multilevel::{solve_until_stalled, CORRECTION_MAX_ITERS, CORRECTION_STALL};
+    // an irregular open patch whose iteration crawls (tens of iterations
+    // at the default tolerance): where a stall rule has something to cut
+    let mesh = irregular_patch(PatchSurface::Saddle, 40, 0.4, 17);
+    let params = Params::default();
+    let run = |s: Real, stalled: bool, budget: usize| {
+        let m = scaled(&mesh, s);
+        let rest = Arc::new(Rest::new(m.clone()).unwrap());
+        let c = patch_edit(&m, s);
+        let f = Factor::build(&rest, &params, &c).unwrap();
+        let mut d = Deformer::new(rest, params);
+        d.set_levels(Levels::One);
+        let rep = if stalled {
+            solve_until_stalled(&mut d, &f, &c).unwrap()
+        } else {
+            d.step(&f, &c, budget).unwrap()
+        };
+        let pose: Vec<Point> = d
+            .pose()
+            .iter()
+            .map(|p| [p[0] / s, p[1] / s, p[2] / s])
+            .collect();
+        (rep, pose)
+    };
+    let (cut, cut_pose) = run(1.0, true, 0);
+    let (full, _) = run(1.0, false, CORRECTION_MAX_ITERS);
+    eprintln!(
+        "stalled solve: {} iterations (converged {}), objective {:.6e}; one call: {} iterations, objective {:.6e}",
+        cut.iterations, cut.converged, cut.objective, full.iterations, full.objective
+    );
+    assert!(cut.iterations > 0 && cut.iterations <= CORRECTION_MAX_ITERS);
+    assert!(cut.objective <= cut.initial_objective, "{cut:?}");
+    // stopped by the rule (or converged): the stall rule had to act on
+    // this patch for the test to mean anything
+    assert!(
+        cut.converged || cut.iterations < full.iterations,
+        "the stall rule never acted: {} against {} iterations",
+        cut.iterations,
+        full.iterations
+    );
+    // the same iterates as one call of as many iterations
+    let (same, same_pose) = run(1.0, false, cut.iterations);
+    assert_eq!(same.iterations, cut.iterations);
+    let gap = max_dist(&cut_pose, &same_pose) / mesh.diagonal();
+    assert!(
+        gap < 1e-12,
+        "chunks and one call differ by {gap:.2e} of the diagonal"
+    );
+    // a ratio of energies: the unit of length does not move the stop
+    for s in [37.0, 1.0 / 37.0] {
+        let (rep, pose) = run(s, true, 0);
+        let gap = max_dist(&cut_pose, &pose) / mesh.diagonal();
+        assert_eq!(
+            rep.iterations, cut.iterations,
+            "scale {s}: {} iterations against {} (stall share {CORRECTION_STALL})",
+            rep.iterations, cut.iterations
+        );
+        assert!(
+            gap < 1e-9,
+            "scale {s}: poses {gap:.2e} of the diagonal apart"
+        );
+    }
+}
