@@ -476,3 +476,82 @@ async fn refinements_wait_for_refine_fps_and_drag_answers_do_not() -> R {
     );
     Ok(())
 }
+
+/// The settled frame says `converged` only when the convergence test
+/// held: a settle cut by `max_iters` ends settled and not converged, at
+/// `max_iters` iterations; a settle that converged is a fixed point of the
+/// iteration, so a drag that changes nothing from there converges again
+/// at once (within two iterations) without moving the pose by more than
+/// the tolerance.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn the_settled_frame_is_converged_only_when_the_convergence_test_held() -> R {
+    let n = 24;
+    /// Reads until the settled frame that includes drag `seq`.
+    /// (converged, iterations, positions)
+    type Settled = (bool, u32, Vec<[f32; 3]>);
+    async fn settled(
+        ws: &mut dend_client::WsClient,
+        seq: u64,
+    ) -> Result<Settled, Box<dyn std::error::Error>> {
+        loop {
+            let msg = tokio::time::timeout(Duration::from_secs(120), ws.next_full()).await??;
+            match msg {
+                WsFull::Frame(f) if f.header.ack_seq >= seq && f.header.settled => {
+                    return Ok((f.header.converged, f.header.iteration, f.positions))
+                }
+                WsFull::Event(e @ ServerMsg::Error { .. }) => return Err(format!("{e:?}").into()),
+                WsFull::Closed(c) => return Err(format!("closed {c:?}").into()),
+                _ => {}
+            }
+        }
+    }
+    // a lift and a turn of the top row: tens of iterations to converge
+    let turn = Some([0.0, (0.35f64).sin(), 0.0, (0.35f64).cos()]);
+    // (the grid's edges are 1 long)
+    let lift = [0.0, 0.0, 0.4 * (n - 1) as f64];
+
+    let (_c, cut) = ready_session(n, serde_json::json!({"max_iters": 3, "tol": 1e-9})).await?;
+    let mut ws = cut
+        .connect_with(StreamOptions::flow(1, FrameEncoding::F32))
+        .await?;
+    ws.drag(0, lift, turn, 1).await?;
+    let (converged, its, _) = settled(&mut ws, 1).await?;
+    assert!(!converged, "a settle cut at max_iters says converged");
+    assert_eq!(its, 3);
+
+    let tol = 1e-4;
+    let (_c, full) = ready_session(n, serde_json::json!({"tol": tol})).await?;
+    let mut ws = full
+        .connect_with(StreamOptions::flow(1, FrameEncoding::F32))
+        .await?;
+    ws.drag(0, lift, turn, 1).await?;
+    let (converged, its, p1) = settled(&mut ws, 1).await?;
+    assert!(
+        converged && its > 3 && its < 100,
+        "converged {converged} in {its}"
+    );
+    // a drag that changes nothing: the converged pose is a fixed point
+    ws.drag(0, [0.0; 3], None, 2).await?;
+    let (converged, its, p2) = settled(&mut ws, 2).await?;
+    assert!(
+        converged && its <= 2,
+        "again: converged {converged} in {its}"
+    );
+    let edge = 1.0;
+    let moved = p1
+        .iter()
+        .zip(&p2)
+        .map(|(a, b)| {
+            (0..3)
+                .map(|k| f64::from(a[k] - b[k]).powi(2))
+                .sum::<f64>()
+                .sqrt()
+        })
+        .fold(0.0, f64::max);
+    assert!(
+        moved <= 2.0 * tol * edge + 1e-6,
+        "the converged pose moved {moved:.2e} (tolerance {:.2e})",
+        tol * edge
+    );
+    Ok(())
+}
