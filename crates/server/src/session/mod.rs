@@ -37,8 +37,12 @@ pub use dend::deform::BuildStage;
 /// How long after a WebSocket drag the session's solves hold the coarse
 /// corrections (`Deformer::hold_corrections`): drags closer together than
 /// this are one gesture, answered by fine iterations only; the settle's
-/// corrections start once the drags pause.
-pub const CORRECTION_QUIET: std::time::Duration = std::time::Duration::from_millis(100);
+/// corrections start once the drags pause. 150 ms: drags 125 ms apart (a
+/// person dragging slowly, 8 mouse moves a second) stay on coarse previews
+/// on the feline (drag→frame p50 26.8 ms, p99 59 ms; at 100 ms the full
+/// mesh iterated between them: 48.1 and 104 ms), for a settle that starts
+/// 50 ms later (docs/performance.md).
+pub const CORRECTION_QUIET: std::time::Duration = std::time::Duration::from_millis(150);
 
 /// Sleeps until `at`; never when `None` (for a `select!` branch that is
 /// disabled then: the session's wake-up, a connection's rate interval).
