@@ -237,11 +237,8 @@ async fn run_async(args: LoadtestArgs) -> anyhow::Result<()> {
         },
         args.slow_ms,
         args.max_fps.map_or("none".into(), |f| f.to_string()),
-        if args.refine_fps > 0 {
-            args.refine_fps.to_string()
-        } else {
-            "none".into()
-        },
+        args.declared_refine_fps()
+            .map_or("none".into(), |f| f.to_string()),
     );
     println!("upload {:.1} ms", upload.as_secs_f64() * 1e3);
     let mut failed = vec![];
@@ -269,6 +266,13 @@ async fn run_async(args: LoadtestArgs) -> anyhow::Result<()> {
     Ok(())
 }
 
+impl LoadtestArgs {
+    /// The `refine_fps` the clients declare (`--refine-fps 0`: none).
+    fn declared_refine_fps(&self) -> Option<u32> {
+        Some(self.refine_fps).filter(|f| *f > 0)
+    }
+}
+
 /// Runs the sessions' drags with one stream mode (on the mesh, with the
 /// constraints and parameters of `run`) and prints its report; returns the
 /// `--check-*` rules it broke.
@@ -288,7 +292,7 @@ async fn run_mode(
     });
     let mut tasks = vec![];
     let max_fps = args.max_fps;
-    let refine_fps = Some(args.refine_fps).filter(|f| *f > 0);
+    let refine_fps = args.declared_refine_fps();
     for _ in 0..args.sessions {
         let (client, mesh_id, spec, params, progress) = (
             client.clone(),

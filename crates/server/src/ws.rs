@@ -238,10 +238,8 @@ where
         // the latest frame goes out once the window and the rate caps let
         // it (after an ack, a new frame, or the end of a rate interval)
         let now = Instant::now();
-        if pending.as_ref().is_some_and(|f| flow.open(now, &f.header)) {
-            if let Some(f) = pending.take() {
-                send_frame(sink, &mut flow, &f).await?;
-            }
+        if let Some(f) = pending.take_if(|f| flow.open(now, &f.header)) {
+            send_frame(sink, &mut flow, &f).await?;
             continue;
         }
         let rate_wait = pending

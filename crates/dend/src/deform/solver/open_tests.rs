@@ -67,13 +67,24 @@ fn patch_edit(mesh: &Mesh, s: Real) -> Constraints {
 /// Runs the default parameters' edit from rest on `mesh` scaled by `s`,
 /// on the fine level only; returns the report and the pose divided by `s`.
 fn run_scaled(mesh: &Mesh, s: Real, params: Params) -> (StepReport, Vec<Point>) {
+    run_scaled_with(mesh, s, params, |d, f, c| d.step(f, c, 300).unwrap())
+}
+
+/// [`run_scaled`] with the solve given: `solve` runs on the fine-level
+/// deformer, the factor and the edit's constraints.
+fn run_scaled_with(
+    mesh: &Mesh,
+    s: Real,
+    params: Params,
+    solve: impl FnOnce(&mut Deformer, &Factor, &Constraints) -> StepReport,
+) -> (StepReport, Vec<Point>) {
     let m = scaled(mesh, s);
     let rest = Arc::new(Rest::new(m.clone()).unwrap());
     let c = patch_edit(&m, s);
     let f = Factor::build(&rest, &params, &c).unwrap();
     let mut d = Deformer::new(rest, params);
     d.set_levels(Levels::One);
-    let rep = d.step(&f, &c, 300).unwrap();
+    let rep = solve(&mut d, &f, &c);
     let pose = d
         .pose()
         .iter()
@@ -250,23 +261,13 @@ fn a_stalled_coarse_solve_is_one_sequence_cut_short_by_a_unit_free_rule() {
     let mesh = irregular_patch(PatchSurface::Saddle, 40, 0.4, 17);
     let params = Params::default();
     let run = |s: Real, stalled: bool, budget: usize| {
-        let m = scaled(&mesh, s);
-        let rest = Arc::new(Rest::new(m.clone()).unwrap());
-        let c = patch_edit(&m, s);
-        let f = Factor::build(&rest, &params, &c).unwrap();
-        let mut d = Deformer::new(rest, params);
-        d.set_levels(Levels::One);
-        let rep = if stalled {
-            solve_until_stalled(&mut d, &f, &c).unwrap()
-        } else {
-            d.step(&f, &c, budget).unwrap()
-        };
-        let pose: Vec<Point> = d
-            .pose()
-            .iter()
-            .map(|p| [p[0] / s, p[1] / s, p[2] / s])
-            .collect();
-        (rep, pose)
+        run_scaled_with(&mesh, s, params, |d, f, c| {
+            if stalled {
+                solve_until_stalled(d, f, c).unwrap()
+            } else {
+                d.step(f, c, budget).unwrap()
+            }
+        })
     };
     let (cut, cut_pose) = run(1.0, true, 0);
     let (full, _) = run(1.0, false, CORRECTION_MAX_ITERS);
