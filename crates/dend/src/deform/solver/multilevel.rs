@@ -79,10 +79,10 @@ pub const CORRECTION_MAX_ITERS: usize = 100;
 /// [`CORRECTION_MAX_ITERS`]), a correction's coarse solve runs in chunks
 /// of [`CORRECTION_CHUNK`] iterations and stops after a chunk that gains
 /// less than this share of what the solve gained so far (a ratio of
-/// energies: no unit). Survey bumpy plane: 50 → 45 iterations, 7.6 →
-/// 2.8 s; on meshes whose corrections converge within the cap nothing
-/// changes (where it was applied to every correction, the camel's settle
-/// took 27 iterations instead of 18, docs/performance.md).
+/// energies: no unit). Survey bumpy plane: 50 → 47 iterations, 7.6 →
+/// 3.6 s (`dend deform`); on meshes whose corrections converge within the
+/// cap nothing changes (where it was applied to every correction, the
+/// camel's settle took 27 iterations instead of 18, docs/performance.md).
 pub const CORRECTION_STALL: Real = 0.05;
 
 /// Iterations per chunk of a slow coarse problem's correction solve
