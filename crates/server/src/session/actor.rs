@@ -125,6 +125,13 @@ pub(super) struct Actor {
     named: Option<Vec<crate::store::NamedPose>>,
     /// Named-pose commands waiting for the pose to settle.
     settle_queue: VecDeque<super::shared::PoseCmd>,
+    /// Raised when a drag arrives while a refinement runs (a solve
+    /// started without new targets or waiters): the solver stops it at
+    /// its next safe point ([`Deformer::set_interrupt`]) and the drag is
+    /// answered sooner.
+    interrupt: Arc<std::sync::atomic::AtomicBool>,
+    /// Whether the solve in flight is such a refinement.
+    refining: bool,
 }
 
 impl Actor {
@@ -179,6 +186,8 @@ impl Actor {
             stop: false,
             named: None,
             settle_queue: VecDeque::new(),
+            interrupt: Arc::default(),
+            refining: false,
         }
     }
 
@@ -382,6 +391,10 @@ impl Actor {
         self.dirty = true;
         self.settled = false;
         self.uncommitted = true;
+        if self.deformer.is_none() && self.refining {
+            self.interrupt
+                .store(true, std::sync::atomic::Ordering::Relaxed);
+        }
         match reply {
             Some(w) => self.waiters.push(w),
             None => self.last_stream_drag = Some(std::time::Instant::now()),

@@ -71,11 +71,17 @@ impl Actor {
                 .map(|t| t + crate::session::CORRECTION_QUIET);
             return;
         }
+        // a refinement (no new targets, nobody waiting) stops early when a
+        // drag arrives (`Actor::interrupt`)
+        self.refining = !self.dirty && self.waiters.is_empty();
         self.inflight = self.waiters.drain(..).map(|w| w.1).collect();
         self.dirty = false;
         let Some(mut deformer) = self.deformer.take() else {
             return;
         };
+        self.interrupt
+            .store(false, std::sync::atomic::Ordering::Relaxed);
+        deformer.set_interrupt(self.refining.then(|| self.interrupt.clone()));
         let journal = std::mem::take(&mut self.journal);
         let (id, store, cache, fence) = (
             self.inner.id.clone(),
@@ -205,6 +211,7 @@ impl Actor {
                 generation,
                 pose_epoch,
             } => {
+                self.refining = false;
                 if pose_epoch != self.pose_epoch {
                     // an undo, redo, reset or restore replaced the pose while
                     // this solve ran: its pose and frame are not the
@@ -224,6 +231,13 @@ impl Actor {
                     }
                     drop((result, body, constraints, seconds));
                     self.sync_shared();
+                    return;
+                }
+                if !preview && matches!(&result, Ok(r) if r.interrupted && r.iterations == 0) {
+                    // a refinement stopped by a drag before its first
+                    // iteration ended: the pose is the last frame's, and
+                    // the drag's solve starts now
+                    self.deformer = Some(deformer);
                     return;
                 }
                 self.pose = Arc::new(deformer.shown_pose().to_vec());
@@ -252,7 +266,7 @@ impl Actor {
                         None
                     }
                     Ok(report) => {
-                        if report.iterations > 0 {
+                        if report.iterations > 0 && !report.interrupted {
                             self.fine_iter_ms = (seconds * 1e3 - report.coarse_ms).max(0.0)
                                 / report.iterations as f64;
                         }
@@ -343,5 +357,6 @@ fn preview_report(r: &dend::deform::PreviewReport) -> dend::deform::StepReport {
         initial_objective: f64::NAN,
         coarse_iterations: r.iterations,
         coarse_ms: r.ms,
+        interrupted: false,
     }
 }

@@ -35,6 +35,74 @@ pub(super) fn area_element(x: &[Point], t: [u32; 3], ka: Real) -> Option<AreaEle
     })
 }
 
+/// The area term's forces on each vertex, gathered: `a_t P_t Bᵀ` scattered
+/// onto triangle `t` (`+` its first column on `v1`, `+` the second on
+/// `v2`, `−` both on `v0`) is, for the vertex at one corner,
+/// `k0 P_t[:, 0] + k1 P_t[:, 1]` with `(k0, k1)` fixed by the rest
+/// triangle. Stored per vertex (CSR, triangles in order), so that the
+/// residual sums each vertex's forces on its own: in parallel, and in the
+/// same order for any thread count.
+#[derive(Debug, Clone, Default)]
+pub(super) struct AreaForces {
+    /// Incidences of vertex `v`: `ptr[v]..ptr[v + 1]`.
+    ptr: Vec<usize>,
+    /// The area element (index into the projections).
+    el: Vec<u32>,
+    /// `(k0, k1)` of the incidence.
+    k: Vec<[Real; 2]>,
+}
+
+impl AreaForces {
+    /// The incidences of `n` vertices in the elements `area`.
+    pub(super) fn new(n: usize, area: &[AreaElement]) -> Self {
+        let mut count = vec![0usize; n + 1];
+        for el in area {
+            for &v in &el.v {
+                count[v as usize + 1] += 1;
+            }
+        }
+        for v in 0..n {
+            count[v + 1] += count[v];
+        }
+        let ptr = count.clone();
+        let mut next = count;
+        let total = ptr[n];
+        let (mut els, mut k) = (vec![0u32; total], vec![[0.0; 2]; total]);
+        for (t, el) in area.iter().enumerate() {
+            let (b, w) = (el.b, el.weight);
+            // column c of a_t P Bᵀ is a_t (P[:, 0] B[c, 0] + P[:, 1] B[c, 1])
+            let col = |c: usize| [w * b[(c, 0)], w * b[(c, 1)]];
+            let (h0, h1) = (col(0), col(1));
+            let coefficients = [[-(h0[0] + h1[0]), -(h0[1] + h1[1])], h0, h1];
+            for (&v, kc) in el.v.iter().zip(coefficients) {
+                let slot = &mut next[v as usize];
+                els[*slot] = t as u32;
+                k[*slot] = kc;
+                *slot += 1;
+            }
+        }
+        AreaForces { ptr, el: els, k }
+    }
+
+    /// `Σ_t k0 P_t[:, 0] + k1 P_t[:, 1]` over the triangles at `v`, added
+    /// to `acc`.
+    #[inline]
+    pub(super) fn add(&self, v: usize, proj: &[[Real; 6]], acc: &mut Point) {
+        for s in self.ptr[v]..self.ptr[v + 1] {
+            let p = &proj[self.el[s] as usize];
+            let [k0, k1] = self.k[s];
+            for a in 0..3 {
+                acc[a] += k0 * p[a] + k1 * p[3 + a];
+            }
+        }
+    }
+
+    /// Memory held, in bytes.
+    pub(super) fn memory_bytes(&self) -> usize {
+        self.ptr.len() * 8 + self.el.len() * 4 + self.k.len() * 16
+    }
+}
+
 /// `F = [y1 − y0, y2 − y0] B`, column-major `[F00, F10, F20, F01, F11, F21]`.
 pub(super) fn gradient(y: &[Point], el: &AreaElement) -> [Real; 6] {
     let [v0, v1, v2] = el.v.map(|v| Vector3::from(y[v as usize]));

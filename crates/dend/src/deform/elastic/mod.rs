@@ -64,10 +64,11 @@ use super::system::{add_soft_diagonal, partition, System};
 use crate::mesh::{Mesh, Point, Real};
 
 mod area;
+mod residual;
 
 use crate::operators::Operators;
 pub use area::project_area;
-use area::{area_element, gradient, AreaElement};
+use area::{area_element, gradient, AreaElement, AreaForces};
 use dend_linalg::sparse::matmul;
 
 /// Element count from which the local step runs on the rayon pool.
@@ -103,6 +104,11 @@ pub struct ElasticOps {
     /// `k_a`.
     ka: Real,
     area: Vec<AreaElement>,
+    /// The area term's forces gathered per vertex (the residual's).
+    area_forces: AreaForces,
+    /// `Σ_j c_ij e_ij`: the spokes' rest edges at `i`, weighted (the
+    /// residual's `R_i` part of the spokes).
+    ce: Vec<Point>,
 }
 
 /// The elastic system of one constrained set: which vertices keep their
@@ -170,6 +176,18 @@ impl ElasticOps {
         } else {
             Vec::new()
         };
+        let area_forces = AreaForces::new(n, &area);
+        let ce = (0..n)
+            .map(|i| {
+                let mut acc = [0.0; 3];
+                for s in ptr[i]..ptr[i + 1] {
+                    for a in 0..3 {
+                        acc[a] += c[s] * e[s][a];
+                    }
+                }
+                acc
+            })
+            .collect();
         let mut ops_ = ElasticOps {
             ptr,
             nbr,
@@ -180,6 +198,8 @@ impl ElasticOps {
             kbl,
             ka,
             area,
+            area_forces,
+            ce,
             q_all: CsMat::zero((n, n)),
         };
         ops_.q_all = ops_.assemble_q(ops, &vec![true; n]);
@@ -194,6 +214,8 @@ impl ElasticOps {
             + self.e.len() * 24
             + self.b.len() * 8
             + self.area.len() * std::mem::size_of::<AreaElement>()
+            + self.area_forces.memory_bytes()
+            + self.ce.len() * 24
             + self.q_all.nnz() * 16
     }
 
@@ -431,83 +453,6 @@ impl ElasticOps {
     /// Area elements (the length of the `proj` buffer of [`Self::local_step`]).
     pub fn num_area_elements(&self) -> usize {
         self.area.len()
-    }
-
-    /// `out = g(R, P) − Q Y` (module docs), `#V`: the negative half-gradient
-    /// of `E` in `Y` at fixed `R` and `P`. `t` (`#V`) and `rm` (`#V`, the
-    /// rotations as matrices) are scratch.
-    #[allow(clippy::too_many_arguments)]
-    pub fn residual(
-        &self,
-        set: &ElasticSet,
-        ops: &Operators,
-        y: &[Point],
-        rot: &[UnitQuaternion<Real>],
-        proj: &[[Real; 6]],
-        (t, rm): (&mut [Point], &mut [Matrix3<Real>]),
-        out: &mut [Point],
-    ) {
-        let n = y.len();
-        // R_i as a matrix (zero where the rows are dropped) and
-        // t_i = [i free] R_i δ_i
-        for i in 0..n {
-            rm[i] = if set.free[i] {
-                rot[i].to_rotation_matrix().into_inner()
-            } else {
-                Matrix3::zeros()
-            };
-            t[i] = if self.b[i] > 0.0 {
-                (rm[i] * Vector3::from(ops.delta[i])).into()
-            } else {
-                [0.0; 3]
-            };
-        }
-        let (t, rm): (&[Point], &[Matrix3<Real>]) = (t, rm);
-        // out = kbl Lbar t − Q Y − Σ_j c_vj ([v free] R_v + [j free] R_j) e_vj
-        let row = |(v, o): (usize, &mut Point)| {
-            let mut acc = [0.0; 3];
-            if self.kbl > 0.0 {
-                if let Some(r) = ops.lbar.outer_view(v) {
-                    for (j, &w) in r.iter() {
-                        for a in 0..3 {
-                            acc[a] += self.kbl * w * t[j][a];
-                        }
-                    }
-                }
-            }
-            if let Some(r) = set.q.outer_view(v) {
-                for (j, &w) in r.iter() {
-                    for a in 0..3 {
-                        acc[a] -= w * y[j][a];
-                    }
-                }
-            }
-            // c is symmetric and e_jv = −e_vj: the spokes into v gather too
-            for s in self.ptr[v]..self.ptr[v + 1] {
-                let j = self.nbr[s] as usize;
-                let re = (rm[v] + rm[j]) * Vector3::from(self.e[s]);
-                for a in 0..3 {
-                    acc[a] -= self.c[s] * re[a];
-                }
-            }
-            *o = acc;
-        };
-        if n >= PARALLEL_MIN {
-            out.par_iter_mut().enumerate().for_each(row);
-        } else {
-            out.iter_mut().enumerate().for_each(row);
-        }
-        // area: + a_t (P_t Bᵀ) scattered onto the triangle's vertices
-        for (el, p) in self.area.iter().zip(proj) {
-            let pm = nalgebra::Matrix3x2::new(p[0], p[3], p[1], p[4], p[2], p[5]);
-            let h = el.weight * pm * el.b.transpose();
-            let [v0, v1, v2] = el.v.map(|v| v as usize);
-            for a in 0..3 {
-                out[v1][a] += h[(a, 0)];
-                out[v2][a] += h[(a, 1)];
-                out[v0][a] -= h[(a, 0)] + h[(a, 1)];
-            }
-        }
     }
 
     /// The first vertex of each area element (the vertex whose rotation

@@ -121,7 +121,7 @@ fn residual_is_minus_half_the_gradient(params: Params) {
         el.local_step(&set, ops, y, &ly, &mut r, &mut p, false)
     };
     let mut res = vec![[0.0; 3]; n];
-    let (mut t, mut rm) = (vec![[0.0; 3]; n], vec![Matrix3::zeros(); n]);
+    let (mut t, mut rm) = (vec![[0.0; 3]; n], vec![[0.0; 4]; n]);
     el.residual(&set, ops, &y, &rot, &proj, (&mut t, &mut rm), &mut res);
     let h = 1e-5;
     let mut worst: Real = 0.0;

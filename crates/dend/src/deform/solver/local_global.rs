@@ -29,7 +29,7 @@
 
 use faer::dyn_stack::{MemBuffer, MemStack};
 use faer::MatMut;
-use nalgebra::{Matrix3, UnitQuaternion, Vector3};
+use nalgebra::{UnitQuaternion, Vector3};
 
 use super::multilevel::{CoarseRun, Correction, Levels};
 use super::{Deformer, StepReport};
@@ -56,7 +56,7 @@ pub(super) struct State {
     /// `R_i δ_i` and `R_i` as matrices (scratch), and the residual
     /// `g(R) − Q Y`, `#V`.
     t: Vec<Point>,
-    rm: Vec<Matrix3<Real>>,
+    rm: Vec<[Real; 4]>,
     res: Vec<Point>,
     /// Right-hand side / update, column-major `|U| × 3`.
     pub(super) rhs: Vec<Real>,
@@ -184,6 +184,7 @@ impl Deformer {
             initial_objective: e,
             coarse_iterations: coarse.map_or(0, |c| c.iterations),
             coarse_ms: coarse.map_or(0.0, |c| c.ms),
+            interrupted: false,
         };
         if nu == 0 {
             report.converged = true;
@@ -192,14 +193,28 @@ impl Deformer {
         }
         let accelerate = fit && self.params.anderson > 0;
         for _ in 0..max_iters {
+            // (interrupted: stop where the state is a whole iteration's)
+            if report.iterations > 0 && self.interrupted() {
+                report.interrupted = true;
+                break;
+            }
             // 1. global step: Δ = Q_UU⁻¹ (g(R) − Q Y)_U
             self.global_rhs(factor, (el, set));
+            if self.interrupted() {
+                report.interrupted = true;
+                break;
+            }
             let st = &mut self.elastic;
             {
                 let b = MatMut::from_column_major_slice_mut(&mut st.rhs, nu, 3);
                 let mem = st.mem.as_mut().expect("sized above");
                 factor.solve_in_place(b, MemStack::new(mem));
             }
+            if self.interrupted() {
+                report.interrupted = true;
+                break;
+            }
+            let st = &mut self.elastic;
             if st.rhs.iter().any(|v| !v.is_finite()) {
                 report.diverged = true;
                 break;
@@ -285,7 +300,7 @@ impl Deformer {
             st.rot_try = st.rot.clone();
             st.ly = vec![[0.0; 3]; n];
             st.t = vec![[0.0; 3]; n];
-            st.rm = vec![Matrix3::zeros(); n];
+            st.rm = vec![[0.0; 4]; n];
             st.res = vec![[0.0; 3]; n];
             st.proj = Vec::new();
         }
@@ -390,6 +405,14 @@ impl Deformer {
             }
             Correction::Dropped(run) => (0.0, run),
             Correction::Unavailable(run) => (Real::NEG_INFINITY, run),
+            Correction::Interrupted(run) => {
+                // nothing changed: the correction is tried again after the
+                // next iteration
+                report.coarse_iterations += run.iterations;
+                report.coarse_ms += run.ms;
+                report.interrupted = true;
+                return e;
+            }
         };
         report.coarse_iterations += run.iterations;
         report.coarse_ms += run.ms;

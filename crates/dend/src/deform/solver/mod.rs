@@ -1,5 +1,6 @@
 //! The DEND iteration ([`Deformer::step`], design.md §8).
 
+use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
 
 use super::constraints::Constraints;
@@ -15,6 +16,8 @@ mod multilevel;
 mod preview;
 mod propagate;
 
+#[cfg(test)]
+mod interrupt_tests;
 #[cfg(test)]
 mod open_tests;
 
@@ -52,6 +55,10 @@ pub struct StepReport {
     /// needed, coarse solves, transfers, the fine steps of corrections),
     /// ms; 0 without any.
     pub coarse_ms: Real,
+    /// Whether the step stopped early because its interrupt flag was
+    /// raised ([`Deformer::set_interrupt`]): the pose is the one after
+    /// `iterations` whole iterations (unchanged when 0).
+    pub interrupted: bool,
 }
 
 /// One editing state: the current pose, warm-started across drags, and the
@@ -76,6 +83,9 @@ pub struct Deformer {
     corrections_held: bool,
     /// The coarse previews' problem and last pose ([`Deformer::preview`]).
     preview: Option<Box<preview::Preview>>,
+    /// Raised by another thread to stop a step at its next safe point
+    /// ([`Deformer::set_interrupt`]).
+    interrupt: Option<Arc<AtomicBool>>,
 }
 
 impl Deformer {
@@ -94,6 +104,7 @@ impl Deformer {
             coarse: None,
             corrections_held: false,
             preview: None,
+            interrupt: None,
         }
     }
 
@@ -113,6 +124,26 @@ impl Deformer {
     /// needs them to converge.
     pub fn hold_corrections(&mut self, hold: bool) {
         self.corrections_held = hold;
+    }
+
+    /// Lets `flag` stop the next steps early (`None`: they run their
+    /// budget). An elastic step checks it between iterations and, inside
+    /// one, before anything of the state changes (after the right-hand
+    /// side and after the solve), so a stopped step leaves a pose and
+    /// rotations it could have ended with; a coarse correction's solve
+    /// stops too, and the correction is then not applied. The report says
+    /// `interrupted`. A session raises it when a drag arrives during a
+    /// refinement: the drag then waits for at most a part of an iteration
+    /// instead of a whole one (and not for a correction's coarse solve).
+    pub fn set_interrupt(&mut self, flag: Option<Arc<AtomicBool>>) {
+        self.interrupt = flag;
+    }
+
+    /// Whether the interrupt flag is raised.
+    fn interrupted(&self) -> bool {
+        self.interrupt
+            .as_ref()
+            .is_some_and(|f| f.load(Ordering::Relaxed))
     }
 
     /// The rest state.

@@ -224,6 +224,7 @@ pub(super) fn solve_until_stalled(
         let stalled = gained - before < CORRECTION_STALL * gained;
         let done = r.converged
             || r.diverged
+            || r.interrupted
             || r.iterations == 0
             || its >= CORRECTION_MAX_ITERS
             || stalled;
@@ -258,6 +259,9 @@ pub(super) enum Correction {
     /// No correction is possible (no coarse problem, or its solve failed
     /// or diverged).
     Unavailable(CoarseRun),
+    /// The coarse solve was interrupted ([`Deformer::set_interrupt`]):
+    /// nothing was applied.
+    Interrupted(CoarseRun),
 }
 
 impl Deformer {
@@ -411,18 +415,23 @@ impl Deformer {
                 }
             }
             coarse.set_linear_term(s);
+            coarse.interrupt = fine.interrupt.clone();
             let report = if p.slow {
                 solve_until_stalled(coarse, &p.factor, cc)
             } else {
                 coarse.step(&p.factor, cc, CORRECTION_MAX_ITERS).ok()
             };
             coarse.set_linear_term(Vec::new());
+            coarse.interrupt = None;
             let report = report?;
+            if report.interrupted {
+                return Some((report.iterations, Err(())));
+            }
             if report.iterations >= CORRECTION_MAX_ITERS && !report.converged {
                 p.slow = true;
             }
             if report.diverged {
-                return Some((report.iterations, None));
+                return Some((report.iterations, Ok(None)));
             }
             // ΔR_c = R_c R_c⁰ᵀ as rotation vectors, prolongated
             let w_c: Vec<Vector3<Real>> = coarse
@@ -439,12 +448,13 @@ impl Deformer {
                 &p.coarse_fixed,
                 PROLONGATION_PASSES,
             );
-            Some((report.iterations, Some(w_f)))
+            Some((report.iterations, Ok(Some(w_f))))
         });
         match field {
             None => Correction::Unavailable(run(0)),
-            Some((its, None)) => Correction::Unavailable(run(its)),
-            Some((its, Some(w_f))) => {
+            Some((its, Err(()))) => Correction::Interrupted(run(its)),
+            Some((its, Ok(None))) => Correction::Unavailable(run(its)),
+            Some((its, Ok(Some(w_f)))) => {
                 match self.apply_rotation_correction(factor, (el, set), &w_f, e) {
                     Some(e_new) => Correction::Kept(e_new, run(its)),
                     None => Correction::Dropped(run(its)),
