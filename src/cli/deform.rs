@@ -101,11 +101,13 @@ pub struct Args {
     /// elastic formulation does not have (membrane, combined, total-paper).
     #[arg(long)]
     formulation: Option<String>,
-    /// Levels of the elastic iteration: 2 uses a coarse mesh of about 1/8
-    /// of the vertices, at least 500 (meshes of 1000 vertices or more
-    /// whose constraint groups survive) to start an edit from the rest pose and to correct
-    /// the pose every 10 iterations; 1 starts from the handles' rotations
-    /// spread by harmonic weights, without corrections.
+    /// Levels of the elastic iteration: 2 uses a coarse mesh of about
+    /// 1/coarse-ratio of the vertices (1/3 by default, 1/8 with --preset
+    /// elastica), at least 500 (meshes of 1000 vertices or more whose
+    /// constraint groups survive), to start an edit from the rest pose and
+    /// to correct the pose every correction-period iterations (5, or 10
+    /// with elastica); 1 starts from the handles' rotations spread by
+    /// harmonic weights, without corrections.
     #[arg(long, default_value_t = 2, value_parser = clap::value_parser!(u8).range(1..=2))]
     levels: u8,
     /// Print the objective after every iteration.

@@ -97,6 +97,7 @@ impl Actor {
         let (applied_seq, generation, pose_epoch) =
             (self.last_seq, self.generation, self.pose_epoch);
         let installed = self.factor.clone();
+        let refining = self.refining;
         self.opts.scheduler.submit(&self.inner.id, move || {
             let t0 = Instant::now();
             let appended = if journal.is_empty() {
@@ -114,7 +115,9 @@ impl Actor {
                             Some(f) => f,
                             None => cache.get_or_build(&rest, &params, &constraints)?,
                         };
-                        deformer.hold_corrections(hold);
+                        // a refinement's corrections run: a drag stops them
+                        // (`Actor::interrupt`) instead of waiting for them
+                        deformer.hold_corrections(hold && !refining);
                         if preview {
                             let its = dend::deform::PREVIEW_ITERATIONS;
                             if let Some(r) = deformer.preview(&factor, &constraints, its)? {

@@ -7,8 +7,9 @@
 //! free part swinging as a whole (a leg about its hip): the local/global
 //! iteration moves it by a little each step, at every resolution. A
 //! *cascadic* start (Bornemann & Deuflhard 1996) solves the same problem
-//! on a mesh with about `#V / 8` vertices first — each of its iterations
-//! costs about 1/8 of a fine one — and starts the fine iteration from its
+//! on a mesh with about `#V / r` vertices first (`r` the coarse ratio: 3
+//! by default, 8 for the `elastica` preset) — each of its iterations
+//! costs about `1/r` of a fine one — and starts the fine iteration from its
 //! rotations. The energy's weights are dimensionless (elastic/mod.rs), so
 //! the coarse [`Rest`] normalises itself and the same [`Params`] apply; the
 //! coarse tolerance is the fine one in fine mean edge lengths (a looser
@@ -16,7 +17,7 @@
 //!
 //! Only the rest mesh decides the level ([`CoarseLevel::new`], cached by
 //! [`Rest::coarse`]); the constraint set decides whether it is usable
-//! ([`CoarseLevel::restrict`]). The coarse mesh has `#V / 8` vertices, but
+//! ([`CoarseLevel::restrict`]). The coarse mesh has `#V / r` vertices, but
 //! never fewer than [`MIN_COARSE_VERTICES`] (a hand of 1502 vertices
 //! simplified to 189 started its fine iteration worse in the prototype;
 //! at 500 vertices, ratio 3, the hand's limb edit takes 18 iterations
