@@ -555,3 +555,76 @@ async fn the_settled_frame_is_converged_only_when_the_convergence_test_held() ->
     );
     Ok(())
 }
+
+/// A drag that arrives while the session refines does not wait for the
+/// refinement (`Deformer::set_interrupt`). With 100 iterations per frame
+/// and a tolerance that is never met, every solve runs 100 iterations:
+/// the drag's own, then refinements of 100 each. A drag sent halfway
+/// through a refinement stops it early: the last frame before the drag's
+/// own shows a count of iterations since the targets changed that is not
+/// a multiple of 100 (a whole refinement would end on one), and the
+/// drag's frame shows 100 (its own solve, from a new sequence).
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_drag_stops_the_refinement_it_arrives_during() -> R {
+    let n = 30;
+    let (base, _state) = start(Config {
+        ws_max_messages_per_sec: 100_000,
+        iters_per_frame: 100,
+        ..Config::default()
+    })
+    .await;
+    let c = Client::new(&base);
+    let (p, t) = grid(n);
+    let mesh = c.upload_json(&p, &t).await?;
+    let s = c
+        .create_session(
+            &mesh.id,
+            serde_json::json!({"tol": 1e-300, "max_iters": 1_000_000}),
+        )
+        .await?;
+    s.set_constraints(&grid_constraints(n)).await?;
+    s.wait_ready(Duration::from_secs(60)).await?;
+    // every frame, no window: nothing is skipped
+    let mut ws = s.connect_with(StreamOptions::default()).await?;
+    let mut stopped = 0;
+    for round in 1..=3u64 {
+        let seq = 2 * round - 1;
+        ws.drag(0, [0.0, 0.0, 0.01], None, seq).await?;
+        // the drag's frame (400 iterations), then a refinement starts
+        let t0 = Instant::now();
+        loop {
+            if let WsFull::Frame(f) = ws.next_full().await? {
+                if f.header.ack_seq == seq {
+                    assert_eq!(f.header.iteration, 100, "{:?}", f.header);
+                    break;
+                }
+            }
+        }
+        let solve = t0.elapsed();
+        // halfway through the refinement that follows
+        tokio::time::sleep(solve / 2).await;
+        let next = seq + 1;
+        ws.drag(0, [0.0, 0.0, 0.01], None, next).await?;
+        let mut before = vec![];
+        loop {
+            if let WsFull::Frame(f) = ws.next_full().await? {
+                if f.header.ack_seq == next {
+                    assert_eq!(f.header.iteration, 100, "{:?}", f.header);
+                    break;
+                }
+                before.push(f.header.iteration);
+            }
+        }
+        // (frames of the drag's solve and of finished refinements may have
+        // been on their way; the one in flight ended early)
+        if before.last().is_some_and(|&i| i % 100 != 0) {
+            stopped += 1;
+        }
+        eprintln!("round {round}: drag solve {solve:?}, frames before the next drag's {before:?}");
+    }
+    assert!(
+        stopped >= 2,
+        "a refinement stopped early in {stopped} of 3 rounds"
+    );
+    Ok(())
+}
