@@ -50,7 +50,7 @@ pub use params::{
     DEFAULT_CORRECTION_PERIOD, DEFAULT_LAPLACIAN, DEFAULT_STRETCH, ELASTICA_COARSE_RATIO,
     ELASTICA_CORRECTION_PERIOD, ELASTICA_LAPLACIAN, ELASTICA_STRETCH,
 };
-pub use rest::Rest;
+pub use rest::{Rest, VertexOrdering};
 pub use rotation::{best_rotation, fit_rotation, fit_rotation_quat, rotation_from_covariance};
 pub use solver::{
     Deformer, Levels, PreviewReport, StepReport, COARSE_MAX_ITERS, CORRECTION_MAX_ITERS,

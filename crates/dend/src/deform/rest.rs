@@ -1,16 +1,19 @@
 //! The rest-mesh precomputation ([`Rest`]): operators, STEP 1 and the
 //! Procrustes weights, computed once per mesh and shared by its sessions.
 
+use std::borrow::Cow;
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::{Arc, Mutex};
 
 use sprs::CsMat;
 
+use super::constraints::Constraints;
 use super::detail::{Mu, RingWeights};
 use super::elastic::ElasticOps;
 use super::energy::Energy;
 use super::params::{ElasticParams, Mode, Params};
 use super::DeformError;
+use crate::mesh::order::VertexOrder;
 use crate::mesh::{Mesh, Point, Real};
 use crate::operators::Operators;
 
@@ -23,7 +26,13 @@ static NEXT_REST_ID: AtomicU64 = AtomicU64::new(1);
 #[derive(Debug)]
 pub struct Rest {
     id: u64,
+    /// The mesh in the solver's vertex order (`order`): every operator,
+    /// factor and internal pose is indexed by it.
     pub(super) mesh: Mesh,
+    /// The mesh as given and the solver's order of it, when the solver
+    /// renumbered it for locality ([`VertexOrder::for_locality`]):
+    /// constraints and poses cross the API in the given order.
+    order: Option<(Mesh, VertexOrder)>,
     pub(super) ops: Operators,
     /// STEP 1 (§6.1) of the least-squares formulations, each mode's built
     /// on first use: the default elastic formulation never uses them
@@ -47,6 +56,19 @@ pub struct Rest {
     pub(super) coarse: Mutex<Vec<(usize, Option<Arc<CoarseLevel>>)>>,
     /// Whether this is a coarse level itself (two levels, not more).
     pub(super) single_level: bool,
+}
+
+/// How [`Rest::with_ordering`] numbers the solver's vertices.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub enum VertexOrdering {
+    /// Breadth-first where the mesh is large and its own order scattered
+    /// ([`VertexOrder::for_locality`]), else the mesh's own.
+    #[default]
+    Auto,
+    /// The mesh's own order.
+    AsGiven,
+    /// Breadth-first ([`VertexOrder::breadth_first`]) whatever the mesh.
+    BreadthFirst,
 }
 
 /// What an [`ElasticOps`] depends on besides the rest mesh.
@@ -81,8 +103,23 @@ pub struct CoarseLevel {
 
 impl Rest {
     /// Builds the operators on `mesh` (STEP 1 and the Procrustes weights
-    /// wait for a least-squares solve). O(#F).
+    /// wait for a least-squares solve), in a vertex order with locality
+    /// where the mesh's own has none ([`VertexOrdering::Auto`]). O(#F).
     pub fn new(mesh: Mesh) -> Result<Rest, DeformError> {
+        Rest::with_ordering(mesh, VertexOrdering::Auto)
+    }
+
+    /// [`Rest::new`] with the solver's vertex order chosen.
+    pub fn with_ordering(mesh: Mesh, ordering: VertexOrdering) -> Result<Rest, DeformError> {
+        let order = match ordering {
+            VertexOrdering::Auto => VertexOrder::for_locality(&mesh),
+            VertexOrdering::AsGiven => None,
+            VertexOrdering::BreadthFirst => Some(VertexOrder::breadth_first(&mesh)),
+        };
+        let (mesh, order) = match order {
+            Some(o) => (o.renumber(&mesh), Some((mesh, o))),
+            None => (mesh, None),
+        };
         let ops = Operators::new(&mesh);
         if !(ops.scale.is_finite() && ops.scale > 0.0) {
             return Err(DeformError::NonFinite {
@@ -96,6 +133,7 @@ impl Rest {
         Ok(Rest {
             id: NEXT_REST_ID.fetch_add(1, Ordering::Relaxed),
             mesh,
+            order,
             ops,
             mu_default: std::sync::OnceLock::new(),
             mu_paper: std::sync::OnceLock::new(),
@@ -113,7 +151,7 @@ impl Rest {
     pub(super) fn single_level(mesh: Mesh) -> Result<Rest, DeformError> {
         Ok(Rest {
             single_level: true,
-            ..Rest::new(mesh)?
+            ..Rest::with_ordering(mesh, VertexOrdering::AsGiven)?
         })
     }
 
@@ -122,17 +160,57 @@ impl Rest {
         self.id
     }
 
-    /// The rest mesh (mesh units).
+    /// The rest mesh (mesh units), in its own vertex order: the order of
+    /// constraints and poses at the API.
     pub fn mesh(&self) -> &Mesh {
-        &self.mesh
+        self.order.as_ref().map_or(&self.mesh, |(m, _)| m)
     }
 
-    /// The rest operators (normalised copy).
+    /// The solver's vertex order, when it renumbered the mesh
+    /// ([`Rest::with_ordering`]); `None`: the mesh's own order.
+    pub fn vertex_order(&self) -> Option<&VertexOrder> {
+        self.order.as_ref().map(|(_, o)| o)
+    }
+
+    /// `constraints` (indices of [`Rest::mesh`]) in the solver's order:
+    /// the same set, its index lists mapped and sorted again.
+    pub(crate) fn internal_constraints<'a>(
+        &self,
+        constraints: &'a Constraints,
+    ) -> Cow<'a, Constraints> {
+        let Some(order) = self.vertex_order() else {
+            return Cow::Borrowed(constraints);
+        };
+        let mut c = constraints.clone();
+        let mut fixed: Vec<(u32, Point)> = c
+            .fixed
+            .iter()
+            .zip(&c.fixed_at)
+            .map(|(&v, &p)| (order.internal(v), p))
+            .collect();
+        fixed.sort_unstable_by_key(|&(v, _)| v);
+        (c.fixed, c.fixed_at) = fixed.into_iter().unzip();
+        for h in &mut c.handles {
+            let mut vb: Vec<(u32, Point)> = h
+                .vertices
+                .iter()
+                .zip(&h.base)
+                .map(|(&v, &p)| (order.internal(v), p))
+                .collect();
+            vb.sort_unstable_by_key(|&(v, _)| v);
+            (h.vertices, h.base) = vb.into_iter().unzip();
+        }
+        Cow::Owned(c)
+    }
+
+    /// The rest operators (normalised copy), in the solver's vertex order
+    /// ([`Rest::vertex_order`]).
     pub fn operators(&self) -> &Operators {
         &self.ops
     }
 
-    /// Whether each vertex is referenced by a triangle.
+    /// Whether each vertex is referenced by a triangle (the solver's
+    /// order).
     pub fn active(&self) -> &[bool] {
         &self.active
     }

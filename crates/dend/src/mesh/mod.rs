@@ -15,6 +15,7 @@
 pub mod asset;
 pub mod gen;
 pub mod io;
+pub mod order;
 pub mod selection;
 mod topology;
 pub mod weld;

@@ -123,7 +123,7 @@ impl CoarseLevel {
     /// [`ratio_at_most`]), or `None` when the mesh is small
     /// (< [`MIN_VERTICES`]) or its simplification is not a valid mesh.
     pub fn new(rest: &Rest, ratio: usize) -> Option<CoarseLevel> {
-        let mesh = rest.mesh();
+        let mesh = &rest.mesh;
         let n = mesh.num_vertices();
         if n < MIN_VERTICES {
             return None;
@@ -212,7 +212,7 @@ impl CoarseLevel {
                 *q = coarse[c as usize];
             }
         }
-        let topo = fine.mesh().topology();
+        let topo = fine.mesh.topology();
         let mut next = rot.to_vec();
         for _ in 0..SMOOTHING_PASSES {
             for (i, out) in next.iter_mut().enumerate() {

@@ -41,7 +41,7 @@ impl CoarseLevel {
         coarse_fixed: &[bool],
         passes: usize,
     ) -> Vec<Point> {
-        let topo = fine.mesh().topology();
+        let topo = fine.mesh.topology();
         let n = f.len();
         let closed_degree = |i: usize| (topo.ring(i).len() + 1) as Real;
         let mut v: Vec<Vector3<Real>> = (0..n)
@@ -89,7 +89,7 @@ impl CoarseLevel {
         coarse_fixed: &[bool],
         passes: usize,
     ) -> Vec<Vector3<Real>> {
-        let topo = fine.mesh().topology();
+        let topo = fine.mesh.topology();
         let n = self.near.len();
         let mut v: Vec<Vector3<Real>> = self
             .near

@@ -83,6 +83,12 @@ enum FormulationKey {
 impl FactorKey {
     /// The key of `params` and the constrained set of `constraints` on `rest`.
     pub fn new(rest: &Rest, params: &Params, constraints: &Constraints) -> Self {
+        Self::of_internal(rest, params, &rest.internal_constraints(constraints))
+    }
+
+    /// [`FactorKey::new`] for constraints already in the solver's vertex
+    /// order ([`Rest::vertex_order`]).
+    pub(crate) fn of_internal(rest: &Rest, params: &Params, constraints: &Constraints) -> Self {
         FactorKey {
             rest_id: rest.id(),
             energy: params.energy.key(),
@@ -187,8 +193,9 @@ impl Factor {
         progress: &dyn Fn(BuildStage),
     ) -> Result<Factor, DeformError> {
         params.validate()?;
-        let key = FactorKey::new(rest, params, constraints);
-        check_components(rest.mesh(), &key.constrained)?;
+        let constraints = rest.internal_constraints(constraints);
+        let key = FactorKey::of_internal(rest, params, &constraints);
+        check_components(&rest.mesh, &key.constrained)?;
         let t0 = Instant::now();
         progress(BuildStage::Assembly);
         let assembled = assemble(rest, params, &key.constrained, options)?;

@@ -20,6 +20,8 @@ mod propagate;
 mod interrupt_tests;
 #[cfg(test)]
 mod open_tests;
+#[cfg(test)]
+mod order_tests;
 
 pub use multilevel::{Levels, COARSE_MAX_ITERS, CORRECTION_MAX_ITERS};
 pub use preview::{
@@ -70,6 +72,10 @@ pub struct Deformer {
     y: Vec<Point>,
     /// Pose in mesh units, kept in step with `y`.
     pose: Vec<Point>,
+    /// `pose` in the mesh's own vertex order when the solver renumbered
+    /// it ([`Rest::vertex_order`]; empty otherwise): what
+    /// [`Deformer::pose`] returns.
+    pose_user: Vec<Point>,
     scratch: Scratch,
     /// The elastic formulation's state (rotations, projections, Anderson).
     elastic: local_global::State,
@@ -93,11 +99,16 @@ impl Deformer {
     pub fn new(rest: Arc<Rest>, params: Params) -> Self {
         let y = rest.ops.positions.clone();
         let pose = rest.mesh.positions().to_vec();
+        let pose_user = match rest.vertex_order() {
+            Some(_) => rest.mesh().positions().to_vec(),
+            None => Vec::new(),
+        };
         Deformer {
             rest,
             params,
             y,
             pose,
+            pose_user,
             scratch: Scratch::default(),
             elastic: local_global::State::default(),
             levels: Levels::default(),
@@ -166,9 +177,12 @@ impl Deformer {
         Ok(())
     }
 
-    /// The current pose, mesh units, `#V×3`.
+    /// The current pose, mesh units, `#V×3` (in the mesh's vertex order).
     pub fn pose(&self) -> &[Point] {
-        &self.pose
+        match self.rest.vertex_order() {
+            Some(_) => &self.pose_user,
+            None => &self.pose,
+        }
     }
 
     /// Sets the current pose (undo/redo, restore); rejects wrong lengths and
@@ -183,6 +197,15 @@ impl Deformer {
         if pose.iter().flatten().any(|v| !v.is_finite()) {
             return Err(DeformError::NonFinite { what: "pose" });
         }
+        let pose = match self.rest.vertex_order() {
+            Some(order) => {
+                let mut internal = Vec::new();
+                order.to_internal(&pose, &mut internal);
+                self.pose_user = pose;
+                internal
+            }
+            None => pose,
+        };
         self.y = pose.iter().map(|&p| self.rest.ops.normalise(p)).collect();
         self.pose = pose;
         self.drop_preview();
@@ -198,6 +221,9 @@ impl Deformer {
         self.elastic.reset();
         self.y = self.rest.ops.positions.clone();
         self.pose = self.rest.mesh.positions().to_vec();
+        if self.rest.vertex_order().is_some() {
+            self.pose_user = self.rest.mesh().positions().to_vec();
+        }
     }
 
     /// Runs up to `max_iters` iterations towards the handle targets of
@@ -218,6 +244,8 @@ impl Deformer {
         if factor.elastic.is_none() {
             self.drop_preview();
         }
+        let rest = self.rest.clone();
+        let constraints = &*rest.internal_constraints(constraints);
         match &factor.elastic {
             Some((el, set)) => self.step_elastic(factor, (el, set), constraints, max_iters),
             None => self.step_least_squares(factor, constraints, max_iters),
@@ -275,7 +303,7 @@ impl Deformer {
     /// this rest mesh and these parameters.
     fn check_factor(&self, factor: &Factor, constraints: &Constraints) -> Result<(), DeformError> {
         if factor.sys.constrained != constraints.constrained()
-            || factor.key() != &super::FactorKey::new(&self.rest, &self.params, constraints)
+            || factor.key() != &super::FactorKey::of_internal(&self.rest, &self.params, constraints)
         {
             return Err(DeformError::FactorMismatch);
         }
@@ -297,6 +325,9 @@ impl Deformer {
             for (&(v, _), &p) in s.targets.iter().zip(&s.targets_given) {
                 self.pose[v as usize] = p;
             }
+        }
+        if let Some(order) = self.rest.vertex_order() {
+            order.to_user(&self.pose, &mut self.pose_user);
         }
     }
 }

@@ -345,6 +345,9 @@ impl Deformer {
             && self.params.detail == DetailTerm::Nonlinear
             && self.elastic.starts_from_rest();
         let (rest, params) = (&self.rest, &self.params);
+        // (`Factor::build` takes the mesh's order, the coarse problem the
+        // solver's)
+        let internal = rest.internal_constraints(constraints);
         let (factor, solved) = rayon::join(
             || Factor::build(rest, params, constraints),
             || {
@@ -353,10 +356,10 @@ impl Deformer {
                 }
                 let t0 = Instant::now();
                 let ratio = params.elastic()?.coarse_ratio;
-                let mut p = coarse_problem(rest, params, ratio, constraints)?;
-                let cc = p.level.restrict(constraints)?;
+                let mut p = coarse_problem(rest, params, ratio, &internal)?;
+                let cc = p.level.restrict(&internal)?;
                 p.deformer.params = coarse_params(rest, params, &p.level);
-                p.solved_start = Some(solve_start(&mut p, &cc, constraints, t0)?);
+                p.solved_start = Some(solve_start(&mut p, &cc, &internal, t0)?);
                 Some(Box::new(p))
             },
         );

@@ -80,6 +80,9 @@ pub(super) struct Preview {
     pub(super) pending: bool,
     /// The prolongated pose (mesh units, `#V`).
     pub(super) pose: Vec<Point>,
+    /// `pose` in the mesh's vertex order when the solver renumbered it
+    /// (`Rest::vertex_order`; empty otherwise).
+    pose_user: Vec<Point>,
     /// The blended rigid motions `(M_i, t_i)` and their next pass.
     blend: Vec<Motion>,
     next: Vec<Motion>,
@@ -135,6 +138,8 @@ impl Deformer {
         constraints: &Constraints,
         max_iters: usize,
     ) -> Result<Option<PreviewReport>, DeformError> {
+        let rest = self.rest.clone();
+        let constraints = &*rest.internal_constraints(constraints);
         self.check_factor(factor, constraints)?;
         let n = self.rest.mesh.num_vertices();
         let Some(ratio) = preview_ratio(n, &self.params) else {
@@ -150,6 +155,7 @@ impl Deformer {
                 following: false,
                 pending: false,
                 pose: Vec::new(),
+                pose_user: Vec::new(),
                 blend: vec![(Matrix3::identity(), Vector3::zeros()); n],
                 next: vec![(Matrix3::identity(), Vector3::zeros()); n],
             }),
@@ -230,6 +236,9 @@ impl Deformer {
                 }
             }
         }
+        if let Some(order) = self.rest.vertex_order() {
+            order.to_user(&pv.pose, &mut pv.pose_user);
+        }
         pv.pending = true;
         Some((report.iterations, report.converged, p.level.num_vertices()))
     }
@@ -238,8 +247,9 @@ impl Deformer {
     /// the fine pose ([`Deformer::preview`]), else [`Deformer::pose`].
     pub fn shown_pose(&self) -> &[Point] {
         match &self.preview {
+            Some(p) if p.pending && self.rest.vertex_order().is_some() => &p.pose_user,
             Some(p) if p.pending => &p.pose,
-            _ => &self.pose,
+            _ => self.pose(),
         }
     }
 
