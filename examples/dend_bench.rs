@@ -6,6 +6,7 @@
 //!     [--iters 30] [--cg] [--subdivide K] [--write-sets FILE.json]
 //!     [--write-mesh FILE.off] [--formulation elastic|least_squares|square|square_lu|both|all]
 //!     [--precision double|single|both] [--rebuilds K]
+//!     [--ordering auto|given|breadth_first]
 //! ```
 //!
 //! MESH is a file (OFF/OBJ/PLY) or `tube:N` (a generated tube of about N
@@ -29,14 +30,15 @@
 //! `--formulation both` measures eq. (24) and eq. (23) in the same process and
 //! prints one JSON line each, then a line of square / least-squares ratios;
 //! `--precision both` likewise the factor stored in `f64` (the default) and
-//! in `f32`, with the ratios of the second over the first.
+//! in `f32`, with the ratios of the second over the first. `--ordering`
+//! picks the solver's vertex order (`Rest::with_ordering`; default `auto`).
 
 use std::sync::Arc;
 use std::time::Instant;
 
 use dend::deform::{
     Constraints, Deformer, Factor, FactorPrecision, Formulation, Params, Rest, RigidTransform,
-    SolveOptions, SolverChoice,
+    SolveOptions, SolverChoice, VertexOrdering,
 };
 use dend::mesh::{Mesh, Point};
 
@@ -101,7 +103,13 @@ fn run() -> Result<(), String> {
         write_sets(&constraints, &path)?;
     }
     let t = Instant::now();
-    let rest = Arc::new(Rest::new(mesh.clone()).map_err(|e| e.to_string())?);
+    let ordering = match arg::<String>(&args, "--ordering").as_deref() {
+        None | Some("auto") => VertexOrdering::Auto,
+        Some("given") => VertexOrdering::AsGiven,
+        Some("breadth_first") => VertexOrdering::BreadthFirst,
+        Some(o) => return Err(format!("--ordering {o}: auto, given or breadth_first")),
+    };
+    let rest = Arc::new(Rest::with_ordering(mesh.clone(), ordering).map_err(|e| e.to_string())?);
     let rest_ms = ms(t.elapsed());
     let which = arg::<String>(&args, "--formulation").unwrap_or("elastic".into());
     let formulations = match which.as_str() {
@@ -216,7 +224,11 @@ fn bench(
     let mut warm_precompute = Vec::new();
     for _ in 0..rebuilds {
         let t = Instant::now();
-        let fresh = Rest::new(mesh.clone()).map_err(|e| e.to_string())?;
+        let ordering = match rest.vertex_order() {
+            Some(_) => VertexOrdering::BreadthFirst,
+            None => VertexOrdering::AsGiven,
+        };
+        let fresh = Rest::with_ordering(mesh.clone(), ordering).map_err(|e| e.to_string())?;
         let again =
             Factor::build_with(&fresh, &params, constraints, &direct).map_err(|e| e.to_string())?;
         warm_precompute.push(ms(t.elapsed()));

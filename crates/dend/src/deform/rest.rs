@@ -92,7 +92,9 @@ pub(crate) struct EnergyOperator {
 pub struct CoarseLevel {
     /// The coarse rest state (it has no coarse level itself).
     pub rest: Arc<Rest>,
-    /// Fine index of each coarse vertex, increasing, `#Vc`.
+    /// Fine (solver) index of each coarse vertex, `#Vc`: increasing unless
+    /// the fine mesh was renumbered (the coarse mesh keeps the mesh's own
+    /// order).
     pub fine_of: Vec<u32>,
     /// Coarse index of each fine vertex, `u32::MAX` if it is not one, `#V`.
     pub coarse_of: Vec<u32>,

@@ -123,18 +123,39 @@ impl CoarseLevel {
     /// [`ratio_at_most`]), or `None` when the mesh is small
     /// (< [`MIN_VERTICES`]) or its simplification is not a valid mesh.
     pub fn new(rest: &Rest, ratio: usize) -> Option<CoarseLevel> {
-        let mesh = &rest.mesh;
+        // simplified in the mesh's own order: meshoptimizer's collapses
+        // depend on the vertex order, and the solve on the coarse mesh
+        // they give (renumbered for locality, igea_134k's one-shot edit
+        // took 82 fine iterations instead of 29), so a renumbering of
+        // the fine mesh (`mesh::order`) changes only the maps below
+        let mesh = rest.mesh();
         let n = mesh.num_vertices();
         if n < MIN_VERTICES {
             return None;
         }
-        let (coarse, fine_of) = coarse_mesh(mesh, &rest.ops.positions, ratio)?;
+        let mut normalised = Vec::new();
+        let normalised = match rest.vertex_order() {
+            Some(order) => {
+                order.to_user(&rest.ops.positions, &mut normalised);
+                &normalised
+            }
+            None => &rest.ops.positions,
+        };
+        let (coarse, mut fine_of) = coarse_mesh(mesh, normalised, ratio)?;
         let rest_c = Rest::single_level(coarse).ok()?;
+        let mut near = nearest::nearest_sources(mesh.topology(), normalised, &fine_of);
+        if let Some(order) = rest.vertex_order() {
+            for v in &mut fine_of {
+                *v = order.internal(*v);
+            }
+            near = (0..n as u32)
+                .map(|i| near[order.user(i) as usize])
+                .collect();
+        }
         let mut coarse_of = vec![u32::MAX; n];
         for (c, &v) in fine_of.iter().enumerate() {
             coarse_of[v as usize] = c as u32;
         }
-        let near = nearest::nearest_sources(mesh.topology(), &rest.ops.positions, &fine_of);
         Some(CoarseLevel {
             rest: std::sync::Arc::new(rest_c),
             fine_of,
@@ -171,7 +192,6 @@ impl CoarseLevel {
                 target: h.target,
             });
         }
-        // fine_of is increasing, so the coarse lists stay sorted
         Some(Constraints {
             fixed,
             fixed_at,
@@ -179,17 +199,21 @@ impl CoarseLevel {
         })
     }
 
-    /// The fine `vertices` that are coarse vertices, as coarse indices,
-    /// with their `positions`.
+    /// The fine `vertices` that are coarse vertices, as coarse indices
+    /// (sorted: a renumbered fine mesh's coarse vertices keep the mesh's
+    /// own order, `fine_of` is then not increasing), with their
+    /// `positions`.
     fn keep_coarse(&self, vertices: &[u32], positions: &[Point]) -> (Vec<u32>, Vec<Point>) {
-        vertices
+        let mut kept: Vec<(u32, Point)> = vertices
             .iter()
             .zip(positions)
             .filter_map(|(&v, &p)| {
                 let c = self.coarse_of[v as usize];
                 (c != u32::MAX).then_some((c, p))
             })
-            .unzip()
+            .collect();
+        kept.sort_unstable_by_key(|&(c, _)| c);
+        kept.into_iter().unzip()
     }
 
     /// The fine rotations of the vertices where `fit` is set, from the
