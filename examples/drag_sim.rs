@@ -13,7 +13,7 @@
 //! ```text
 //! cargo run --release --example drag_sim -- MESH [--drags 60] [--per-drag 1]
 //!     [--path line|arc] [--preset characters|elastica] [--previews]
-//!     [--correction-period K] [--coarse-ratio R] [--tol T]
+//!     [--correction-period K] [--coarse-ratio R] [--tol T] [--anderson W]
 //! ```
 //!
 //! MESH is a file, `tube:N` or `creature:LEVELS` (`dend gen creature`). The edit is the load test's: the lowest
@@ -105,6 +105,9 @@ fn run() -> Result<(), String> {
     });
     if let Some(t) = arg(&args, "--tol") {
         params.tol = t;
+    }
+    if let Some(w) = arg(&args, "--anderson") {
+        params.anderson = w;
     }
     let (lo, hi) = bbox(&mesh);
     let axis = (0..3)
