@@ -14,6 +14,7 @@
 //! cargo run --release --example drag_sim -- MESH [--drags 60] [--per-drag 1]
 //!     [--path line|arc] [--preset characters|elastica] [--previews]
 //!     [--correction-period K] [--coarse-ratio R] [--tol T] [--anderson W]
+//!     [--area KA] [--stretch KS]
 //! ```
 //!
 //! MESH is a file, `tube:N` or `creature:LEVELS` (`dend gen creature`). The edit is the load test's: the lowest
@@ -95,9 +96,17 @@ fn run() -> Result<(), String> {
         arg(&args, "--correction-period"),
         arg(&args, "--coarse-ratio"),
     );
+    let (area, stretch): (Option<f64>, Option<f64>) =
+        (arg(&args, "--area"), arg(&args, "--stretch"));
     let mut params = preset.params().with_elastic(|e| {
         if let Some(k) = period {
             e.correction_period = k;
+        }
+        if let Some(a) = area {
+            e.area = a;
+        }
+        if let Some(k) = stretch {
+            e.stretch = k;
         }
         if let Some(r) = ratio {
             e.coarse_ratio = r;
@@ -180,6 +189,7 @@ fn run() -> Result<(), String> {
     }
     let (mut settle_iters, mut last) = (0, None);
     let (mut coarse_its, mut coarse_ms) = (0, 0.0);
+
     while settle_iters < params.max_iters {
         let r = d.step(&factor, &c, 1).map_err(|e| e.to_string())?;
         settle_iters += r.iterations;
