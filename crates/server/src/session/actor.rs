@@ -76,6 +76,9 @@ pub(super) struct Actor {
     pose_epoch: u64,
     /// Targets changed since the last solve started.
     dirty: bool,
+    /// A drag was applied since the last solve started (`dirty` may also
+    /// be a new constraint set's solve, which nobody waits for).
+    drag_pending: bool,
     /// When the last drag without a waiter (a WebSocket drag) was applied:
     /// the coarse corrections wait until drags pause
     /// ([`crate::session::CORRECTION_QUIET`]).
@@ -126,7 +129,8 @@ pub(super) struct Actor {
     /// Named-pose commands waiting for the pose to settle.
     settle_queue: VecDeque<super::shared::PoseCmd>,
     /// Raised when a drag arrives while a refinement runs (a solve
-    /// started without new targets or waiters): the solver stops it at
+    /// started without new drags or waiters: between drags, over the
+    /// settle, or towards a new constraint set): the solver stops it at
     /// its next safe point ([`Deformer::set_interrupt`]) and the drag is
     /// answered sooner.
     interrupt: Arc<std::sync::atomic::AtomicBool>,
@@ -188,6 +192,7 @@ impl Actor {
             settle_queue: VecDeque::new(),
             interrupt: Arc::default(),
             refining: false,
+            drag_pending: false,
         }
     }
 
@@ -389,6 +394,7 @@ impl Actor {
             self.last_seq = seq;
         }
         self.dirty = true;
+        self.drag_pending = true;
         self.settled = false;
         self.uncommitted = true;
         if self.deformer.is_none() && self.refining {
@@ -494,6 +500,7 @@ impl Actor {
         }
         self.journal.clear();
         self.dirty = false;
+        self.drag_pending = false;
         self.settled = true;
         for (_, w) in self.waiters.drain(..) {
             let _ = w.send(Err(SessionError::NotReady {

@@ -46,11 +46,13 @@ impl Actor {
             return;
         };
         // a person is dragging (no one waits for a full solve and a drag
-        // came within the quiet time): the coarse corrections wait
+        // came within the quiet time, or waits for this solve: a drag that
+        // waited behind a longer solve is still a drag): the coarse
+        // corrections wait
         let hold = self.waiters.is_empty()
-            && self
-                .last_stream_drag
-                .is_some_and(|t| t.elapsed() < crate::session::CORRECTION_QUIET);
+            && self.last_stream_drag.is_some_and(|t| {
+                self.drag_pending || t.elapsed() < crate::session::CORRECTION_QUIET
+            });
         // drags faster than the full mesh can follow: coarse previews
         // answer them (`Deformer::preview`) and, between drags, refine
         // until they converge; then nothing runs until the next drag or
@@ -71,11 +73,13 @@ impl Actor {
                 .map(|t| t + crate::session::CORRECTION_QUIET);
             return;
         }
-        // a refinement (no new targets, nobody waiting) stops early when a
-        // drag arrives (`Actor::interrupt`)
-        self.refining = !self.dirty && self.waiters.is_empty();
+        // a refinement (no new drags, nobody waiting: between drags, over
+        // the settle, or the solve towards a new constraint set) stops
+        // early when a drag arrives (`Actor::interrupt`)
+        self.refining = !self.drag_pending && self.waiters.is_empty();
         self.inflight = self.waiters.drain(..).map(|w| w.1).collect();
         self.dirty = false;
+        self.drag_pending = false;
         let Some(mut deformer) = self.deformer.take() else {
             return;
         };
@@ -331,6 +335,7 @@ impl Actor {
         self.journal.clear();
         self.last_seq = self.applied_seq;
         self.dirty = false;
+        self.drag_pending = false;
         for (_, w) in self.waiters.drain(..) {
             let _ = w.send(Err(match result {
                 Err(SessionError::Store(e)) => SessionError::Store(e.clone()),

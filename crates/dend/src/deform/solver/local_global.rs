@@ -89,6 +89,11 @@ pub(super) struct State {
     e_mark: Real,
 }
 
+/// How far (mean edge lengths) a target may be from its vertex's rest
+/// position and still count as the rest position
+/// ([`Deformer::targets_at_rest`]): rounding, not a move.
+const REST_TARGET_TOLERANCE: Real = 1e-9;
+
 /// How a new iteration sequence gets its first rotations.
 #[derive(Default, Clone, Copy, PartialEq, Eq)]
 enum Start {
@@ -161,6 +166,25 @@ impl Deformer {
         };
         let nu = factor.sys.unknowns.len();
         self.size_state(factor, el);
+        if self.elastic.starts_from_rest() && !self.shows_preview() && self.targets_at_rest() {
+            // from the rest pose towards the rest positions (a new
+            // session's first constraint set, anchored where the mesh
+            // is): the rest pose is the minimum (every term is zero
+            // there), so nothing is built or iterated, and the next step
+            // still starts from the rest pose
+            self.sync_pose(factor);
+            return Ok(StepReport {
+                iterations: 0,
+                last_update: 0.0,
+                converged: true,
+                diverged: false,
+                objective: 0.0,
+                initial_objective: 0.0,
+                coarse_iterations: 0,
+                coarse_ms: 0.0,
+                interrupted: false,
+            });
+        }
         let fit = self.params.detail == DetailTerm::Nonlinear;
         let chain = self
             .elastic
@@ -378,6 +402,18 @@ impl Deformer {
             }
             _ => (self.local_step(factor, (el, set), false, false), None),
         }
+    }
+
+    /// Whether every loaded target ([`Deformer::load_targets`]) is its
+    /// vertex's rest position, to [`REST_TARGET_TOLERANCE`] mean edge
+    /// lengths (a target anchored at the rest pose went through its
+    /// handle's identity transform and may differ by rounding).
+    fn targets_at_rest(&self) -> bool {
+        let rest = &self.rest.ops.positions;
+        self.scratch.targets.iter().all(|&(v, t)| {
+            let r = rest[v as usize];
+            (0..3).all(|k| (t[k] - r[k]).abs() <= REST_TARGET_TOLERANCE)
+        })
     }
 
     /// A coarse correction (`solver/multilevel.rs`) of the pose with energy

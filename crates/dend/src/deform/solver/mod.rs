@@ -22,6 +22,8 @@ mod interrupt_tests;
 mod open_tests;
 #[cfg(test)]
 mod order_tests;
+#[cfg(test)]
+mod rest_start_tests;
 
 pub use multilevel::{Levels, COARSE_MAX_ITERS, CORRECTION_MAX_ITERS};
 pub use preview::{

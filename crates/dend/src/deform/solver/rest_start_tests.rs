@@ -1,0 +1,60 @@
+//! A step from the rest pose towards the rest positions (a new session's
+//! first constraint set, anchored where the mesh is) is converged at once,
+//! and changes nothing for the steps after it.
+
+use std::sync::Arc;
+
+use crate::deform::{Deformer, Factor, Params, Rest};
+use crate::mesh::gen::{creature_constraints, generate, Shape, ShapeSpec};
+use crate::mesh::{Point, Real};
+
+fn max_dist(a: &[Point], b: &[Point]) -> Real {
+    a.iter()
+        .zip(b)
+        .map(|(p, q)| {
+            ((p[0] - q[0]).powi(2) + (p[1] - q[1]).powi(2) + (p[2] - q[2]).powi(2)).sqrt()
+        })
+        .fold(0.0, Real::max)
+}
+
+#[test]
+fn a_step_towards_the_rest_positions_is_converged_at_once_and_changes_nothing_after() {
+    let mesh = generate(&ShapeSpec::default_for(Shape::Creature)).unwrap();
+    let diag = mesh.diagonal();
+    let rest = Arc::new(Rest::new(mesh.clone()).unwrap());
+    let params = Params::default();
+    let at_rest = creature_constraints(&mesh).resolve(&mesh).unwrap();
+    let mut moved_spec = creature_constraints(&mesh);
+    moved_spec.handles[0].translate = Some([0.0, 0.3, 0.4]);
+    let moved = moved_spec.resolve(&mesh).unwrap();
+    let factor = Factor::build(&rest, &params, &at_rest).unwrap();
+
+    // at once: no iteration, the rest pose, objective 0
+    let mut d = Deformer::new(rest.clone(), params);
+    let r = d.step(&factor, &at_rest, 100).unwrap();
+    assert!(
+        r.converged && r.iterations == 0 && r.objective == 0.0,
+        "{r:?}"
+    );
+    assert!(max_dist(d.pose(), mesh.positions()) <= 1e-12 * diag);
+
+    // the rest pose is the minimum: the same step from the rest pose set
+    // as a pose (which refits and iterates) stays there
+    let mut refit = Deformer::new(rest.clone(), params);
+    refit.set_pose(mesh.positions().to_vec()).unwrap();
+    let r = refit.step(&factor, &at_rest, 100).unwrap();
+    assert!(r.converged && r.iterations <= 1, "{r:?}");
+    assert!(r.objective <= 1e-9, "{r:?}");
+    assert!(max_dist(refit.pose(), mesh.positions()) <= 1e-6 * diag);
+
+    // the next step is the one a new deformer takes: the same iterations
+    // and pose
+    let factor_moved = Factor::build(&rest, &params, &moved).unwrap();
+    let after = d.step(&factor_moved, &moved, 1000).unwrap();
+    let mut fresh = Deformer::new(rest, params);
+    let direct = fresh.step(&factor_moved, &moved, 1000).unwrap();
+    assert!(after.converged && after.iterations > 0, "{after:?}");
+    assert_eq!(after.iterations, direct.iterations);
+    assert_eq!(after.objective, direct.objective);
+    assert_eq!(d.pose(), fresh.pose());
+}
