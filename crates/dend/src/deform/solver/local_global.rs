@@ -166,25 +166,20 @@ impl Deformer {
         };
         let nu = factor.sys.unknowns.len();
         self.size_state(factor, el);
-        if self.elastic.starts_from_rest() && !self.shows_preview() && self.targets_at_rest() {
-            // from the rest pose towards the rest positions (a new
-            // session's first constraint set, anchored where the mesh
-            // is): the rest pose is the minimum (every term is zero
-            // there), so nothing is built or iterated, and the next step
-            // still starts from the rest pose
-            self.sync_pose(factor);
-            return Ok(StepReport {
-                iterations: 0,
-                last_update: 0.0,
-                converged: true,
-                diverged: false,
-                objective: 0.0,
-                initial_objective: 0.0,
-                coarse_iterations: 0,
-                coarse_ms: 0.0,
-                interrupted: false,
-            });
-        }
+        // from the rest pose towards the rest positions (a new session's
+        // first constraint set, anchored where the mesh is): the rest pose
+        // is the minimum (every term is zero there), so one plain
+        // iteration confirms it (a session times it) with no coarse start
+        // or propagation built for it, and the next step still starts
+        // from the rest pose
+        let at_rest =
+            self.elastic.starts_from_rest() && !self.shows_preview() && self.targets_at_rest();
+        let max_iters = if at_rest {
+            self.elastic.start = Start::Warm;
+            max_iters.min(1)
+        } else {
+            max_iters
+        };
         let fit = self.params.detail == DetailTerm::Nonlinear;
         let chain = self
             .elastic
@@ -193,7 +188,7 @@ impl Deformer {
             .filter(|&(id, _)| id == factor.id() && !moved && !self.shows_preview());
         let (mut e, coarse) = match chain {
             Some((_, e)) => (e, None),
-            None => self.start_sequence(factor, (el, set), constraints, moved),
+            None => self.start_sequence(factor, (el, set), constraints, moved && !at_rest),
         };
         let st = &mut self.elastic;
         st.handle_rot.clear();
@@ -304,6 +299,10 @@ impl Deformer {
         }
         report.objective = e;
         self.elastic.chain = Some((factor.id(), e));
+        if at_rest {
+            self.elastic.chain = None;
+            self.elastic.start = Start::Rest;
+        }
         self.sync_pose(factor);
         Ok(report)
     }
