@@ -298,9 +298,9 @@ impl Deformer {
             }
         }
         report.objective = e;
-        self.elastic.chain = Some((factor.id(), e));
+        // (at rest the next step starts from the rest pose again)
+        self.elastic.chain = (!at_rest).then_some((factor.id(), e));
         if at_rest {
-            self.elastic.chain = None;
             self.elastic.start = Start::Rest;
         }
         self.sync_pose(factor);

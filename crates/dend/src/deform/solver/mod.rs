@@ -24,6 +24,8 @@ mod open_tests;
 mod order_tests;
 #[cfg(test)]
 mod rest_start_tests;
+#[cfg(test)]
+mod test_util;
 
 pub use multilevel::{Levels, COARSE_MAX_ITERS, CORRECTION_MAX_ITERS};
 pub use preview::{

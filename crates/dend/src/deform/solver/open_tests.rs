@@ -6,6 +6,7 @@ use std::sync::Arc;
 
 use nalgebra::{UnitQuaternion, Vector3};
 
+use super::test_util::max_dist;
 use crate::deform::{
     Constraints, Deformer, Factor, Levels, Params, Rest, RigidTransform, StepReport,
 };
@@ -44,16 +45,6 @@ fn scaled(mesh: &Mesh, s: Real) -> Mesh {
         mesh.triangles().to_vec(),
     )
     .unwrap()
-}
-
-/// The largest distance between corresponding points.
-fn max_dist(a: &[Point], b: &[Point]) -> Real {
-    a.iter()
-        .zip(b)
-        .map(|(p, q)| {
-            ((p[0] - q[0]).powi(2) + (p[1] - q[1]).powi(2) + (p[2] - q[2]).powi(2)).sqrt()
-        })
-        .fold(0.0, Real::max)
 }
 
 /// The representative edit of a patch over `[-1, 1]²` scaled by `s`: the

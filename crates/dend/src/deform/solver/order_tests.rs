@@ -4,6 +4,7 @@
 
 use std::sync::Arc;
 
+use super::test_util::max_dist;
 use crate::deform::{Deformer, Levels, Params, Rest, VertexOrdering};
 use crate::mesh::gen::{creature_constraints, generate, Shape, ShapeSpec};
 use crate::mesh::{Mesh, Point, Real};
@@ -31,15 +32,6 @@ fn shuffle(n: usize) -> Vec<u32> {
         v.swap(i, (s >> 33) as usize % (i + 1));
     }
     v
-}
-
-fn max_dist(a: &[Point], b: &[Point]) -> Real {
-    a.iter()
-        .zip(b)
-        .map(|(p, q)| {
-            ((p[0] - q[0]).powi(2) + (p[1] - q[1]).powi(2) + (p[2] - q[2]).powi(2)).sqrt()
-        })
-        .fold(0.0, Real::max)
 }
 
 /// Solves the creature's edit on its shuffled copy with `ordering` and

@@ -7,6 +7,7 @@ use std::sync::Arc;
 
 use nalgebra::{UnitQuaternion, Vector3};
 
+use crate::deform::solver::test_util::max_dist;
 use crate::deform::{Constraints, Deformer, Factor, Params, Rest, RigidTransform};
 use crate::mesh::gen::{generate, Shape, ShapeSpec};
 use crate::mesh::{Mesh, Point};
@@ -46,15 +47,6 @@ fn ends(mesh: &Mesh, both_handles: bool) -> Constraints {
     }
 }
 
-fn max_distance(a: &[Point], b: &[Point]) -> f64 {
-    a.iter()
-        .zip(b)
-        .map(|(p, q)| {
-            ((p[0] - q[0]).powi(2) + (p[1] - q[1]).powi(2) + (p[2] - q[2]).powi(2)).sqrt()
-        })
-        .fold(0.0, f64::max)
-}
-
 #[test]
 fn a_rigid_motion_of_every_constraint_previews_as_that_motion() {
     let mesh = creature();
@@ -81,7 +73,7 @@ fn a_rigid_motion_of_every_constraint_previews_as_that_motion() {
     assert!(report.coarse_vertices < mesh.num_vertices() / 2);
     assert!(d.shows_preview());
     let expected: Vec<Point> = mesh.positions().iter().map(|&p| motion.apply(p)).collect();
-    let gap = max_distance(d.shown_pose(), &expected) / mesh.diagonal();
+    let gap = max_dist(d.shown_pose(), &expected) / mesh.diagonal();
     assert!(
         gap < 1e-6,
         "the preview is {gap:.2e} of the diagonal off the rigid motion"
@@ -148,7 +140,7 @@ fn previews_meet_the_constraints_and_the_fine_solve_refines_from_them() {
     // fine frames they replace (measured 0.063 against 0.110 of the
     // diagonal), and a converged preview is within the level's detail
     // (0.021)
-    let off = |p: &[Point]| max_distance(p, d.pose()) / diag;
+    let off = |p: &[Point]| max_dist(p, d.pose()) / diag;
     let (preview_off, fine_off) = (off(&previewed), off(fine.pose()));
     let converged_off = off(&converged_preview);
     assert!(

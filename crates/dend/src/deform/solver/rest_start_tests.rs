@@ -5,18 +5,9 @@
 
 use std::sync::Arc;
 
+use super::test_util::max_dist;
 use crate::deform::{Deformer, Factor, Params, Rest};
 use crate::mesh::gen::{creature_constraints, generate, Shape, ShapeSpec};
-use crate::mesh::{Point, Real};
-
-fn max_dist(a: &[Point], b: &[Point]) -> Real {
-    a.iter()
-        .zip(b)
-        .map(|(p, q)| {
-            ((p[0] - q[0]).powi(2) + (p[1] - q[1]).powi(2) + (p[2] - q[2]).powi(2)).sqrt()
-        })
-        .fold(0.0, Real::max)
-}
 
 #[test]
 fn a_step_towards_the_rest_positions_is_one_plain_iteration_and_changes_nothing_after() {
