@@ -83,6 +83,11 @@ pub(super) struct Actor {
     /// the coarse corrections wait until drags pause
     /// ([`crate::session::CORRECTION_QUIET`]).
     last_stream_drag: Option<std::time::Instant>,
+    /// The time between the last two WebSocket drags, when they came
+    /// within [`crate::session::CORRECTION_QUIET`] of each other: a
+    /// refinement that the next drag would interrupt before its first
+    /// iteration is not started (`Actor::next_drag_due`).
+    drag_gap: Option<std::time::Duration>,
     /// The last fine solve's time per iteration, ms, coarse corrections
     /// left out (NaN before one): coarse previews answer drags while it
     /// is above `SessionOptions::preview_above_ms`.
@@ -165,6 +170,7 @@ impl Actor {
             pose_epoch: 0,
             dirty: false,
             last_stream_drag: None,
+            drag_gap: None,
             fine_iter_ms: f64::NAN,
             preview_converged: true,
             wake_at: None,
@@ -403,7 +409,14 @@ impl Actor {
         }
         match reply {
             Some(w) => self.waiters.push(w),
-            None => self.last_stream_drag = Some(std::time::Instant::now()),
+            None => {
+                let now = std::time::Instant::now();
+                self.drag_gap = self
+                    .last_stream_drag
+                    .map(|t| now.saturating_duration_since(t))
+                    .filter(|&g| g < crate::session::CORRECTION_QUIET);
+                self.last_stream_drag = Some(now);
+            }
         }
     }
 

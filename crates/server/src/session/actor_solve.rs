@@ -67,6 +67,13 @@ impl Actor {
             && (self.fine_iter_ms.is_nan() || self.fine_iter_ms > threshold)
             && self.deformer.as_ref().is_some_and(|d| d.can_preview());
         self.wake_at = None;
+        if let Some(due) = self.next_drag_due() {
+            // the next drag of the stream would stop this refinement before
+            // it finished an iteration: wait for it (or for a little past
+            // when it was due, then refine)
+            self.wake_at = Some(due);
+            return;
+        }
         if preview && !self.dirty && self.preview_converged {
             self.wake_at = self
                 .last_stream_drag
@@ -153,6 +160,24 @@ impl Actor {
                 pose_epoch,
             });
         });
+    }
+
+    /// [`refinement_wait`] for the solve about to start, `None` when it is
+    /// not a refinement (new drags or waiters) or no fine iteration has
+    /// been timed yet.
+    fn next_drag_due(&self) -> Option<std::time::Instant> {
+        // (NaN, before a fine solve was timed: none)
+        let timed = self.fine_iter_ms > 0.0;
+        if self.dirty || self.drag_pending || !self.waiters.is_empty() || !timed {
+            return None;
+        }
+        let iteration = std::time::Duration::from_secs_f64(self.fine_iter_ms * 1e-3);
+        refinement_wait(
+            std::time::Instant::now(),
+            self.last_stream_drag?,
+            self.drag_gap?,
+            iteration,
+        )
     }
 
     pub(super) fn on_internal(&mut self, msg: Internal) {
@@ -366,5 +391,55 @@ fn preview_report(r: &dend::deform::PreviewReport) -> dend::deform::StepReport {
         coarse_iterations: r.iterations,
         coarse_ms: r.ms,
         interrupted: false,
+    }
+}
+
+/// How long a refinement waits for the next drag of a stream: drags came
+/// `gap` apart, the last at `last`, so the next is due at `last + gap`. A
+/// refinement started at `now` would be stopped by it before finishing
+/// one fine iteration (`iteration`) when it is due sooner than that: it
+/// then waits, until half a gap past when the drag was due, and starts
+/// if none came. Returns that time, or `None` to start now.
+pub(super) fn refinement_wait(
+    now: std::time::Instant,
+    last: std::time::Instant,
+    gap: std::time::Duration,
+    iteration: std::time::Duration,
+) -> Option<std::time::Instant> {
+    let due = last + gap;
+    let until = due + gap / 2;
+    (due.saturating_duration_since(now) < iteration && now < until).then_some(until)
+}
+
+#[cfg(test)]
+mod tests {
+    use std::time::{Duration, Instant};
+
+    use super::refinement_wait;
+
+    const MS: Duration = Duration::from_millis(1);
+
+    #[test]
+    fn a_refinement_waits_only_for_a_drag_due_within_one_iteration() {
+        let last = Instant::now();
+        let gap = 8 * MS;
+        // 6 ms after the last drag, the next due in 2 ms, an iteration 5 ms:
+        // the refinement would be stopped, so it waits until 12 ms
+        assert_eq!(
+            refinement_wait(last + 6 * MS, last, gap, 5 * MS),
+            Some(last + 12 * MS)
+        );
+        // with a 1 ms iteration it finishes one first: it starts now
+        assert_eq!(refinement_wait(last + 6 * MS, last, gap, MS), None);
+        // drags 100 ms apart (a person dragging slowly): it starts now
+        assert_eq!(refinement_wait(last + 6 * MS, last, 100 * MS, 5 * MS), None);
+        // the drag is overdue but within half a gap: still waiting
+        assert_eq!(
+            refinement_wait(last + 10 * MS, last, gap, 5 * MS),
+            Some(last + 12 * MS)
+        );
+        // half a gap past due: the stream has paused, it starts
+        assert_eq!(refinement_wait(last + 12 * MS, last, gap, 5 * MS), None);
+        assert_eq!(refinement_wait(last + 50 * MS, last, gap, 5 * MS), None);
     }
 }
