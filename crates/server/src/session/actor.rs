@@ -420,6 +420,13 @@ impl Actor {
         }
     }
 
+    /// The drags applied so far are accounted for (a solve took them, or
+    /// they were dropped): nothing new to solve, and no drag waits.
+    pub(super) fn drags_taken(&mut self) {
+        self.dirty = false;
+        self.drag_pending = false;
+    }
+
     /// A client's new constraint set, resolved here once, anchored at the
     /// current pose (`ConstraintsSpec::resolve_at`: fixed vertices stay
     /// where the pose has them, handles move from there): the pose before
@@ -512,8 +519,7 @@ impl Actor {
                 .send(Event::Peer(PeerEvent::HandleReleased { handle, client }));
         }
         self.journal.clear();
-        self.dirty = false;
-        self.drag_pending = false;
+        self.drags_taken();
         self.settled = true;
         for (_, w) in self.waiters.drain(..) {
             let _ = w.send(Err(SessionError::NotReady {

@@ -113,8 +113,7 @@ impl Actor {
         }
         self.confirmed = self.constraints.clone();
         self.pose = pose;
-        self.dirty = false;
-        self.drag_pending = false;
+        self.drags_taken();
         self.settled = true;
         self.converged = true;
         self.objective = f64::NAN;

@@ -85,8 +85,7 @@ impl Actor {
         // early when a drag arrives (`Actor::interrupt`)
         self.refining = !self.drag_pending && self.waiters.is_empty();
         self.inflight = self.waiters.drain(..).map(|w| w.1).collect();
-        self.dirty = false;
-        self.drag_pending = false;
+        self.drags_taken();
         let Some(mut deformer) = self.deformer.take() else {
             return;
         };
@@ -359,8 +358,7 @@ impl Actor {
         self.constraints = self.confirmed.clone();
         self.journal.clear();
         self.last_seq = self.applied_seq;
-        self.dirty = false;
-        self.drag_pending = false;
+        self.drags_taken();
         for (_, w) in self.waiters.drain(..) {
             let _ = w.send(Err(match result {
                 Err(SessionError::Store(e)) => SessionError::Store(e.clone()),
