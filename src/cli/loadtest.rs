@@ -154,6 +154,11 @@ pub struct LoadtestArgs {
     /// (the editor's).
     #[arg(long, value_enum, value_delimiter = ',', default_value = "delta")]
     stream: Vec<StreamMode>,
+    /// Write every drag's drag→frame latency to this CSV file (`mode,
+    /// session, drag, latency_ms`, in the order each session sent them):
+    /// which drags make the tail.
+    #[arg(long)]
+    latencies: Option<std::path::PathBuf>,
 }
 
 /// The `params` object of the drag sessions: the preset by name, as the
@@ -312,11 +317,27 @@ async fn run_mode(
     }
     let mut sum = Summary::default();
     let (mut ready, mut constraints_ready) = (vec![], vec![]);
-    for t in tasks {
+    let mut rows = String::new();
+    for (session, t) in tasks.into_iter().enumerate() {
         let (seen, r, c) = t.await??;
+        if args.latencies.is_some() {
+            for (drag, l) in seen.latencies.iter().enumerate() {
+                let ms = l.as_secs_f64() * 1e3;
+                rows.push_str(&format!("{},{session},{drag},{ms:.3}\n", mode.name()));
+            }
+        }
         sum.add(seen);
         ready.push(r);
         constraints_ready.push(c);
+    }
+    if let Some(path) = &args.latencies {
+        // appended: one file for every stream mode of the run
+        use std::io::Write;
+        let mut f = std::fs::OpenOptions::new()
+            .create(true)
+            .append(true)
+            .open(path)?;
+        f.write_all(rows.as_bytes())?;
     }
     sum.sort();
     ready.sort();
