@@ -108,6 +108,9 @@ impl Actor {
             (self.last_seq, self.generation, self.pose_epoch);
         let installed = self.factor.clone();
         let refining = self.refining;
+        // other sessions' solves wait for a worker: a drag's step from the
+        // rest pose skips its coarse start (`Deformer::hold_coarse_start`)
+        let contended = self.opts.scheduler.waiting() > 0;
         self.opts.scheduler.submit(&self.inner.id, move || {
             let t0 = Instant::now();
             let appended = if journal.is_empty() {
@@ -128,6 +131,7 @@ impl Actor {
                         // a refinement's corrections run: a drag stops them
                         // (`Actor::interrupt`) instead of waiting for them
                         deformer.hold_corrections(hold && !refining);
+                        deformer.hold_coarse_start(hold && !refining && contended);
                         if preview {
                             let its = dend::deform::PREVIEW_ITERATIONS;
                             if let Some(r) = deformer.preview(&factor, &constraints, its)? {

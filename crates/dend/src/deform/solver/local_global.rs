@@ -388,7 +388,13 @@ impl Deformer {
         }
         match start {
             Start::Rest if fit => {
-                let coarse = self.coarse_start(factor, (el, set), constraints);
+                // a held coarse start (`Deformer::hold_coarse_start`):
+                // the handles' rotations spread harmonically instead
+                let coarse = if self.coarse_start_held {
+                    None
+                } else {
+                    self.coarse_start(factor, (el, set), constraints)
+                };
                 if coarse.is_none() {
                     self.propagate_rotations(factor, (el, set), constraints);
                 }

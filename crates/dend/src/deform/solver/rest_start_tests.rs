@@ -1,12 +1,13 @@
-//! A step from the rest pose towards the rest positions (a new session's
-//! first constraint set, anchored where the mesh is) is converged after
-//! one plain iteration, builds no coarse problem, and leaves the next step
-//! as a new deformer's.
+//! Steps from the rest pose. One towards the rest positions (a new
+//! session's first constraint set, anchored where the mesh is) is
+//! converged after one plain iteration, builds no coarse problem, and
+//! leaves the next step as a new deformer's. One whose coarse start is
+//! held takes the one-level start and still settles to the minimum.
 
 use std::sync::Arc;
 
 use super::test_util::max_dist;
-use crate::deform::{Deformer, Factor, Params, Rest};
+use crate::deform::{Deformer, Factor, Levels, Params, Rest};
 use crate::mesh::gen::{creature_constraints, generate, Shape, ShapeSpec};
 
 #[test]
@@ -49,4 +50,52 @@ fn a_step_towards_the_rest_positions_is_one_plain_iteration_and_changes_nothing_
     assert_eq!(after.iterations, direct.iterations);
     assert!((after.objective - direct.objective).abs() <= 1e-9 * direct.objective);
     assert!(max_dist(d.pose(), fresh.pose()) <= 1e-9 * diag);
+}
+
+/// A held coarse start (`Deformer::hold_coarse_start`, a session's drag
+/// while the solver is contended) takes the one-level start: its first
+/// iteration is a one-level deformer's, to rounding, with no coarse
+/// problem built; once released, the corrections settle it to the
+/// minimum a coarse-started solve reaches.
+#[test]
+fn a_held_coarse_start_propagates_and_settles_to_the_same_minimum() {
+    let mesh = generate(&ShapeSpec::default_for(Shape::Creature)).unwrap();
+    let diag = mesh.diagonal();
+    let rest = Arc::new(Rest::new(mesh.clone()).unwrap());
+    let params = Params::default();
+    let mut spec = creature_constraints(&mesh);
+    spec.handles[0].translate = Some([0.0, 0.3, 0.4]);
+    let moved = spec.resolve(&mesh).unwrap();
+    let factor = Factor::build(&rest, &params, &moved).unwrap();
+
+    let mut held = Deformer::new(rest.clone(), params);
+    held.hold_coarse_start(true);
+    let first = held.step(&factor, &moved, 1).unwrap();
+    assert_eq!(first.coarse_iterations, 0, "{first:?}");
+    assert!(held.coarse.is_none(), "a coarse problem was built");
+    let mut one = Deformer::new(rest.clone(), params);
+    one.set_levels(Levels::One);
+    let one_first = one.step(&factor, &moved, 1).unwrap();
+    assert!(max_dist(held.pose(), one.pose()) <= 1e-12 * diag);
+    assert!((first.objective - one_first.objective).abs() <= 1e-12 * one_first.objective);
+
+    held.hold_coarse_start(false);
+    let settled = held.step(&factor, &moved, 1000).unwrap();
+    let mut fresh = Deformer::new(rest, params);
+    let direct = fresh.step(&factor, &moved, 1000).unwrap();
+    assert!(
+        settled.converged && direct.converged,
+        "{settled:?} {direct:?}"
+    );
+    assert!(
+        settled.coarse_iterations > 0,
+        "no correction ran: {settled:?}"
+    );
+    assert!(
+        settled.objective <= direct.objective * (1.0 + 1e-3),
+        "{} against {}",
+        settled.objective,
+        direct.objective
+    );
+    assert!(max_dist(held.pose(), fresh.pose()) <= 1e-2 * diag);
 }
