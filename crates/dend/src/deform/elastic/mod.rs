@@ -74,6 +74,11 @@ use dend_linalg::sparse::matmul;
 /// Element count from which the local step runs on the rayon pool.
 const PARALLEL_MIN: usize = 2048;
 
+/// Vertices or triangles per block of the local step's energy sum (a
+/// multiple of [`LANES`]): each block is summed in order, then the
+/// blocks' sums, so the sum does not depend on how the work was split.
+const SUM_BLOCK: usize = 64 * LANES;
+
 /// The cap of `G` on the normalised mesh (module docs).
 pub const G_CAP: Real = 1.0;
 
@@ -434,20 +439,47 @@ impl ElasticOps {
             }
             el.weight * (0..6).map(|k| (f[k] - p[k]).powi(2)).sum::<Real>()
         };
-        if rot.len() >= PARALLEL_MIN {
-            let ev: Real = rot.par_chunks_mut(LANES).enumerate().map(vertices).sum();
-            let et: Real = self
-                .area
-                .par_iter()
-                .zip(proj.par_iter_mut())
-                .map(triangles)
-                .sum();
-            ev + et
+        // the energy summed block by block, the blocks' sums then in
+        // order: the same rounding on any thread count and on both paths
+        // (a parallel `sum` reduces in the order work was stolen, which
+        // changed the objective's last bits from run to run)
+        let vertex_block = |(b, block): (usize, &mut [UnitQuaternion<Real>])| -> Real {
+            let first = b * SUM_BLOCK / LANES;
+            block
+                .chunks_mut(LANES)
+                .enumerate()
+                .map(|(c, o)| vertices((first + c, o)))
+                .sum()
+        };
+        let triangle_block = |(els, ps): (&[AreaElement], &mut [[Real; 6]])| -> Real {
+            els.iter().zip(ps.iter_mut()).map(triangles).sum()
+        };
+        let (ev, et): (Vec<Real>, Vec<Real>) = if rot.len() >= PARALLEL_MIN {
+            (
+                rot.par_chunks_mut(SUM_BLOCK)
+                    .enumerate()
+                    .map(vertex_block)
+                    .collect(),
+                self.area
+                    .par_chunks(SUM_BLOCK)
+                    .zip(proj.par_chunks_mut(SUM_BLOCK))
+                    .map(triangle_block)
+                    .collect(),
+            )
         } else {
-            let ev: Real = rot.chunks_mut(LANES).enumerate().map(vertices).sum();
-            let et: Real = self.area.iter().zip(proj.iter_mut()).map(triangles).sum();
-            ev + et
-        }
+            (
+                rot.chunks_mut(SUM_BLOCK)
+                    .enumerate()
+                    .map(vertex_block)
+                    .collect(),
+                self.area
+                    .chunks(SUM_BLOCK)
+                    .zip(proj.chunks_mut(SUM_BLOCK))
+                    .map(triangle_block)
+                    .collect(),
+            )
+        };
+        ev.iter().sum::<Real>() + et.iter().sum::<Real>()
     }
 
     /// Area elements (the length of the `proj` buffer of [`Self::local_step`]).
