@@ -5,8 +5,9 @@
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
 
+use super::test_util::creature_moved;
 use crate::deform::{Deformer, Factor, Params, Rest};
-use crate::mesh::gen::{creature_constraints, generate, Shape, ShapeSpec};
+use crate::mesh::gen::{generate, Shape, ShapeSpec};
 
 /// On the generated creature (two levels: corrections run every 5
 /// iterations), 7 iterations, a step with the flag raised, then 9 more
@@ -15,9 +16,7 @@ use crate::mesh::gen::{creature_constraints, generate, Shape, ShapeSpec};
 #[test]
 fn an_interrupted_step_changes_nothing() {
     let mesh = generate(&ShapeSpec::default_for(Shape::Creature)).unwrap();
-    let mut spec = creature_constraints(&mesh);
-    spec.handles[0].translate = Some([0.0, 0.3, 0.4]);
-    let c = spec.resolve(&mesh).unwrap();
+    let c = creature_moved(&mesh);
     let params = Params::default();
     let rest = Arc::new(Rest::new(mesh).unwrap());
     let f = Factor::build(&rest, &params, &c).unwrap();
@@ -58,9 +57,7 @@ fn a_step_from_rest_stopped_at_once_then_resumed_reaches_the_same_pose() {
     let mesh = generate(&ShapeSpec::default_for(Shape::Creature)).unwrap();
     // (targets off the rest positions: towards those a step from the rest
     // pose is converged at once, `rest_start_tests.rs`)
-    let mut spec = creature_constraints(&mesh);
-    spec.handles[0].translate = Some([0.0, 0.3, 0.4]);
-    let c = spec.resolve(&mesh).unwrap();
+    let c = creature_moved(&mesh);
     let params = Params::default();
     let rest = Arc::new(Rest::new(mesh).unwrap());
     let f = Factor::build(&rest, &params, &c).unwrap();

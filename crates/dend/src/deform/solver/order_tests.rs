@@ -4,9 +4,9 @@
 
 use std::sync::Arc;
 
-use super::test_util::max_dist;
+use super::test_util::{creature_moved, max_dist};
 use crate::deform::{Deformer, Levels, Params, Rest, VertexOrdering};
-use crate::mesh::gen::{creature_constraints, generate, Shape, ShapeSpec};
+use crate::mesh::gen::{generate, Shape, ShapeSpec};
 use crate::mesh::{Mesh, Point, Real};
 
 /// `mesh` with vertex `old` renumbered `perm[old]`.
@@ -37,9 +37,7 @@ fn shuffle(n: usize) -> Vec<u32> {
 /// Solves the creature's edit on its shuffled copy with `ordering` and
 /// `levels`; returns (iterations, objective, pose in the shuffled order).
 fn solve(mesh: &Mesh, ordering: VertexOrdering, levels: Levels) -> (usize, Real, Vec<Point>) {
-    let mut spec = creature_constraints(mesh);
-    spec.handles[0].translate = Some([0.0, 0.3, 0.4]);
-    let c = spec.resolve(mesh).unwrap();
+    let c = creature_moved(mesh);
     let params = Params {
         tol: 1e-6,
         ..Params::default()

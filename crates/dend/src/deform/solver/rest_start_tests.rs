@@ -6,7 +6,7 @@
 
 use std::sync::Arc;
 
-use super::test_util::max_dist;
+use super::test_util::{creature_moved, max_dist};
 use crate::deform::{Deformer, Factor, Levels, Params, Rest};
 use crate::mesh::gen::{creature_constraints, generate, Shape, ShapeSpec};
 
@@ -17,9 +17,7 @@ fn a_step_towards_the_rest_positions_is_one_plain_iteration_and_changes_nothing_
     let rest = Arc::new(Rest::new(mesh.clone()).unwrap());
     let params = Params::default();
     let at_rest = creature_constraints(&mesh).resolve(&mesh).unwrap();
-    let mut moved_spec = creature_constraints(&mesh);
-    moved_spec.handles[0].translate = Some([0.0, 0.3, 0.4]);
-    let moved = moved_spec.resolve(&mesh).unwrap();
+    let moved = creature_moved(&mesh);
     let factor = Factor::build(&rest, &params, &at_rest).unwrap();
 
     // one iteration, no coarse start: the rest pose, objective 0 to
@@ -63,9 +61,7 @@ fn a_held_coarse_start_propagates_and_settles_to_the_same_minimum() {
     let diag = mesh.diagonal();
     let rest = Arc::new(Rest::new(mesh.clone()).unwrap());
     let params = Params::default();
-    let mut spec = creature_constraints(&mesh);
-    spec.handles[0].translate = Some([0.0, 0.3, 0.4]);
-    let moved = spec.resolve(&mesh).unwrap();
+    let moved = creature_moved(&mesh);
     let factor = Factor::build(&rest, &params, &moved).unwrap();
 
     let mut held = Deformer::new(rest.clone(), params);
