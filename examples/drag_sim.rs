@@ -189,7 +189,6 @@ fn run() -> Result<(), String> {
     }
     let (mut settle_iters, mut last) = (0, None);
     let (mut coarse_its, mut coarse_ms) = (0, 0.0);
-
     while settle_iters < params.max_iters {
         let r = d.step(&factor, &c, 1).map_err(|e| e.to_string())?;
         settle_iters += r.iterations;

@@ -151,7 +151,8 @@ impl Deformer {
     /// drag's step while other sessions' solves wait for the solver: eight
     /// camel sessions starting together spent their first drags in each
     /// other's coarse starts (drag→frame median of the first drags 218 ms,
-    /// p99 over the gesture 203 ms; held: 78 and 138 ms). Alone, a drag
+    /// p99 over the gesture 203 ms; held while contended: 68 and 78–92
+    /// ms). Alone, a drag
     /// keeps it: the start puts the slow modes right, and without it the
     /// camel's settle after a 150-drag gesture took 31 iterations instead
     /// of 24.
