@@ -87,12 +87,21 @@ pub(super) struct State {
     corrections: bool,
     since_correction: usize,
     e_mark: Real,
+    /// The sequence's last update (largest vertex move) and how many
+    /// iterations in a row it has grown ([`Deformer::drift_limit`]).
+    last_update: Real,
+    grew: usize,
 }
 
 /// How far (mean edge lengths) a target may be from its vertex's rest
 /// position and still count as the rest position
 /// ([`Deformer::targets_at_rest`]): rounding, not a move.
 const REST_TARGET_TOLERANCE: Real = 1e-9;
+
+/// The relative growth of an iteration's update over the last one's that
+/// counts towards [`Deformer::drift_limit`]: above rounding, far below the
+/// 1–4 % a drifting solve grows by per iteration.
+const DRIFT_MARGIN: Real = 1e-6;
 
 /// How a new iteration sequence gets its first rotations.
 #[derive(Default, Clone, Copy, PartialEq, Eq)]
@@ -284,6 +293,18 @@ impl Deformer {
                 break;
             }
             let st = &mut self.elastic;
+            // (grown by more than rounding: a renumbered mesh's updates
+            // differ in their last bits)
+            st.grew = if max_dx > st.last_update * (1.0 + DRIFT_MARGIN) {
+                st.grew + 1
+            } else {
+                0
+            };
+            st.last_update = max_dx;
+            if self.drift_limit.is_some_and(|k| st.grew >= k) {
+                // drifting, not converging (`multilevel::CORRECTION_DRIFT`)
+                break;
+            }
             if st.e_mark.is_nan() {
                 // the first global step moves the constrained vertices'
                 // neighbours: the gains of corrections are compared with
@@ -368,6 +389,8 @@ impl Deformer {
         st.corrections = fit && self.levels == Levels::Two;
         st.since_correction = 0;
         st.e_mark = Real::NAN;
+        st.last_update = Real::INFINITY;
+        st.grew = 0;
         let start = std::mem::replace(&mut st.start, Start::Warm);
         // constrained vertices whose rotation is not fitted carry their
         // handle's rotation (the fixed ones the identity)

@@ -93,6 +93,10 @@ pub struct Deformer {
     corrections_held: bool,
     /// [`Deformer::hold_coarse_start`].
     coarse_start_held: bool,
+    /// Stop a step once its update has grown this many iterations in a
+    /// row (a correction's coarse solve: `multilevel::CORRECTION_DRIFT`);
+    /// `None`, never.
+    pub(super) drift_limit: Option<usize>,
     /// The coarse previews' problem and last pose ([`Deformer::preview`]).
     preview: Option<Box<preview::Preview>>,
     /// Raised by another thread to stop a step at its next safe point
@@ -121,6 +125,7 @@ impl Deformer {
             coarse: None,
             corrections_held: false,
             coarse_start_held: false,
+            drift_limit: None,
             preview: None,
             interrupt: None,
         }

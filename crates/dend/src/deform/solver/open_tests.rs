@@ -299,3 +299,74 @@ fn a_stalled_coarse_solve_is_one_sequence_cut_short_by_a_unit_free_rule() {
         );
     }
 }
+
+/// A step with a drift limit (`Deformer::drift_limit`, which a
+/// correction's coarse solve gets: `multilevel::CORRECTION_DRIFT`) stops
+/// right after its update has grown that many iterations in a row, at the
+/// iterates of an unlimited run cut there; the rule compares updates with
+/// each other, so the patch scaled by 37 stops at the same iteration and
+/// pose.
+#[test]
+fn a_drifting_solve_stops_once_its_update_has_grown_k_times_in_a_row() {
+    // an irregular open patch whose iteration crawls, one level: its
+    // updates rise now and then before they fall
+    let mesh = irregular_patch(PatchSurface::Saddle, 40, 0.4, 17);
+    let params = Params::default();
+    // every update of the unlimited sequence (one-iteration calls
+    // continue it)
+    let mut updates = Vec::new();
+    run_scaled_with(&mesh, 1.0, params, |d, f, c| loop {
+        let r = d.step(f, c, 1).unwrap();
+        updates.push(r.last_update);
+        if r.converged || updates.len() >= 300 {
+            break r;
+        }
+    });
+    // the first iteration where the update has grown k times in a row
+    let first_run_of = |k: usize| {
+        let mut grew = 0;
+        (1..updates.len()).find(|&i| {
+            grew = if updates[i] > updates[i - 1] {
+                grew + 1
+            } else {
+                0
+            };
+            grew >= k
+        })
+    };
+    let k = (2..=4).rev().find(|&k| first_run_of(k).is_some());
+    let Some(k) = k else {
+        panic!("no update grows twice in a row on this patch ({updates:?}): the test needs one that does");
+    };
+    let stop = first_run_of(k).unwrap() + 1;
+    eprintln!(
+        "{} iterations unlimited; updates grow {k} times in a row by iteration {stop}",
+        updates.len()
+    );
+    let limited = |s: Real| {
+        run_scaled_with(&mesh, s, params, |d, f, c| {
+            d.drift_limit = Some(k);
+            d.step(f, c, 300).unwrap()
+        })
+    };
+    let (cut, cut_pose) = limited(1.0);
+    assert_eq!(cut.iterations, stop, "{cut:?}");
+    assert!(!cut.converged);
+    let (same, same_pose) =
+        run_scaled_with(&mesh, 1.0, params, |d, f, c| d.step(f, c, stop).unwrap());
+    assert_eq!(same.iterations, stop);
+    let gap = max_dist(&cut_pose, &same_pose) / mesh.diagonal();
+    assert!(
+        gap < 1e-12,
+        "cut and unlimited runs differ by {gap:.2e} of the diagonal"
+    );
+    for s in [37.0, 1.0 / 37.0] {
+        let (rep, pose) = limited(s);
+        assert_eq!(rep.iterations, stop, "scale {s}");
+        let gap = max_dist(&cut_pose, &pose) / mesh.diagonal();
+        assert!(
+            gap < 1e-9,
+            "scale {s}: poses {gap:.2e} of the diagonal apart"
+        );
+    }
+}

@@ -66,9 +66,16 @@ fn solve(mesh: &Mesh, ordering: VertexOrdering, levels: Levels) -> (usize, Real,
     (r.iterations, r.objective, d.pose().to_vec())
 }
 
-/// Renumbering changes nothing but the order of sums: on one level and on
-/// two (the coarse mesh is simplified in the mesh's own order) the same
-/// iterations, and poses and objectives equal to rounding.
+/// Renumbering changes nothing but the order of sums. On one level: the
+/// same iterations, and poses and objectives equal to rounding. On two
+/// (the coarse mesh is simplified in the mesh's own order): the same
+/// minimum, objectives to 1e-9 and poses to 1e-6 of the diagonal, at most
+/// a few iterations apart. The coarse corrections' solves decide where to
+/// stop from their iterates (converged, stalled, drifting:
+/// `multilevel::CORRECTION_DRIFT`), and a solve cut while its update grows
+/// hands on a state whose last bits the growing mode has amplified: at
+/// this tolerance (1e-6) one correction then takes 84 coarse iterations
+/// in one order and 81 in the other, and the fine counts end 53 and 52.
 #[test]
 fn the_solvers_vertex_order_does_not_change_the_solution() {
     let mesh = generate(&ShapeSpec::default_for(Shape::Creature)).unwrap();
@@ -77,13 +84,25 @@ fn the_solvers_vertex_order_does_not_change_the_solution() {
     for levels in [Levels::One, Levels::Two] {
         let (i0, e0, p0) = solve(&shuffled, VertexOrdering::AsGiven, levels);
         let (i1, e1, p1) = solve(&shuffled, VertexOrdering::BreadthFirst, levels);
-        assert_eq!(i0, i1, "{levels:?}: iterations");
-        assert!((e0 - e1).abs() <= 1e-9 * e0, "{levels:?}: {e0} vs {e1}");
         let gap = max_dist(&p0, &p1) / diag;
-        assert!(
-            gap <= 1e-9,
-            "{levels:?}: poses {gap:.1e} of the diagonal apart"
-        );
+        eprintln!("{levels:?}: {i0} and {i1} iterations, objectives {e0} and {e1}, poses {gap:.1e} of the diagonal apart");
+        assert!((e0 - e1).abs() <= 1e-9 * e0, "{levels:?}: {e0} vs {e1}");
+        if levels == Levels::One {
+            assert_eq!(i0, i1, "{levels:?}: iterations");
+            assert!(
+                gap <= 1e-9,
+                "{levels:?}: poses {gap:.1e} of the diagonal apart"
+            );
+        } else {
+            assert!(
+                i0.abs_diff(i1) <= 3,
+                "{levels:?}: {i0} against {i1} iterations"
+            );
+            assert!(
+                gap <= 1e-6,
+                "{levels:?}: poses {gap:.1e} of the diagonal apart"
+            );
+        }
     }
 }
 
