@@ -33,7 +33,12 @@ Edits (cases):
   (135 degrees about z).
 - `cylinder-120` (1 step), `cylinder-180` (3 steps): `dend gen cylinder` with
   examples/cylinder-bend-{120,180}.json (steps as in
-  docs/paper-reproduction.md); `survey-cylinder`, `survey-cactus`,
+  docs/paper-reproduction.md); `bar-bend-120` (1 step), `bar-bend-180` (3
+  steps): the square tube of `dend gen bar` bent the same way, with
+  examples/bar-bend-{120,180}.json (issue #33's "tube bends": a cross-section
+  half as wide against a similar free length, so the inner side is
+  compressed by 20 % at 120 degrees where the cylinder's is by 40 %);
+  `survey-cylinder`, `survey-cactus`,
   `survey-bumpy_plane`: the survey .off + .sel/.def.
 
 Per case: `dend deform MESH (--constraints C | --sel S --def D) -o OUT
@@ -74,7 +79,8 @@ libigl ARAP's run to convergence on the same edit in the same run:
   (cylinders). ARAP keeps its distortion low by collapsing cross-sections
   (0.31 on the 300 degree bar), so distortion is not judged there.
 - `--preset elastica` (the paper's even bend and twist) adds the paper's
-  figures: cylinder-120 and cylinder-180 bend CV <= 0.1, bar-300 min area
+  figures: cylinder-120, cylinder-180, bar-bend-120 and bar-bend-180 bend CV
+  <= 0.1, bar-300 min area
   >= 0.8 with its direction kept (twist deviation <= 45 degrees: a bar
   that unwinds to the handle's -60 degree equivalent deviates by over
   300), bar-135 and survey-bar min area >= 0.92 and twist deviation <= 3
@@ -163,6 +169,8 @@ PRESET_RULES = {
         "survey-bar": TWIST_135,
         "cylinder-120": {"bend_cv": ("<=", 0.1)},
         "cylinder-180": {"bend_cv": ("<=", 0.1)},
+        "bar-bend-120": {"bend_cv": ("<=", 0.1)},
+        "bar-bend-180": {"bend_cv": ("<=", 0.1)},
     },
 }
 # (name, `dend gen` shape or None for a survey set-up, examples/ file or survey
@@ -173,6 +181,8 @@ SHAPE_CASES = [
     ("survey-bar", None, "bar", 1, "bar", (30, 15)),
     ("cylinder-120", "cylinder", "cylinder-bend-120.json", 1, "bend", (0, 0)),
     ("cylinder-180", "cylinder", "cylinder-bend-180.json", 3, "bend", (0, 0)),
+    ("bar-bend-120", "bar", "bar-bend-120.json", 1, "bend", (0, 0)),
+    ("bar-bend-180", "bar", "bar-bend-180.json", 3, "bend", (0, 0)),
     ("survey-cylinder", None, "cylinder", 1, "bend", (0, 0)),
     ("survey-cactus", None, "cactus", 1, None, (90, 10)),
     ("survey-bumpy_plane", None, "bumpy_plane", 1, None, (0, 20)),
