@@ -114,8 +114,6 @@ pub struct ElasticOps {
     /// `Σ_j c_ij e_ij`: the spokes' rest edges at `i`, weighted (the
     /// residual's `R_i` part of the spokes).
     ce: Vec<Point>,
-    /// Rest vertex normals.
-    pub(crate) normal: Vec<Point>,
 }
 
 /// The elastic system of one constrained set: which vertices keep their
@@ -124,10 +122,6 @@ pub struct ElasticOps {
 pub struct ElasticSet {
     /// Whether the rows centred at `i` (spokes, bending) are kept.
     pub(crate) free: Vec<bool>,
-    /// Whether the Laplacian row centred at `i` is kept.
-    pub(crate) lap: Vec<bool>,
-    /// Whether the Laplacian row centred at `i` is kept in its normal part only.
-    pub(crate) tangent_free: Vec<bool>,
     /// Whether `R_i` is fitted by the local step (else it stays as set:
     /// a constrained vertex's rotation is its handle's).
     pub(crate) fit: Vec<bool>,
@@ -211,10 +205,9 @@ impl ElasticOps {
             area,
             area_forces,
             ce,
-            normal: crate::operators::vertex_normals(&ops.positions, mesh.triangles()),
             q_all: CsMat::zero((n, n)),
         };
-        ops_.q_all = ops_.assemble_q(ops, &vec![true; n], &vec![true; n]);
+        ops_.q_all = ops_.assemble_q(ops, &vec![true; n]);
         ops_
     }
 
@@ -247,57 +240,34 @@ impl ElasticOps {
         for &v in constrained {
             free[v as usize] = false;
         }
-        let fit = if std::env::var("DEND_KEEP_ROWS").as_deref() == Ok("spokesfit") || std::env::var("DEND_KEEP_ROWS").as_deref() == Ok("allfit") { vec![true; n] } else { free.clone() };
-        let mut lap = free.clone();
-        match std::env::var("DEND_KEEP_ROWS").as_deref() {
-            Ok("all") => {
-                free = vec![true; n];
-                lap = vec![true; n];
-            }
-            Ok("lap") => lap = vec![true; n],
-            Ok("spokes") | Ok("spokesfit") => free = vec![true; n],
-            Ok("allfit") => {
-                free = vec![true; n];
-                lap = vec![true; n];
-            }
-            Ok("normal") => lap = vec![true; n],
-            _ => {}
-        }
-        let tangent_free: Vec<bool> = if std::env::var("DEND_KEEP_ROWS").as_deref() == Ok("normal") {
-            fit.iter().map(|f| !f).collect()
-        } else {
-            vec![false; n]
-        };
+        let fit = free.clone();
         // Q of this set = Q of all rows (built once per rest mesh and
         // weights) minus the rows centred at constrained vertices: a few
         // entries per constrained vertex instead of a sparse product per
         // constraint set; assembled directly in the rare case the full Q
         // lacks an entry the subtraction needs
         let q = self
-            .drop_rows(ops, &free, &lap)
-            .unwrap_or_else(|| self.assemble_q(ops, &free, &lap));
-        ElasticSet { free, lap, tangent_free, fit, q }
+            .drop_rows(ops, &free)
+            .unwrap_or_else(|| self.assemble_q(ops, &free));
+        ElasticSet { free, fit, q }
     }
 
     /// `Q` with the rows centred at the vertices where `free` is false
     /// removed from `q_all`, or `None` when an entry it must change is not
     /// stored.
-    fn drop_rows(&self, ops: &Operators, free: &[bool], lap: &[bool]) -> Option<CsMat<Real>> {
+    fn drop_rows(&self, ops: &Operators, free: &[bool]) -> Option<CsMat<Real>> {
         let mut q = self.q_all.clone();
-        for c in 0..free.len() {
-            if free[c] && lap[c] {
-                continue;
-            }
+        for c in (0..free.len()).filter(|&c| !free[c]) {
             for s in self.ptr[c]..self.ptr[c + 1] {
                 let (j, w) = (self.nbr[s] as usize, self.c[s]);
-                if w != 0.0 && !free[c] {
+                if w != 0.0 {
                     *q.get_mut(c, c)? -= w;
                     *q.get_mut(j, j)? -= w;
                     *q.get_mut(c, j)? += w;
                     *q.get_mut(j, c)? += w;
                 }
             }
-            if self.kbl > 0.0 && !lap[c] {
+            if self.kbl > 0.0 {
                 // − kbl Lbar[:, c] L[c, :] (Lbar symmetric)
                 let (lbar_c, l_c) = (ops.lbar.outer_view(c)?, ops.l.outer_view(c)?);
                 for (i, &a) in lbar_c.iter() {
@@ -319,14 +289,14 @@ impl ElasticOps {
     /// to sort and no sparse sums, which halved the factor's assembly time
     /// (camel 9770: 51 → 28 ms, feline 50k: 322 → 159 ms, best of 8 runs
     /// each on one loaded host).
-    fn assemble_q(&self, ops: &Operators, free: &[bool], lap: &[bool]) -> CsMat<Real> {
+    fn assemble_q(&self, ops: &Operators, free: &[bool]) -> CsMat<Real> {
         if self.kbl > 0.0 {
-            let mut q = matmul(&ops.lbar, &self.scaled_l(ops, lap));
+            let mut q = matmul(&ops.lbar, &self.scaled_l(ops, free));
             if self.add_into_product(ops, free, &mut q).is_some() {
                 return q;
             }
         }
-        self.assemble_q_from_triplets(ops, free, lap)
+        self.assemble_q_from_triplets(ops, free)
     }
 
     /// `diag(kbl [free]) L`, the right factor of the Laplacian term.
@@ -365,7 +335,7 @@ impl ElasticOps {
 
     /// [`ElasticOps::assemble_q`] from triplets and sparse sums, for any
     /// weights (the reference the in-place assembly is tested against).
-    fn assemble_q_from_triplets(&self, ops: &Operators, free: &[bool], lap: &[bool]) -> CsMat<Real> {
+    fn assemble_q_from_triplets(&self, ops: &Operators, free: &[bool]) -> CsMat<Real> {
         let n = free.len();
         // K_c: each kept spoke adds c to both diagonals, −c off them
         let mut k = TriMat::new((n, n));
@@ -383,7 +353,7 @@ impl ElasticOps {
         let mut q: CsMat<Real> = k.to_csr();
         if self.kbl > 0.0 {
             // Lᵀ diag(b ∘ free) L = Lbar diag(kbl [free] / A) Lbar
-            q = &q + &matmul(&ops.lbar, &self.scaled_l(ops, lap));
+            q = &q + &matmul(&ops.lbar, &self.scaled_l(ops, free));
         }
         if self.ka > 0.0 {
             let mut area = ops.lbar.clone();
@@ -415,16 +385,17 @@ impl ElasticOps {
         let covariance = |i: usize| {
             let mut m = Matrix3::<Real>::zeros();
             let mut sq = 0.0;
+            if !set.free[i] {
+                return (m, sq);
+            }
             let yi = y[i];
-            if set.free[i] {
             for s in self.ptr[i]..self.ptr[i + 1] {
                 let yj = y[self.nbr[s] as usize];
                 let d = Vector3::new(yj[0] - yi[0], yj[1] - yi[1], yj[2] - yi[2]);
                 m += self.c[s] * d * Vector3::from(self.e[s]).transpose();
                 sq += self.c[s] * d.norm_squared();
             }
-            }
-            if self.b[i] > 0.0 && set.lap[i] {
+            if self.b[i] > 0.0 {
                 let l = Vector3::from(ly[i]);
                 m += self.b[i] * l * Vector3::from(ops.delta[i]).transpose();
                 sq += self.b[i] * l.norm_squared();
@@ -432,26 +403,13 @@ impl ElasticOps {
             (m, sq)
         };
         let energy_of = |i: usize, q: &UnitQuaternion<Real>, (m, sq): &(Matrix3<Real>, Real)| {
-            if !set.free[i] && !set.lap[i] {
+            if !set.free[i] {
                 return 0.0;
             }
-            if set.tangent_free[i] {
-                let l = Vector3::from(ly[i]);
-                let r = q * Vector3::from(ops.delta[i]);
-                let nn = q * Vector3::from(self.normal[i]);
-                return self.b[i] * nn.dot(&(l - r)).powi(2);
-            }
-            let rest = if set.free[i] && set.lap[i] {
-                self.k_rest[i]
-            } else if set.free[i] {
-                self.k_rest[i] - self.b[i] * Vector3::from(ops.delta[i]).norm_squared()
-            } else {
-                self.b[i] * Vector3::from(ops.delta[i]).norm_squared()
-            };
             let r = q.to_rotation_matrix();
             let trace = r.matrix().component_mul(m).sum();
             // never below 0 (rounding near a perfect fit)
-            (rest + sq - 2.0 * trace).max(0.0)
+            (self.k_rest[i] + sq - 2.0 * trace).max(0.0)
         };
         let vertices = |(c, o): (usize, &mut [UnitQuaternion<Real>])| -> Real {
             let i0 = c * LANES;
@@ -459,8 +417,6 @@ impl ElasticOps {
             for (k, slot) in cov.iter_mut().take(o.len()).enumerate() {
                 *slot = covariance(i0 + k);
             }
-            let saved: [UnitQuaternion<Real>; LANES] =
-                std::array::from_fn(|k| o.get(k).copied().unwrap_or_else(UnitQuaternion::identity));
             if !fit {
                 // keep the rotations
             } else if let Ok(group) = <&mut [UnitQuaternion<Real>; LANES]>::try_from(&mut *o) {
@@ -469,11 +425,6 @@ impl ElasticOps {
             } else {
                 for (k, q) in o.iter_mut().enumerate() {
                     *q = fit_rotation_quat(&cov[k].0, q);
-                }
-            }
-            for (k, q) in o.iter_mut().enumerate() {
-                if !set.fit[i0 + k] {
-                    *q = saved[k];
                 }
             }
             o.iter()

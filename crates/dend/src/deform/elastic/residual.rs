@@ -1,7 +1,7 @@
 //! The elastic energy's residual `g(R, P) − Q Y` (the global step's right
 //! side; parent module docs).
 
-use nalgebra::{UnitQuaternion, Vector3};
+use nalgebra::UnitQuaternion;
 use rayon::prelude::*;
 
 use super::{ElasticOps, ElasticSet, PARALLEL_MIN};
@@ -38,21 +38,8 @@ impl ElasticOps {
             } else {
                 [0.0; 4]
             };
-            *ti = if self.b[i] > 0.0 && set.lap[i] && set.tangent_free[i] {
-                let q = rot[i];
-                let mut ly = Vector3::zeros();
-                if let Some(row) = ops.l.outer_view(i) {
-                    for (j, &w) in row.iter() {
-                        ly += w * Vector3::from(y[j]);
-                    }
-                }
-                let r = q * Vector3::from(ops.delta[i]);
-                let nn = q * Vector3::from(self.normal[i]);
-                let t = ly - nn.dot(&(ly - r)) * nn;
-                [t.x, t.y, t.z]
-            } else if self.b[i] > 0.0 && set.lap[i] {
-                let q = rot[i].quaternion();
-                rotate(&[q.w, q.i, q.j, q.k], ops.delta[i])
+            *ti = if self.b[i] > 0.0 {
+                rotate(r, ops.delta[i])
             } else {
                 [0.0; 3]
             };
