@@ -30,6 +30,9 @@ if [ -z "${DEND_TEST_POSTGRES:-}" ] && bash scripts/pg-temp.sh bindir >/dev/null
 fi
 # the failover test's figures (docs/reliability.md)
 export DEND_FAILOVER_REPORT="${DEND_FAILOVER_REPORT:-$PG_TMP/failover.json}"
+# the frames the JavaScript client's decoder test reads (written by
+# crates/protocol/tests/js_fixtures.rs during the cargo test below)
+export DEND_JS_FIXTURES="$PG_TMP/js-fixtures"
 cargo test --workspace --lib --bins --tests --examples
 [ -s "$DEND_FAILOVER_REPORT" ] && { echo "== failover figures:"; cat "$DEND_FAILOVER_REPORT"; }
 # the Python client's tests, against a real `dend serve` (the binary cargo
@@ -55,6 +58,9 @@ elif [ "${CI:-}" = true ]; then
 else
   echo "blender not installed: the Blender add-on's and import tests did not run" >> "$DEND_SKIP_LOG"
 fi
+# the JavaScript client (clients/js): its decoders against the Rust
+# encoder's frames and the fuzz corpus (plain node, no install needed)
+(cd clients/js && npm test)
 # the browser test drives the `dend` binary cargo test built for the CLI tests
 DEND_BIN="${CARGO_TARGET_DIR:-$(pwd)/target}/debug/dend" bash scripts/test-web.sh
 if [ -s "$DEND_SKIP_LOG" ]; then

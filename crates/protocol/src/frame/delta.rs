@@ -35,10 +35,10 @@
 //! `16384 h / 1.05`; so the error stays under `9.4e-5` of the diagonal of
 //! the pose shown.
 
-use std::io::{Read, Write};
+use std::io::Write;
 
 use bytes::Bytes;
-use flate2::{read::DeflateDecoder, write::DeflateEncoder, Compression};
+use flate2::{write::DeflateEncoder, Compression, Decompress, FlushDecompress, Status};
 
 use super::{
     bounding_box, f64_at, u32_at, u64_at, write_v3_header, FrameEncoding, FrameError, FrameHeader,
@@ -317,11 +317,25 @@ impl DeltaDecoder {
         if !key && (held != Some(base) || self.q.len() != need) {
             return Err(FrameError::Base { base, have: held });
         }
-        let mut stream = Vec::with_capacity(len);
-        DeflateDecoder::new(&b[DELTA_STREAM_OFFSET..])
-            .take(len as u64 + 1)
-            .read_to_end(&mut stream)
+        // at most one byte more than announced is inflated: a frame that
+        // inflates to more costs no more memory than an honest one
+        let mut stream = Vec::new();
+        stream.reserve_exact(len + 1);
+        let status = Decompress::new(false)
+            .decompress_vec(
+                &b[DELTA_STREAM_OFFSET..],
+                &mut stream,
+                FlushDecompress::Finish,
+            )
             .map_err(|_| FrameError::Delta("the stream does not inflate"))?;
+        if stream.len() > len {
+            return Err(FrameError::Delta("the stream is not as long as announced"));
+        }
+        // a deflate stream cut before its last block is malformed (as
+        // browsers' DecompressionStream finds it), not a short stream
+        if status != Status::StreamEnd {
+            return Err(FrameError::Delta("the stream does not inflate"));
+        }
         if stream.len() != len {
             return Err(FrameError::Delta("the stream is not as long as announced"));
         }
