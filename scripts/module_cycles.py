@@ -1,14 +1,16 @@
 #!/usr/bin/env python3
 """Checks that no crate of the workspace has an import cycle between its
-modules (issue #34): for every module, the modules it declares (with
+modules, and that no two files of the web client (`web/js`) import each
+other, directly or around a loop: for every module, the modules it declares (with
 everything below them) may use one another only along a directed acyclic
 graph. A child using its ancestors' items (`super::`, `crate::` a parent)
 is not a cycle: the parent owns the child. Test modules (`mod tests;`
 and `*_tests.rs` files) are left out: they may use anything.
 
 Reads `use`/path references (`crate::a::b`, `super::x`, `self::y`)
-in the source text; `#[path]` attributes are followed. Prints each cycle
-and exits 1 when there is one. Run: `python3 scripts/module_cycles.py`.
+in the source text; `#[path]` attributes are followed. In `web/js`, every
+relative `import`/`export … from` (static or `import('…')`) is an edge
+between files. Prints each cycle and exits 1 when there is one. Run: `python3 scripts/module_cycles.py`.
 """
 import os
 import re
@@ -22,7 +24,7 @@ REF = re.compile(r'\b(crate|super|self)((?:::\w+)+)')
 USE_GROUP = re.compile(r'\buse\s+(crate|super|self)::\{([^;]*)\};', re.S)
 
 
-# Cycles known and not yet broken (issue #34), each a sorted list of the
+# Cycles known and not yet broken, each a sorted list of the
 # modules in it. A cycle not listed fails the check, and so does a listed
 # one that is gone (remove it here): the list only shrinks. Empty since the
 # selection types moved to mesh::selection and the coarse levels' type to
@@ -156,6 +158,63 @@ def cycles(modules, uses):
     return found
 
 
+JS_IMPORT = re.compile(
+    r"""(?:\bimport\s*(?:[\w*{}\s,$]+?\s*from\s*)?|\bexport\s*[\w*{}\s,$]+?\s*from\s*|\bimport\s*\(\s*)['"]([^'"]+)['"]""")
+
+
+def js_cycles(folder):
+    """Import cycles between the ES modules under `folder` (each a sorted
+    list of paths relative to the repository), and the number of files."""
+    files = []
+    for d, dirs, names in os.walk(folder):
+        dirs[:] = [x for x in dirs if x != 'node_modules']
+        files += [os.path.join(d, n) for n in names if n.endswith(('.js', '.mjs'))]
+    graph = {}
+    for f in files:
+        text = open(f, encoding='utf-8').read()
+        text = re.sub(r'/\*.*?\*/', '', text, flags=re.S)
+        text = re.sub(r'(^|[^:\\])//[^\n]*', r'\1', text)
+        graph[f] = set()
+        for m in JS_IMPORT.finditer(text):
+            spec = m.group(1)
+            if spec.startswith('.'):
+                target = os.path.normpath(os.path.join(os.path.dirname(f), spec))
+                if target in files or os.path.exists(target):
+                    graph[f].add(target)
+    index, low, stack, on, found = {}, {}, [], set(), []
+    counter = [0]
+
+    def strong(v):
+        index[v] = low[v] = counter[0]
+        counter[0] += 1
+        stack.append(v)
+        on.add(v)
+        for w in graph.get(v, ()):
+            if w not in graph:
+                continue
+            if w not in index:
+                strong(w)
+                low[v] = min(low[v], low[w])
+            elif w in on:
+                low[v] = min(low[v], index[w])
+        if low[v] == index[v]:
+            comp = []
+            while True:
+                w = stack.pop()
+                on.discard(w)
+                comp.append(w)
+                if w == v:
+                    break
+            # a file importing itself is a cycle too
+            if len(comp) > 1 or v in graph[v]:
+                found.append(sorted(os.path.relpath(c, ROOT) for c in comp))
+
+    for f in sorted(graph):
+        if f not in index:
+            strong(f)
+    return found, len(files)
+
+
 def main():
     crates = []
     for d in sorted(os.listdir(os.path.join(ROOT, 'crates'))):
@@ -180,9 +239,14 @@ def main():
     for name, comp in sorted(KNOWN - seen):
         bad += 1
         print(f'{name}: the cycle between {", ".join(comp)} is gone: remove it from KNOWN')
+    web, nweb = js_cycles(os.path.join(ROOT, 'web', 'js'))
+    for comp in web:
+        bad += 1
+        print(f'web/js: import cycle between {", ".join(comp)}')
     if bad:
         return 1
-    print(f'no new import cycle among the modules of {len(crates)} crates ({total} modules); {len(KNOWN)} known')
+    print(f'no new import cycle among the modules of {len(crates)} crates ({total} modules); {len(KNOWN)} known; '
+          f'none among the {nweb} files of web/js')
     return 0
 
 

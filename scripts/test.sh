@@ -13,7 +13,7 @@ if [ "${CI:-}" = true ]; then export CARGO_INCREMENTAL="${CARGO_INCREMENTAL:-0}"
 bash scripts/setup-test-env.sh
 cargo fmt --all -- --check
 cargo clippy --workspace --all-targets -- -D warnings
-# no new import cycle between modules (issue #34)
+# no import cycle between the modules of a crate, nor between the files of web/js
 python3 scripts/module_cycles.py
 # benches are compiled by clippy above; running them is `cargo bench`
 # tests that cannot run here (no ../shared/meshes) record why in this file

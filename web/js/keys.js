@@ -2,7 +2,8 @@
 // Ctrl+Z undo, Ctrl+Shift+Z / Ctrl+Y redo, F frame the mesh, N/B/X/L/G
 // tools (navigate, brush, box, lasso, fill), A apply constraints.
 
-import { send, frameView, applyConstraints, undo } from './app.js';
+import { send, frameView, applyConstraints } from './app.js';
+import { undo } from './session.js';
 
 export function attachKeys() {
   window.addEventListener('keydown', (e) => {

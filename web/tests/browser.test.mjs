@@ -392,7 +392,7 @@ async function main() {
     await phone.screenshot({ path: join(artifacts, '7-phone.png') });
 
     // The server dies (SIGKILL) and comes back on its port with its store:
-    // the page reconnects by itself (web/js/app.js, reconnect) and draws
+    // the page reconnects by itself (web/js/socket.js, reconnect) and draws
     // the pose it had, revived from the store.
     const kept = await serverPose(base, session);
     const errorsBefore = pageErrors.length;

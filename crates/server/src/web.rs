@@ -29,6 +29,7 @@ pub const FILES: &[(&str, &[u8])] = &[
         include_bytes!("../../../web/js/interact.js"),
     ),
     ("js/keys.js", include_bytes!("../../../web/js/keys.js")),
+    ("js/main.js", include_bytes!("../../../web/js/main.js")),
     ("js/mesh.js", include_bytes!("../../../web/js/mesh.js")),
     ("js/poses.js", include_bytes!("../../../web/js/poses.js")),
     (
@@ -40,6 +41,14 @@ pub const FILES: &[(&str, &[u8])] = &[
         include_bytes!("../../../web/js/renderer.js"),
     ),
     ("js/select.js", include_bytes!("../../../web/js/select.js")),
+    (
+        "js/session.js",
+        include_bytes!("../../../web/js/session.js"),
+    ),
+    (
+        "js/settings.js",
+        include_bytes!("../../../web/js/settings.js"),
+    ),
     ("js/socket.js", include_bytes!("../../../web/js/socket.js")),
     (
         "js/zbuffer.js",
