@@ -4,7 +4,9 @@
 # web/tests/editor.test.mjs for the first minutes of a new user, then
 # web/tests/feline.test.mjs for a person's drag of a 50k-vertex character, then
 # web/tests/morph.test.mjs for the morph-target GLB in three.js's
-# GLTFLoader, then web/tests/texture.test.mjs for textured glTF uploads):
+# GLTFLoader, then web/tests/texture.test.mjs for textured glTF uploads),
+# then the JavaScript client package's (clients/js: types, packing, the
+# HTTP routes, its three.js example in Chromium, reconnection):
 # installs what it needs if missing (Debian's chromium,
 # node/npm, and from npm playwright-core, the glTF validator and three),
 # builds `dend`, and runs the test against the real `dend serve`.
@@ -49,6 +51,14 @@ if [ ! -f web/node_modules/playwright-core/package.json ] || [ ! -f web/node_mod
   (cd web && npm ci --no-audit --no-fund --loglevel=error) || skip_or_fail "npm ci (playwright-core, gltf-validator, three) failed"
 fi
 
+# clients/js's dev dependencies: typescript (its type test), three and
+# @types/three (its three.js binding and example, served to the example by
+# `dend serve` at /vendor/three/), playwright-core (its browser tests)
+if [ ! -f clients/js/node_modules/typescript/package.json ] || [ ! -f clients/js/node_modules/three/package.json ] \
+    || [ ! -f clients/js/node_modules/playwright-core/package.json ] || [ ! -f clients/js/node_modules/@types/three/package.json ]; then
+  (cd clients/js && npm ci --no-audit --no-fund --loglevel=error) || skip_or_fail "npm ci in clients/js failed"
+fi
+
 [ "${1:-}" = "--install-only" ] && exit 0
 
 # scripts/test.sh passes the binary its `cargo test` just built (same
@@ -65,3 +75,15 @@ node web/tests/editor.test.mjs
 node web/tests/feline.test.mjs
 node web/tests/morph.test.mjs
 node web/tests/texture.test.mjs
+# the JavaScript client package (clients/js): its types checked by tsc on a
+# consumer file, `npm pack` and its exports map (Node, and Chromium through
+# an import map), every HTTP route, the three.js example dragged with the
+# mouse in Chromium, and reconnection across a SIGKILL and a SIGTERM
+(
+  cd clients/js
+  npm run -s test:types
+  npm run -s test:pack
+  npm run -s test:api
+  npm run -s test:browser
+  npm run -s test:reconnect
+)

@@ -1,28 +1,11 @@
-// The dend public API as the client uses it: HTTP `/v1` JSON routes
-// (api/openapi.yaml) and the session WebSocket (api/ws-protocol.md).
+// The dend public API as the editor uses it: a thin layer over the
+// JavaScript client package (clients/js, served at /js/dend-client/) that
+// keeps the editor's calling conventions (session id and token passed to
+// each call, the raw WebSocket in `app.ws`).
 
-import { parseFrame, FrameDecoder } from './frame.js';
+import { Client, Session, ApiError, parseFrame, FrameDecoder, FrameError } from './dend-client/index.js';
 
-/** An API error with the server's `code` and readable `message`. */
-export class ApiError extends Error {
-  constructor(code, message, status) {
-    super(message);
-    this.code = code;
-    this.status = status;
-  }
-}
-
-async function checked(res) {
-  if (res.ok) return res;
-  let body = null;
-  try {
-    body = await res.json();
-  } catch (_) {
-    // not JSON: fall through
-  }
-  if (body && body.code) throw new ApiError(body.code, body.message || body.code, res.status);
-  throw new ApiError('http_' + res.status, `${res.status} ${res.statusText}`, res.status);
-}
+export { ApiError, parseFrame, FrameDecoder };
 
 /** How the editor's socket streams frames (api/ws-protocol.md, "Stream
  * options"): one frame in flight, acknowledged once drawn, in the `delta`
@@ -32,78 +15,67 @@ async function checked(res) {
  * drag, and the settled one, come at once. */
 export const STREAM = { window: 1, encoding: 'delta', refine_fps: 30 };
 
-export { parseFrame, FrameDecoder };
-
 export class Api {
   constructor(base = '') {
     this.base = base;
+    this.client = new Client(base);
   }
 
-  async json(method, path, body, token, extra = {}) {
-    const headers = { ...extra };
-    if (body !== undefined) headers['Content-Type'] = 'application/json';
-    if (token) headers.Authorization = `Bearer ${token}`;
-    const res = await checked(await fetch(this.base + path, {
-      method,
-      headers,
-      body: body === undefined ? undefined : JSON.stringify(body),
-    }));
-    return res.status === 204 ? null : res.json();
+  json(method, path, body, token, extra = {}) {
+    return this.client.json(method, path, body, token, extra);
   }
 
-  generate(shape) { return this.json('POST', '/v1/meshes/generate', { shape }); }
+  generate(shape) { return this.client.generate(shape); }
 
+  /** Uploads a File in the format its name ends with (the server refuses
+   * formats it does not read). */
   async upload(file) {
     const ext = file.name.split('.').pop().toLowerCase();
-    const res = await checked(await fetch(`${this.base}/v1/meshes?format=${encodeURIComponent(ext)}`, {
-      method: 'POST',
-      headers: { 'Content-Type': 'application/octet-stream' },
-      body: file,
-    }));
+    const res = await this.client.request('POST', `/v1/meshes?format=${encodeURIComponent(ext)}`, {
+      body: file, headers: { 'Content-Type': 'application/octet-stream' },
+    });
     return res.json();
   }
 
+  /** The created session's JSON (`id`, `token`, `state`). */
   createSession(meshId, params) { return this.json('POST', '/v1/sessions', { mesh_id: meshId, params }); }
 
-  session(id, token) { return this.json('GET', `/v1/sessions/${id}`, undefined, token); }
+  session(id, token) { return new Session(this.client, id, token).info(); }
 
   /** PUT constraints; with `ifRevision`, only if the session's constraints
    * revision still is that one (else ApiError `stale_constraints`). */
   setConstraints(id, token, c, ifRevision) {
-    const extra = ifRevision === undefined || ifRevision === null ? {} : { 'If-Match': `"${ifRevision}"` };
-    return this.json('PUT', `/v1/sessions/${id}/constraints`, c, token, extra);
+    return new Session(this.client, id, token).setConstraints(c, { ifRevision });
   }
 
-  curvature(id, token) { return this.json('GET', `/v1/sessions/${id}/curvature`, undefined, token); }
+  curvature(id, token) { return new Session(this.client, id, token).curvature(); }
 
-  undo(id, token) { return this.json('POST', `/v1/sessions/${id}/undo`, undefined, token); }
+  undo(id, token) { return new Session(this.client, id, token).undo(); }
 
-  redo(id, token) { return this.json('POST', `/v1/sessions/${id}/redo`, undefined, token); }
+  redo(id, token) { return new Session(this.client, id, token).redo(); }
 
-  reset(id, token) { return this.json('POST', `/v1/sessions/${id}/reset`, undefined, token); }
+  reset(id, token) { return new Session(this.client, id, token).reset(); }
 
   async exportObj(id, token) {
     return (await this.exportAs(id, token, 'obj')).text();
   }
 
-  /** The pose in one of the export formats (obj, off, ply, stl) as a Blob. */
+  /** The pose in one of the export formats (obj, off, ply, stl, glb) as a Blob. */
   async exportAs(id, token, format) {
-    const res = await checked(await fetch(`${this.base}/v1/sessions/${id}/export?format=${encodeURIComponent(format)}`, {
-      headers: { Authorization: `Bearer ${token}` },
-    }));
-    return res.blob();
+    const path = `/v1/sessions/${encodeURIComponent(id)}/export?format=${encodeURIComponent(format)}`;
+    return (await this.client.request('GET', path, { token })).blob();
   }
 
   /** Opens the session socket with flow control ([STREAM]); `on.frame(frame)`,
    * `on.event(json)`, `on.close(code, reason)`. A frame is acknowledged on
    * the animation frame after `on.frame` took it (drawn), so the server
    * sends the next one only then and never queues frames for a slow tab.
-   * Resolves once open. */
+   * Resolves with the WebSocket once open. */
   connect(id, token, on) {
-    const proto = location.protocol === 'https:' ? 'wss:' : 'ws:';
-    const host = this.base ? new URL(this.base).host : location.host;
-    const q = `token=${encodeURIComponent(token)}&window=${STREAM.window}&encoding=${STREAM.encoding}&refine_fps=${STREAM.refine_fps}`;
-    const ws = new WebSocket(`${proto}//${host}/v1/sessions/${id}/ws?${q}`);
+    const url = new Session(this.client, id, token).socketUrl({
+      window: STREAM.window, encoding: STREAM.encoding, refineFps: STREAM.refine_fps,
+    });
+    const ws = new WebSocket(url);
     ws.binaryType = 'arraybuffer';
     const ack = (revision) => {
       if (ws.readyState === WebSocket.OPEN) ws.send(JSON.stringify({ type: 'ack', revision }));
@@ -121,6 +93,7 @@ export class Api {
       try {
         frame = await decoder.decode(m.data);
       } catch (e) {
+        if (!(e instanceof FrameError)) throw e;
         console.error(e);
         if (m.data.byteLength > 41 && new DataView(m.data).getUint8(41) === 2) {
           // a delta stream that lost its base: reopen the socket (its first

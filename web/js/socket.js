@@ -3,6 +3,7 @@
 // grabs, peers) and reconnection after the socket drops.
 
 import { ApiError } from './api.js';
+import { shouldReconnect } from './dend-client/session.js';
 import {
   app, progress, setState, showConstraints, showWarnings, showError, updateStats, uploadPose, refreshCurvature,
   showHeld, clearHeld,
@@ -129,12 +130,13 @@ function onClose(code, reason) {
   app.ws = null;
   setState('disconnected');
   if (code === 1000) return;
-  // 4004: the session closed here (deleted, expired, or moved to another
-  // instance: its owner died or handed it over); 1001/1006/1011/1012: the
-  // server went away; 4000: this tab closed it, a delta frame did not
-  // decode. Reopen it while the server says it exists.
-  if (app.session && [4000, 4004, 1001, 1006, 1011, 1012].includes(code)) {
-    reconnect(app.session, 250);
+  // the package's rule (dend-client's shouldReconnect): 4004, the session
+  // closed here (deleted, expired, or taken over by another instance);
+  // 4012, handed over (at once); 1001/1006/1011/1012, the server went away;
+  // 4000, this tab closed it, a delta frame did not decode. Reopen it
+  // while the server says it exists.
+  if (app.session && shouldReconnect(code)) {
+    reconnect(app.session, code === 4012 ? 0 : 250);
     return;
   }
   showError({ code: `closed_${code}`, message: reason || 'the session socket closed' });
@@ -148,11 +150,12 @@ function onClose(code, reason) {
 function reconnect(session, delay) {
   setTimeout(async () => {
     if (app.session !== session || app.ws) return;
-    const again = () => reconnect(session, Math.min(2 * delay, 2000));
+    const again = () => reconnect(session, Math.min(Math.max(2 * delay, 250), 2000));
     try {
       await app.api.json('GET', `/v1/sessions/${session.id}`, undefined, session.token);
     } catch (e) {
-      const transient = !(e instanceof ApiError) || ['session_owned_elsewhere', 'store_unavailable'].includes(e.code) || e.status >= 502;
+      // a moving session, a store or instance briefly away, no answer
+      const transient = !(e instanceof ApiError) || e.transient;
       if (transient) again();
       else showError(e);
       return;
