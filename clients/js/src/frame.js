@@ -7,6 +7,8 @@
 
 import { FrameError } from './errors.js';
 
+export { FrameError };
+
 /** Magic bytes `DEND`. */
 export const FRAME_MAGIC = 'DEND';
 /** Header bytes of a version 2 frame. */
