@@ -147,7 +147,9 @@ async fn save_list_rename_delete_and_restore_over_http() -> Result<(), ClientErr
     )
     .await;
     assert_eq!((st, e["code"].as_str()), (409, Some("pose_exists")));
-    let (st, _) = call(
+    // saving over a name is refused unless asked for: the first pose stays
+    let (_, before) = call(&s, &base, "GET", "/poses/raised%20arm", None).await;
+    let (st, e) = call(
         &s,
         &base,
         "POST",
@@ -155,9 +157,31 @@ async fn save_list_rename_delete_and_restore_over_http() -> Result<(), ClientErr
         Some(json!({"name": "raised arm"})),
     )
     .await;
-    assert_eq!(st, 201, "saving over a name replaces it");
+    assert_eq!((st, e["code"].as_str()), (409, Some("pose_exists")), "{e}");
+    let (_, kept) = call(&s, &base, "GET", "/poses/raised%20arm", None).await;
+    assert_eq!(
+        positions(&kept),
+        positions(&before),
+        "a refused save keeps the pose"
+    );
+    let (st, _) = call(
+        &s,
+        &base,
+        "POST",
+        "/poses",
+        Some(json!({"name": "raised arm", "replace": true})),
+    )
+    .await;
+    assert_eq!(st, 201, "saving with `replace` replaces it");
     let (_, v) = call(&s, &base, "GET", "/poses", None).await;
     assert_eq!(names(&v), ["raised arm", "curl"], "in its place");
+    let (_, replaced) = call(&s, &base, "GET", "/poses/raised%20arm", None).await;
+    assert_eq!(positions(&replaced), s.pose().await?.positions);
+    assert_ne!(
+        positions(&replaced),
+        positions(&before),
+        "the pose moved since"
+    );
     let (st, _) = call(&s, &base, "GET", "/poses/raised%20arm", None).await;
     assert_eq!(st, 200, "names are percent-encoded in paths");
     for (method, tail, body) in [
@@ -247,6 +271,16 @@ async fn poses_over_the_websocket() -> Result<(), ClientError> {
         state = ws.event("state").await?;
     }
     assert_eq!(names(&state), ["rest"]);
+    // the same name again: refused, unless `replace`
+    ws.send(&client_msg(json!({"type": "save_pose", "name": "rest"})))
+        .await?;
+    let e = json_of(ws.event("error").await?);
+    assert_eq!(e["code"], "pose_exists", "{e}");
+    ws.send(&client_msg(
+        json!({"type": "save_pose", "name": "rest", "replace": true}),
+    ))
+    .await?;
+    // (had it been refused, its error would come before the one below)
     ws.send(&client_msg(
         json!({"type": "rename_pose", "name": "rest", "to": "start"}),
     ))

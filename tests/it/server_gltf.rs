@@ -318,3 +318,91 @@ async fn constraints_by_group_resolve_on_the_uploaded_asset() -> Result<(), Clie
     }
     Ok(())
 }
+
+#[tokio::test]
+async fn an_export_that_drops_the_assets_attributes_says_so() -> Result<(), ClientError> {
+    let (base, _state) = start(Config::default()).await;
+    let r = upload(
+        &base,
+        sample::tube(TubeOptions::default()).unwrap(),
+        "model/gltf-binary",
+    )
+    .await;
+    let info: serde_json::Value = r.json().await.unwrap();
+    let s = Client::new(&base)
+        .create_session(info["id"].as_str().unwrap(), json!({}))
+        .await?;
+    let get = |format: &str| {
+        reqwest::Client::new()
+            .get(format!(
+                "{base}/v1/sessions/{}/export?format={format}",
+                s.id
+            ))
+            .bearer_auth(&s.token)
+            .send()
+    };
+    for format in ["obj", "off", "ply", "stl"] {
+        let r = get(format).await.unwrap();
+        assert_eq!(r.status(), 200);
+        let h = r.headers()["dend-warnings"].to_str().unwrap().to_owned();
+        let w: serde_json::Value = serde_json::from_str(&h).unwrap();
+        assert_eq!(w[0]["code"], "attributes_dropped", "{format}: {h}");
+        let message = w[0]["message"].as_str().unwrap();
+        // every attribute the upload reported but positions is named as left out
+        for a in info["asset"]["attributes"].as_array().unwrap() {
+            let a = a.as_str().unwrap();
+            assert!(
+                a == "POSITION" || message.contains(a),
+                "{format}: {a} in {message}"
+            );
+        }
+        assert!(
+            message.contains("TEXCOORD_0") && message.contains("skins"),
+            "{message}"
+        );
+        assert!(
+            !message.contains("POSITION"),
+            "positions are written: {message}"
+        );
+    }
+    for format in ["glb", "gltf"] {
+        let r = get(format).await.unwrap();
+        assert_eq!(r.status(), 200);
+        assert!(
+            r.headers().get("dend-warnings").is_none(),
+            "{format} keeps the attributes"
+        );
+    }
+    Ok(())
+}
+
+#[tokio::test]
+async fn an_absurd_extent_is_accepted_with_a_warning() {
+    let (base, _state) = start(Config::default()).await;
+    let obj = |far: f64| {
+        format!("v 0 0 0\nv 1 0 0\nv 0 1 0\nv {far} 0 1\nf 1 2 3\nf 1 3 4\nf 1 4 2\nf 2 4 3\n")
+    };
+    let post = |text: String| {
+        reqwest::Client::new()
+            .post(format!("{base}/v1/meshes?format=obj"))
+            .body(text)
+            .send()
+    };
+    let r = post(obj(0.0)).await.unwrap();
+    assert_eq!(r.status(), 201);
+    let plain: serde_json::Value = r.json().await.unwrap();
+    assert!(plain.get("warnings").is_none(), "{plain}");
+    let r = post(obj(1e30)).await.unwrap();
+    assert_eq!(r.status(), 201, "a valid mesh is still accepted");
+    let info: serde_json::Value = r.json().await.unwrap();
+    assert_eq!(info["warnings"][0]["code"], "huge_extent", "{info}");
+    // and its info says so again
+    let again: serde_json::Value =
+        reqwest::get(format!("{base}/v1/meshes/{}", info["id"].as_str().unwrap()))
+            .await
+            .unwrap()
+            .json()
+            .await
+            .unwrap();
+    assert_eq!(again["warnings"], info["warnings"]);
+}

@@ -281,6 +281,10 @@ fn mesh_info_schema_matches_the_wire_type() {
             attributes: vec!["TEXCOORD_0".into()],
             groups: vec![group.clone()],
         }),
+        warnings: vec![dend_protocol::MeshWarning {
+            code: "huge_extent".into(),
+            message: "m".into(),
+        }],
     };
     let json = serde_json::to_value(&info).expect("json");
     assert_eq!(

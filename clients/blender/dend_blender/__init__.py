@@ -100,6 +100,20 @@ class DEND_OT_save_shape_key(bpy.types.Operator):
     bl_idname = "dend.save_shape_key"
     bl_label = "Save shape key"
 
+    replace: bpy.props.BoolProperty(
+        name="Replace", description="Replace a named pose and shape key of the same name", default=False
+    )
+
+    def invoke(self, context, event):
+        # a name in use: ask before replacing it (the server refuses a save
+        # over an existing pose unless told to replace it)
+        obj = context.active_object
+        keys = obj.data.shape_keys.key_blocks if obj is not None and obj.data.shape_keys else {}
+        if context.scene.dend.key_name in keys:
+            self.replace = True
+            return context.window_manager.invoke_confirm(self, event)
+        return self.execute(context)
+
     def execute(self, context):
         link = link_of(context)
         if link is None:
@@ -107,7 +121,7 @@ class DEND_OT_save_shape_key(bpy.types.Operator):
             return {"CANCELLED"}
         try:
             link.settle()
-            link.save_shape_key(context.scene.dend.key_name)
+            link.save_shape_key(context.scene.dend.key_name, replace=self.replace)
         except (DendError, OSError) as e:
             self.report({"ERROR"}, str(e))
             return {"CANCELLED"}

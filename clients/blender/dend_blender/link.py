@@ -12,7 +12,7 @@ can drive it): a `Link` between one mesh object and a dend session.
   applies the latest pose frame to the mesh.
 - `Link.save_shape_key` saves the settled pose on the server under a name
   and as a shape key of that name (positions from the server's float64
-  pose).
+  pose); a name the server has already is replaced only when asked.
 """
 
 from __future__ import annotations
@@ -205,10 +205,13 @@ class Link:
     def server_pose(self) -> List[List[float]]:
         return self.http.request("GET", f"/v1/sessions/{self.session}/pose")["positions"]
 
-    def save_shape_key(self, name: str) -> "bpy.types.ShapeKey":
+    def save_shape_key(self, name: str, replace: bool = False) -> "bpy.types.ShapeKey":
         """Saves the settled pose as named pose `name` on the server and as
-        shape key `name` (float64 pose → Blender's float32 coordinates)."""
-        self.http.request("POST", f"/v1/sessions/{self.session}/poses", {"name": name})
+        shape key `name` (float64 pose → Blender's float32 coordinates).
+        A named pose `name` on the server is replaced only with `replace`;
+        otherwise the server refuses (`DendError` `pose_exists`) and neither
+        the pose nor the shape key changes."""
+        self.http.request("POST", f"/v1/sessions/{self.session}/poses", {"name": name, "replace": replace})
         pose = self.server_pose()
         obj = self.obj
         if obj.data.shape_keys is None:

@@ -110,6 +110,15 @@ def run(addon, url):
     assert min(handle_z) > 0.5 + 0.2, handle_z[:3]
     req = urllib.request.Request(f"{url}/v1/sessions/{link.session}/poses", headers={"authorization": f"Bearer {link.http.token}"})
     assert [p["name"] for p in json.load(urllib.request.urlopen(req))["poses"]] == ["lifted"]
+    # the same name again is refused unless replacing is asked for (an
+    # operator's error report is an exception when called from a script)
+    try:
+        bpy.ops.dend.save_shape_key()
+        raise AssertionError("saving over `lifted` was not refused")
+    except RuntimeError as e:
+        assert "pose_exists" in str(e), e
+    assert bpy.ops.dend.save_shape_key(replace=True) == {"FINISHED"}
+    assert [k.name for k in obj.data.shape_keys.key_blocks].count("lifted") == 1
     print(f"shape key error {err:.2e} over {n} vertices")
 
 

@@ -52,6 +52,12 @@ def test_drag_named_poses_and_errors(server: str) -> None:
         saved = s.pose().positions
         s.drag("top", rotate=((1, 0, 0), 30), max_iters=200)
         s.save_pose("curl")
+        # a name in use is refused unless replacing is asked for
+        with pytest.raises(DendError) as e:
+            s.save_pose("lift")
+        assert (e.value.status, e.value.code) == (409, "pose_exists")
+        np.testing.assert_array_equal(s.named_pose("lift").positions, saved)
+        s.save_pose("curl", replace=True)
         assert [p.name for p in s.poses()] == ["lift", "curl"]
         assert [p["name"] for p in s.info()["poses"]] == ["lift", "curl"]
         np.testing.assert_array_equal(s.named_pose("lift").positions, saved)

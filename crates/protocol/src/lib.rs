@@ -37,6 +37,21 @@ pub struct MeshInfo {
     /// surface the sessions deform) and what export keeps besides positions.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub asset: Option<AssetSummary>,
+    /// What is odd about the mesh though it was accepted (an extent or
+    /// coordinates no real asset has); absent when nothing is.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub warnings: Vec<MeshWarning>,
+}
+
+/// A warning about a mesh that was accepted (`MeshInfo::warnings`), or about
+/// what an export leaves out (the export's `Dend-Warnings` header).
+#[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
+pub struct MeshWarning {
+    /// Stable code: `huge_extent`, `tiny_extent`, `far_from_origin`,
+    /// `attributes_dropped`.
+    pub code: String,
+    /// What it means, for people.
+    pub message: String,
 }
 
 /// What an uploaded asset holds (see [`MeshInfo::asset`]).

@@ -367,11 +367,15 @@ pub enum ClientMsg {
     Undo,
     /// Redo.
     Redo,
-    /// Save the settled pose under `name` (replacing a pose of that name);
-    /// the `state` that follows lists it in `poses`.
+    /// Save the settled pose under `name`; the `state` that follows lists
+    /// it in `poses`. A pose of that name is replaced only with `replace`,
+    /// else the save is refused with `pose_exists`.
     SavePose {
         /// The name.
         name: String,
+        /// Replace a pose of the same name.
+        #[serde(default, skip_serializing_if = "std::ops::Not::not")]
+        replace: bool,
     },
     /// Make named pose `name` the current pose (an undo step).
     RestorePose {

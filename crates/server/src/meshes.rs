@@ -32,11 +32,64 @@ pub struct FormatQuery {
     pub format: Option<String>,
 }
 
-pub use dend_protocol::{AssetGroup, AssetSummary, MeshInfo};
+pub use dend_protocol::{AssetGroup, AssetSummary, MeshInfo, MeshWarning};
+
+/// A bounding-box diagonal above this (in the file's units) is no real
+/// asset's: a light year in metres is 1e16, a city in millimetres 1e7.
+pub const HUGE_EXTENT: f64 = 1e7;
+/// A diagonal below this is no real asset's either (10 nm in metres).
+pub const TINY_EXTENT: f64 = 1e-8;
+/// A centre farther from the origin than this many diagonals: the pose
+/// frames and every viewer's GPU hold float32 positions (24-bit mantissa),
+/// which keep only `FAR_FROM_ORIGIN × 2⁻²⁴` ≈ 1/1700 of the mesh's size there.
+pub const FAR_FROM_ORIGIN: f64 = 1e4;
+
+/// Warnings about a mesh's extent and placement (see the constants): the
+/// mesh is valid and accepted, but a viewer is likely to show nothing or a
+/// faceted mess, and the editor says why.
+pub fn extent_warnings(lo: [f64; 3], hi: [f64; 3]) -> Vec<MeshWarning> {
+    let diag = (0..3).map(|k| (hi[k] - lo[k]).powi(2)).sum::<f64>().sqrt();
+    let centre = (0..3)
+        .map(|k| (0.5 * (hi[k] + lo[k])).powi(2))
+        .sum::<f64>()
+        .sqrt();
+    let far = lo.iter().chain(&hi).fold(0.0f64, |m, x| m.max(x.abs()));
+    let mut out = Vec::new();
+    let warn = |code: &str, message: String| MeshWarning {
+        code: code.into(),
+        message,
+    };
+    if !diag.is_finite() || diag > HUGE_EXTENT {
+        out.push(warn(
+            "huge_extent",
+            format!(
+                "the mesh is {diag:.3e} units across (coordinates up to {far:.3e}): no real asset is; \
+                 views and exports in float32 may show nothing. Check the file's units or scale it"
+            ),
+        ));
+    } else if diag < TINY_EXTENT {
+        out.push(warn(
+            "tiny_extent",
+            format!("the mesh is {diag:.3e} units across: check the file's units or scale it"),
+        ));
+    }
+    if diag > 0.0 && centre > FAR_FROM_ORIGIN * diag {
+        out.push(warn(
+            "far_from_origin",
+            format!(
+                "the mesh's centre is {:.3e} of its sizes from the origin: float32 views and \
+                 exports keep too few digits there and show it faceted. Move it nearer the origin",
+                centre / diag
+            ),
+        ));
+    }
+    out
+}
 
 fn info_of(id: String, m: &Mesh, asset: Option<&Asset>) -> MeshInfo {
     let (lo, hi) = m.bounding_box();
     MeshInfo {
+        warnings: extent_warnings(lo, hi),
         id,
         vertices: m.num_vertices(),
         triangles: m.num_triangles(),
@@ -338,4 +391,34 @@ pub async fn info(
         .ok_or_else(|| ApiError::MeshNotFound(id.clone()))?;
     let asset = stored_asset(&st, &id).await?;
     Ok(Json(info_of(id, &m, asset.as_ref())))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn codes(lo: [f64; 3], hi: [f64; 3]) -> Vec<String> {
+        extent_warnings(lo, hi)
+            .into_iter()
+            .map(|w| w.code)
+            .collect()
+    }
+
+    #[test]
+    fn extent_warnings_name_absurd_extents_and_placements_only() {
+        // real assets in metres, millimetres, and a scan far (but not too
+        // far) from its origin: nothing to say
+        assert!(codes([-1.0; 3], [1.0; 3]).is_empty());
+        assert!(codes([0.0; 3], [1800.0, 400.0, 600.0]).is_empty());
+        assert!(codes([1e3; 3], [1e3 + 1.0; 3]).is_empty());
+        // a stray 1e30 coordinate
+        assert_eq!(codes([-1.0; 3], [1e30, 1.0, 1.0]), ["huge_extent"]);
+        assert_eq!(codes([-1.0; 3], [f64::INFINITY, 1.0, 1.0]), ["huge_extent"]);
+        assert_eq!(codes([0.0; 3], [1e-9; 3]), ["tiny_extent"]);
+        // a unit part placed a hundred thousand units out
+        assert_eq!(codes([1e5; 3], [1e5 + 1.0; 3]), ["far_from_origin"]);
+        // the messages say what was measured
+        let w = extent_warnings([-1.0; 3], [1e30, 1.0, 1.0]);
+        assert!(w[0].message.contains("1.000e30"), "{}", w[0].message);
+    }
 }

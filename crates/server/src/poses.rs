@@ -17,12 +17,23 @@ use super::AppState;
 use crate::auth::{bearer, check_token};
 use crate::session::{pose_list, PoseInfo, SessionHandle};
 
-/// `POST /v1/sessions/{id}/poses` and `PATCH …/poses/{name}` body.
+/// `PATCH /v1/sessions/{id}/poses/{name}` body.
 #[derive(Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct PoseName {
-    /// The pose's (new) name.
+    /// The pose's new name.
     pub name: String,
+}
+
+/// `POST /v1/sessions/{id}/poses` body.
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SavePose {
+    /// The pose's name.
+    pub name: String,
+    /// Replace a pose of the same name (else 409 `pose_exists`).
+    #[serde(default)]
+    pub replace: bool,
 }
 
 /// `GET /v1/sessions/{id}/poses` answer.
@@ -72,8 +83,11 @@ pub async fn save(
     Authed(s): Authed,
     body: Result<Bytes, BytesRejection>,
 ) -> Result<impl IntoResponse, ApiError> {
-    let req: PoseName = parse_json(&body?)?;
-    Ok((StatusCode::CREATED, Json(s.save_pose(&req.name).await?)))
+    let req: SavePose = parse_json(&body?)?;
+    Ok((
+        StatusCode::CREATED,
+        Json(s.save_pose(&req.name, req.replace).await?),
+    ))
 }
 
 /// `GET /v1/sessions/{id}/poses/{name}`.

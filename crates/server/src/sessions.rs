@@ -379,14 +379,14 @@ pub async fn export(
     let p = s.pose().await?;
     let asset = crate::meshes::stored_asset(&st, &s.info().mesh_id).await?;
     let rest = s.rest().clone();
-    let bytes = tokio::task::spawn_blocking(move || match asset {
+    let (bytes, dropped) = tokio::task::spawn_blocking(move || match asset {
         Some(a) => a
             .export(&p.positions, format)
+            .map(|b| (b, a.dropped_by(format)))
             .map_err(|e| ApiError::Internal(e.to_string())),
-        None => Ok(dend::mesh::io::to_bytes(
-            &p.positions,
-            rest.mesh().triangles(),
-            format,
+        None => Ok((
+            dend::mesh::io::to_bytes(&p.positions, rest.mesh().triangles(), format),
+            Vec::new(),
         )),
     })
     .await
@@ -396,7 +396,46 @@ pub async fn export(
         Format::Gltf => "model/gltf+json".to_owned(),
         f => format!("model/{}", f.extension()),
     };
-    Ok(([(header::CONTENT_TYPE, ct)], bytes).into_response())
+    let mut res = ([(header::CONTENT_TYPE, ct)], bytes).into_response();
+    if let Some(w) = export_warnings(format, &dropped) {
+        res.headers_mut().insert(EXPORT_WARNINGS, w);
+    }
+    Ok(res)
+}
+
+/// The export header that lists what the file leaves out: a JSON array of
+/// `{code, message}` (`attributes_dropped`), absent when nothing is.
+pub const EXPORT_WARNINGS: header::HeaderName = header::HeaderName::from_static("dend-warnings");
+
+/// The `Dend-Warnings` value of an export as `format` that leaves out the
+/// asset's `dropped` attributes (none: no header).
+fn export_warnings(format: Format, dropped: &[String]) -> Option<header::HeaderValue> {
+    if dropped.is_empty() {
+        return None;
+    }
+    let ext = format.extension();
+    let w = [crate::meshes::MeshWarning {
+        code: "attributes_dropped".into(),
+        message: format!(
+            "{} keeps positions and triangles only: this mesh's {} are not in the file; \
+             export in the format it was uploaded as to keep them",
+            ext.to_ascii_uppercase(),
+            dropped.join(", ")
+        ),
+    }];
+    // JSON escapes anything outside printable ASCII a header cannot hold
+    let json = serde_json::to_string(&w).ok()?;
+    let mut ascii = String::with_capacity(json.len());
+    for c in json.chars() {
+        if c.is_ascii() {
+            ascii.push(c);
+        } else {
+            for u in c.encode_utf16(&mut [0; 2]) {
+                ascii.push_str(&format!("\\u{u:04x}"));
+            }
+        }
+    }
+    header::HeaderValue::from_str(&ascii).ok()
 }
 
 /// `POST /v1/sessions/{id}/undo`.

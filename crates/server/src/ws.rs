@@ -388,8 +388,8 @@ async fn handle_message(
         ClientMsg::Ack { .. } => Ok(None),
         ClientMsg::Undo => s.undo().await.map(|_| None).map_err(ApiError::from),
         ClientMsg::Redo => s.redo().await.map(|_| None).map_err(ApiError::from),
-        ClientMsg::SavePose { name } => s
-            .save_pose(&name)
+        ClientMsg::SavePose { name, replace } => s
+            .save_pose(&name, replace)
             .await
             .map(|_| None)
             .map_err(ApiError::from),

@@ -121,8 +121,10 @@ class AsyncSession:
     async def export(self, format: str = "obj", morph_targets: bool = False, animation: bool = False) -> bytes:
         return (await self._req("GET", "/export?" + c.export_query(format, morph_targets, animation))).content
 
-    async def save_pose(self, name: str) -> c.PoseInfo:
-        return c.pose_info((await self._req("POST", "/poses", json={"name": name})).json())
+    async def save_pose(self, name: str, replace: bool = False) -> c.PoseInfo:
+        """Saves the settled pose under `name`; an existing pose of that
+        name is replaced only with `replace` (else `pose_exists`)."""
+        return c.pose_info((await self._req("POST", "/poses", json={"name": name, "replace": replace})).json())
 
     async def poses(self) -> List[c.PoseInfo]:
         return [c.pose_info(p) for p in (await self._req("GET", "/poses")).json()["poses"]]
@@ -174,8 +176,8 @@ class AsyncSessionSocket:
     ) -> None:
         await self.send({"type": "drag", "handle": handle, "seq": seq, **c.delta(translate, rotate, quaternion)})
 
-    async def save_pose(self, name: str) -> None:
-        await self.send({"type": "save_pose", "name": name})
+    async def save_pose(self, name: str, replace: bool = False) -> None:
+        await self.send({"type": "save_pose", "name": name, "replace": replace})
 
     async def recv(self) -> Union[Frame, Dict[str, Any]]:
         m = await self._ws.recv()

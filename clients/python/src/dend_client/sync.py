@@ -157,9 +157,11 @@ class Session:
         return self._req("GET", "/export?" + c.export_query(format, morph_targets, animation)).content
 
     # named poses
-    def save_pose(self, name: str) -> c.PoseInfo:
-        """Saves the settled pose under `name` (replacing one of that name)."""
-        return c.pose_info(self._req("POST", "/poses", json={"name": name}).json())
+    def save_pose(self, name: str, replace: bool = False) -> c.PoseInfo:
+        """Saves the settled pose under `name`. A pose of that name is
+        replaced (in its place) only with `replace`; otherwise the server
+        refuses with `pose_exists` and keeps it."""
+        return c.pose_info(self._req("POST", "/poses", json={"name": name, "replace": replace}).json())
 
     def poses(self) -> List[c.PoseInfo]:
         """The named poses, in save order."""
@@ -223,8 +225,8 @@ class SessionSocket:
     def release(self, handle: c.HandleRef) -> None:
         self.send({"type": "release", "handle": handle})
 
-    def save_pose(self, name: str) -> None:
-        self.send({"type": "save_pose", "name": name})
+    def save_pose(self, name: str, replace: bool = False) -> None:
+        self.send({"type": "save_pose", "name": name, "replace": replace})
 
     def restore_pose(self, name: str) -> None:
         self.send({"type": "restore_pose", "name": name})

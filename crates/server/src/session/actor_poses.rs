@@ -63,8 +63,12 @@ impl Actor {
     /// [`waits_for_settle`](PoseCmd::waits_for_settle)).
     pub(super) fn on_pose_cmd(&mut self, cmd: PoseCmd) {
         match cmd {
-            PoseCmd::Save { name, reply } => {
-                let _ = reply.send(self.save_pose(name));
+            PoseCmd::Save {
+                name,
+                replace,
+                reply,
+            } => {
+                let _ = reply.send(self.save_pose(name, replace));
             }
             PoseCmd::List(reply) => {
                 let _ = reply.send(self.named().map(|p| Arc::new(p.clone())));
@@ -81,12 +85,15 @@ impl Actor {
         }
     }
 
-    fn save_pose(&mut self, name: String) -> Result<PoseInfo, SessionError> {
+    fn save_pose(&mut self, name: String, replace: bool) -> Result<PoseInfo, SessionError> {
         let (pose, targets) = (self.pose.to_vec(), self.targets());
         let constraints = self.set.as_ref().map(|s| s.stored.clone());
         let revision = self.revision;
         let poses = self.named()?;
         let existing = poses.iter().position(|p| p.name == name);
+        if existing.is_some() && !replace {
+            return Err(SessionError::PoseExists { name });
+        }
         if existing.is_none() && poses.len() >= MAX_NAMED_POSES {
             return Err(SessionError::TooManyPoses {
                 limit: MAX_NAMED_POSES,

@@ -125,8 +125,9 @@ pub enum SessionError {
         /// The name as given.
         name: String,
     },
-    /// A rename onto a name another pose has. Fix: delete or rename that
-    /// pose first, or choose another name.
+    /// A save or a rename onto a name another pose has. Fix: save with
+    /// `replace` to overwrite it, delete or rename that pose first, or
+    /// choose another name.
     #[error("a pose named `{name}` exists already")]
     PoseExists {
         /// The name.

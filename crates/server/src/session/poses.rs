@@ -62,12 +62,19 @@ impl SessionHandle {
         self.call(|reply| Cmd::Poses(make(reply))).await
     }
 
-    /// Saves the current pose under `name` once the session has settled
-    /// (replacing a pose of the same name, in its place).
-    pub async fn save_pose(&self, name: &str) -> Result<PoseInfo, SessionError> {
+    /// Saves the current pose under `name` once the session has settled.
+    /// A pose of the same name is replaced (in its place) only when
+    /// `replace` is set, else the save is refused with `PoseExists`: a
+    /// name typed twice must not lose the first pose silently.
+    pub async fn save_pose(&self, name: &str, replace: bool) -> Result<PoseInfo, SessionError> {
         check_pose_name(name)?;
         let name = name.to_owned();
-        self.pose_call(|reply| PoseCmd::Save { name, reply }).await
+        self.pose_call(|reply| PoseCmd::Save {
+            name,
+            replace,
+            reply,
+        })
+        .await
     }
 
     /// The named poses, in save order, with their positions.

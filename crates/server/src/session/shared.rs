@@ -263,6 +263,9 @@ pub(super) enum PoseCmd {
     /// Save the settled pose as `name` (replacing one of that name).
     Save {
         name: String,
+        /// Whether a pose of the same name may be replaced (else
+        /// `PoseExists`).
+        replace: bool,
         reply: Reply<PoseInfo>,
     },
     /// The named poses, with their positions.

@@ -295,6 +295,27 @@ impl Asset {
         Ok(self.weld.spread(pose))
     }
 
+    /// What an [`export`](Self::export) as `format` leaves out: nothing in
+    /// the asset's own format family, else every attribute the asset holds
+    /// besides positions (`TEXCOORD_0`, `NORMAL`, `skins: 1`, `vt: 120`, …,
+    /// as [`AssetInfo::attributes`] lists them), since the other formats
+    /// get the welded surface as a plain mesh: positions and triangles.
+    pub fn dropped_by(&self, format: Format) -> Vec<String> {
+        let own = matches!(
+            (&self.source, format),
+            (Source::Gltf(_), Format::Gltf | Format::Glb)
+                | (Source::Obj(_), Format::Obj)
+                | (Source::Ply(_), Format::Ply)
+        );
+        if own {
+            Vec::new()
+        } else {
+            let mut a = self.info().attributes;
+            a.retain(|a| a != "POSITION");
+            a
+        }
+    }
+
     /// Writes the welded `pose` as `format`: in the asset's own layout when
     /// `format` is of the asset's family (glTF/GLB for a glTF asset, OBJ for
     /// an OBJ asset, PLY for a PLY asset), else as a plain mesh of the welded
