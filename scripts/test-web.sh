@@ -4,7 +4,9 @@
 # web/tests/editor.test.mjs for the first minutes of a new user, then
 # web/tests/feline.test.mjs for a person's drag of a 50k-vertex character, then
 # web/tests/morph.test.mjs for the morph-target GLB in three.js's
-# GLTFLoader, then web/tests/texture.test.mjs for textured glTF uploads),
+# GLTFLoader, then web/tests/texture.test.mjs for textured glTF uploads,
+# web/tests/artist.test.mjs for an artist's session at 1280x720,
+# web/tests/uploads.test.mjs for drag-and-drop, warnings and errors,
 # then the JavaScript client package's (clients/js: types, packing, the
 # HTTP routes, its three.js example in Chromium, reconnection):
 # installs what it needs if missing (Debian's chromium,
@@ -75,6 +77,8 @@ node web/tests/editor.test.mjs
 node web/tests/feline.test.mjs
 node web/tests/morph.test.mjs
 node web/tests/texture.test.mjs
+node web/tests/artist.test.mjs
+node web/tests/uploads.test.mjs
 # the JavaScript client package (clients/js): its types checked by tsc on a
 # consumer file, `npm pack` and its exports map (Node, and Chromium through
 # an import map), every HTTP route, the three.js example dragged with the

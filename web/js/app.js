@@ -44,11 +44,25 @@ export const app = {
   curvature: null,
   presets: null, // GET /v1/presets: {default, presets: [{name, label, description, params}]}
   settingsUndo: [], // earlier sessions a settings change left: [{session, settings}]
+  settingsRedo: [], // later sessions an undo across a settings change left: [{session, settings}]
   canUndo: false, // the session's own history has an earlier entry
+  canRedo: false, // the session's own history has a later entry
+  meshInfo: null, // GET /v1/meshes/{id} of the open session's mesh (its asset, its warnings), when known
+  dragged: false, // the user dragged a handle since this mesh opened (the canvas prompt goes)
   held: new Map(), // server handle index → client id holding it (another client's grab)
   notices: [], // each quiet status shown (the browser test counts them)
   opened: false, // the first open (the creature, or the session of the URL) is done
 };
+
+/** Events of the shared state, for the parts that follow it (the
+ * guidance, the named poses) without this module importing them:
+ * `labels` (painted or applied labels changed), `session` (a session was
+ * opened), `drag` (the user sent a drag). */
+export const events = new EventTarget();
+
+export function emit(type) {
+  events.dispatchEvent(new Event(type));
+}
 
 let curvatureTimer = null;
 
@@ -67,8 +81,7 @@ export function refreshCurvature() {
 // ---------- errors and status ----------
 
 export function showError(e) {
-  const text = e instanceof ApiError || (e && e.code) ? `${e.code}: ${e.message}` : String(e && e.message ? e.message : e);
-  $('errorText').textContent = text;
+  $('errorText').textContent = errorText(e);
   $('error').hidden = false;
 }
 
@@ -143,7 +156,9 @@ export function updateStats() {
       ? f.level === 1 ? 'coarse preview…' : 'iterating…'
       : f.converged
         ? 'settled'
-        : `not settled after ${f.iteration} iterations`;
+        : `not settled after ${f.iteration} iterations: the server stopped at its iteration budget`;
+  // the iteration budget ran out before the pose converged: the next steps
+  $('stCap').hidden = !(f && f.settled && !f.converged);
   $('stFrames').textContent = String(app.frames);
   const l = app.latencies;
   $('stLatency').textContent = '–';
@@ -185,6 +200,7 @@ export function recolor() {
   for (let h = 1; h <= app.handles; h++) counts.push(app.labels.filter((l) => l === h).length);
   const mixed = app.faceLabels ? app.faceLabels.filter((l) => l === MIXED).length : 0;
   $('selinfo').textContent = `fixed ${nf}; handles [${counts.join(', ')}]; ${mixed} border faces${app.dirtyLabels ? ' — not applied' : ''}`;
+  emit('labels');
 }
 
 /** Grows (adds every neighbour) or shrinks (removes every vertex with a
@@ -217,9 +233,13 @@ export function paint(indices, erase = false) {
   const label = erase || t === 'erase' ? FREE : t === 'fixed' ? FIXED : Number(t.slice(1)) + 1;
   for (const i of indices) app.labels[i] = label;
   app.dirtyLabels = true;
+  // a handle being painted gets the gizmo as soon as it has vertices
+  if (label > 0 && app.gizmo) app.gizmo.handle = label - 1;
   recolor();
 }
 
+/** A new, empty handle in the paint menu, chosen as the paint target; the
+ * gizmo follows it (it shows once the handle has vertices). */
 export function addHandle() {
   const k = app.handles++;
   const o = document.createElement('option');
@@ -227,6 +247,8 @@ export function addHandle() {
   o.textContent = `handle ${k}`;
   $('target').appendChild(o);
   $('target').value = o.value;
+  if (app.gizmo) app.gizmo.handle = k;
+  app.needsDraw = true;
 }
 
 /** The constraints JSON of the painted labels (empty handles are skipped). */
@@ -258,6 +280,7 @@ export const applyConstraints = guarded(async () => {
     // based on the set these labels came from: a collaborator's edit in
     // between is refused instead of silently replaced
     const r = await app.api.setConstraints(app.session.id, app.session.token, c.json, app.constraintsRevision);
+    discardSettingsRedo();
     app.applied = c;
     app.dirtyLabels = false;
     if (r && r.constraints_revision !== undefined) app.constraintsRevision = r.constraints_revision;
@@ -293,7 +316,6 @@ export function showConstraints(info) {
     serverIndexOf.set(k, k);
     if (Array.isArray(h.vertices)) for (const i of h.vertices) if (inRange(i)) app.labels[i] = k + 1;
   }
-  if (app.handles === 0) addHandle();
   $('target').value = 'fixed';
   app.applied = c ? { json: c, serverIndexOf } : null;
   app.dirtyLabels = false;
@@ -341,10 +363,65 @@ export function serverHandle(uiHandle) {
 /** Sends one drag delta and records its send time for the latency. */
 export function sendDrag(uiHandle, translate, rotate) {
   const seq = ++app.seq;
-  $('prompt').hidden = true;
   const msg = { type: 'drag', handle: serverHandle(uiHandle), translate, seq };
   if (rotate) msg.rotate = rotate;
-  if (send(msg)) app.sent.set(seq, performance.now());
+  if (send(msg)) {
+    app.sent.set(seq, performance.now());
+    app.dragged = true;
+    discardSettingsRedo();
+    emit('drag');
+  }
+}
+
+/** A new edit after an undo across a settings change: the sessions of the
+ * settings undone (the redo branch) can no longer be returned to, and are
+ * closed on the server. Until then they are kept (and Redo returns to
+ * them), for as long as the server keeps an idle session. */
+export function discardSettingsRedo() {
+  if (app.settingsRedo.length === 0) return;
+  for (const { session } of app.settingsRedo.splice(0)) {
+    app.api.json('DELETE', `/v1/sessions/${session.id}`, undefined, session.token).catch(() => {});
+  }
+  showUndoRedo();
+}
+
+/** The Undo and Redo buttons: the session's own history, then the
+ * settings changes around it. */
+export function showUndoRedo() {
+  $('undo').disabled = !app.canUndo && app.settingsUndo.length === 0;
+  $('redo').disabled = !app.canRedo && app.settingsRedo.length === 0;
+}
+
+/** An error or warning shown next to the control that caused it (`anchor`:
+ * that control; its row gets the message below it), kept until dismissed
+ * (×) or until the same control shows another or succeeds (`text` ''). */
+export function controlMessage(anchor, text, kind = 'error') {
+  const row = anchor.closest('.row, label.file, section > *') || anchor;
+  const id = `${anchor.id}Msg`;
+  let box = document.getElementById(id);
+  if (!text) {
+    if (box) box.remove();
+    return;
+  }
+  if (!box) {
+    box = document.createElement('div');
+    box.id = id;
+    box.setAttribute('role', kind === 'error' ? 'alert' : 'status');
+    const span = document.createElement('span');
+    const close = document.createElement('button');
+    close.textContent = '×';
+    close.setAttribute('aria-label', 'dismiss');
+    close.onclick = () => box.remove();
+    box.append(span, close);
+    row.after(box);
+  }
+  box.className = `ctlMsg ${kind}`;
+  box.firstChild.textContent = text;
+}
+
+/** The text of an error as the banners show it: `code: message`. */
+export function errorText(e) {
+  return e instanceof ApiError || (e && e.code) ? `${e.code}: ${e.message}` : String(e && e.message ? e.message : e);
 }
 
 export function needSession() {

@@ -2,8 +2,8 @@
 // Ctrl+Z undo, Ctrl+Shift+Z / Ctrl+Y redo, F frame the mesh, N/B/X/L/G
 // tools (navigate, brush, box, lasso, fill), A apply constraints.
 
-import { send, frameView, applyConstraints } from './app.js';
-import { undo } from './session.js';
+import { frameView, applyConstraints } from './app.js';
+import { undo, redo } from './session.js';
 
 export function attachKeys() {
   window.addEventListener('keydown', (e) => {
@@ -13,7 +13,7 @@ export function attachKeys() {
     const ctrl = e.ctrlKey || e.metaKey;
     const tool = (v) => { const r = document.querySelector(`input[name=tool][value=${v}]`); if (r) r.checked = true; };
     if (ctrl && key === 'z' && !e.shiftKey) undo();
-    else if (ctrl && (key === 'y' || (key === 'z' && e.shiftKey))) send({ type: 'redo' });
+    else if (ctrl && (key === 'y' || (key === 'z' && e.shiftKey))) redo();
     else if (ctrl) return;
     else if (key === 'f') frameView();
     else if (key === 'n') tool('navigate');
@@ -23,6 +23,7 @@ export function attachKeys() {
     else if (key === 'g') tool('fill');
     else if (key === 'a') applyConstraints();
     else if (key === '?') {
+      document.getElementById('secHelp').open = true;
       document.querySelector('.help').classList.toggle('flash');
       document.getElementById('helpOverlay').hidden = false;
     }

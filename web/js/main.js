@@ -12,11 +12,17 @@ import { attachKeys } from './keys.js';
 import { project } from './select.js';
 import { FREE } from './regions.js';
 import {
-  app, guarded, showError, send, recolor, growShrink, addHandle, applyConstraints, showConstraints, needSession,
-  refreshCurvature,
+  app, guarded, showError, recolor, growShrink, addHandle, applyConstraints, showConstraints, needSession,
+  refreshCurvature, sendDrag, discardSettingsRedo, controlMessage, errorText,
 } from './app.js';
 import { showAdvanced, currentPreset, showStiffness, loadPresets } from './settings.js';
-import { generate, upload, undo, settingsChanged, generateShape, join, rememberSettings } from './session.js';
+import {
+  generate, upload, uploadFiles, undo, redo, settingsChanged, generateShape, join, rememberSettings,
+} from './session.js';
+import { attachGuide } from './guide.js';
+import { attachDrop } from './drop.js';
+// the Named poses section (it follows the shared state's events)
+import './poses.js';
 
 const $ = (id) => document.getElementById(id);
 
@@ -85,13 +91,51 @@ $('preset').addEventListener('change', () => {
 $('stiffness').addEventListener('input', showStiffness);
 $('helpClose').onclick = () => { $('helpOverlay').hidden = true; };
 $('undo').onclick = undo;
-$('redo').onclick = () => send({ type: 'redo' });
-$('reset').onclick = guarded(async () => { const s = needSession(); await app.api.reset(s.id, s.token); });
-$('export').onclick = guarded(async () => {
+$('redo').onclick = redo;
+$('reset').onclick = guarded(async () => {
   const s = needSession();
-  const f = $('exportFormat').value;
-  await download(`dend-${s.id.slice(0, 8)}.${f}`, await app.api.exportAs(s.id, s.token, f));
+  await app.api.reset(s.id, s.token);
+  discardSettingsRedo();
 });
+/** The pose as a file; what the format leaves out of the asset (the
+ * server's `Dend-Warnings`) shows next to the button until dismissed. */
+$('export').onclick = async () => {
+  const button = $('export');
+  try {
+    const s = needSession();
+    const f = $('exportFormat').value;
+    const res = await fetch(`/v1/sessions/${s.id}/export?format=${encodeURIComponent(f)}`, {
+      headers: { Authorization: `Bearer ${s.token}` },
+    });
+    if (!res.ok) {
+      const e = await res.json().catch(() => ({ code: `http_${res.status}`, message: res.statusText }));
+      throw new ApiError(e.code, e.message);
+    }
+    let warnings = [];
+    try {
+      warnings = JSON.parse(res.headers.get('dend-warnings') || '[]');
+    } catch (e) { /* a header that does not parse: no warning to show */ }
+    app.exportWarnings = warnings.map((w) => w.code);
+    controlMessage(button, warnings.map((w) => `⚠ ${w.message}`).join('\n'), 'warning');
+    await download(`dend-${s.id.slice(0, 8)}.${f}`, await res.blob());
+  } catch (e) {
+    controlMessage(button, errorText(e));
+  }
+};
+/** The iteration budget ran out before the pose converged: "Keep
+ * refining" sends an identity drag (the targets stay where they are), on
+ * which the server runs another budget of iterations from this pose; or
+ * undo the step. */
+$('refine').onclick = () => {
+  const applied = app.applied ? [...app.applied.serverIndexOf.keys()] : [];
+  const k = applied.includes(app.gizmo.handle) ? app.gizmo.handle : applied[0];
+  if (k === undefined) {
+    showError({ code: 'no_handle', message: 'no applied handle to refine with' });
+    return;
+  }
+  sendDrag(k, [0, 0, 0]);
+};
+$('capUndo').onclick = undo;
 $('share').onclick = guarded(async () => {
   needSession();
   $('shareLink').select();
@@ -118,6 +162,9 @@ try {
   wireNumeric(app);
   attachInteraction(app, $('view'));
   attachKeys();
+  attachGuide();
+  // a mesh file dropped anywhere on the view is uploaded
+  attachDrop($('view').parentElement, $('dropZone'), uploadFiles);
   new ResizeObserver(() => { app.needsDraw = true; }).observe($('view'));
   requestAnimationFrame(loop);
   const h = new URLSearchParams(location.hash.slice(1));

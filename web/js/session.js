@@ -1,14 +1,23 @@
 // Sessions: generating or uploading a mesh and opening a session on it,
 // joining one from a share link, a settings change as a new session on the
-// same mesh (one undo step), and undo across those changes.
+// same mesh (one undo step), and undo and redo across those changes.
+//
+// Undo at the start of a session's own history goes back to the session
+// before the last settings change; the session left is kept, and Redo
+// returns to it (its own history intact). A new edit after such an undo (a
+// drag, applied constraints, a reset, a restored pose, another settings
+// change) discards that redo branch and closes its sessions on the server
+// (`discardSettingsRedo`, app.js); until then they live as long as the
+// server keeps an idle session.
 
 import { OrbitCamera } from './camera.js';
 import { parseObj, edgeList, bbox, parseGlb, glbTexture, glbImage } from './mesh.js';
 import { socketHandlers } from './socket.js';
 import {
-  app, guarded, notice, progress, setState, updateStats, clearHeld, send, recolor, uploadPose, viewAspect, addHandle, constraintsJson,
-  showConstraints,
+  app, guarded, notice, progress, setState, updateStats, clearHeld, send, recolor, uploadPose, viewAspect, constraintsJson,
+  showConstraints, emit, showUndoRedo, discardSettingsRedo, controlMessage, errorText,
 } from './app.js';
+import { uploadBody } from './drop.js';
 import {
   params, settingsSnapshot, restoreSettings, showPresetInfo, showStiffness,
 } from './settings.js';
@@ -17,6 +26,7 @@ const $ = (id) => document.getElementById(id);
 
 export function setMesh(obj) {
   app.mesh = { triangles: obj.triangles, edges: edgeList(obj.triangles) };
+  app.dragged = false;
   app.positions = obj.positions;
   app.normals = new Float32Array(obj.positions.length);
   app.colors = new Float32Array(obj.positions.length);
@@ -64,6 +74,8 @@ async function openSession(id, token, meshId) {
   }
   app.session = { id, token, meshId };
   app.canUndo = false;
+  app.canRedo = false;
+  showUndoRedo();
   clearHeld();
   app.frames = 0;
   app.last = null;
@@ -75,9 +87,32 @@ async function openSession(id, token, meshId) {
   // the session in the URL: a reload or a bookmark reopens it
   history.replaceState(null, '', `#session=${id}&token=${token}`);
   app.ws = await app.api.connect(id, token, socketHandlers);
+  emit('session');
+}
+
+// socket.js shows the session's own history on the Undo and Redo buttons;
+// the settings steps around it are this module's, so its state events pass
+// through here too (the handlers object is the one every connect and
+// reconnect uses)
+const onEvent = socketHandlers.event;
+socketHandlers.event = (e) => {
+  onEvent(e);
+  if (e.type === 'state') {
+    app.canRedo = !!e.can_redo;
+    showUndoRedo();
+  }
+};
+
+/** The warnings of the mesh's info (an extent or coordinates no real
+ * asset has), next to the upload control until dismissed. */
+function showMeshWarnings(info) {
+  const list = (info && info.warnings) || [];
+  controlMessage($('upload'), list.map((w) => `⚠ ${w.message}`).join('\n'), 'warning');
 }
 
 async function startSession(meshId, info) {
+  app.meshInfo = info || null;
+  showMeshWarnings(info);
   progress('computing the mesh operators…');
   const s = await app.api.createSession(meshId, params()).finally(() => progress(''));
   // The triangles come from the OBJ export of the rest pose (the API has no
@@ -96,49 +131,73 @@ export async function generateShape(shape) {
   $('error').hidden = true;
   setState('creating');
   const m = await app.api.generate(shape);
-  app.settingsUndo = [];
-  await startSession(m.id);
+  forgetSettingsSteps();
+  await startSession(m.id, m);
   resetPaint();
   if (m.constraints) {
     const r = await app.api.setConstraints(app.session.id, app.session.token, m.constraints, app.constraintsRevision);
     showConstraints({ constraints: m.constraints, constraints_revision: r.constraints_revision });
     app.gizmo.handle = 0;
-    $('prompt').hidden = false;
     app.needsDraw = true;
   }
 }
 
 export const generate = guarded(() => generateShape($('shape').value));
 
-export const upload = guarded(async (ev) => {
-  const file = ev.target.files[0];
-  if (!file) return;
+/** Another mesh: the settings steps of the last one are not undo steps of
+ * this one (the redo branch's sessions are closed). */
+function forgetSettingsSteps() {
+  app.settingsUndo = [];
+  discardSettingsRedo();
+}
+
+/** Uploads `files` (picked or dropped: one mesh file, or a .gltf with
+ * the buffers and images it names) and opens a session on the mesh. An
+ * error (a file the server cannot read, a missing side file) shows beside
+ * the upload control until dismissed; the open session stays. */
+export async function uploadFiles(files) {
+  if (!files || files.length === 0) return;
   $('error').hidden = true;
+  controlMessage($('upload'), '');
+  try {
+    await uploadMesh(await uploadBody(files));
+  } catch (e) {
+    controlMessage($('upload'), errorText(e));
+  }
+}
+
+async function uploadMesh(body) {
   const before = app.state;
   setState('uploading');
-  progress(`uploading and parsing ${file.name} (${(file.size / 1e6).toFixed(1)} MB)…`);
+  progress(`uploading and parsing ${body.name} (${(body.size / 1e6).toFixed(1)} MB)…`);
   let m;
   try {
-    m = await app.api.upload(file);
+    m = await app.api.upload(body);
   } catch (e) {
     setState(before);
     throw e;
   } finally {
     progress('');
-    ev.target.value = ''; // the same file can be picked again
   }
-  app.settingsUndo = [];
+  forgetSettingsSteps();
   await startSession(m.id, m);
   resetPaint();
-});
+}
 
+export const upload = (ev) => {
+  const files = [...ev.target.files];
+  ev.target.value = ''; // the same file can be picked again
+  return uploadFiles(files);
+};
+
+/** Labels cleared for a new mesh: no regions and no handle yet ("+ handle"
+ * makes handle 0). */
 export function resetPaint() {
   app.handles = 0;
   app.applied = null;
   app.constraintsRevision = 0;
   app.dirtyLabels = false;
   for (const o of [...$('target').options]) if (o.value.startsWith('h')) o.remove();
-  addHandle();
   $('target').value = 'fixed';
   recolor();
 }
@@ -177,6 +236,7 @@ const changeSettings = guarded(async (previous) => {
     const pinned = hasRegions ? pinnedConstraints() : null;
     progress('applying the new settings…');
     const s = await app.api.createSession(old.meshId, params());
+    discardSettingsRedo(); // a new branch
     let revision = 0;
     if (pinned) {
       const r = await app.api.setConstraints(s.id, s.token, pinned.json);
@@ -202,23 +262,44 @@ const changeSettings = guarded(async (previous) => {
   }
 });
 
+/** Moves from the open session to `to` ({session, settings}), the open
+ * one going onto `back` with the settings it had. */
+async function switchSession(to, back) {
+  const info = await app.api.session(to.session.id, to.session.token);
+  back.push({ session: app.session, settings: lastSettings });
+  restoreSettings(to.settings);
+  lastSettings = to.settings;
+  await openSession(to.session.id, to.session.token, to.session.meshId);
+  showConstraints(info);
+  setState(info.state);
+}
+
 /** Undo: the session's own history first; at its start, the last
- * settings change (back to the session and settings before it). */
+ * settings change (back to the session and settings before it; the
+ * session left is the redo step). */
 export const undo = guarded(async () => {
   if (app.canUndo || app.settingsUndo.length === 0) {
     send({ type: 'undo' });
     return;
   }
-  const { session, settings } = app.settingsUndo.pop();
-  const dropped = app.session;
-  restoreSettings(settings);
-  lastSettings = settings;
-  const info = await app.api.session(session.id, session.token);
-  await openSession(session.id, session.token, session.meshId);
-  showConstraints(info);
-  setState(info.state);
-  // the abandoned session: nobody else has its token
-  if (dropped) app.api.json('DELETE', `/v1/sessions/${dropped.id}`, undefined, dropped.token).catch(() => {});
+  await switchSession(app.settingsUndo.pop(), app.settingsRedo);
+});
+
+/** Redo: the session's own history first; at its end, the settings
+ * change undone last (forward to its session, as it was left). */
+export const redo = guarded(async () => {
+  if (app.canRedo || app.settingsRedo.length === 0) {
+    send({ type: 'redo' });
+    return;
+  }
+  const next = app.settingsRedo.pop();
+  try {
+    await switchSession(next, app.settingsUndo);
+  } catch (e) {
+    // its session is gone (the server's idle timeout): no redo there
+    discardSettingsRedo();
+    throw e;
+  }
 });
 
 /** The settings before the last change (the undo step's). */
@@ -242,6 +323,8 @@ export function settingsChanged() {
 export async function join(id, token) {
   setState('joining');
   const info = await app.api.session(id, token);
+  app.meshInfo = await app.api.json('GET', `/v1/meshes/${info.mesh_id}`).catch(() => null);
+  showMeshWarnings(app.meshInfo);
   const obj = parseObj(await app.api.exportObj(id, token));
   setMesh(obj);
   resetPaint();
@@ -250,6 +333,6 @@ export async function join(id, token) {
   if (app.labels.some((l) => l > 0)) app.gizmo.handle = 0;
   setState(info.state);
   await openSession(id, token, info.mesh_id);
-  await showTexture({ id, token }, await app.api.json('GET', `/v1/meshes/${info.mesh_id}`).catch(() => null), obj);
+  await showTexture({ id, token }, app.meshInfo, obj);
 }
 

@@ -97,6 +97,8 @@ export function showStiffness() {
 export function showPresetInfo() {
   const p = currentPreset();
   $('presetInfo').textContent = p ? p.description || '' : 'the server lists no presets: its defaults';
+  // one line in the panel; the whole description as its tooltip
+  $('presetInfo').title = $('presetInfo').textContent;
 }
 
 /** The preset menu, built from the server's list (GET /v1/presets). */

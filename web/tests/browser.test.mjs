@@ -61,16 +61,17 @@ async function main() {
     });
     await page.uncheck('#autoApply');
 
-    // Brush: a second handle painted and erased (Alt) on the visible side.
+    // Brush: a handle painted and erased (Alt) on the visible side (no
+    // handle before the first "+ handle": it makes handle 0).
     const cb = await page.locator('#view').boundingBox();
     const mid = [...Array(n).keys()].filter((i) => Math.abs(z(i) - zmax / 2) < 0.2)
       .sort((a, b) => rest[3 * b] - rest[3 * a])[0];
     const [mx, my] = (await page.evaluate((i) => window.dend.project([i]), mid))[0];
     await page.check('input[name=tool][value=brush]');
     await page.click('#addHandle');
-    assert.equal(await page.inputValue('#target'), 'h1');
+    assert.equal(await page.inputValue('#target'), 'h0');
     await page.mouse.click(cb.x + mx, cb.y + my);
-    const brushed = (await page.evaluate(() => window.dend.labels())).flatMap((l, i) => (l === 2 ? [i] : []));
+    const brushed = (await page.evaluate(() => window.dend.labels())).flatMap((l, i) => (l === 1 ? [i] : []));
     log('brush painted', brushed.length, 'vertices');
     assert.ok(brushed.includes(mid) && brushed.length < n / 4, 'the brush paints around the cursor');
     const xs = Array.from({ length: n }, (_, i) => rest[3 * i]);
@@ -79,7 +80,7 @@ async function main() {
     await page.keyboard.down('Alt');
     await page.mouse.click(cb.x + mx, cb.y + my);
     await page.keyboard.up('Alt');
-    assert.ok((await page.evaluate(() => window.dend.labels())).every((l) => l !== 2), 'Alt+brush erases');
+    assert.ok((await page.evaluate(() => window.dend.labels())).every((l) => l !== 1), 'Alt+brush erases');
 
     await page.check('input[name=tool][value=box]');
     await page.check('#throughSel');

@@ -231,7 +231,9 @@ async function gizmo(page, base) {
   await page.check('#throughSel');
   await page.selectOption('#target', 'fixed');
   await boxSelect(page, await screenBox(page, fixedIdx, 6));
-  await page.selectOption('#target', 'h0');
+  // the bar has no handle yet: "+ handle" makes handle 0, the paint target
+  await page.click('#addHandle');
+  assert.equal(await page.inputValue('#target'), 'h0');
   await boxSelect(page, await screenBox(page, far, 6));
   await page.uncheck('#throughSel');
   const handle = labelled(await page.evaluate(() => window.dend.labels()), 1);

@@ -30,8 +30,10 @@ pub const FILES: &[(&str, &[u8])] = &[
     ("js/api.js", include_bytes!("../../../web/js/api.js")),
     ("js/app.js", include_bytes!("../../../web/js/app.js")),
     ("js/camera.js", include_bytes!("../../../web/js/camera.js")),
+    ("js/drop.js", include_bytes!("../../../web/js/drop.js")),
     ("js/frame.js", include_bytes!("../../../web/js/frame.js")),
     ("js/gizmo.js", include_bytes!("../../../web/js/gizmo.js")),
+    ("js/guide.js", include_bytes!("../../../web/js/guide.js")),
     (
         "js/interact.js",
         include_bytes!("../../../web/js/interact.js"),
