@@ -398,14 +398,15 @@ pub async fn export(
     };
     let mut res = ([(header::CONTENT_TYPE, ct)], bytes).into_response();
     if let Some(w) = export_warnings(format, &dropped) {
-        res.headers_mut().insert(EXPORT_WARNINGS, w);
+        res.headers_mut()
+            .insert(header::HeaderName::from_static(EXPORT_WARNINGS), w);
     }
     Ok(res)
 }
 
 /// The export header that lists what the file leaves out: a JSON array of
 /// `{code, message}` (`attributes_dropped`), absent when nothing is.
-pub const EXPORT_WARNINGS: header::HeaderName = header::HeaderName::from_static("dend-warnings");
+pub const EXPORT_WARNINGS: &str = "dend-warnings";
 
 /// The `Dend-Warnings` value of an export as `format` that leaves out the
 /// asset's `dropped` attributes (none: no header).
