@@ -12,10 +12,17 @@
 //!
 //! ```text
 //! cargo run --release --example drag_sim -- MESH [--drags 60] [--per-drag 1]
-//!     [--path line|arc] [--preset characters|elastica] [--previews]
+//!     [--path line|arc] [--preset characters|elastica] [--previews] [--levels 1|2|3]
 //!     [--correction-period K] [--coarse-ratio R] [--tol T] [--anderson W]
 //!     [--area KA] [--stretch KS]
 //! ```
+//!
+//! `fine_iteration_ms` is the median time of one fine iteration in the same
+//! run; the one-shot solve and the settle are also reported in those units
+//! (`fine_iteration_equivalents`: time over it) and as `work` (fine
+//! iterations plus `StepReport::coarse_work`, each level's iterations
+//! weighted by its vertex count: a count that does not depend on the host
+//! or on what else it runs).
 //!
 //! MESH is a file, `tube:N` or `creature:LEVELS` (`dend gen creature`). The edit is the load test's: the lowest
 //! 10 % of the vertices along the longest axis fixed, the highest 10 % the
@@ -25,7 +32,7 @@
 use std::sync::Arc;
 use std::time::Instant;
 
-use dend::deform::{Constraints, Deformer, Factor, Preset, Rest, RigidTransform};
+use dend::deform::{Constraints, Deformer, Factor, Levels, Preset, Rest, RigidTransform};
 use dend::mesh::{Mesh, Point};
 use nalgebra::{UnitQuaternion, Vector3};
 
@@ -118,6 +125,12 @@ fn run() -> Result<(), String> {
     if let Some(w) = arg(&args, "--anderson") {
         params.anderson = w;
     }
+    let levels = match arg::<String>(&args, "--levels").as_deref() {
+        Some("many") | Some("3") => Levels::Many,
+        Some("1") => Levels::One,
+        None | Some("2") => Levels::Two,
+        Some(l) => return Err(format!("--levels {l}: 1, 2 or many")),
+    };
     let (lo, hi) = bbox(&mesh);
     let axis = (0..3)
         .max_by(|&a, &b| (hi[a] - lo[a]).total_cmp(&(hi[b] - lo[b])))
@@ -139,7 +152,9 @@ fn run() -> Result<(), String> {
 
     // one shot: the final target from rest
     c.handles[0].target = target_at(1.0, arc, axis, extent, pivot);
+    let fine_ms = fine_iteration_ms(&rest, &factor, &c, params)?;
     let mut one = Deformer::new(rest.clone(), params);
+    one.set_levels(levels);
     let t = Instant::now();
     let r1 = one
         .step(&factor, &c, params.max_iters)
@@ -148,6 +163,7 @@ fn run() -> Result<(), String> {
 
     // the drag loop
     let mut d = Deformer::new(rest.clone(), params);
+    d.set_levels(levels);
     let t = Instant::now();
     let mut drag_iters = 0;
     let (mut preview_its, mut preview_ms) = (0, 0.0);
@@ -188,12 +204,13 @@ fn run() -> Result<(), String> {
         d.hold_corrections(false);
     }
     let (mut settle_iters, mut last) = (0, None);
-    let (mut coarse_its, mut coarse_ms) = (0, 0.0);
+    let (mut coarse_its, mut coarse_ms, mut coarse_work) = (0, 0.0, 0.0);
     while settle_iters < params.max_iters {
         let r = d.step(&factor, &c, 1).map_err(|e| e.to_string())?;
         settle_iters += r.iterations;
         coarse_its += r.coarse_iterations;
         coarse_ms += r.coarse_ms;
+        coarse_work += r.coarse_work;
         if std::env::var_os("DEND_TRACE").is_some() {
             eprintln!(
                 "settle {settle_iters}: update {:.2e} objective {:.6} coarse {}",
@@ -235,12 +252,17 @@ fn run() -> Result<(), String> {
         "path": if arc { "arc" } else { "line" },
         "drags": drags,
         "per_drag": per_drag,
+        "fine_iteration_ms": fine_ms,
         "one_shot": {"iterations": r1.iterations, "converged": r1.converged,
-                     "objective": r1.objective, "ms": one_ms},
+                     "objective": r1.objective, "ms": one_ms,
+                     "fine_iteration_equivalents": one_ms / fine_ms,
+                     "work": r1.iterations as f64 + r1.coarse_work},
         "drag_ms_per_drag": drag_ms / drags as f64,
         "drag_iterations": drag_iters,
         "settle": {"iterations": settle_iters, "converged": last.converged,
                    "objective": last.objective, "ms": settle_ms,
+                   "fine_iteration_equivalents": settle_ms / fine_ms,
+                   "work": settle_iters as f64 + coarse_work,
                    "coarse_iterations": coarse_its, "coarse_ms": coarse_ms,
                    "preview_iterations": preview_its, "preview_ms": preview_ms},
         "reference": {"objective": r_ref.objective, "iterations": r_ref.iterations,
@@ -251,6 +273,30 @@ fn run() -> Result<(), String> {
     });
     println!("{out}");
     Ok(())
+}
+
+/// The median time of one fine iteration (one level, Anderson as set):
+/// iterations 2 to 12 of a one-level solve of `c` from rest, one call
+/// each (the first, which spreads the handles' rotations, is not
+/// counted). Work is reported in these units, which do not depend on the
+/// host.
+fn fine_iteration_ms(
+    rest: &Arc<Rest>,
+    factor: &Factor,
+    c: &Constraints,
+    params: dend::deform::Params,
+) -> Result<f64, String> {
+    let mut d = Deformer::new(rest.clone(), params);
+    d.set_levels(Levels::One);
+    d.step(factor, c, 1).map_err(|e| e.to_string())?;
+    let mut times = Vec::new();
+    for _ in 0..11 {
+        let t = Instant::now();
+        d.step(factor, c, 1).map_err(|e| e.to_string())?;
+        times.push(t.elapsed().as_secs_f64() * 1e3);
+    }
+    times.sort_by(f64::total_cmp);
+    Ok(times[times.len() / 2])
 }
 
 fn bbox(mesh: &Mesh) -> (Point, Point) {

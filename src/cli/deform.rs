@@ -107,8 +107,11 @@ pub struct Args {
     /// constraint groups survive), to start an edit from the rest pose and
     /// to correct the pose every correction-period iterations (5, or 10
     /// with elastica); 1 starts from the handles' rotations spread by
-    /// harmonic weights, without corrections.
-    #[arg(long, default_value_t = 2, value_parser = clap::value_parser!(u8).range(1..=2))]
+    /// harmonic weights, without corrections; 3 solves the coarse problem
+    /// the same way on a coarser level of its own, down to a level under
+    /// 1000 vertices whose iteration takes Gauss–Newton steps (a
+    /// hierarchy; docs/performance.md measures it).
+    #[arg(long, default_value_t = 2, value_parser = clap::value_parser!(u8).range(1..=3))]
     levels: u8,
     /// Print the objective after every iteration.
     #[arg(short, long)]
@@ -139,10 +142,10 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let rest = Arc::new(Rest::new(mesh.clone())?);
     let precompute = t0.elapsed();
     let mut deformer = Deformer::new(rest, params);
-    deformer.set_levels(if args.levels == 1 {
-        Levels::One
-    } else {
-        Levels::Two
+    deformer.set_levels(match args.levels {
+        1 => Levels::One,
+        2 => Levels::Two,
+        _ => Levels::Many,
     });
     // the factor, and beside it the coarse start of the first increment
     let mut first = constraints.clone();

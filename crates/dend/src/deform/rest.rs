@@ -54,8 +54,6 @@ pub struct Rest {
     /// simplification ratio (`None`: the mesh has none), built on first
     /// use, at most [`ENERGY_CACHE`].
     pub(super) coarse: Mutex<Vec<(usize, Option<Arc<CoarseLevel>>)>>,
-    /// Whether this is a coarse level itself (two levels, not more).
-    pub(super) single_level: bool,
 }
 
 /// How [`Rest::with_ordering`] numbers the solver's vertices.
@@ -90,7 +88,8 @@ pub(crate) struct EnergyOperator {
 /// [`Rest`]): the coarse rest state and the maps between the levels.
 #[derive(Debug)]
 pub struct CoarseLevel {
-    /// The coarse rest state (it has no coarse level itself).
+    /// The coarse rest state (with coarse levels of its own in a
+    /// hierarchy).
     pub rest: Arc<Rest>,
     /// Fine (solver) index of each coarse vertex, `#Vc`: increasing unless
     /// the fine mesh was renumbered (the coarse mesh keeps the mesh's own
@@ -144,17 +143,16 @@ impl Rest {
             energies: Mutex::new(Vec::new()),
             elastics: Mutex::new(Vec::new()),
             coarse: Mutex::new(Vec::new()),
-            single_level: false,
         })
     }
 
-    /// [`Rest::new`] without a coarse level (the coarse level's own rest
-    /// state: two levels, not more).
-    pub(super) fn single_level(mesh: Mesh) -> Result<Rest, DeformError> {
-        Ok(Rest {
-            single_level: true,
-            ..Rest::with_ordering(mesh, VertexOrdering::AsGiven)?
-        })
+    /// [`Rest::new`] for a coarse level's own rest state: in the coarse
+    /// mesh's own order (its vertices keep the fine mesh's), with coarse
+    /// levels of its own for a hierarchy ([`Levels::Many`]).
+    ///
+    /// [`Levels::Many`]: crate::deform::Levels::Many
+    pub(super) fn coarse_level(mesh: Mesh) -> Result<Rest, DeformError> {
+        Rest::with_ordering(mesh, VertexOrdering::AsGiven)
     }
 
     /// A process-unique id (factor cache keys refer to it).

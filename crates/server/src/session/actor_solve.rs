@@ -392,6 +392,7 @@ fn preview_report(r: &dend::deform::PreviewReport) -> dend::deform::StepReport {
         initial_objective: f64::NAN,
         coarse_iterations: r.iterations,
         coarse_ms: r.ms,
+        coarse_work: r.work,
         interrupted: false,
     }
 }

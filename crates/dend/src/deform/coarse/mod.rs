@@ -90,9 +90,6 @@ impl Rest {
     ///
     /// [`ElasticParams::coarse_ratio`]: crate::deform::ElasticParams::coarse_ratio
     pub(crate) fn coarse_at_most(&self, max_ratio: usize) -> Option<Arc<CoarseLevel>> {
-        if self.single_level {
-            return None;
-        }
         let ratio = ratio_at_most(self.mesh.num_vertices(), max_ratio);
         cached(&self.coarse, ratio, || {
             CoarseLevel::new(self, ratio).map(Arc::new)
@@ -142,7 +139,7 @@ impl CoarseLevel {
             None => &rest.ops.positions,
         };
         let (coarse, mut fine_of) = coarse_mesh(mesh, normalised, ratio)?;
-        let rest_c = Rest::single_level(coarse).ok()?;
+        let rest_c = Rest::coarse_level(coarse).ok()?;
         let mut near = nearest::nearest_sources(mesh.topology(), normalised, &fine_of);
         if let Some(order) = rest.vertex_order() {
             for v in &mut fine_of {
@@ -167,6 +164,15 @@ impl CoarseLevel {
     /// Coarse vertex count.
     pub fn num_vertices(&self) -> usize {
         self.fine_of.len()
+    }
+
+    /// The coarse vertex count over the fine one: what a coarse iteration
+    /// costs in fine iterations (the work measure of
+    /// [`StepReport::coarse_work`]).
+    ///
+    /// [`StepReport::coarse_work`]: crate::deform::StepReport::coarse_work
+    pub fn share(&self) -> Real {
+        self.fine_of.len() as Real / self.coarse_of.len().max(1) as Real
     }
 
     /// `constraints` restricted to the coarse vertices: the same groups

@@ -25,19 +25,14 @@ use crate::mesh::{cross, dot, norm, sub, Mesh, Point, Real};
 /// (measured: camel_9770 non-manifold with it, valid without; dino_6013,
 /// eth_hand_14k valid with both).
 ///
-/// meshoptimizer sees the mesh centred on its bounding box and scaled by a
-/// power of two to about unit size, as f32: the collapses then do not
-/// depend on the mesh's unit of length or placement, and are those of the
-/// raw coordinates (meshoptimizer divides by the box's largest side
-/// itself). Given the raw coordinates scaled by 37, their f32 rounding
-/// changed: a 1600-vertex patch got another coarse mesh, and its solve
-/// another path (issue #33). The collapses are that sensitive to rounding:
-/// feeding the copy in mean edge lengths, or divided by the largest side
-/// in f64, changed the survey cylinder's edit from 37 + 188 coarse
-/// iterations to 49 + 173, the creature's from 21 + 43 to 17 + 87, and
-/// the feline's one-shot edit from 15 to 50 fine iterations (its settle
-/// after a drag from 27 to 84). `normalised` (the rest operators' copy)
-/// judges the caps.
+/// meshoptimizer sees the mesh centred on its bounding box and divided by
+/// the box's largest side in f64, then rounded to f32: the same mesh in
+/// another unit of length (scaled by any factor) gives the same f32 input,
+/// up to the rare coordinate whose last f64 bits sit on an f32 rounding
+/// tie, and so the same collapses and the same levels. (Fed the raw
+/// coordinates, the f32 rounding followed the unit: a mesh scaled by 37
+/// got another coarse mesh, and its solve another path.) `normalised`
+/// (the rest operators' copy) judges the caps.
 pub fn coarse_mesh(mesh: &Mesh, normalised: &[Point], ratio: usize) -> Option<(Mesh, Vec<u32>)> {
     [SimplifyOptions::Regularize, SimplifyOptions::None]
         .into_iter()
@@ -52,22 +47,16 @@ fn simplify_with(
     options: SimplifyOptions,
 ) -> Option<(Mesh, Vec<u32>)> {
     let fine = mesh.positions();
-    // centred on the bounding box and scaled by the power of two nearest
-    // the inverse of its largest side. meshoptimizer divides by that side
-    // itself, so a power-of-two scale changes none of its arithmetic: every
-    // mesh gets the collapses its raw coordinates gave before (the coarse
-    // levels the suite and the drag loop were measured with), and a mesh
-    // scaled by any factor gets the same f32 input up to the last bit of
-    // its f64 coordinates (issue #33)
+    // centred on the bounding box and divided by its largest side, in f64
+    // (see above)
     let (lo, hi) = mesh.bounding_box();
     let centre = [0, 1, 2].map(|k| 0.5 * (lo[k] + hi[k]));
     let extent = (0..3)
         .map(|k| hi[k] - lo[k])
         .fold(Real::MIN_POSITIVE, Real::max);
-    let scale = (2.0 as Real).powi(-(extent.log2().round() as i32));
     let positions: Vec<[f32; 3]> = fine
         .iter()
-        .map(|p| [0, 1, 2].map(|k| ((p[k] - centre[k]) * scale) as f32))
+        .map(|p| [0, 1, 2].map(|k| ((p[k] - centre[k]) / extent) as f32))
         .collect();
     let indices: Vec<u32> = mesh.triangles().iter().flatten().copied().collect();
     let target = 3 * (mesh.num_triangles() / ratio.max(1)).max(1);

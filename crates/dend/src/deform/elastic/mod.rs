@@ -64,6 +64,7 @@ use super::system::{add_soft_diagonal, partition, System};
 use crate::mesh::{Mesh, Point, Real};
 
 mod area;
+mod hessian;
 mod residual;
 
 use crate::operators::Operators;

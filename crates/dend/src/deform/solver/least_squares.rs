@@ -147,6 +147,7 @@ impl Deformer {
             initial_objective: f,
             coarse_iterations: 0,
             coarse_ms: 0.0,
+            coarse_work: 0.0,
             interrupted: false,
         };
         let (mut growing, mut best_f, f_start) = match chain {

@@ -61,8 +61,8 @@ pub(super) struct State {
     /// Right-hand side / update, column-major `|U| × 3`.
     pub(super) rhs: Vec<Real>,
     /// Flat `3|U|` current iterate, Anderson candidate and `Q_UU Δ`.
-    x_flat: Vec<Real>,
-    cand: Vec<Real>,
+    pub(super) x_flat: Vec<Real>,
+    pub(super) cand: Vec<Real>,
     mf: Vec<Real>,
     /// How the next sequence starts.
     start: Start,
@@ -91,6 +91,8 @@ pub(super) struct State {
     /// iterations in a row it has grown ([`Deformer::drift_limit`]).
     last_update: Real,
     grew: usize,
+    /// The coarsest level's Newton iteration (`solver/newton.rs`).
+    pub(super) newton: super::newton::NewtonState,
 }
 
 /// How far (mean edge lengths) a target may be from its vertex's rest
@@ -212,6 +214,7 @@ impl Deformer {
             initial_objective: e,
             coarse_iterations: coarse.map_or(0, |c| c.iterations),
             coarse_ms: coarse.map_or(0.0, |c| c.ms),
+            coarse_work: coarse.map_or(0.0, |c| c.work),
             interrupted: false,
         };
         if nu == 0 {
@@ -228,6 +231,10 @@ impl Deformer {
             }
             // 1. global step: Δ = Q_UU⁻¹ (g(R) − Q Y)_U
             self.global_rhs(factor, (el, set));
+            let newton = self.newton && fit;
+            if newton {
+                self.keep_newton_rhs(nu);
+            }
             if self.interrupted() {
                 report.interrupted = true;
                 break;
@@ -263,7 +270,15 @@ impl Deformer {
             let mut accepted = false;
             // a converged plain step is taken as it is: the pose returned is
             // the one the convergence test measured
-            let accelerate = accelerate && max_dx >= self.params.tol;
+            let accelerate = accelerate && max_dx >= self.params.tol && !newton;
+            if newton && max_dx >= self.params.tol {
+                if let Some(e_n) = self.newton_candidate(factor, (el, set), e) {
+                    e = e_n;
+                    accepted = true;
+                }
+                report.coarse_work += super::newton::NEWTON_COST - 1.0;
+            }
+            let st = &mut self.elastic;
             if accelerate {
                 dend_linalg::sparse::mul_columns::<3>(&factor.sys.m, &st.rhs, &mut st.mf);
             }
@@ -386,7 +401,7 @@ impl Deformer {
         let fit = self.params.detail == DetailTerm::Nonlinear;
         let st = &mut self.elastic;
         st.anderson.reset();
-        st.corrections = fit && self.levels == Levels::Two;
+        st.corrections = fit && self.levels != Levels::One;
         st.since_correction = 0;
         st.e_mark = Real::NAN;
         st.last_update = Real::INFINITY;
@@ -474,12 +489,23 @@ impl Deformer {
                 // next iteration
                 report.coarse_iterations += run.iterations;
                 report.coarse_ms += run.ms;
+                report.coarse_work += run.work;
                 report.interrupted = true;
                 return e;
             }
         };
         report.coarse_iterations += run.iterations;
         report.coarse_ms += run.ms;
+        report.coarse_work += run.work;
+        tracing::debug!(
+            vertices = self.rest.mesh.num_vertices(),
+            after = report.iterations,
+            gain,
+            gain_before,
+            coarse_iterations = run.iterations,
+            work = run.work,
+            "coarse correction"
+        );
         let st = &mut self.elastic;
         st.since_correction = 0;
         st.corrections = match self.params.elastic().map(|e| e.corrections) {
@@ -582,7 +608,7 @@ impl Deformer {
     /// `rot_try` when `trial`, warm-started from `rot`), returning
     /// `E(Y, R)` plus the soft-constraint term. Without `fit` (the linear
     /// detail term) the rotations stay the identity.
-    fn local_step(
+    pub(super) fn local_step(
         &mut self,
         factor: &Factor,
         (el, set): (&ElasticOps, &ElasticSet),
@@ -642,7 +668,7 @@ impl Deformer {
 
     /// Writes the unknowns of `Y` from the Anderson candidate or from the
     /// plain step `x + Δ`.
-    fn set_unknowns(&mut self, factor: &Factor, from: Flat) {
+    pub(super) fn set_unknowns(&mut self, factor: &Factor, from: Flat) {
         let st = &self.elastic;
         let nu = factor.sys.unknowns.len();
         for (k, &u) in factor.sys.unknowns.iter().enumerate() {
@@ -660,7 +686,7 @@ impl Deformer {
 
 /// Where [`Deformer::set_unknowns`] reads the new unknowns.
 #[derive(Clone, Copy)]
-enum Flat {
+pub(super) enum Flat {
     Candidate,
     PlainStep,
 }

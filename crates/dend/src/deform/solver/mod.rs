@@ -13,9 +13,12 @@ use crate::mesh::{Point, Real};
 mod least_squares;
 mod local_global;
 mod multilevel;
+mod newton;
 mod preview;
 mod propagate;
 
+#[cfg(test)]
+mod hierarchy_tests;
 #[cfg(test)]
 mod interrupt_tests;
 #[cfg(test)]
@@ -61,6 +64,12 @@ pub struct StepReport {
     /// needed, coarse solves, transfers, the fine steps of corrections),
     /// ms; 0 without any.
     pub coarse_ms: Real,
+    /// That coarse work in this mesh's iterations: each level's
+    /// iterations weighted by its vertex count over this mesh's, summed
+    /// over every level below, plus one iteration for the fine half of
+    /// each correction. With `iterations` it is the step's work in fine
+    /// iterations, a measure that does not depend on the host.
+    pub coarse_work: Real,
     /// Whether the step stopped early because its interrupt flag was
     /// raised ([`Deformer::set_interrupt`]): the pose is the one after
     /// `iterations` whole iterations (unchanged when 0).
@@ -97,6 +106,9 @@ pub struct Deformer {
     /// row (a correction's coarse solve: `multilevel::CORRECTION_DRIFT`);
     /// `None`, never.
     pub(super) drift_limit: Option<usize>,
+    /// Whether this deformer is the coarsest level of a hierarchy, whose
+    /// iteration takes Newton steps (`solver/newton.rs`).
+    newton: bool,
     /// The coarse previews' problem and last pose ([`Deformer::preview`]).
     preview: Option<Box<preview::Preview>>,
     /// Raised by another thread to stop a step at its next safe point
@@ -126,6 +138,7 @@ impl Deformer {
             corrections_held: false,
             coarse_start_held: false,
             drift_limit: None,
+            newton: false,
             preview: None,
             interrupt: None,
         }

@@ -115,9 +115,28 @@ pub enum Levels {
     One,
     /// The coarse level where the mesh has one and the constraint set
     /// survives on it (`deform::coarse`): a coarse start from the rest pose
-    /// and coarse corrections (module docs); else as `One`.
+    /// and coarse corrections (module docs); else as `One`. The coarse
+    /// problem is solved on its own level only.
     #[default]
     Two,
+    /// A hierarchy: as `Two`, and the coarse problem is solved the same way
+    /// on a level of its own, down to a level under
+    /// [`coarse::MIN_VERTICES`](crate::deform::coarse::MIN_VERTICES),
+    /// whose iteration takes Gauss–Newton steps (`solver/newton.rs`).
+    /// Not the default: measured against `Two` in docs/performance.md
+    /// (fewer fine-iteration equivalents for some one-shot solves, more for
+    /// the settles after a gesture).
+    Many,
+}
+
+impl Levels {
+    /// The levels the coarse problem's own solve uses.
+    pub(super) fn below(self) -> Levels {
+        match self {
+            Levels::One | Levels::Two => Levels::One,
+            Levels::Many => Levels::Many,
+        }
+    }
 }
 
 /// The coarse problem of one fine constraint set.
@@ -167,6 +186,7 @@ pub(super) fn coarse_problem(
     params: &Params,
     ratio: usize,
     constraints: &Constraints,
+    levels: Levels,
 ) -> Option<CoarseProblem> {
     let level: Arc<CoarseLevel> = rest.coarse_at_most(ratio)?;
     let cc = level.restrict(constraints)?;
@@ -180,7 +200,9 @@ pub(super) fn coarse_problem(
         coarse_fixed[v as usize] = true;
     }
     let mut deformer = Box::new(Deformer::new(level.rest.clone(), *params));
-    deformer.set_levels(Levels::One);
+    deformer.set_levels(levels.below());
+    // the coarsest level of a hierarchy takes Newton steps
+    deformer.newton = levels == Levels::Many && level.rest.coarse_at_most(ratio).is_none();
     Some(CoarseProblem {
         level,
         factor,
@@ -206,6 +228,13 @@ fn solve_start(
     coarse.reset();
     coarse.elastic.linear.clear();
     let report = coarse.step(&p.factor, cc, COARSE_MAX_ITERS).ok()?;
+    tracing::debug!(
+        vertices = p.level.num_vertices(),
+        iterations = report.iterations,
+        converged = report.converged,
+        coarse_work = report.coarse_work,
+        "coarse start"
+    );
     if !report.objective.is_finite() || coarse.rotations().len() != p.level.num_vertices() {
         return None;
     }
@@ -215,6 +244,7 @@ fn solve_start(
         run: CoarseRun {
             iterations: report.iterations,
             ms: t0.elapsed().as_secs_f64() * 1e3,
+            work: (report.iterations as Real + report.coarse_work) * p.level.share(),
         },
     })
 }
@@ -268,6 +298,10 @@ pub(super) struct CoarseRun {
     /// Wall time (level and coarse factor when first needed, coarse solve,
     /// transfers and the fine steps of a correction), ms.
     pub ms: Real,
+    /// The work in fine iterations ([`StepReport::coarse_work`]).
+    ///
+    /// [`StepReport::coarse_work`]: crate::deform::StepReport::coarse_work
+    pub work: Real,
 }
 
 /// The outcome of a coarse correction.
@@ -306,7 +340,8 @@ impl Deformer {
         let key = (factor.id(), self.params.elastic()?.coarse_ratio);
         let mut problem = match self.coarse.take() {
             Some((k, p)) if k == key => p,
-            _ => coarse_problem(&self.rest, &self.params, key.1, constraints).map(Box::new),
+            _ => coarse_problem(&self.rest, &self.params, key.1, constraints, self.levels)
+                .map(Box::new),
         };
         let out = match problem.as_deref_mut() {
             Some(p) => match p.level.restrict(constraints) {
@@ -360,11 +395,11 @@ impl Deformer {
     /// reached is the same as with [`Factor::build`] (the coarse solve is
     /// the same one, run earlier).
     pub fn build_factor(&mut self, constraints: &Constraints) -> Result<Factor, DeformError> {
-        let ahead = self.levels == Levels::Two
+        let ahead = self.levels != Levels::One
             && self.params.formulation.kind() == Formulation::Elastic
             && self.params.detail == DetailTerm::Nonlinear
             && self.elastic.starts_from_rest();
-        let (rest, params) = (&self.rest, &self.params);
+        let (rest, params, levels) = (&self.rest, &self.params, self.levels);
         // (`Factor::build` takes the mesh's order, the coarse problem the
         // solver's)
         let internal = rest.internal_constraints(constraints);
@@ -376,7 +411,7 @@ impl Deformer {
                 }
                 let t0 = Instant::now();
                 let ratio = params.elastic()?.coarse_ratio;
-                let mut p = coarse_problem(rest, params, ratio, &internal)?;
+                let mut p = coarse_problem(rest, params, ratio, &internal, levels)?;
                 let cc = p.level.restrict(&internal)?;
                 p.deformer.params = coarse_params(rest, params, &p.level);
                 p.solved_start = Some(solve_start(&mut p, &cc, &internal, t0)?);
@@ -401,9 +436,12 @@ impl Deformer {
     ) -> Correction {
         let t0 = Instant::now();
         let ms = |t0: Instant| t0.elapsed().as_secs_f64() * 1e3;
-        let run = |iterations| CoarseRun {
+        // (the fine half of a correction, its global step and energy
+        // tests, counts as one fine iteration)
+        let run = |(iterations, work): (usize, Real), fine: Real| CoarseRun {
             iterations,
             ms: ms(t0),
+            work: work + fine,
         };
         let field = self.with_coarse(factor, constraints, |fine, p, cc| {
             // r_f = g_f − Q_f Y at the current rotations
@@ -449,14 +487,18 @@ impl Deformer {
             coarse.interrupt = None;
             coarse.drift_limit = None;
             let report = report?;
+            let its = (
+                report.iterations,
+                (report.iterations as Real + report.coarse_work) * p.level.share(),
+            );
             if report.interrupted {
-                return Some((report.iterations, Err(())));
+                return Some((its, Err(())));
             }
             if report.iterations >= CORRECTION_MAX_ITERS && !report.converged {
                 p.slow = true;
             }
             if report.diverged {
-                return Some((report.iterations, Ok(None)));
+                return Some((its, Ok(None)));
             }
             // ΔR_c = R_c R_c⁰ᵀ as rotation vectors, prolongated
             let w_c: Vec<Vector3<Real>> = coarse
@@ -473,16 +515,16 @@ impl Deformer {
                 &p.coarse_fixed,
                 PROLONGATION_PASSES,
             );
-            Some((report.iterations, Ok(Some(w_f))))
+            Some((its, Ok(Some(w_f))))
         });
         match field {
-            None => Correction::Unavailable(run(0)),
-            Some((its, Err(()))) => Correction::Interrupted(run(its)),
-            Some((its, Ok(None))) => Correction::Unavailable(run(its)),
+            None => Correction::Unavailable(run((0, 0.0), 0.0)),
+            Some((its, Err(()))) => Correction::Interrupted(run(its, 0.0)),
+            Some((its, Ok(None))) => Correction::Unavailable(run(its, 0.0)),
             Some((its, Ok(Some(w_f)))) => {
                 match self.apply_rotation_correction(factor, (el, set), &w_f, e) {
-                    Some(e_new) => Correction::Kept(e_new, run(its)),
-                    None => Correction::Dropped(run(its)),
+                    Some(e_new) => Correction::Kept(e_new, run(its, 1.0)),
+                    None => Correction::Dropped(run(its, 1.0)),
                 }
             }
         }

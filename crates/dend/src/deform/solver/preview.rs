@@ -65,6 +65,8 @@ pub struct PreviewReport {
     /// Wall time, ms (the level and its factor when first needed, the
     /// coarse iterations and the prolongation).
     pub ms: Real,
+    /// That work in fine iterations (`StepReport::coarse_work`).
+    pub work: Real,
 }
 
 /// The preview state of a deformer.
@@ -151,7 +153,14 @@ impl Deformer {
             Some(p) if p.key == key => p,
             _ => Box::new(Preview {
                 key,
-                problem: coarse_problem(&self.rest, &self.params, key.1, constraints).map(Box::new),
+                problem: coarse_problem(
+                    &self.rest,
+                    &self.params,
+                    key.1,
+                    constraints,
+                    self.levels.below(),
+                )
+                .map(Box::new),
                 following: false,
                 pending: false,
                 pose: Vec::new(),
@@ -162,24 +171,26 @@ impl Deformer {
         };
         let out = self.preview_with(&mut pv, constraints, max_iters);
         self.preview = Some(pv);
-        Ok(
-            out.map(|(iterations, converged, coarse_vertices)| PreviewReport {
+        Ok(out.map(
+            |(iterations, converged, coarse_vertices, work)| PreviewReport {
                 iterations,
                 converged,
                 coarse_vertices,
                 ms: t0.elapsed().as_secs_f64() * 1e3,
-            }),
-        )
+                work,
+            },
+        ))
     }
 
     /// [`Deformer::preview`] with its state `pv`: (coarse iterations,
-    /// converged, coarse vertices), or `None` without a coarse problem.
+    /// converged, coarse vertices, work in fine iterations), or `None`
+    /// without a coarse problem.
     fn preview_with(
         &self,
         pv: &mut Preview,
         constraints: &Constraints,
         max_iters: usize,
-    ) -> Option<(usize, bool, usize)> {
+    ) -> Option<(usize, bool, usize, Real)> {
         let p = pv.problem.as_deref_mut()?;
         let cc = p.level.restrict(constraints)?;
         if !pv.following {
@@ -240,7 +251,12 @@ impl Deformer {
             order.to_user(&pv.pose, &mut pv.pose_user);
         }
         pv.pending = true;
-        Some((report.iterations, report.converged, p.level.num_vertices()))
+        Some((
+            report.iterations,
+            report.converged,
+            p.level.num_vertices(),
+            (report.iterations as Real + report.coarse_work) * p.level.share(),
+        ))
     }
 
     /// The pose a frame shows: the last preview's when it is newer than
