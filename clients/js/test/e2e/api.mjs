@@ -78,6 +78,9 @@ run('api', async () => {
     const saved = await s.savePose('raised');
     assert.equal(saved.name, 'raised');
     assert.deepEqual((await s.poses()).map((p) => p.name), ['raised']);
+    // a name in use is refused unless replacing is asked for
+    assert.equal((await refusal(s.savePose('raised'))).code, 'pose_exists');
+    assert.equal((await s.savePose('raised', { replace: true })).name, 'raised');
     assert.equal((await s.namedPose('raised')).positions.length, positions.length);
     assert.equal((await s.renamePose('raised', 'up')).name, 'up');
     assert.equal((await refusal(s.namedPose('raised'))).code, 'pose_not_found');
