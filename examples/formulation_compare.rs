@@ -1,4 +1,4 @@
-//! Eq. (24) least squares vs eq. (23) square (issue 5) on the paper figures,
+//! Eq. (24) least squares vs eq. (23) square (docs/design.md) on the paper figures,
 //! in one process: prints a markdown table for docs/performance.md.
 //!
 //! ```text

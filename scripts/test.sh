@@ -13,8 +13,10 @@ if [ "${CI:-}" = true ]; then export CARGO_INCREMENTAL="${CARGO_INCREMENTAL:-0}"
 bash scripts/setup-test-env.sh
 cargo fmt --all -- --check
 cargo clippy --workspace --all-targets -- -D warnings
-# no import cycle between the modules of a crate, nor between the files of web/js
+# no import cycle between files, no stale path in docs and comments
+# (docs/architecture.md, "Layering")
 python3 scripts/module_cycles.py
+python3 scripts/stale_paths.py
 # benches are compiled by clippy above; running them is `cargo bench`
 # tests that cannot run here (no ../shared/meshes) record why in this file
 export DEND_SKIP_LOG="$(mktemp)"
@@ -30,9 +32,6 @@ if [ -z "${DEND_TEST_POSTGRES:-}" ] && bash scripts/pg-temp.sh bindir >/dev/null
 fi
 # the failover test's figures (docs/reliability.md)
 export DEND_FAILOVER_REPORT="${DEND_FAILOVER_REPORT:-$PG_TMP/failover.json}"
-# the frames the JavaScript client's decoder test reads (written by
-# crates/protocol/tests/js_fixtures.rs during the cargo test below)
-export DEND_JS_FIXTURES="$PG_TMP/js-fixtures"
 cargo test --workspace --lib --bins --tests --examples
 [ -s "$DEND_FAILOVER_REPORT" ] && { echo "== failover figures:"; cat "$DEND_FAILOVER_REPORT"; }
 # the Python client's tests, against a real `dend serve` (the binary cargo
@@ -58,9 +57,6 @@ elif [ "${CI:-}" = true ]; then
 else
   echo "blender not installed: the Blender add-on's and import tests did not run" >> "$DEND_SKIP_LOG"
 fi
-# the JavaScript client (clients/js): its decoders against the Rust
-# encoder's frames and the fuzz corpus (plain node, no install needed)
-(cd clients/js && npm test)
 # the browser test drives the `dend` binary cargo test built for the CLI tests
 DEND_BIN="${CARGO_TARGET_DIR:-$(pwd)/target}/debug/dend" bash scripts/test-web.sh
 if [ -s "$DEND_SKIP_LOG" ]; then

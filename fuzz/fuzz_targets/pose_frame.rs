@@ -1,5 +1,5 @@
 //! Fuzzes the binary pose frame decoder (versions 2 and 3, as clients
-//! read frames); never a panic (replayed by `tests/fuzz_replay.rs`).
+//! read frames); never a panic (replayed by `tests/it/fuzz_replay.rs`).
 #![no_main]
 use libfuzzer_sys::fuzz_target;
 

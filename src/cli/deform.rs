@@ -13,7 +13,7 @@ use dend::deform::{
 use dend::mesh::asset::Asset;
 use dend::mesh::io::{self, survey};
 
-use super::PresetArg;
+use super::preset::PresetArg;
 
 /// Arguments of `dend deform`.
 #[derive(Debug, clap::Args)]

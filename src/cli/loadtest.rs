@@ -24,7 +24,7 @@ use dend_client::{Client, FrameEncoding, MeshInfo};
 use dend_server::{self as server, AppState, Config};
 use serde_json::json;
 
-use super::PresetArg;
+use super::preset::PresetArg;
 use drive::{median, DragPath, Pace, Path, Summary};
 
 #[path = "loadtest_drive.rs"]

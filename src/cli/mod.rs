@@ -5,8 +5,7 @@
 
 use std::process::ExitCode;
 
-use clap::{Parser, Subcommand, ValueEnum};
-use dend::deform::Preset;
+use clap::{Parser, Subcommand};
 
 mod curvature;
 mod deform;
@@ -14,29 +13,8 @@ mod gen;
 mod info;
 mod loadtest;
 mod measure;
+mod preset;
 mod serve;
-
-/// A named parameter set (`--preset` of `deform` and `loadtest`):
-/// `dend::deform::Preset` on the command line.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
-enum PresetArg {
-    /// The default: posing characters (`Preset::Characters`).
-    Characters,
-    /// The paper's even bend and twist (`Preset::Elastica`; `general` is
-    /// its old name).
-    #[value(alias = "general")]
-    Elastica,
-}
-
-impl PresetArg {
-    /// The library's preset.
-    fn preset(self) -> Preset {
-        match self {
-            PresetArg::Characters => Preset::Characters,
-            PresetArg::Elastica => Preset::Elastica,
-        }
-    }
-}
 
 /// Deform triangle meshes with Discrete Elastica Nonlinear Deformation.
 #[derive(Debug, Parser)]

@@ -1,4 +1,4 @@
-//! Admission control (issue 36, docs/deployment.md "Fair scheduling and
+//! Admission control (docs/deployment.md "Fair scheduling and
 //! admission control"): while the configured number of sessions wait for a
 //! solver worker, a new session is refused with 503 `overloaded` and a
 //! `Retry-After`, counted in `dend_sessions_refused_total`; once the queue

@@ -1,4 +1,4 @@
-//! The drag loop in the core (issue #32), as a session runs it: a handle
+//! The drag loop in the core, as a session runs it: a handle
 //! dragged along a turning arc in many target changes, one iteration after
 //! each (a frame per drag), then the settle in one-iteration steps (a frame
 //! each) until converged or `max_iters`. The settled pose must converge

@@ -201,7 +201,7 @@ fn elastica_keeps_the_pose_under_subdivision() {
     }
 }
 
-/// The default's rule under subdivision (issue #33): its gap is no worse
+/// The default's rule under subdivision (docs/posing.md): its gap is no worse
 /// than ARAP's own on the same pair, measured in the same run. ARAP here
 /// is the elastic energy with the spokes term alone (no bending, no area
 /// term: ARAP's energy, solved by the same iteration to the same
@@ -406,7 +406,7 @@ fn chained_one_iteration_steps_equal_one_long_step() {
 /// slab twist follows the 0 → 300° ramp within 15°, where starting each
 /// step from the old rotations untwisted it by 137°), the cross-sections
 /// keep 80 % of their area, and every step converges in 20 iterations
-/// (40–57 before), with the `elastica` preset (issue #33: the default
+/// (40–57 before), with the `elastica` preset (docs/posing.md: the default
 /// keeps 0.60). The objective never grows within a step.
 #[test]
 fn a_twist_in_steps_keeps_its_direction() {

@@ -1,5 +1,5 @@
-//! The product's integration tests, one binary (issue #34: one linked test
-//! binary instead of one per file). Each module is one concern; shared fixtures
+//! The product's integration tests, one binary (one linked test binary
+//! instead of one per file: one link step, not one per file). Each module is one concern; shared fixtures
 //! live in `dend-testkit`. The slow system tests (failover, crash safety, the
 //! posing suite, process-memory measurements) are the `system` binary
 //! (`tests/system/main.rs`).

@@ -1,5 +1,5 @@
 //! The paper's Figure 1 and 2 set-ups as measured tests (design.md §10, §11;
-//! issue 6): a bar twisted 135° and 300°, a cylinder bent 120° and 180°, on
+//! docs/paper-reproduction.md): a bar twisted 135° and 300°, a cylinder bent 120° and 180°, on
 //! the generated paper-sized shapes (always) and on the Botsch–Sorkine survey
 //! meshes (when `$DEND_MESHES` is present), each in three modes: our default
 //! (E_T, rotated internal term, nonlinear detail term), the literal paper
@@ -26,7 +26,7 @@ use dend::mesh::io::{self, survey};
 use dend::mesh::{Mesh, Point};
 
 /// The modes compared throughout: the elastic formulation with the
-/// `elastica` preset (the paper's even bend and twist, issue #33), the literal paper, the paper's
+/// `elastica` preset (the paper's even bend and twist, docs/posing.md), the literal paper, the paper's
 /// linear variant (thin plate + linear detail term, eq. (24)) and eq. (24)
 /// least squares with our reading (the default before the elastic one).
 fn modes() -> [(&'static str, Params); 4] {
@@ -213,7 +213,8 @@ fn bend(
         .collect()
 }
 
-/// The default mode on a 135° twist meets issue #18's rule, which beats
+/// The default mode on a 135° twist meets the 135° rule of
+/// docs/paper-reproduction.md, which beats
 /// converged ARAP: min area ≥ 0.92 and twist deviation ≤ 3° in at most 20
 /// iterations, converged without divergence; thin plate + linear collapses
 /// (min area below `collapse`); the literal paper twists worse.

@@ -1,5 +1,5 @@
 //! Path independence of the drag loop, end to end over a real socket
-//! (issue #32): a generated limb-like creature dragged to one final target
+//! (docs/design.md): a generated limb-like creature dragged to one final target
 //! in 1, 10 and 40 drags, each drag answered by a frame (one iteration),
 //! then the settle. The settled poses must agree within 1e-3 of the
 //! diagonal and their objectives within 1 % of the one-drag solve's.

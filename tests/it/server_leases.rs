@@ -15,14 +15,10 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
 use std::time::Duration;
 
-use dend::mesh::Mesh;
 use dend_client::ws::{DeltaJson, ServerMsg};
 use dend_client::{Client, ClientError, WsEvent};
 use dend_server::lease::Cluster;
-use dend_server::store::{
-    Checkpoint, Fence, JournalEntry, LeaseGrant, MemoryStore, SessionRecord, Store, StoreError,
-    StoredAsset,
-};
+use dend_server::store::{with_faults, JournalEntry, MemoryStore, SessionLog, Store, StoreError};
 use dend_server::{app, AppState, Config};
 use dend_testkit::server::{grid, grid_constraints};
 use serde_json::json;
@@ -38,13 +34,13 @@ async fn start(store: Arc<dyn Store>, cluster: Option<(&str, u64)>) -> (String, 
         .await
         .expect("bind");
     let addr = listener.local_addr().expect("addr");
-    let mut state = AppState::with_store(config, store).expect("state");
-    state.cluster = cluster.map(|(id, ttl_ms)| {
+    let cluster = cluster.map(|(id, ttl_ms)| {
         Arc::new(Cluster {
             instance: id.to_owned(),
             ttl: Duration::from_millis(ttl_ms),
         })
     });
+    let state = AppState::with_cluster(config, store, cluster).expect("state");
     let router = app(state.clone());
     drop(tokio::spawn(async move {
         axum::serve(dend_server::no_delay(listener), router).await
@@ -80,7 +76,7 @@ async fn leased_elsewhere_is_refused_then_taken_over_and_the_old_owner_fenced(
     let mesh = ca.upload_json(&p, &t).await?;
     // created on a, opened (and leased) by b, where its first request goes
     let s = ca.create_session(&mesh.id, json!({})).await?;
-    assert!(a.sessions.read().is_empty(), "creation does not open it");
+    assert!(a.registry.is_empty(), "creation does not open it");
     let sb = cb.session(&s.id, &s.token);
     let sa = ca.session(&s.id, &s.token);
     sb.set_constraints(&grid_constraints(N)).await?;
@@ -94,7 +90,7 @@ async fn leased_elsewhere_is_refused_then_taken_over_and_the_old_owner_fenced(
     assert_eq!((status, code.as_str()), (409, "session_owned_elsewhere"));
     assert!(message.contains("`b`"), "{message}");
     assert!(sa.connect().await.is_err(), "no WebSocket on a");
-    assert!(a.sessions.read().is_empty());
+    assert!(a.registry.is_empty());
     // b stops renewing (as if it died, before it could hand the session
     // over): once the lease expired, a takes over
     renew_b.abort();
@@ -121,7 +117,7 @@ async fn leased_elsewhere_is_refused_then_taken_over_and_the_old_owner_fenced(
         api_code(&r).map(|c| c.1).as_deref(),
         Some("session_owned_elsewhere")
     );
-    assert!(b.sessions.read().get(&s.id).is_none_or(|h| h.is_fenced()));
+    assert!(b.registry.get(&s.id).is_none_or(|h| h.is_fenced()));
     assert!(
         (handle_x(&sa).await? - 0.5).abs() < 1e-9,
         "the fenced drag is nowhere"
@@ -173,7 +169,7 @@ async fn the_owner_hands_a_session_over_to_the_instance_that_asks() -> Result<()
             break;
         }
     }
-    assert!(b.sessions.read().get(&s.id).is_none(), "closed on b");
+    assert!(b.registry.get(&s.id).is_none(), "closed on b");
     sa.wait_ready(Duration::from_secs(20)).await?;
     assert!(
         (handle_x(&sa).await? - 0.5).abs() < 1e-9,
@@ -181,122 +177,24 @@ async fn the_owner_hands_a_session_over_to_the_instance_that_asks() -> Result<()
     );
     assert_eq!(cb.metric("dend_leases_handed_over_total").await?, Some(1.0));
     assert_eq!(ca.metric("dend_leases_taken_over_total").await?, Some(0.0));
-    assert!(a.sessions.read().contains_key(&s.id));
+    assert!(a.registry.contains(&s.id));
     Ok(())
 }
 
-/// A store that can be made unreachable: every call fails with
+/// A memory store that can be made unreachable: every call fails with
 /// `Unavailable` while `down` is set.
-struct Flaky {
-    inner: MemoryStore,
-    down: AtomicBool,
-}
-
-impl Flaky {
-    fn up(&self) -> Result<(), StoreError> {
-        if self.down.load(Ordering::SeqCst) {
+/// Returns the memory store too, to read what it holds.
+fn flaky_store(down: &Arc<AtomicBool>) -> (Arc<MemoryStore>, Arc<dyn Store>) {
+    let down = down.clone();
+    let inner = Arc::new(MemoryStore::new());
+    let flaky = Arc::new(with_faults(inner.clone(), move |_| {
+        if down.load(Ordering::SeqCst) {
             Err(StoreError::Unavailable("connection refused".into()))
         } else {
             Ok(())
         }
-    }
-}
-
-impl Store for Flaky {
-    fn put_mesh(&self, id: &str, mesh: Arc<Mesh>) -> Result<(), StoreError> {
-        self.up()?;
-        self.inner.put_mesh(id, mesh)
-    }
-    fn get_mesh(&self, id: &str) -> Result<Option<Arc<Mesh>>, StoreError> {
-        self.up()?;
-        self.inner.get_mesh(id)
-    }
-    fn mesh_count(&self) -> Result<usize, StoreError> {
-        self.up()?;
-        self.inner.mesh_count()
-    }
-    fn put_asset(&self, id: &str, asset: &StoredAsset) -> Result<(), StoreError> {
-        self.up()?;
-        self.inner.put_asset(id, asset)
-    }
-    fn get_asset(&self, id: &str) -> Result<Option<StoredAsset>, StoreError> {
-        self.up()?;
-        self.inner.get_asset(id)
-    }
-    fn delete_mesh(&self, id: &str) -> Result<bool, StoreError> {
-        self.up()?;
-        self.inner.delete_mesh(id)
-    }
-    fn put_session(&self, record: &SessionRecord) -> Result<(), StoreError> {
-        self.up()?;
-        self.inner.put_session(record)
-    }
-    fn get_session(&self, id: &str) -> Result<Option<SessionRecord>, StoreError> {
-        self.up()?;
-        self.inner.get_session(id)
-    }
-    fn list_sessions(&self) -> Result<Vec<SessionRecord>, StoreError> {
-        self.up()?;
-        self.inner.list_sessions()
-    }
-    fn delete_session(&self, id: &str) -> Result<(), StoreError> {
-        self.up()?;
-        self.inner.delete_session(id)
-    }
-    fn set_constraints(
-        &self,
-        id: &str,
-        fence: Fence,
-        spec: &serde_json::Value,
-    ) -> Result<(), StoreError> {
-        self.up()?;
-        self.inner.set_constraints(id, fence, spec)
-    }
-    fn append(&self, id: &str, fence: Fence, entries: &[JournalEntry]) -> Result<(), StoreError> {
-        self.up()?;
-        self.inner.append(id, fence, entries)
-    }
-    fn journal(&self, id: &str) -> Result<Vec<JournalEntry>, StoreError> {
-        self.up()?;
-        self.inner.journal(id)
-    }
-    fn checkpoint(&self, id: &str, fence: Fence, cp: &Checkpoint) -> Result<(), StoreError> {
-        self.up()?;
-        self.inner.checkpoint(id, fence, cp)
-    }
-    fn get_checkpoint(&self, id: &str) -> Result<Option<Checkpoint>, StoreError> {
-        self.up()?;
-        self.inner.get_checkpoint(id)
-    }
-    fn acquire_lease(
-        &self,
-        id: &str,
-        owner: &str,
-        ttl: Duration,
-    ) -> Result<LeaseGrant, StoreError> {
-        self.up()?;
-        self.inner.acquire_lease(id, owner, ttl)
-    }
-    fn renew_leases(
-        &self,
-        owner: &str,
-        leases: &[(String, Fence)],
-        ttl: Duration,
-    ) -> Result<Vec<String>, StoreError> {
-        self.up()?;
-        self.inner.renew_leases(owner, leases, ttl)
-    }
-    fn release_lease(&self, id: &str, owner: &str, revision: Fence) -> Result<(), StoreError> {
-        self.up()?;
-        self.inner.release_lease(id, owner, revision)
-    }
-    fn handoffs_wanted(&self, owner: &str) -> Result<Vec<String>, StoreError> {
-        self.up()?;
-        self.inner.handoffs_wanted(owner)
-    }
-    fn ping(&self) -> Result<(), StoreError> {
-        self.up()
-    }
+    }));
+    (inner, flaky)
 }
 
 async fn status_code(url: &str) -> Result<(u16, serde_json::Value), ClientError> {
@@ -308,11 +206,9 @@ async fn status_code(url: &str) -> Result<(u16, serde_json::Value), ClientError>
 #[tokio::test(flavor = "multi_thread", worker_threads = 4)]
 async fn an_unreachable_store_refuses_writes_and_loses_no_acknowledged_drag(
 ) -> Result<(), ClientError> {
-    let flaky = Arc::new(Flaky {
-        inner: MemoryStore::new(),
-        down: AtomicBool::new(false),
-    });
-    let (url, _st) = start(flaky.clone(), None).await;
+    let down = Arc::new(AtomicBool::new(false));
+    let (inner, flaky) = flaky_store(&down);
+    let (url, _st) = start(flaky, None).await;
     let c = Client::new(&url);
     let (p, t) = grid(N);
     let mesh = c.upload_json(&p, &t).await?;
@@ -324,7 +220,7 @@ async fn an_unreachable_store_refuses_writes_and_loses_no_acknowledged_drag(
     ws.drag(0, [0.5, 0.0, 0.0], None, 1).await?;
     let _ = ws.frame_acking(1, false).await?;
 
-    flaky.down.store(true, Ordering::SeqCst);
+    down.store(true, Ordering::SeqCst);
     let (status, body) = status_code(&format!("{url}/healthz/ready")).await?;
     assert_eq!(
         (status, body["code"].as_str()),
@@ -358,7 +254,7 @@ async fn an_unreachable_store_refuses_writes_and_loses_no_acknowledged_drag(
     let r = s.drag(0, DeltaJson::translate([4.0, 0.0, 0.0]), None).await;
     assert_eq!(api_code(&r).map(|c| c.0), Some(503));
 
-    flaky.down.store(false, Ordering::SeqCst);
+    down.store(false, Ordering::SeqCst);
     assert_eq!(status_code(&format!("{url}/healthz/ready")).await?.0, 200);
     // the client sends the refused drag again
     // (the HTTP drag's refusal reached this client as an event too)
@@ -376,12 +272,10 @@ async fn an_unreachable_store_refuses_writes_and_loses_no_acknowledged_drag(
         "acknowledged drags 0.5 + 0.25, got {x}"
     );
     // and what the store holds revives to the same: journal and checkpoint
-    let j = flaky
-        .inner
+    let j = inner
         .journal(&s.id)
         .map_err(|e| ClientError::Protocol(e.to_string()))?;
-    let cp = flaky
-        .inner
+    let cp = inner
         .get_checkpoint(&s.id)
         .map_err(|e| ClientError::Protocol(e.to_string()))?;
     let journaled: f64 = j

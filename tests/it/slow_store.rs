@@ -5,116 +5,41 @@
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
-use dend::mesh::Mesh;
 use dend_client::ws::{DeltaJson, ServerMsg};
 use dend_client::{Client, ClientError, WsEvent};
-use dend_server::store::{
-    Checkpoint, Fence, JournalEntry, LeaseGrant, MemoryStore, SessionRecord, Store, StoreError,
-    StoredAsset,
-};
+use dend_server::store::{with_faults, MemoryStore, Store};
 use dend_server::Config;
 use dend_testkit::server::{grid, grid_constraints, start_with_store};
 use parking_lot::Mutex;
 use serde_json::json;
 
-/// A memory store whose writes for one session sleep `delay` first.
-struct SlowStore {
-    inner: MemoryStore,
+/// How a memory store is made slow: the constraint and checkpoint writes
+/// of one session sleep `delay` first, and `mesh_count` takes
+/// `count_delay` (a slow store widens upload races).
+struct Slowness {
     slow: Mutex<Option<String>>,
     delay: Duration,
-    /// How long `mesh_count` takes (a slow store widens upload races).
     count_delay: Duration,
 }
 
-impl SlowStore {
-    fn nap(&self, id: &str) {
-        if self.slow.lock().as_deref() == Some(id) {
-            std::thread::sleep(self.delay);
+/// A memory store slowed down as `slowness` says.
+fn slow_store(slowness: &Arc<Slowness>) -> Arc<dyn Store> {
+    let s = slowness.clone();
+    Arc::new(with_faults(Arc::new(MemoryStore::new()), move |call| {
+        match call.op {
+            "mesh_count" => std::thread::sleep(s.count_delay),
+            "set_constraints" | "checkpoint"
+                if s.slow
+                    .lock()
+                    .as_deref()
+                    .is_some_and(|id| call.id == Some(id)) =>
+            {
+                std::thread::sleep(s.delay);
+            }
+            _ => {}
         }
-    }
-}
-
-impl Store for SlowStore {
-    fn put_mesh(&self, id: &str, mesh: Arc<Mesh>) -> Result<(), StoreError> {
-        self.inner.put_mesh(id, mesh)
-    }
-    fn get_mesh(&self, id: &str) -> Result<Option<Arc<Mesh>>, StoreError> {
-        self.inner.get_mesh(id)
-    }
-    fn mesh_count(&self) -> Result<usize, StoreError> {
-        std::thread::sleep(self.count_delay);
-        self.inner.mesh_count()
-    }
-    fn put_asset(&self, id: &str, asset: &StoredAsset) -> Result<(), StoreError> {
-        self.inner.put_asset(id, asset)
-    }
-    fn get_asset(&self, id: &str) -> Result<Option<StoredAsset>, StoreError> {
-        self.inner.get_asset(id)
-    }
-    fn delete_mesh(&self, id: &str) -> Result<bool, StoreError> {
-        self.inner.delete_mesh(id)
-    }
-    fn put_session(&self, record: &SessionRecord) -> Result<(), StoreError> {
-        self.inner.put_session(record)
-    }
-    fn get_session(&self, id: &str) -> Result<Option<SessionRecord>, StoreError> {
-        self.inner.get_session(id)
-    }
-    fn list_sessions(&self) -> Result<Vec<SessionRecord>, StoreError> {
-        self.inner.list_sessions()
-    }
-    fn delete_session(&self, id: &str) -> Result<(), StoreError> {
-        self.inner.delete_session(id)
-    }
-    fn set_constraints(
-        &self,
-        id: &str,
-        fence: Fence,
-        spec: &serde_json::Value,
-    ) -> Result<(), StoreError> {
-        self.nap(id);
-        self.inner.set_constraints(id, fence, spec)
-    }
-    fn append(&self, id: &str, fence: Fence, entries: &[JournalEntry]) -> Result<(), StoreError> {
-        self.inner.append(id, fence, entries)
-    }
-    fn journal(&self, id: &str) -> Result<Vec<JournalEntry>, StoreError> {
-        self.inner.journal(id)
-    }
-    fn checkpoint(
-        &self,
-        id: &str,
-        fence: Fence,
-        checkpoint: &Checkpoint,
-    ) -> Result<(), StoreError> {
-        self.nap(id);
-        self.inner.checkpoint(id, fence, checkpoint)
-    }
-    fn acquire_lease(
-        &self,
-        id: &str,
-        owner: &str,
-        ttl: Duration,
-    ) -> Result<LeaseGrant, StoreError> {
-        self.inner.acquire_lease(id, owner, ttl)
-    }
-    fn renew_leases(
-        &self,
-        owner: &str,
-        leases: &[(String, Fence)],
-        ttl: Duration,
-    ) -> Result<Vec<String>, StoreError> {
-        self.inner.renew_leases(owner, leases, ttl)
-    }
-    fn release_lease(&self, id: &str, owner: &str, revision: Fence) -> Result<(), StoreError> {
-        self.inner.release_lease(id, owner, revision)
-    }
-    fn handoffs_wanted(&self, owner: &str) -> Result<Vec<String>, StoreError> {
-        self.inner.handoffs_wanted(owner)
-    }
-    fn get_checkpoint(&self, id: &str) -> Result<Option<Checkpoint>, StoreError> {
-        self.inner.get_checkpoint(id)
-    }
+        Ok(())
+    }))
 }
 
 /// One async worker thread, so that a write blocking it would stop every
@@ -122,13 +47,12 @@ impl Store for SlowStore {
 /// dragged over WebSocket; B's frames keep coming.
 #[tokio::test(flavor = "multi_thread", worker_threads = 1)]
 async fn a_slow_store_for_one_session_does_not_stall_another() -> Result<(), ClientError> {
-    let store = Arc::new(SlowStore {
-        inner: MemoryStore::new(),
+    let store = Arc::new(Slowness {
         slow: Mutex::new(None),
         delay: Duration::from_millis(1500),
         count_delay: Duration::ZERO,
     });
-    let (base, _state) = start_with_store(Config::default(), store.clone()).await;
+    let (base, _state) = start_with_store(Config::default(), slow_store(&store)).await;
 
     let c = Client::new(&base);
     let (p, t) = grid(8);
@@ -188,8 +112,7 @@ async fn a_slow_store_for_one_session_does_not_stall_another() -> Result<(), Cli
 /// twelve uploads read the same count and pass).
 #[tokio::test(flavor = "multi_thread", worker_threads = 4)]
 async fn concurrent_uploads_never_exceed_max_meshes() {
-    let store = Arc::new(SlowStore {
-        inner: MemoryStore::new(),
+    let store = Arc::new(Slowness {
         slow: Mutex::new(None),
         delay: Duration::ZERO,
         count_delay: Duration::from_millis(50),
@@ -198,7 +121,7 @@ async fn concurrent_uploads_never_exceed_max_meshes() {
         max_meshes: 3,
         ..Config::default()
     };
-    let (base, _state) = start_with_store(config, store).await;
+    let (base, _state) = start_with_store(config, slow_store(&store)).await;
     let (p, t) = grid(4);
     let body = json!({"positions": p, "triangles": t});
     let http = reqwest::Client::new();

@@ -1,4 +1,4 @@
-//! The eq. (23) square formulation (`Formulation::Square`, issue 5): the
+//! The eq. (23) square formulation (`Formulation::Square`, docs/design.md): the
 //! invariances of design.md §10 on generated meshes, the paper's 135° bar twist
 //! and 120° cylinder bend, soft constraints, and factor keys per formulation.
 

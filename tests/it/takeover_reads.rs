@@ -1,5 +1,5 @@
 //! What clients see while a session is revived on another instance or its
-//! factor rebuilt, in process (issue 36; tests/system/ runs the same with
+//! factor rebuilt, in process (docs/reliability.md; tests/system/ runs the same with
 //! real processes, PostgreSQL and HAProxy):
 //! - every pose read during a takeover holds every acknowledged drag: the
 //!   reads wait for the revived pose (checkpoint plus journal), never the
@@ -31,11 +31,11 @@ async fn start(store: Arc<dyn Store>, id: &str, ttl_ms: u64) -> (String, AppStat
         .await
         .expect("bind");
     let addr = listener.local_addr().expect("addr");
-    let mut state = AppState::with_store(config, store).expect("state");
-    state.cluster = Some(Arc::new(Cluster {
+    let cluster = Some(Arc::new(Cluster {
         instance: id.to_owned(),
         ttl: Duration::from_millis(ttl_ms),
     }));
+    let state = AppState::with_cluster(config, store, cluster).expect("state");
     let router = app(state.clone());
     drop(tokio::spawn(async move {
         axum::serve(dend_server::no_delay(listener), router).await
@@ -133,7 +133,7 @@ async fn reads_through_a_takeover_hold_every_acknowledged_drag_and_drags_then_ar
             Err(e) if owned_elsewhere(&e) => {
                 tokio::time::sleep(Duration::from_millis(5)).await;
             }
-            // before issue 36: 409 `not_ready` while the factor was rebuilt
+            // a 409 `not_ready` while the factor is rebuilt would drop the drag
             Err(e) => panic!("a drag during the takeover was refused: {e}"),
         }
     };
@@ -186,5 +186,141 @@ async fn drags_during_a_factor_rebuild_are_queued_and_applied() -> Result<(), Cl
             _ => assert!(t0.elapsed() < Duration::from_secs(20), "no frame acked it"),
         }
     }
+    Ok(())
+}
+
+/// What one read on the survivor got, and when.
+enum Read {
+    /// A pose.
+    Pose(Instant, Pose),
+    /// 409 `session_owned_elsewhere` with its retry hint.
+    Refused(Instant, Duration),
+}
+
+/// The retry hint of a `session_owned_elsewhere` message ("retry in N ms").
+fn retry_hint(message: &str) -> Option<Duration> {
+    let rest = message.split("retry in ").nth(1)?;
+    let ms = rest.split(' ').next()?.parse::<u64>().ok()?;
+    Some(Duration::from_millis(ms))
+}
+
+/// Reads the pose on `s` in a loop until `end`; every answer, in order.
+async fn record_reads(s: SessionClient, end: Instant) -> Result<Vec<Read>, String> {
+    let mut reads = vec![];
+    while Instant::now() < end {
+        match s.pose().await {
+            Ok(p) => reads.push(Read::Pose(Instant::now(), p)),
+            Err(ClientError::Api { code, message, .. }) if code == "session_owned_elsewhere" => {
+                let hint = retry_hint(&message).ok_or(format!("no retry hint in {message:?}"))?;
+                reads.push(Read::Refused(Instant::now(), hint));
+            }
+            Err(e) => return Err(format!("pose read failed: {e}")),
+        }
+        tokio::time::sleep(Duration::from_millis(2)).await;
+    }
+    Ok(reads)
+}
+
+/// The largest distance between two poses' vertices.
+fn distance(a: &[[f64; 3]], b: &[[f64; 3]]) -> f64 {
+    assert_eq!(a.len(), b.len());
+    a.iter()
+        .zip(b)
+        .map(|(p, q)| {
+            ((p[0] - q[0]).powi(2) + (p[1] - q[1]).powi(2) + (p[2] - q[2]).powi(2)).sqrt()
+        })
+        .fold(0.0, f64::max)
+}
+
+/// A takeover through the lease's expiry (the owner stopped renewing: dead
+/// but not seen as dead, CPU-starved or cut off), read throughout on the
+/// survivor. The owner's last drags are in the journal only, so the
+/// survivor's revival solves from the checkpoint (the rest pose) towards
+/// them, one iteration per frame. Every pose served is the settled revived
+/// pose: flagged settled and, vertex by vertex, the owner's settled pose
+/// (the same targets solved to the end), never an iterate on the way there
+/// (those are off by up to the whole drag). Every refusal's retry hint is
+/// no longer than the wait that followed it.
+#[tokio::test(flavor = "multi_thread", worker_threads = 4)]
+async fn reads_through_a_lease_expiry_takeover_get_the_settled_revived_pose(
+) -> Result<(), ClientError> {
+    const M: usize = 8;
+    let store: Arc<dyn Store> = Arc::new(MemoryStore::new());
+    let (a_url, a) = start(store.clone(), "a", 400).await;
+    let (b_url, _b) = start(store.clone(), "b", 400).await;
+    let renew_a = dend_server::lease::spawn_renewer(a).expect("cluster");
+    let (ca, cb) = (Client::new(&a_url), Client::new(&b_url));
+    let (p, t) = grid(M);
+    let mesh = ca.upload_json(&p, &t).await?;
+    let s = ca.create_session(&mesh.id, json!({})).await?;
+    let sa = ca.session(&s.id, &s.token);
+    sa.set_constraints(&grid_constraints(M)).await?;
+    sa.wait_ready(Duration::from_secs(20)).await?;
+    // one gesture of ten drags, the handle held: journaled, no checkpoint
+    let mut ws = sa.connect().await?;
+    ws.send(&ClientMsg::Grab { handle: 0.into() }).await?;
+    for seq in 1..=10 {
+        ws.drag(0, [0.15, 0.0, 0.0], None, seq).await?;
+        let _ = ws.frame_acking(seq, false).await?;
+    }
+    // the owner's settled pose of those targets
+    let deadline = Instant::now() + Duration::from_secs(20);
+    let settled = loop {
+        let p = sa.pose().await?;
+        if p.settled {
+            break p;
+        }
+        assert!(Instant::now() < deadline, "the owner never settled");
+        tokio::time::sleep(Duration::from_millis(10)).await;
+    };
+    assert!((offset_on(&settled, M) - 1.5).abs() < 1e-6);
+
+    renew_a.abort();
+    let taken_from = Instant::now();
+    let sb = cb.session(&s.id, &s.token);
+    let end = taken_from + Duration::from_secs(3);
+    let readers: Vec<_> = (0..3)
+        .map(|_| tokio::spawn(record_reads(sb.clone(), end)))
+        .collect();
+    let mut reads = vec![];
+    for r in readers {
+        reads.extend(r.await.expect("reader").map_err(ClientError::Protocol)?);
+    }
+    let first_pose = reads
+        .iter()
+        .filter_map(|r| match r {
+            Read::Pose(at, _) => Some(*at),
+            Read::Refused(..) => None,
+        })
+        .min()
+        .expect("the survivor served the session within 3 s");
+    let mut poses = 0;
+    for r in &reads {
+        match r {
+            Read::Pose(_, p) => {
+                poses += 1;
+                assert!(
+                    (offset_on(p, M) - 1.5).abs() < 1e-6,
+                    "a pose without the acknowledged drags"
+                );
+                let off = distance(&p.positions, &settled.positions);
+                assert!(
+                    p.settled && off < 0.02,
+                    "an iterate was served during the revival: settled {}, iteration {}, \
+                     {off} from the settled pose",
+                    p.settled,
+                    p.iteration
+                );
+            }
+            Read::Refused(at, hint) => {
+                let waited = first_pose.saturating_duration_since(*at);
+                assert!(
+                    *hint <= waited + Duration::from_millis(50),
+                    "a refusal said to retry in {hint:?}, the session was served {waited:?} later"
+                );
+            }
+        }
+    }
+    assert!(poses > 0);
     Ok(())
 }

@@ -23,7 +23,7 @@ use dend::mesh::Mesh;
 use dend_client::ws::{ServerMsg, SessionState};
 use dend_client::{Client, WsClient, WsEvent};
 use dend_server::session::Recovered;
-use dend_server::store::{SqliteStore, Store};
+use dend_server::store::{SessionLog, SqliteStore};
 use nalgebra::{Quaternion, UnitQuaternion};
 use parking_lot::Mutex;
 use rand::rngs::StdRng;

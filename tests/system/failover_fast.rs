@@ -1,4 +1,4 @@
-//! Failover in seconds, for real (issue 36): PostgreSQL, three `dend serve`
+//! Failover in seconds, for real (docs/reliability.md): PostgreSQL, three `dend serve`
 //! instances with the *default* 10 s lease, HAProxy hashing the session id.
 //! Six clients drag over WebSocket through HAProxy, holding the handle (so
 //! their drags are in the journal only), while a reader per session polls

@@ -1,4 +1,4 @@
-//! Named poses survive a failover (PostgreSQL; issue 35): two `dend serve`
+//! Named poses survive a failover (PostgreSQL; docs/deployment.md): two `dend serve`
 //! instances on one throw-away PostgreSQL. Session S is created, posed and
 //! given two named poses (one renamed) through instance A, then A is
 //! SIGKILLed (no shutdown, no lease release). Through instance B, once it

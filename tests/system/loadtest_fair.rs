@@ -1,4 +1,4 @@
-//! Fair under overload, in CI (issue 36): `dend loadtest` with more
+//! Fair under overload, in CI (docs/reliability.md): `dend loadtest` with more
 //! dragging sessions than two solver threads can serve at once, its own
 //! checks on: drag→frame maximum ≤ 2 s and p99 ≤ 1 s, every session's
 //! median within 3× the overall median (the scheduler's round-robin), and

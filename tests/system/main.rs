@@ -14,3 +14,4 @@ mod posing_suite_even_pose;
 mod posing_suite_monotone;
 mod rolling_restart;
 mod server_isolation;
+mod takeover_grace;

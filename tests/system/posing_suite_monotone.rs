@@ -1,4 +1,4 @@
-//! Issue #18's rule "the objective never grows", on every posing-suite edit:
+//! The rule "the objective never grows" (docs/design.md), on every posing-suite edit:
 //! `scripts/posing_suite.py --no-arap` poses each edit with this build's
 //! `dend deform` (the same edits, constraint files and steps as the full
 //! suite, without libigl's ARAP) and judges only the objective. The edits

@@ -1,4 +1,4 @@
-//! A rolling restart under load, for real (issue 36): PostgreSQL, three
+//! A rolling restart under load, for real (docs/reliability.md): PostgreSQL, three
 //! `dend serve` instances (default 10 s lease), HAProxy hashing the session
 //! id, six clients dragging over WebSocket through HAProxy. Each instance
 //! in turn gets SIGTERM — it answers not ready, keeps serving while HAProxy

@@ -14,6 +14,12 @@ use subtle::ConstantTimeEq;
 use crate::error::ApiError;
 use crate::session::SessionHandle;
 
+/// A new random id (of a mesh or a session): 128 bits, hex.
+pub(crate) fn new_id() -> String {
+    let b: [u8; 16] = rand::random();
+    hex::encode(b)
+}
+
 /// SHA-256 of a token.
 pub(crate) fn token_hash(token: &str) -> [u8; 32] {
     Sha256::digest(token.as_bytes()).into()

@@ -7,8 +7,8 @@
 use axum::Json;
 use serde::Serialize;
 
-use super::error::ApiError;
-use super::sessions::Authed;
+use crate::error::ApiError;
+use crate::sessions::Authed;
 use dend::operators::Operators;
 
 /// The curvatures of the pose, one value per vertex (mesh units).

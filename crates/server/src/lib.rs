@@ -6,6 +6,8 @@
 //! `route_list`), which a test keeps equal to `api/openapi.yaml`.
 
 mod auth;
+mod blocking;
+pub mod cluster;
 pub mod config;
 mod curvature;
 pub mod error;
@@ -17,17 +19,19 @@ mod morph_export;
 pub mod presets;
 
 mod poses;
+mod probes;
 pub mod recover;
+pub mod registry;
+mod rests;
 pub mod scheduler;
 pub mod session;
 mod sessions;
+pub mod state;
 pub mod store;
 pub mod timed_store;
 pub mod web;
 pub mod ws;
 
-use std::collections::HashMap;
-use std::sync::{Arc, Weak};
 use std::time::Duration;
 
 use axum::error_handling::HandleErrorLayer;
@@ -37,158 +41,13 @@ use axum::middleware::Next;
 use axum::response::{IntoResponse, Response};
 use axum::routing::MethodRouter;
 use axum::{BoxError, Router};
-use parking_lot::{Mutex, RwLock};
 use tower::ServiceBuilder;
 use tower_http::trace::TraceLayer;
 
 pub use config::Config;
 pub use error::ApiError;
 pub use metrics::Metrics;
-
-use crate::session::{SessionHandle, SessionOptions};
-use crate::store::{MemoryStore, Store};
-use dend::deform::{FactorCache, Rest, SolveOptions};
-
-/// Shared server state: cheap to clone (`Arc` fields).
-#[derive(Clone)]
-pub struct AppState {
-    /// The configuration.
-    pub config: Arc<Config>,
-    /// Meshes and sessions storage.
-    pub store: Arc<dyn Store>,
-    /// The factor cache shared by all sessions.
-    pub cache: Arc<FactorCache>,
-    /// Prometheus metrics.
-    pub metrics: Arc<Metrics>,
-    /// Runs every session's solves, fairly between sessions.
-    pub scheduler: Arc<scheduler::Scheduler>,
-    /// Set on SIGTERM (see [`lease::drain`]): not ready, no new sessions.
-    pub draining: Arc<std::sync::atomic::AtomicBool>,
-    /// Live sessions by id.
-    pub sessions: Arc<RwLock<HashMap<String, SessionHandle>>>,
-    /// Rest precomputations by mesh id, shared by that mesh's sessions.
-    rests: Arc<Mutex<HashMap<String, Weak<Rest>>>>,
-    /// Ids of every rest built per mesh id (factors are cached by rest id):
-    /// deleting a mesh evicts their factors.
-    rest_ids: Arc<Mutex<HashMap<String, Vec<u64>>>>,
-    /// Held across an upload's `max_meshes` check and its insert, so that
-    /// concurrent uploads cannot both pass the check for the last slot.
-    mesh_admission: Arc<Mutex<()>>,
-    /// This instance in a shared-store deployment (None: embedded store,
-    /// no leases); see [`lease`].
-    pub cluster: Option<Arc<lease::Cluster>>,
-    /// Per session id, held from its lease to its insertion among the live
-    /// ones, so that two requests reviving one session take one lease.
-    open_locks: Arc<Mutex<HashMap<String, Weak<tokio::sync::Mutex<()>>>>>,
-}
-
-impl AppState {
-    /// Runs `f` on the store from tokio's blocking pool: the SQLite store's
-    /// calls block (a mutex and an fsync per write) and must not hold an
-    /// async worker thread that other sessions' requests and frames need.
-    pub(crate) async fn store_call<T, F>(&self, f: F) -> Result<T, ApiError>
-    where
-        F: FnOnce(&dyn Store) -> Result<T, crate::store::StoreError> + Send + 'static,
-        T: Send + 'static,
-    {
-        let store = self.store.clone();
-        tokio::task::spawn_blocking(move || f(&*store))
-            .await
-            .map_err(|e| ApiError::Internal(format!("store task: {e}")))?
-            .map_err(ApiError::from)
-    }
-
-    /// The options of a session opened on this instance under `fence`.
-    pub(crate) fn session_options(&self, fence: crate::store::Fence) -> SessionOptions {
-        SessionOptions {
-            cache: self.cache.clone(),
-            store: self.store.clone(),
-            observer: self.metrics.clone(),
-            iters_per_frame: self.config.iters_per_frame,
-            preview_above_ms: self.config.preview_above_ms,
-            build_wait: self.config.build_wait(),
-            scheduler: self.scheduler.clone(),
-            fence,
-        }
-    }
-
-    /// Admission control: refuses a new session (503 `overloaded`) while
-    /// `admission_waiting_sessions` sessions or more wait for a solver
-    /// worker (docs/deployment.md).
-    pub(crate) fn admit(&self) -> Result<(), ApiError> {
-        self.not_draining()?;
-        let limit = self.config.admission_limit(self.scheduler.workers());
-        let waiting = self.scheduler.waiting();
-        if waiting >= limit {
-            self.metrics.sessions_refused.inc();
-            return Err(ApiError::Overloaded { waiting, limit });
-        }
-        Ok(())
-    }
-
-    /// 503 `draining` once SIGTERM started a drain ([`lease::drain`]).
-    pub(crate) fn not_draining(&self) -> Result<(), ApiError> {
-        if self.draining.load(std::sync::atomic::Ordering::Relaxed) {
-            return Err(ApiError::Draining);
-        }
-        Ok(())
-    }
-
-    /// The opening lock of session `id` (see `open_locks`).
-    pub(crate) fn open_lock(&self, id: &str) -> Arc<tokio::sync::Mutex<()>> {
-        let mut locks = self.open_locks.lock();
-        if let Some(l) = locks.get(id).and_then(Weak::upgrade) {
-            return l;
-        }
-        locks.retain(|_, w| w.strong_count() > 0);
-        let l = Arc::new(tokio::sync::Mutex::new(()));
-        let _ = locks.insert(id.to_owned(), Arc::downgrade(&l));
-        l
-    }
-
-    /// State with the embedded in-memory store.
-    pub fn new(config: Config) -> anyhow::Result<Self> {
-        Self::with_store(config, Arc::new(MemoryStore::new()))
-    }
-
-    /// State with a given store (timed into the `dend_store_seconds`
-    /// histogram). A configured shared store (`config.store`) turns
-    /// session leases on.
-    pub fn with_store(config: Config, store: Arc<dyn Store>) -> anyhow::Result<Self> {
-        let metrics = Arc::new(Metrics::new()?);
-        let store: Arc<dyn Store> = Arc::new(timed_store::TimedStore::new(
-            store,
-            metrics.store_seconds.clone(),
-        ));
-        let scheduler = Arc::new(scheduler::Scheduler::new(
-            config.solver_threads,
-            Some(scheduler::SchedulerMetrics {
-                delay: metrics.schedule_delay_seconds.clone(),
-                depth: metrics.solve_queue_depth.clone(),
-            }),
-        ));
-        Ok(AppState {
-            scheduler,
-            draining: Arc::new(std::sync::atomic::AtomicBool::new(false)),
-            cluster: lease::Cluster::from_config(&config),
-            open_locks: Arc::new(Mutex::new(HashMap::new())),
-            cache: Arc::new(FactorCache::with_options(
-                config.factor_cache_bytes,
-                SolveOptions {
-                    precision: config.factor_precision,
-                    ..SolveOptions::default()
-                },
-            )),
-            config: Arc::new(config),
-            store,
-            metrics,
-            sessions: Arc::new(RwLock::new(HashMap::new())),
-            rests: Arc::new(Mutex::new(HashMap::new())),
-            rest_ids: Arc::new(Mutex::new(HashMap::new())),
-            mesh_admission: Arc::new(Mutex::new(())),
-        })
-    }
-}
+pub use state::AppState;
 
 /// Defines [`ROUTES`] and `route_list` from one table of
 /// `"path" => [method(handler), ..]` entries, so that the router and the
@@ -206,9 +65,9 @@ macro_rules! routes {
 }
 
 routes! {
-    "/healthz" => [get(healthz)],
-    "/healthz/ready" => [get(ready)],
-    "/metrics" => [get(metrics::render)],
+    "/healthz" => [get(probes::healthz)],
+    "/healthz/ready" => [get(probes::ready)],
+    "/metrics" => [get(probes::metrics)],
     "/v1/presets" => [get(presets::get)],
     "/v1/meshes" => [post(meshes::upload)],
     "/v1/meshes/generate" => [post(meshes::generate)],
@@ -279,24 +138,6 @@ async fn content_length_limit(State(st): State<AppState>, req: Request, next: Ne
     }
 }
 
-/// `GET /healthz`: liveness (the process answers), with this instance's id.
-async fn healthz(State(st): State<AppState>) -> impl IntoResponse {
-    let instance = st.cluster.as_ref().map(|c| c.instance.clone());
-    axum::Json(serde_json::json!({"status": "ok", "instance": instance}))
-}
-
-/// `GET /healthz/ready`: readiness, the store answers within 2 s; else 503
-/// `store_unavailable` (the load balancer's health check).
-async fn ready(State(st): State<AppState>) -> Result<impl IntoResponse, ApiError> {
-    st.not_draining()?;
-    let ping = st.store_call(|s| s.ping());
-    match tokio::time::timeout(Duration::from_secs(2), ping).await {
-        Ok(Ok(())) => Ok(axum::Json(serde_json::json!({"status": "ready"}))),
-        Ok(Err(e)) => Err(e),
-        Err(_) => Err(ApiError::StoreUnavailable("store ping timed out".into())),
-    }
-}
-
 /// Closes sessions idle for longer than the configured timeout, every
 /// `period`, until the process ends.
 pub fn spawn_idle_reaper(state: AppState, period: Duration) -> tokio::task::JoinHandle<()> {
@@ -304,19 +145,9 @@ pub fn spawn_idle_reaper(state: AppState, period: Duration) -> tokio::task::Join
         let mut tick = tokio::time::interval(period);
         loop {
             let _ = tick.tick().await;
-            let idle: Vec<SessionHandle> = {
-                let timeout = state.config.idle_timeout();
-                state
-                    .sessions
-                    .read()
-                    .values()
-                    .filter(|s| s.is_idle(timeout))
-                    .cloned()
-                    .collect()
-            };
-            for s in idle {
+            for s in state.registry.idle(state.config.idle_timeout()) {
                 tracing::info!(session = s.id(), "closing idle session");
-                sessions::close_session(&state, &s).await;
+                state.registry.close(&s).await;
             }
         }
     })
@@ -355,7 +186,7 @@ pub async fn serve(config: Config) -> anyhow::Result<()> {
     let state = AppState::with_store(config, store)?;
     let _reaper = spawn_idle_reaper(state.clone(), Duration::from_secs(10));
     let _renewer = lease::spawn_renewer(state.clone());
-    if let Some(c) = &state.cluster {
+    if let Some(c) = state.cluster() {
         // owner liveness (docs/deployment.md): others take this instance's
         // leases over as soon as it is gone, not when they expire
         let (store, instance) = (state.store.clone(), c.instance.clone());
@@ -397,50 +228,4 @@ pub async fn shutdown_signal() {
     let term = std::future::pending::<()>();
     tokio::select! { _ = ctrl_c => {}, _ = term => {} }
     tracing::info!("shutting down");
-}
-
-/// Rest precomputation of a mesh, shared while any session uses it.
-pub(crate) async fn rest_for(st: &AppState, mesh_id: &str) -> Result<Arc<Rest>, ApiError> {
-    if let Some(r) = st.rests.lock().get(mesh_id).and_then(Weak::upgrade) {
-        return Ok(r);
-    }
-    let id = mesh_id.to_owned();
-    let mesh = st
-        .store_call(move |s| s.get_mesh(&id))
-        .await?
-        .ok_or_else(|| ApiError::MeshNotFound(mesh_id.to_owned()))?;
-    let rest = tokio::task::spawn_blocking(move || Rest::new((*mesh).clone()))
-        .await
-        .map_err(|e| ApiError::Internal(e.to_string()))??;
-    let rest = Arc::new(rest);
-    {
-        // the elastic solver's coarse level, off the first settle's path
-        let rest = rest.clone();
-        tokio::task::spawn_blocking(move || rest.prepare_coarse_level());
-    }
-    let mut rests = st.rests.lock();
-    // Sessions created together may have built it concurrently: keep the
-    // first one, so that they share its id and hence their factors.
-    if let Some(r) = rests.get(mesh_id).and_then(Weak::upgrade) {
-        return Ok(r);
-    }
-    rests.retain(|_, w| w.strong_count() > 0);
-    let _ = rests.insert(mesh_id.to_owned(), Arc::downgrade(&rest));
-    st.rest_ids
-        .lock()
-        .entry(mesh_id.to_owned())
-        .or_default()
-        .push(rest.id());
-    Ok(rest)
-}
-
-/// Forgets mesh `mesh_id`'s rest precomputations and evicts their cached
-/// factors ([`FactorCache::evict_rest`]); returns how many rests it had.
-pub(crate) fn evict_mesh(st: &AppState, mesh_id: &str) -> usize {
-    let _ = st.rests.lock().remove(mesh_id);
-    let ids = st.rest_ids.lock().remove(mesh_id).unwrap_or_default();
-    for &id in &ids {
-        st.cache.evict_rest(id);
-    }
-    ids.len()
 }

@@ -14,8 +14,8 @@ use axum::Json;
 use bytes::Bytes;
 use serde::Deserialize;
 
-use super::error::{ApiError, Path, Query};
-use super::AppState;
+use crate::error::{ApiError, Path, Query};
+use crate::state::AppState;
 use crate::store::StoredAsset;
 use dend::deform::ConstraintsSpec;
 use dend::mesh::asset::Asset;
@@ -160,12 +160,6 @@ pub(crate) async fn resolve_groups(
     serde_json::to_value(resolved).map_err(|e| ApiError::Internal(format!("constraints: {e}")))
 }
 
-/// A new random 128-bit id, hex.
-pub(crate) fn new_id() -> String {
-    let b: [u8; 16] = rand::random();
-    hex::encode(b)
-}
-
 fn format_of(q: &FormatQuery, headers: &HeaderMap) -> Result<String, ApiError> {
     if let Some(f) = &q.format {
         return Ok(f.to_ascii_lowercase());
@@ -268,7 +262,7 @@ async fn store_mesh(
     (mesh, asset): Parsed,
 ) -> Result<(StatusCode, Json<MeshInfo>), ApiError> {
     check_vertices(st, mesh.num_vertices())?;
-    let id = new_id();
+    let id = crate::auth::new_id();
     let info = info_of(id.clone(), &mesh, asset.as_ref().map(|(a, _)| a));
     let key = id.clone();
     let (admission, max) = (st.mesh_admission.clone(), st.config.max_meshes);
@@ -347,12 +341,7 @@ pub async fn remove(
     State(st): State<AppState>,
     Path(id): Path<String>,
 ) -> Result<StatusCode, ApiError> {
-    let live = st
-        .sessions
-        .read()
-        .values()
-        .filter(|s| s.info().mesh_id == id)
-        .count();
+    let live = st.registry.on_mesh(&id);
     let key = id.clone();
     let stored = st
         .store_call(move |s| s.list_sessions())
@@ -374,7 +363,7 @@ pub async fn remove(
         return Err(ApiError::MeshNotFound(id));
     }
     st.metrics.meshes.set(count as i64);
-    let evicted = crate::evict_mesh(&st, &id);
+    let evicted = st.rests.evict(&st.cache, &id);
     tracing::info!(mesh = %id, evicted, "mesh deleted");
     Ok(StatusCode::NO_CONTENT)
 }

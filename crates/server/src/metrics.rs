@@ -3,15 +3,11 @@
 //! One [`prometheus::Registry`] per server instance (not a global recorder),
 //! so several servers in one process (tests) keep separate counts.
 
-use axum::extract::State;
-use axum::http::header;
-use axum::response::IntoResponse;
 use prometheus::{
     Encoder, Histogram, HistogramOpts, HistogramVec, IntCounter, IntGauge, Registry, TextEncoder,
 };
 
-use super::error::ApiError;
-use super::AppState;
+use crate::error::ApiError;
 use crate::session::Observer;
 
 /// The server's metrics.
@@ -193,19 +189,4 @@ impl Observer for Metrics {
     fn factor_ready(&self, seconds: f64) {
         self.factor_ready_seconds.observe(seconds);
     }
-}
-
-/// `GET /metrics`.
-pub async fn render(State(st): State<AppState>) -> Result<impl IntoResponse, ApiError> {
-    let m = &st.metrics;
-    m.factor_cache_bytes.set(st.cache.bytes() as i64);
-    m.factor_cache_entries.set(st.cache.len() as i64);
-    m.factor_cache_hits.set(st.cache.hits() as i64);
-    m.factor_cache_builds.set(st.cache.builds() as i64);
-    m.sessions.set(st.sessions.read().len() as i64);
-    m.sessions_owned.set(st.sessions.read().len() as i64);
-    Ok((
-        [(header::CONTENT_TYPE, "text/plain; version=0.0.4")],
-        m.render()?,
-    ))
 }

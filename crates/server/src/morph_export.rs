@@ -6,9 +6,9 @@
 use axum::http::header;
 use axum::response::{IntoResponse, Response};
 
-use super::error::ApiError;
-use super::AppState;
+use crate::error::ApiError;
 use crate::session::SessionHandle;
+use crate::state::AppState;
 use dend::mesh::asset::MorphExportError;
 use dend::mesh::io::Format;
 

@@ -11,11 +11,11 @@ use axum::Json;
 use bytes::Bytes;
 use serde::{Deserialize, Serialize};
 
-use super::error::{ApiError, Path};
-use super::sessions::{find, parse_json, pose_json, Authed, PoseJson};
-use super::AppState;
 use crate::auth::{bearer, check_token};
+use crate::error::{ApiError, Path};
 use crate::session::{pose_list, PoseInfo, SessionHandle};
+use crate::sessions::{find, parse_json, pose_json, Authed, PoseJson};
+use crate::state::AppState;
 
 /// `PATCH /v1/sessions/{id}/poses/{name}` body.
 #[derive(Debug, Deserialize)]

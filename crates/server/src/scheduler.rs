@@ -1,5 +1,5 @@
 //! The solver scheduler: every session's solver work on a fixed set of
-//! worker threads, shared fairly between sessions (issue 36).
+//! worker threads, shared fairly between sessions (docs/deployment.md, "Fair scheduling").
 //!
 //! A session [`submit`](Scheduler::submit)s its solves one at a time (the
 //! journal append and one `Deformer::step` of its iteration budget). Jobs

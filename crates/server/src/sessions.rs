@@ -1,7 +1,5 @@
 //! Session routes (their authentication is `auth.rs`).
 
-use std::time::{SystemTime, UNIX_EPOCH};
-
 use axum::extract::rejection::{BytesRejection, JsonRejection};
 use axum::extract::{FromRequestParts, State};
 use axum::http::request::Parts;
@@ -12,34 +10,23 @@ use bytes::Bytes;
 use nalgebra::{Quaternion, Unit, UnitQuaternion, Vector3};
 use serde::Deserialize;
 
-use super::error::{ApiError, Path, Query};
-use super::meshes::{new_id, parse_format};
-use super::{rest_for, AppState};
-use crate::auth::{bearer, check_token, token_hash};
+use crate::auth::{bearer, check_token};
+use crate::error::{ApiError, Path, Query};
+use crate::meshes::parse_format;
 use crate::session::{Delta, PoseSnapshot, SessionHandle};
-use crate::store::SessionRecord;
+use crate::state::AppState;
 use dend::deform::Params;
 use dend::mesh::io::Format;
-pub use dend_protocol::ws::{CreateSession, Created, DeltaJson, DragRequest};
+pub use dend_protocol::ws::{CreateSession, DeltaJson, DragRequest};
 
-/// Looks a live session up, re-opening a stored one after a restart
-/// (see `recover`). A stored session is re-opened only for its own
-/// `token`, checked against the stored hash before any work is done (a
-/// live session's token is checked by the caller).
+/// Looks a live session up, re-opening a stored one
+/// ([`SessionRegistry::find`](crate::registry::SessionRegistry::find)).
 pub(crate) async fn find(
     st: &AppState,
     id: &str,
     token: Option<&str>,
 ) -> Result<SessionHandle, ApiError> {
-    let live = st.sessions.read().get(id).cloned();
-    match live {
-        Some(s) if !s.is_fenced() => Ok(s),
-        // its lease was taken over: forget it here, then it is revived
-        // here only if this instance can lease it again
-        _ => super::recover::revive(st, id, token)
-            .await?
-            .ok_or_else(|| ApiError::SessionNotFound(id.to_owned())),
-    }
+    st.registry.find(id, token).await
 }
 
 /// Extractor: the session named in the path, opened by the bearer token.
@@ -72,94 +59,8 @@ pub async fn create(
     let params: Params = serde_json::from_value(params_json.clone())
         .map_err(|e| ApiError::InvalidParams(e.to_string()))?;
     params.validate()?;
-    st.admit()?;
-    if st.sessions.read().len() >= st.config.max_sessions {
-        return Err(ApiError::TooManySessions(st.config.max_sessions));
-    }
-    let rest = if st.cluster.is_some() {
-        // the rest is built where the session opens (see below)
-        let key = req.mesh_id.clone();
-        if st.store_call(move |s| s.get_mesh(&key)).await?.is_none() {
-            return Err(ApiError::MeshNotFound(req.mesh_id));
-        }
-        None
-    } else {
-        let rest = rest_for(&st, &req.mesh_id).await?;
-        let ratio = params.elastic().map(|e| e.coarse_ratio);
-        if ratio.is_some_and(|r| r != dend::deform::ELASTICA_COARSE_RATIO) {
-            // this ratio's coarse level, off the first settle's path (the
-            // default one is built when the mesh's rest state is)
-            let (rest, params) = (rest.clone(), params);
-            tokio::task::spawn_blocking(move || rest.prepare_coarse_level_for(&params));
-        }
-        {
-            // the coarse previews' level, before the first drag
-            let (rest, params) = (rest.clone(), params);
-            tokio::task::spawn_blocking(move || rest.prepare_preview_level(&params));
-        }
-        Some(rest)
-    };
-    let id = new_id();
-    let token = hex::encode(rand::random::<[u8; 32]>());
-    let hash = token_hash(&token);
-    let record = SessionRecord {
-        id: id.clone(),
-        mesh_id: req.mesh_id.clone(),
-        token_sha256: hex::encode(hash),
-        // the resolved parameters, every field written out: a stored
-        // session keeps its formulation and defaults across upgrades
-        params: serde_json::to_value(params)
-            .map_err(|e| ApiError::Internal(format!("params: {e}")))?,
-        constraints: None,
-        created_unix: SystemTime::now()
-            .duration_since(UNIX_EPOCH)
-            .map(|d| d.as_secs())
-            .unwrap_or(0),
-    };
-    st.store_call(move |s| s.put_session(&record)).await?;
-    let Some(rest) = rest else {
-        // Shared store: the session opens on the instance its first request
-        // reaches (the load balancer hashes its id), which leases it then.
-        st.metrics.sessions_created.inc();
-        return Ok((
-            StatusCode::CREATED,
-            Json(Created {
-                id,
-                token,
-                mesh_id: req.mesh_id,
-                state: crate::session::SessionState::Empty,
-            }),
-        ));
-    };
-    let opts = st.session_options(crate::store::NO_FENCE);
-    let handle = SessionHandle::spawn(id.clone(), req.mesh_id.clone(), hash, rest, params, opts);
-    handle.touch();
-    let inserted = {
-        let mut sessions = st.sessions.write();
-        let room = sessions.len() < st.config.max_sessions;
-        if room {
-            let _ = sessions.insert(id.clone(), handle.clone());
-        }
-        room
-    };
-    if !inserted {
-        handle.close().await;
-        let key = id.clone();
-        st.store_call(move |s| s.delete_session(&key)).await?;
-        return Err(ApiError::TooManySessions(st.config.max_sessions));
-    }
-    st.metrics.sessions_created.inc();
-    st.metrics.sessions.set(st.sessions.read().len() as i64);
-    let state = handle.info().state;
-    Ok((
-        StatusCode::CREATED,
-        Json(Created {
-            id,
-            token,
-            mesh_id: req.mesh_id,
-            state,
-        }),
-    ))
+    let created = st.registry.create(req.mesh_id, params).await?;
+    Ok((StatusCode::CREATED, Json(created)))
 }
 
 /// `GET /v1/sessions/{id}`.
@@ -167,20 +68,9 @@ pub async fn info(Authed(s): Authed) -> impl IntoResponse {
     Json(s.info())
 }
 
-/// Stops a session and forgets it (store included).
-pub(crate) async fn close_session(st: &AppState, s: &SessionHandle) {
-    let _ = st.sessions.write().remove(s.id());
-    s.close().await;
-    let key = s.id().to_owned();
-    if let Err(e) = st.store_call(move |s| s.delete_session(&key)).await {
-        tracing::error!(session = s.id(), error = %e, "deleting session from the store failed");
-    }
-    st.metrics.sessions.set(st.sessions.read().len() as i64);
-}
-
 /// `DELETE /v1/sessions/{id}`.
 pub async fn remove(State(st): State<AppState>, Authed(s): Authed) -> StatusCode {
-    close_session(&st, &s).await;
+    st.registry.close(&s).await;
     StatusCode::NO_CONTENT
 }
 

@@ -17,12 +17,12 @@ use serde::Deserialize;
 use tokio::sync::broadcast::error::RecvError;
 use tokio::time::Instant;
 
-use super::error::{ApiError, Path, Query};
-use super::metrics::Metrics;
-use super::sessions::{find, parse_json, to_delta};
-use super::AppState;
 use crate::auth::{bearer, check_token};
+use crate::error::{ApiError, Path, Query};
+use crate::metrics::Metrics;
 use crate::session::{wire_stage, Event, SessionHandle};
+use crate::sessions::{find, parse_json, to_delta};
+use crate::state::AppState;
 pub use dend_protocol::ws::{ClientId, ClientMsg, ServerMsg, SessionInfo, StreamOptions};
 use dend_protocol::FrameEncoding;
 use flow::Flow;

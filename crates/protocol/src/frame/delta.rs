@@ -40,7 +40,7 @@ use std::io::Write;
 use bytes::Bytes;
 use flate2::{write::DeflateEncoder, Compression, Decompress, FlushDecompress, Status};
 
-use super::{
+use super::header::{
     bounding_box, f64_at, u32_at, u64_at, write_v3_header, FrameEncoding, FrameError, FrameHeader,
     FRAME_V3_HEADER_BYTES,
 };

@@ -118,8 +118,9 @@ pub(super) struct Actor {
     /// (a new constraint set, a revival): applied, in order, once it is
     /// ready; refused after `SessionOptions::build_wait`.
     queued: VecDeque<QueuedDrag>,
-    /// Set from a revival until its first solve: the pose is the
-    /// checkpoint's, without the journaled drags, and is not served.
+    /// Set from a revival until its solve settles: the pose is the
+    /// checkpoint's, without the journaled drags, or an iterate on the way
+    /// to them, and is not served.
     reviving: bool,
     /// Pose reads waiting for the end of a revival.
     pose_waiters: Vec<Reply<PoseSnapshot>>,
@@ -327,7 +328,7 @@ impl Actor {
                     let _ = reply.send(Err(SessionError::NotReady { state: self.state }));
                 } else if self.reviving {
                     // the checkpoint pose lacks the journaled drags: wait
-                    // for the revival's first solve
+                    // for the revival's solve to settle
                     self.pose_waiters.push(reply);
                 } else {
                     let _ = reply.send(Ok(self.snapshot()));

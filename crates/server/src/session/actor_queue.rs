@@ -1,8 +1,8 @@
 //! What waits for a session to be ready: drags that arrive while its
 //! factor is being built (applied once it is ready, refused past
 //! `SessionOptions::build_wait`) and pose reads during a revival (answered
-//! with the revival's first solved pose, never the checkpoint pose, which
-//! lacks the journaled drags).
+//! with the revival's settled pose: never the checkpoint pose, which lacks
+//! the journaled drags, nor an iterate of the solve towards them).
 
 use std::sync::Arc;
 use std::time::Instant;
@@ -63,9 +63,9 @@ impl Actor {
         }
     }
 
-    /// A revival's first solve came back: its pose (checkpoint plus every
-    /// journaled drag, as the solver placed it) is the session's; the
-    /// reads that waited get it.
+    /// A revival's solve settled: its pose (checkpoint plus every journaled
+    /// drag, as the solver settled it) is the session's; the reads that
+    /// waited get it.
     pub(super) fn end_revival(&mut self, header: &FrameHeader) {
         if !self.reviving {
             return;

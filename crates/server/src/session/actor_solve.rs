@@ -325,7 +325,10 @@ impl Actor {
                 let header = self.header();
                 let bytes = body.finish(&header);
                 self.frames_tx.send_replace(Some(Frame { header, bytes }));
-                if generation == self.generation && !journal_failed {
+                if generation == self.generation && !journal_failed && self.settled {
+                    // the revived pose is the settled one: an iterate on
+                    // the way there is not the pose the acknowledged drags
+                    // led to, and is not served
                     self.end_revival(&header);
                 }
                 for w in std::mem::take(&mut self.inflight) {

@@ -4,7 +4,7 @@
 //! one fixed 73-byte record (see [`encode_entry`]). Every decode failure is
 //! a [`StoreError::Corrupt`] naming the record.
 
-use super::{Checkpoint, JournalEntry, SessionRecord, StoreError, StoredTransform};
+use crate::store::types::{Checkpoint, JournalEntry, SessionRecord, StoreError, StoredTransform};
 
 pub(super) fn corrupt(what: impl Into<String>, reason: impl Into<String>) -> StoreError {
     StoreError::Corrupt {
@@ -297,7 +297,7 @@ pub(super) const SELECT_NAMED_POSE: &str =
 
 impl NamedPoseRow {
     /// The row of `p` (counters past `i64::MAX` are clamped).
-    pub(super) fn encode(p: &super::NamedPose) -> NamedPoseRow {
+    pub(super) fn encode(p: &super::types::NamedPose) -> NamedPoseRow {
         let clamp = |x: u64| i64::try_from(x).unwrap_or(i64::MAX);
         NamedPoseRow {
             name: p.name.clone(),
@@ -312,7 +312,7 @@ impl NamedPoseRow {
 
     /// The named pose of a stored row of session `id` (checked as a
     /// checkpoint is: finite values, whole records).
-    pub(super) fn decode(self, id: &str) -> Result<super::NamedPose, StoreError> {
+    pub(super) fn decode(self, id: &str) -> Result<super::types::NamedPose, StoreError> {
         let what = format!("named pose `{}` of session `{id}`", self.name);
         let cp = decode_checkpoint(self.revision, 0, &self.pose, &self.targets, id).map_err(
             |e| match e {
@@ -328,7 +328,7 @@ impl NamedPoseRow {
         let nonneg = |x: i64, field: &str| {
             u64::try_from(x).map_err(|_| corrupt(&what, format!("negative {field}")))
         };
-        Ok(super::NamedPose {
+        Ok(super::types::NamedPose {
             ordinal: nonneg(self.ordinal, "ordinal")?,
             created_unix: nonneg(self.created_unix, "created_unix")?,
             name: self.name,

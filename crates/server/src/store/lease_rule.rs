@@ -10,7 +10,7 @@
 //! expires it, so revisions keep growing and a fence handed out once can
 //! never become valid again.
 
-use super::{Fence, LeaseGrant, StoreError, NO_FENCE};
+use crate::store::types::{Fence, LeaseGrant, StoreError, NO_FENCE};
 
 /// Where a lease row's expiry stands, measured by the backend's clock.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]

@@ -8,9 +8,9 @@ use std::time::{Duration, Instant};
 use parking_lot::Mutex;
 
 use super::lease_rule::{self, Expiry};
-use super::{
-    Checkpoint, Fence, JournalEntry, LeaseGrant, NamedPose, SessionRecord, Store, StoreError,
-    StoredAsset,
+use crate::store::traits::{LeaseStore, MeshStore, PoseStore, SessionLog};
+use crate::store::types::{
+    Checkpoint, Fence, JournalEntry, LeaseGrant, NamedPose, SessionRecord, StoreError, StoredAsset,
 };
 use dend::mesh::Mesh;
 
@@ -78,7 +78,7 @@ impl MemoryStore {
     }
 }
 
-impl Store for MemoryStore {
+impl MeshStore for MemoryStore {
     fn put_mesh(&self, id: &str, mesh: Arc<Mesh>) -> Result<(), StoreError> {
         let _ = self.meshes.lock().insert(id.to_owned(), mesh);
         Ok(())
@@ -105,7 +105,9 @@ impl Store for MemoryStore {
         let _ = self.assets.lock().remove(id);
         Ok(self.meshes.lock().remove(id).is_some())
     }
+}
 
+impl SessionLog for MemoryStore {
     fn put_session(&self, record: &SessionRecord) -> Result<(), StoreError> {
         let _ = super::codec::RecordRow::encode(record)?; // the same checks as the SQL stores
         self.sessions
@@ -190,7 +192,9 @@ impl Store for MemoryStore {
             .get(id)
             .and_then(|s| s.checkpoint.clone()))
     }
+}
 
+impl LeaseStore for MemoryStore {
     fn acquire_lease(
         &self,
         id: &str,
@@ -263,7 +267,16 @@ impl Store for MemoryStore {
             .map(|(id, _)| id.clone())
             .collect())
     }
+    fn ping(&self) -> Result<(), StoreError> {
+        Ok(())
+    }
+    /// One process uses this store: there is no owner liveness to announce.
+    fn announce_liveness(&self, _instance: &str) -> Result<(), StoreError> {
+        Ok(())
+    }
+}
 
+impl PoseStore for MemoryStore {
     fn put_named_pose(&self, id: &str, fence: Fence, pose: &NamedPose) -> Result<(), StoreError> {
         self.named_write(id, fence, |poses| {
             poses.retain(|p| p.name != pose.name);

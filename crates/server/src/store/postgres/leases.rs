@@ -14,9 +14,10 @@
 
 use std::time::Duration;
 
-use super::{pg_err, Conn};
+use super::conn::{pg_err, Conn};
+use super::liveness::{holder_liveness, Holder};
 use crate::store::lease_rule::{self, Expiry, LeaseRow};
-use crate::store::{Fence, LeaseGrant, StoreError, NO_FENCE};
+use crate::store::types::{Fence, LeaseGrant, StoreError, NO_FENCE};
 
 /// The lifetime in milliseconds, as the `FLOAT8` that multiplies an interval.
 fn ttl_ms(ttl: Duration) -> f64 {
@@ -75,12 +76,19 @@ pub(super) fn acquire(
     let expiry = match (held, live) {
         (false, _) => Expiry::Released,
         (true, false) => Expiry::Expired,
-        // a live lease of a dead owner (its liveness connection is gone):
-        // as good as expired
-        (true, true)
-            if holder != owner && super::liveness::owner_gone(&mut tx, owner, &holder)? =>
-        {
-            Expiry::Expired
+        (true, true) if holder != owner => {
+            let left_ms = left_ms.max(0) as u64;
+            match holder_liveness(&mut tx, owner, &holder)? {
+                // a live lease of a dead owner (its liveness connection is
+                // gone): as good as expired
+                Holder::Gone => Expiry::Expired,
+                // the owner may be gone, which is known when the grace
+                // ends: the refusal's retry hint is then, not the expiry
+                Holder::Unknown { left_ms: grace } => Expiry::Live {
+                    left_ms: left_ms.min(grace),
+                },
+                Holder::Present => Expiry::Live { left_ms },
+            }
         }
         (true, true) => Expiry::Live {
             left_ms: left_ms.max(0) as u64,

@@ -7,7 +7,7 @@
 //! the process dies, however it dies (crash, SIGKILL, out of memory), its
 //! kernel closes that socket and PostgreSQL ends the backend within
 //! milliseconds; a live but CPU-starved or frozen process keeps its socket
-//! open, so it keeps its leases until they expire. [`owner_gone`] is
+//! open, so it keeps its leases until they expire. [`holder_liveness`] is
 //! checked in the takeover's transaction: a live lease whose owner has no
 //! liveness connection is taken over as if it had expired, only when
 //! - the asking instance sees its *own* liveness connection (a pooler in
@@ -30,8 +30,8 @@ use std::time::Duration;
 
 use postgres::NoTls;
 
-use super::pg_err;
-use crate::store::StoreError;
+use super::conn::pg_err;
+use crate::store::types::StoreError;
 
 /// How long after a PostgreSQL start the liveness check stays off: the
 /// instances' liveness connections are back well within it.
@@ -124,30 +124,59 @@ pub(super) fn start(config: &postgres::Config, instance: &str) -> Result<Livenes
     Ok(Liveness { stop })
 }
 
+/// What the liveness connections say about a lease's holder.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(super) enum Holder {
+    /// Its liveness connection is there, or the check is off (the asking
+    /// instance does not see its own: a pooler hides backends).
+    Present,
+    /// Its liveness connection is missing, but the database started less
+    /// than [`RECONNECT_GRACE`] ago: it may still be reconnecting. This
+    /// is known in `left_ms`, when the grace ends.
+    Unknown {
+        /// Milliseconds until the grace ends.
+        left_ms: u64,
+    },
+    /// Its liveness connection is missing past the grace: it is gone.
+    Gone,
+}
+
 /// Whether `holder`, which holds a live lease that `asking` wants, is gone:
 /// no liveness connection, while `asking`'s own is seen and the database
-/// has been up for longer than [`RECONNECT_GRACE`]. Inside the takeover's
+/// has been up for longer than [`RECONNECT_GRACE`] (inside the grace the
+/// answer is [`Holder::Unknown`] until it ends). Inside the takeover's
 /// transaction.
-pub(super) fn owner_gone(
+pub(super) fn holder_liveness(
     tx: &mut postgres::Transaction<'_>,
     asking: &str,
     holder: &str,
-) -> Result<bool, StoreError> {
+) -> Result<Holder, StoreError> {
     let grace_ms = RECONNECT_GRACE.as_secs_f64() * 1000.0;
     let row = tx
         .query_one(
-            "SELECT pg_postmaster_start_time() < now() - $3::FLOAT8 * INTERVAL '1 millisecond'
-                AND EXISTS (SELECT 1 FROM pg_stat_activity WHERE application_name = $1)
-                AND NOT EXISTS (SELECT 1 FROM pg_stat_activity WHERE application_name = $2)",
+            "SELECT EXISTS (SELECT 1 FROM pg_stat_activity WHERE application_name = $1),
+                    EXISTS (SELECT 1 FROM pg_stat_activity WHERE application_name = $2),
+                    GREATEST(0, CEIL(EXTRACT(EPOCH FROM (pg_postmaster_start_time()
+                        + $3::FLOAT8 * INTERVAL '1 millisecond' - now())) * 1000))::BIGINT",
             &[&liveness_name(asking), &liveness_name(holder), &grace_ms],
         )
         .map_err(pg_err)?;
-    Ok(row.get(0))
+    let (asking_seen, holder_seen, grace_left): (bool, bool, i64) =
+        (row.get(0), row.get(1), row.get(2));
+    Ok(if !asking_seen || holder_seen {
+        Holder::Present
+    } else if grace_left > 0 {
+        Holder::Unknown {
+            left_ms: grace_left.unsigned_abs(),
+        }
+    } else {
+        Holder::Gone
+    })
 }
 
 #[cfg(test)]
 mod tests {
-    use crate::store::liveness_name;
+    use super::liveness_name;
 
     #[test]
     fn liveness_names_fit_postgres() {

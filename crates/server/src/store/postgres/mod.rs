@@ -15,6 +15,7 @@
 //! - Errors: a lost or refused connection, a server shutting down or a pool
 //!   timeout is [`StoreError::Unavailable`]; other failures `Backend`.
 
+mod conn;
 mod leases;
 mod liveness;
 mod poses;
@@ -31,10 +32,11 @@ use super::codec::{
     corrupt, decode_checkpoint, decode_entry, decode_points, decode_triangles, encode_entry,
     encode_points, encode_targets, encode_triangles, RecordRow, SELECT_SESSION,
 };
-use super::{
-    Checkpoint, Fence, JournalEntry, LeaseGrant, NamedPose, SessionRecord, Store, StoreError,
-    StoredAsset,
+use super::traits::{LeaseStore, MeshStore, PoseStore, SessionLog};
+use super::types::{
+    Checkpoint, Fence, JournalEntry, LeaseGrant, NamedPose, SessionRecord, StoreError, StoredAsset,
 };
+use conn::{pg_err, Conn};
 use dend::mesh::Mesh;
 
 /// The newest schema version this program knows (the last of [`MIGRATIONS`]).
@@ -104,7 +106,6 @@ pub const MIGRATIONS: &[(i32, &str)] = &[
 ];
 
 type Pool = r2d2::Pool<PostgresConnectionManager<NoTls>>;
-pub(super) type Conn = r2d2::PooledConnection<PostgresConnectionManager<NoTls>>;
 
 /// A [`Store`] in a PostgreSQL database (see the module docs).
 pub struct PgStore {
@@ -114,30 +115,6 @@ pub struct PgStore {
     config: postgres::Config,
     /// The liveness connection, once announced ([`Store::announce_liveness`]).
     liveness: parking_lot::Mutex<Option<liveness::Liveness>>,
-}
-
-/// Classifies a client error: connection-level failures are
-/// [`StoreError::Unavailable`] (retry later), the rest `Backend`.
-pub(super) fn pg_err(e: postgres::Error) -> StoreError {
-    let unavailable = e.is_closed()
-        || std::error::Error::source(&e).is_some_and(|s| s.is::<std::io::Error>())
-        || e.code().is_some_and(|c| {
-            let c = c.code();
-            // 08: connection exception; 57P0x: shutdown / cannot connect now;
-            // 53: insufficient resources; 55P03: lock wait over
-            // LOCK_TIMEOUT; 25P03: this connection idled in a transaction
-            // past IDLE_IN_TRANSACTION_TIMEOUT and was ended
-            c.starts_with("08")
-                || c.starts_with("57P0")
-                || c.starts_with("53")
-                || c == "55P03"
-                || c == "25P03"
-        });
-    if unavailable {
-        StoreError::Unavailable(e.to_string())
-    } else {
-        StoreError::Backend(e.to_string())
-    }
 }
 
 fn missing(id: &str) -> StoreError {
@@ -280,7 +257,7 @@ fn row_record(r: &postgres::Row) -> Result<SessionRecord, StoreError> {
     .decode()
 }
 
-impl Store for PgStore {
+impl MeshStore for PgStore {
     fn put_mesh(&self, id: &str, mesh: Arc<Mesh>) -> Result<(), StoreError> {
         let (p, t) = (
             encode_points(mesh.positions()),
@@ -363,7 +340,9 @@ impl Store for PgStore {
         tx.commit().map_err(pg_err)?;
         Ok(n > 0)
     }
+}
 
+impl SessionLog for PgStore {
     fn put_session(&self, r: &SessionRecord) -> Result<(), StoreError> {
         let row = RecordRow::encode(r)?;
         let _ = self
@@ -516,7 +495,9 @@ impl Store for PgStore {
         let (pose, targets): (Vec<u8>, Vec<u8>) = (r.get(2), r.get(3));
         decode_checkpoint(r.get(0), r.get(1), &pose, &targets, id).map(Some)
     }
+}
 
+impl LeaseStore for PgStore {
     fn acquire_lease(
         &self,
         id: &str,
@@ -543,6 +524,28 @@ impl Store for PgStore {
         leases::wanted(&mut self.conn()?, owner)
     }
 
+    fn ping(&self) -> Result<(), StoreError> {
+        let pool = self
+            .pool
+            .as_ref()
+            .ok_or_else(|| StoreError::Unavailable("store closed".into()))?;
+        let mut c = pool
+            .get_timeout(PING_TIMEOUT)
+            .map_err(|e| StoreError::Unavailable(format!("no PostgreSQL connection: {e}")))?;
+        let _ = c.query_one("SELECT 1", &[]).map_err(pg_err)?;
+        Ok(())
+    }
+
+    /// Opens the liveness connection (`liveness`) on a thread of
+    /// its own; call it outside an async runtime's worker.
+    fn announce_liveness(&self, instance: &str) -> Result<(), StoreError> {
+        let live = liveness::start(&self.config, instance)?;
+        *self.liveness.lock() = Some(live);
+        Ok(())
+    }
+}
+
+impl PoseStore for PgStore {
     /// A connection within [`PING_TIMEOUT`] (tested on checkout), so that
     /// readiness answers fast when the server is gone.
     fn put_named_pose(&self, id: &str, fence: Fence, pose: &NamedPose) -> Result<(), StoreError> {
@@ -565,26 +568,6 @@ impl Store for PgStore {
 
     fn named_poses(&self, id: &str) -> Result<Vec<NamedPose>, StoreError> {
         poses::list(&mut self.conn()?, id)
-    }
-
-    fn ping(&self) -> Result<(), StoreError> {
-        let pool = self
-            .pool
-            .as_ref()
-            .ok_or_else(|| StoreError::Unavailable("store closed".into()))?;
-        let mut c = pool
-            .get_timeout(PING_TIMEOUT)
-            .map_err(|e| StoreError::Unavailable(format!("no PostgreSQL connection: {e}")))?;
-        let _ = c.query_one("SELECT 1", &[]).map_err(pg_err)?;
-        Ok(())
-    }
-
-    /// Opens the liveness connection (`liveness`) on a thread of
-    /// its own; call it outside an async runtime's worker.
-    fn announce_liveness(&self, instance: &str) -> Result<(), StoreError> {
-        let live = liveness::start(&self.config, instance)?;
-        *self.liveness.lock() = Some(live);
-        Ok(())
     }
 }
 

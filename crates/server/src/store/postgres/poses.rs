@@ -2,9 +2,10 @@
 //! (schema migration 3), one row per pose, deleted with their session;
 //! writes fenced like the journal's.
 
-use super::{leases, pg_err, Conn};
+use super::conn::{pg_err, Conn};
+use super::leases;
 use crate::store::codec::{NamedPoseRow, SELECT_NAMED_POSE};
-use crate::store::{Fence, NamedPose, StoreError};
+use crate::store::types::{Fence, NamedPose, StoreError};
 
 /// Migration 3: the table.
 pub(super) const MIGRATION: &str = "CREATE TABLE named_poses (

@@ -1,6 +1,6 @@
 use super::*;
 use crate::store::suite::{drag, fresh_pg_database, record};
-use crate::store::NO_FENCE;
+use crate::store::types::NO_FENCE;
 
 #[test]
 fn an_unreachable_server_is_unavailable_not_a_panic() {

@@ -6,7 +6,7 @@
 
 use rusqlite::{params, Connection, OptionalExtension};
 
-use crate::store::{StoreError, StoredAsset};
+use crate::store::types::{StoreError, StoredAsset};
 
 /// Stores (or replaces) the asset of mesh `id`.
 pub(super) fn put(conn: &Connection, id: &str, a: &StoredAsset) -> Result<(), StoreError> {

@@ -8,7 +8,7 @@ use std::time::{Duration, SystemTime, UNIX_EPOCH};
 use rusqlite::{params, Connection, OptionalExtension, TransactionBehavior};
 
 use crate::store::lease_rule::{self, Expiry, LeaseRow};
-use crate::store::{Fence, LeaseGrant, StoreError};
+use crate::store::types::{Fence, LeaseGrant, StoreError};
 
 /// The table (added by schema version 2).
 pub(super) const SCHEMA: &str = "
@@ -38,7 +38,7 @@ fn ttl_ms(ttl: Duration) -> i64 {
 /// Refuses a write fenced by `fence` unless it is `id`'s lease revision
 /// (inside the write's transaction).
 pub(super) fn check_fence(conn: &Connection, id: &str, fence: Fence) -> Result<(), StoreError> {
-    if fence == crate::store::NO_FENCE {
+    if fence == crate::store::types::NO_FENCE {
         return Ok(()); // the unfenced mode reads nothing
     }
     let row: Option<(String, i64)> = conn

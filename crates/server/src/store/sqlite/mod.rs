@@ -19,22 +19,24 @@
 mod assets;
 mod leases;
 mod poses;
+mod tx;
 
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
 use parking_lot::Mutex;
-use rusqlite::{params, Connection, OptionalExtension, Transaction, TransactionBehavior};
+use rusqlite::{params, Connection, OptionalExtension, TransactionBehavior};
 
 use super::codec::{
     corrupt, decode_checkpoint, decode_entry, decode_points, decode_triangles, encode_entry,
     encode_points, encode_targets, encode_triangles, RecordRow, SELECT_SESSION,
 };
-use super::{
-    Checkpoint, Fence, JournalEntry, LeaseGrant, NamedPose, SessionRecord, Store, StoreError,
-    StoredAsset,
+use super::traits::{LeaseStore, MeshStore, PoseStore, SessionLog};
+use super::types::{
+    Checkpoint, Fence, JournalEntry, LeaseGrant, NamedPose, SessionRecord, StoreError, StoredAsset,
 };
 use dend::mesh::Mesh;
+use tx::{backend, fenced, missing};
 
 /// Version of the schema below (`PRAGMA user_version`): 1 the tables
 /// below, 2 added `leases` (see `leases`).
@@ -77,14 +79,6 @@ CREATE TABLE IF NOT EXISTS checkpoints (
 pub struct SqliteStore {
     conn: Mutex<Connection>,
     path: PathBuf,
-}
-
-pub(super) fn backend(e: impl std::fmt::Display) -> StoreError {
-    StoreError::Backend(e.to_string())
-}
-
-fn missing(id: &str) -> StoreError {
-    StoreError::Missing(id.to_string())
 }
 
 impl SqliteStore {
@@ -164,31 +158,7 @@ fn record_row(r: &rusqlite::Row<'_>) -> rusqlite::Result<RecordRow> {
     })
 }
 
-/// An immediate (write-locked) transaction on session `id`'s rows, after
-/// checking that the session exists and that `fence` still holds its lease.
-pub(super) fn fenced<'c>(
-    conn: &'c mut Connection,
-    id: &str,
-    fence: Fence,
-) -> Result<Transaction<'c>, StoreError> {
-    let tx = conn
-        .transaction_with_behavior(TransactionBehavior::Immediate)
-        .map_err(backend)?;
-    if !session_exists(&tx, id)? {
-        return Err(missing(id));
-    }
-    leases::check_fence(&tx, id, fence)?;
-    Ok(tx)
-}
-
-fn session_exists(conn: &Connection, id: &str) -> Result<bool, StoreError> {
-    conn.query_row("SELECT 1 FROM sessions WHERE id = ?1", [id], |_| Ok(()))
-        .optional()
-        .map(|o| o.is_some())
-        .map_err(backend)
-}
-
-impl Store for SqliteStore {
+impl MeshStore for SqliteStore {
     fn put_mesh(&self, id: &str, mesh: Arc<Mesh>) -> Result<(), StoreError> {
         let (p, t) = (
             encode_points(mesh.positions()),
@@ -242,7 +212,9 @@ impl Store for SqliteStore {
     fn delete_mesh(&self, id: &str) -> Result<bool, StoreError> {
         assets::delete_mesh(&mut self.conn.lock(), id)
     }
+}
 
+impl SessionLog for SqliteStore {
     fn put_session(&self, r: &SessionRecord) -> Result<(), StoreError> {
         let row = RecordRow::encode(r)?;
         // An upsert, not INSERT OR REPLACE: a replace would delete the row and
@@ -397,7 +369,9 @@ impl Store for SqliteStore {
         };
         decode_checkpoint(revision, ack_seq, &pose, &targets, id).map(Some)
     }
+}
 
+impl LeaseStore for SqliteStore {
     fn acquire_lease(
         &self,
         id: &str,
@@ -423,7 +397,16 @@ impl Store for SqliteStore {
     fn handoffs_wanted(&self, owner: &str) -> Result<Vec<String>, StoreError> {
         leases::wanted(&self.conn.lock(), owner)
     }
+    fn ping(&self) -> Result<(), StoreError> {
+        Ok(())
+    }
+    /// One process uses this store: there is no owner liveness to announce.
+    fn announce_liveness(&self, _instance: &str) -> Result<(), StoreError> {
+        Ok(())
+    }
+}
 
+impl PoseStore for SqliteStore {
     fn put_named_pose(&self, id: &str, fence: Fence, pose: &NamedPose) -> Result<(), StoreError> {
         poses::put(&mut self.conn.lock(), id, fence, pose)
     }

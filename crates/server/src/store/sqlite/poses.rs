@@ -6,9 +6,9 @@
 
 use rusqlite::{params, Connection};
 
-use super::{backend, fenced};
+use super::tx::{backend, fenced};
 use crate::store::codec::{NamedPoseRow, SELECT_NAMED_POSE};
-use crate::store::{Fence, NamedPose, StoreError};
+use crate::store::types::{Fence, NamedPose, StoreError};
 
 /// The table, created at open.
 pub(super) const SCHEMA: &str = "

@@ -1,7 +1,7 @@
 use super::*;
 use crate::store::codec::ENTRY_BYTES;
 use crate::store::suite::{checkpoint, drag, grid, record};
-use crate::store::NO_FENCE;
+use crate::store::types::NO_FENCE;
 
 #[test]
 fn newer_schema_is_refused() -> Result<(), StoreError> {

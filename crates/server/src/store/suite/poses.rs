@@ -1,5 +1,5 @@
 //! The store suite's cases for named poses (run on every backend by
-//! `suite.rs`'s `every_case!`).
+//! `suite/mod.rs`'s `every_case!`).
 
 use super::{checkpoint, drag, record, Backend};
 use crate::store::*;
