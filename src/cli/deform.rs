@@ -35,6 +35,15 @@ pub struct Args {
     /// Output mesh (format from the extension).
     #[arg(short, long)]
     output: PathBuf,
+    /// Also write the pose fitted onto the mesh's rig (a skinned glTF/GLB):
+    /// the joints' transforms in the skeleton's nodes and the corrective
+    /// as a morph target of weight 1 (.glb or .gltf). Prints the fit's
+    /// residual.
+    #[arg(long, value_name = "FILE")]
+    output_skeleton: Option<PathBuf>,
+    /// With --output-skeleton: leave the corrective morph target out.
+    #[arg(long, requires = "output_skeleton")]
+    no_corrective: bool,
     /// Energy: total (L²-2GL, default), total-paper (L²-2LG), thin-plate,
     /// membrane, combined.
     #[arg(long)]
@@ -191,6 +200,24 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let bytes = asset.export(deformer.pose(), format)?;
     std::fs::write(&args.output, bytes)
         .with_context(|| format!("writing {}", args.output.display()))?;
+    if let Some(path) = &args.output_skeleton {
+        let format = io::Format::from_path(path)?;
+        let poses = [("pose".to_owned(), deformer.pose())];
+        let out = dend::rig::export_skeleton(&asset, &poses, false, !args.no_corrective, format)?;
+        if out.renormalised > 0 {
+            eprintln!(
+                "warning: {} vertices' skin weights did not sum to one and were normalised",
+                out.renormalised
+            );
+        }
+        for f in &out.fits {
+            eprintln!(
+                "skeleton fit: residual max {:.3e}, mean {:.3e} of the diagonal ({} sweeps)",
+                f.residual.max, f.residual.mean, f.sweeps
+            );
+        }
+        std::fs::write(path, out.bytes).with_context(|| format!("writing {}", path.display()))?;
+    }
     Ok(())
 }
 

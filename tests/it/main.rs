@@ -30,6 +30,7 @@ mod operators;
 mod operators_invariance;
 mod paper_reproduction;
 mod path_independence;
+mod rig_export;
 mod server_e2e;
 mod server_errors;
 mod server_gltf;

@@ -269,6 +269,14 @@ fn mesh_info_schema_matches_the_wire_type() {
         triangles: 2,
         vertices: 3,
     };
+    let joint = dend_protocol::AssetJoint {
+        name: "hip".into(),
+        index: 0,
+        node: 1,
+        parent: Some("root".into()),
+        head: [0.0; 3],
+        vertices: 3,
+    };
     let info = MeshInfo {
         id: "m".into(),
         vertices: 3,
@@ -280,6 +288,12 @@ fn mesh_info_schema_matches_the_wire_type() {
             asset_vertices: 4,
             attributes: vec!["TEXCOORD_0".into()],
             groups: vec![group.clone()],
+            skeleton: Some(dend_protocol::AssetSkeleton {
+                skin: 0,
+                joints: vec![joint.clone()],
+                renormalised_vertices: 0,
+            }),
+            skin_error: Some("e".into()),
         }),
         warnings: vec![dend_protocol::MeshWarning {
             code: "huge_extent".into(),
@@ -303,6 +317,17 @@ fn mesh_info_schema_matches_the_wire_type() {
         keys(&items["properties"]),
         json_keys(serde_json::to_value(&group).expect("json")),
         "MeshInfo.asset.groups"
+    );
+    let skeleton = &asset["properties"]["skeleton"];
+    assert_eq!(
+        keys(&skeleton["properties"]),
+        json_keys(json["asset"]["skeleton"].clone()),
+        "MeshInfo.asset.skeleton"
+    );
+    assert_eq!(
+        keys(&skeleton["properties"]["joints"]["items"]["properties"]),
+        json_keys(serde_json::to_value(&joint).expect("json")),
+        "MeshInfo.asset.skeleton.joints"
     );
     let bare = AssetGroup {
         name: None,
@@ -415,6 +440,9 @@ fn error_schema_matches_the_error_body() {
         MethodNotAllowed(s()),
         VertexOutOfRange(s()),
         UnknownGroup(s()),
+        UnknownJoint(s()),
+        NotSkinned(s()),
+        BadSkin(s()),
         NonFinite(s()),
         MeshNotFound(s()),
         SessionNotFound(s()),
@@ -472,6 +500,9 @@ fn error_schema_matches_the_error_body() {
             | MethodNotAllowed(_)
             | VertexOutOfRange(_)
             | UnknownGroup(_)
+            | UnknownJoint(_)
+            | NotSkinned(_)
+            | BadSkin(_)
             | NonFinite(_)
             | MeshNotFound(_)
             | SessionNotFound(_)

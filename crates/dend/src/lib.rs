@@ -7,7 +7,9 @@
 //!   (design.md §2);
 //! - [`deform`]: energies, constraints, the factor cache and the DEND
 //!   iteration (design.md §3–9). Pure and synchronous: no I/O, no async.
-//! - [`measure`]: what the tests and the posing suite measure on a pose.
+//! - [`measure`]: what the tests and the posing suite measure on a pose;
+//! - [`rig`]: skinned assets' skeletons, and poses fitted back onto them
+//!   as joint transforms plus a corrective shape.
 //!
 //! The sparse linear algebra (orderings, Cholesky, solves) is the
 //! `dend-linalg` crate; the server, its store and client are `dend-server`
@@ -19,3 +21,4 @@ pub mod deform;
 pub mod measure;
 pub mod mesh;
 pub mod operators;
+pub mod rig;

@@ -55,7 +55,7 @@ pub struct MeshWarning {
 }
 
 /// What an uploaded asset holds (see [`MeshInfo::asset`]).
-#[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct AssetSummary {
     /// `glb`, `gltf`, `obj` or `ply`.
     pub format: String,
@@ -71,6 +71,45 @@ pub struct AssetSummary {
     /// `g`/`o` names, glTF nodes, meshes and primitives.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub groups: Vec<AssetGroup>,
+    /// A skinned glTF/GLB's skeleton: its joints, which constraints can
+    /// select by (`{"joint": …}`) and a skeleton export poses.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub skeleton: Option<AssetSkeleton>,
+    /// Why a skinned asset's skin cannot be used as a rig (its skeleton is
+    /// then absent).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub skin_error: Option<String>,
+}
+
+/// The skeleton of a skinned asset (see [`AssetSummary::skeleton`]).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct AssetSkeleton {
+    /// The skin's index in the glTF document.
+    pub skin: usize,
+    /// Its joints, in the skin's order.
+    pub joints: Vec<AssetJoint>,
+    /// Vertices whose skin weights did not sum to one and were normalised
+    /// (a warning about the file).
+    #[serde(default)]
+    pub renormalised_vertices: usize,
+}
+
+/// A joint of a skeleton (see [`AssetSkeleton::joints`]).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct AssetJoint {
+    /// Its name (what `{"joint": …}` selects by).
+    pub name: String,
+    /// Its index in the skin's joint list.
+    pub index: usize,
+    /// Its glTF node.
+    pub node: usize,
+    /// Its parent joint's name; absent for a root.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub parent: Option<String>,
+    /// Its head (origin) in the mesh's bind space, where a gizmo sits.
+    pub head: [f64; 3],
+    /// Welded vertices whose largest skin weight is this joint's.
+    pub vertices: usize,
 }
 
 /// A named part of an uploaded asset (see [`AssetSummary::groups`]).

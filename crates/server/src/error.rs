@@ -64,6 +64,18 @@ pub enum ApiError {
     /// not have; the message lists the ones it has.
     #[error("{0}")]
     UnknownGroup(String),
+    /// A joint selector (`{"joint": …}`) names a joint the mesh's skin
+    /// does not have; the message lists the ones it has.
+    #[error("{0}")]
+    UnknownJoint(String),
+    /// A rig operation (a joint selector, a skeleton export) on a mesh
+    /// that is not a skinned glTF/GLB, or whose meshes use several skins.
+    #[error("{0}")]
+    NotSkinned(String),
+    /// The mesh's skin data is broken (joints or weights missing or out of
+    /// range, bad inverse bind matrices).
+    #[error("{0}")]
+    BadSkin(String),
     /// NaN or infinity in a delta or parameter.
     #[error("{0}")]
     NonFinite(String),
@@ -222,6 +234,9 @@ impl ApiError {
             InvalidConstraints(_) => ("invalid_constraints", StatusCode::UNPROCESSABLE_ENTITY),
             VertexOutOfRange(_) => ("vertex_out_of_range", StatusCode::UNPROCESSABLE_ENTITY),
             UnknownGroup(_) => ("unknown_group", StatusCode::UNPROCESSABLE_ENTITY),
+            UnknownJoint(_) => ("unknown_joint", StatusCode::UNPROCESSABLE_ENTITY),
+            NotSkinned(_) => ("not_skinned", StatusCode::UNPROCESSABLE_ENTITY),
+            BadSkin(_) => ("bad_skin", StatusCode::UNPROCESSABLE_ENTITY),
             NonFinite(_) => ("non_finite", StatusCode::UNPROCESSABLE_ENTITY),
             MeshNotFound(_) => ("mesh_not_found", StatusCode::NOT_FOUND),
             SessionNotFound(_) => ("session_not_found", StatusCode::NOT_FOUND),
@@ -424,10 +439,27 @@ fn deform_ref(d: &DeformError, msg: String) -> ApiError {
         | DeformError::InvalidTransform { .. }
         | DeformError::PositionsMismatch { .. } => ApiError::InvalidConstraints(msg),
         DeformError::UnknownGroup { .. } => ApiError::UnknownGroup(msg),
+        DeformError::Rig(r) => rig_error(r, msg),
         DeformError::OutOfMemory { .. } => ApiError::Internal(msg),
         DeformError::NotPositiveDefinite { .. }
         | DeformError::PoseLength { .. }
         | DeformError::FactorMismatch => ApiError::SolveFailed(msg),
+    }
+}
+
+/// A rig error as the API reports it.
+pub(crate) fn rig_error(r: &dend::rig::RigError, msg: String) -> ApiError {
+    use dend::mesh::io::gltf::SkinError;
+    use dend::rig::RigError;
+    match r {
+        RigError::UnknownJoint { .. } => ApiError::UnknownJoint(msg),
+        RigError::NotGltf { .. }
+        | RigError::Skin(SkinError::NotSkinned | SkinError::SeveralSkins { .. }) => {
+            ApiError::NotSkinned(msg)
+        }
+        RigError::Skin(_) => ApiError::BadSkin(msg),
+        RigError::ExportFormat { .. } => ApiError::UnsupportedExport(msg),
+        RigError::PoseSize { .. } => ApiError::Internal(msg),
     }
 }
 

@@ -17,6 +17,7 @@ mod meshes;
 pub mod metrics;
 mod morph_export;
 pub mod presets;
+mod skeleton_export;
 
 mod poses;
 mod probes;

@@ -32,7 +32,9 @@ pub struct FormatQuery {
     pub format: Option<String>,
 }
 
-pub use dend_protocol::{AssetGroup, AssetSummary, MeshInfo, MeshWarning};
+pub use dend_protocol::{
+    AssetGroup, AssetJoint, AssetSkeleton, AssetSummary, MeshInfo, MeshWarning,
+};
 
 /// A bounding-box diagonal above this (in the file's units) is no real
 /// asset's: a light year in metres is 1e16, a city in millimetres 1e7.
@@ -96,7 +98,15 @@ fn info_of(id: String, m: &Mesh, asset: Option<&Asset>) -> MeshInfo {
         bbox: [lo, hi],
         asset: asset.map(|a| {
             let i = a.info();
+            let skinned = i.gltf.as_ref().is_some_and(|g| g.skinned);
+            let (skeleton, skin_error) = match skinned.then(|| a.skeleton()) {
+                Some(Ok(sk)) => (Some(skeleton_of(sk.info())), None),
+                Some(Err(e)) => (None, Some(e.to_string())),
+                None => (None, None),
+            };
             AssetSummary {
+                skeleton,
+                skin_error,
                 format: i.format.extension().to_owned(),
                 name: i.name,
                 asset_vertices: i.asset_vertices,
@@ -118,6 +128,25 @@ fn info_of(id: String, m: &Mesh, asset: Option<&Asset>) -> MeshInfo {
     }
 }
 
+fn skeleton_of(s: dend::rig::SkeletonInfo) -> AssetSkeleton {
+    AssetSkeleton {
+        skin: s.skin,
+        joints: s
+            .joints
+            .into_iter()
+            .map(|j| AssetJoint {
+                name: j.name,
+                index: j.index,
+                node: j.node,
+                parent: j.parent,
+                head: j.head,
+                vertices: j.vertices,
+            })
+            .collect(),
+        renormalised_vertices: s.renormalised_vertices,
+    }
+}
+
 /// The asset kept for mesh `id`, read again from its stored bytes.
 pub(crate) async fn stored_asset(st: &AppState, id: &str) -> Result<Option<Asset>, ApiError> {
     let key = id.to_owned();
@@ -134,7 +163,8 @@ pub(crate) async fn stored_asset(st: &AppState, id: &str) -> Result<Option<Asset
     .map_err(|e| ApiError::Internal(e.to_string()))?
 }
 
-/// A constraints spec (JSON) with its `{"group": …}` vertex sets resolved
+/// A constraints spec (JSON) with its `{"group": …}` and `{"joint": …}`
+/// vertex sets resolved
 /// to index lists on mesh `mesh_id`'s asset (`dend::mesh::asset::groups`):
 /// what `PUT …/constraints` and the WebSocket's `set_constraints` pass on, so
 /// the session, its store and its revival see index lists only. A spec that

@@ -12,14 +12,29 @@ use crate::state::AppState;
 use dend::mesh::asset::MorphExportError;
 use dend::mesh::io::Format;
 
-/// Whether the export's `as=` asks for morph targets (`pose`, the default,
-/// does not); any other value is 422 `unsupported_export`.
-pub(crate) fn wanted(export_as: Option<&str>) -> Result<bool, ApiError> {
+/// What an export's `as=` asks for.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) enum ExportAs {
+    /// `pose` (the default): the current pose as a mesh file.
+    Pose,
+    /// `morph-targets`: one morph target per named pose.
+    MorphTargets,
+    /// `skeleton`: the current pose fitted onto the rig
+    /// (`crate::skeleton_export`).
+    Skeleton,
+    /// `skeleton-animation`: every named pose fitted, one keyframe each.
+    SkeletonAnimation,
+}
+
+/// The export's `as=`; any other value is 422 `unsupported_export`.
+pub(crate) fn wanted(export_as: Option<&str>) -> Result<ExportAs, ApiError> {
     match export_as {
-        None | Some("pose") => Ok(false),
-        Some("morph-targets") => Ok(true),
+        None | Some("pose") => Ok(ExportAs::Pose),
+        Some("morph-targets") => Ok(ExportAs::MorphTargets),
+        Some("skeleton") => Ok(ExportAs::Skeleton),
+        Some("skeleton-animation") => Ok(ExportAs::SkeletonAnimation),
         Some(other) => Err(ApiError::UnsupportedExport(format!(
-            "unknown export `as={other}` (pose or morph-targets)"
+            "unknown export `as={other}` (pose, morph-targets, skeleton or skeleton-animation)"
         ))),
     }
 }

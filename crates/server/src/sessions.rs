@@ -241,11 +241,15 @@ pub async fn pose(Authed(s): Authed, headers: HeaderMap) -> Result<Response, Api
 pub struct ExportQuery {
     /// `obj` (default), `off`, `ply`, `stl`, `gltf` or `glb`.
     pub format: Option<String>,
-    /// `pose` (default) or `morph-targets` (see `morph_export`).
+    /// `pose` (default), `morph-targets` (see `morph_export`), `skeleton`
+    /// or `skeleton-animation` (see `skeleton_export`).
     #[serde(rename = "as")]
     pub export_as: Option<String>,
     /// With `as=morph-targets`: 1 adds the animation through the poses.
     pub animation: Option<u8>,
+    /// With `as=skeleton[-animation]`: `false` (or 0) leaves the
+    /// corrective morph targets out.
+    pub corrective: Option<String>,
 }
 
 /// `GET /v1/sessions/{id}/export?format=obj|off|ply|stl|gltf|glb`: the
@@ -263,8 +267,17 @@ pub async fn export(
             .unwrap_or_else(|| "obj".into())
             .to_ascii_lowercase(),
     )?;
-    if crate::morph_export::wanted(q.export_as.as_deref())? {
-        return crate::morph_export::export(&st, &s, format, q.animation == Some(1)).await;
+    use crate::morph_export::ExportAs;
+    match crate::morph_export::wanted(q.export_as.as_deref())? {
+        ExportAs::Pose => {}
+        ExportAs::MorphTargets => {
+            return crate::morph_export::export(&st, &s, format, q.animation == Some(1)).await
+        }
+        how @ (ExportAs::Skeleton | ExportAs::SkeletonAnimation) => {
+            let corrective = crate::skeleton_export::corrective(q.corrective.as_deref())?;
+            let animation = how == ExportAs::SkeletonAnimation;
+            return crate::skeleton_export::export(&st, &s, format, animation, corrective).await;
+        }
     }
     let p = s.pose().await?;
     let asset = crate::meshes::stored_asset(&st, &s.info().mesh_id).await?;

@@ -5,7 +5,7 @@
 numpy arrays; errors are `DendError` with the API's error `code`.
 """
 
-from ._common import MeshInfo, NamedPose, Pose, PoseInfo
+from ._common import MeshInfo, NamedPose, Pose, PoseInfo, SkeletonExport, joint
 from .aio import AsyncClient, AsyncSession, AsyncSessionSocket
 from .errors import DendError, FrameError
 from .frames import Frame, decode_frame
@@ -25,5 +25,7 @@ __all__ = [
     "PoseInfo",
     "Session",
     "SessionSocket",
+    "SkeletonExport",
     "decode_frame",
+    "joint",
 ]

@@ -160,6 +160,47 @@ def export_query(fmt: str, morph_targets: bool, animation: bool) -> str:
     return urlencode(q)
 
 
+@dataclass(frozen=True)
+class SkeletonExport:
+    """A pose (or every named pose) fitted onto a skinned asset's rig:
+    the glTF/GLB bytes (joint transforms in the nodes or an animation, and
+    the correctives as morph targets), and the fit's residual without the
+    corrective as fractions of the rest bounding-box diagonal."""
+
+    data: bytes
+    residual_max: float
+    residual_mean: float
+    poses: int
+    warning: Optional[str] = None
+
+
+def skeleton_query(fmt: str, animation: bool, corrective: bool) -> str:
+    q: Dict[str, str] = {"format": fmt, "as": "skeleton-animation" if animation else "skeleton"}
+    if not corrective:
+        q["corrective"] = "false"
+    return urlencode(q)
+
+
+def skeleton_export_of(r: Any) -> SkeletonExport:
+    h = r.headers
+    return SkeletonExport(
+        data=r.content,
+        residual_max=float(h.get("x-dend-fit-residual-max", "nan")),
+        residual_mean=float(h.get("x-dend-fit-residual-mean", "nan")),
+        poses=int(h.get("x-dend-fit-poses", "0")),
+        warning=h.get("x-dend-warning"),
+    )
+
+
+def joint(name: Union[str, int], with_children: bool = False) -> Dict[str, Any]:
+    """The vertex set of a joint's region (`{"joint": name}`, with its
+    descendants' regions when `with_children`), for `set_constraints`."""
+    d: Dict[str, Any] = {"joint": name}
+    if with_children:
+        d["with_children"] = True
+    return d
+
+
 def pose_path(name: str) -> str:
     """`/poses/<name>`, the name percent-encoded."""
     return "/poses/" + quote(name, safe="")

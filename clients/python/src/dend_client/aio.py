@@ -121,6 +121,12 @@ class AsyncSession:
     async def export(self, format: str = "obj", morph_targets: bool = False, animation: bool = False) -> bytes:
         return (await self._req("GET", "/export?" + c.export_query(format, morph_targets, animation))).content
 
+    async def export_skeleton(
+        self, format: str = "glb", animation: bool = False, corrective: bool = True
+    ) -> c.SkeletonExport:
+        q = c.skeleton_query(format, animation, corrective)
+        return c.skeleton_export_of(await self._req("GET", "/export?" + q))
+
     async def save_pose(self, name: str, replace: bool = False) -> c.PoseInfo:
         """Saves the settled pose under `name`; an existing pose of that
         name is replaced only with `replace` (else `pose_exists`)."""

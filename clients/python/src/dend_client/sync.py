@@ -156,6 +156,13 @@ class Session:
         per named pose, and with `animation` an animation through them."""
         return self._req("GET", "/export?" + c.export_query(format, morph_targets, animation)).content
 
+    def export_skeleton(self, format: str = "glb", animation: bool = False, corrective: bool = True) -> c.SkeletonExport:
+        """The current pose fitted onto the skinned asset's rig (joint
+        transforms in the nodes, the corrective as a morph target of weight
+        1); with `animation` one keyframe per named pose. Raises
+        `DendError` `not_skinned` / `bad_skin` for meshes without a usable skin."""
+        return c.skeleton_export_of(self._req("GET", "/export?" + c.skeleton_query(format, animation, corrective)))
+
     # named poses
     def save_pose(self, name: str, replace: bool = False) -> c.PoseInfo:
         """Saves the settled pose under `name`. A pose of that name is

@@ -173,6 +173,11 @@ pub enum DeformError {
         /// The asset's parts (`g "LeftArm"`, `node 1 "Arm"`, `primitive [0, 1]`, …).
         available: Vec<String>,
     },
+    /// A constraint selects a joint (`{"joint": …}`) and the asset has no
+    /// usable skin, or not that joint. Fix: use one of the joints
+    /// `GET /v1/meshes/{id}` lists, or mend the skin as the error says.
+    #[error(transparent)]
+    Rig(#[from] crate::rig::RigError),
     /// A combination of parameters the chosen formulation does not have.
     #[error("unsupported: {what}")]
     Unsupported {

@@ -9,7 +9,7 @@
 
 use serde::{Deserialize, Serialize};
 
-use super::asset::groups::GroupSel;
+use super::asset::groups::{GroupSel, NameOrIndex};
 use super::Point;
 
 /// A set of vertices, as written in the constraints JSON: an index list, a box
@@ -35,6 +35,23 @@ pub enum VertexSet {
     /// `{"group": "LeftArm"}`, `{"group": {"node": "Arm"}}`, … : a named
     /// part of the asset (see [`crate::mesh::asset::groups`]).
     Group(GroupSel),
+    /// `{"joint": "hand.L"}`, `{"joint": "spine", "with_children": true}`:
+    /// the region a joint of the asset's skin dominates (see
+    /// [`crate::rig`]).
+    Joint(JointSel),
+}
+
+/// The vertex set `{"joint": …, "with_children": …}`: the welded vertices
+/// whose largest skin weight is the joint's (with its descendants' when
+/// `with_children`).
+#[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct JointSel {
+    /// The joint: its node's name, or its index in the skin's joint list.
+    pub joint: NameOrIndex,
+    /// Also the regions of the joint's descendants.
+    #[serde(default, skip_serializing_if = "std::ops::Not::not")]
+    pub with_children: bool,
 }
 
 /// An axis-aligned box selector.

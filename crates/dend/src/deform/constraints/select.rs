@@ -70,6 +70,13 @@ pub fn select(set: &VertexSet, mesh: &Mesh) -> Result<Vec<u32>, DeformError> {
                 available: Vec::new(),
             })
         }
+        // so does a joint, and its skin
+        VertexSet::Joint(j) => {
+            return Err(DeformError::Rig(crate::rig::RigError::UnknownJoint {
+                joint: j.joint.to_string(),
+                available: Vec::new(),
+            }))
+        }
     };
     out.sort_unstable();
     out.dedup();

@@ -225,6 +225,14 @@ impl Asset {
         self.format
     }
 
+    /// The glTF document kept, for an asset read from glTF/GLB.
+    pub fn gltf(&self) -> Option<&GltfAsset> {
+        match &self.source {
+            Source::Gltf(g) => Some(g),
+            _ => None,
+        }
+    }
+
     /// Asset vertex → welded vertex, `#A`.
     pub fn to_welded(&self) -> &[u32] {
         &self.weld.to_welded
@@ -365,6 +373,15 @@ impl Asset {
             .collect();
         let shades = group_shading(&self.positions, pose, &self.triangles, &corner, ids.len());
         group.iter().map(|&g| shades[g as usize]).collect()
+    }
+
+    /// The normals and tangents [`Asset::export`] writes for `pose` (asset
+    /// layout, world space) of a glTF asset; empty for other assets.
+    pub fn gltf_pose_shading(&self, pose: &[Point]) -> Shading {
+        match &self.source {
+            Source::Gltf(g) => self.gltf_shading(g, pose),
+            _ => Shading::default(),
+        }
     }
 
     /// New normals (recomputed) and tangents (turned, orthogonalised), world

@@ -42,10 +42,14 @@ mod accessor;
 mod container;
 mod morph;
 mod read;
+mod skeleton;
+mod skin;
 mod write;
 
 pub use container::Sidecars;
 pub use morph::MorphTarget;
+pub use skeleton::{NodeTrs, SkeletonPose};
+pub use skin::{SkinData, SkinError, SkinJoint, Trs, WEIGHT_SUM_TOLERANCE};
 
 /// A document and its single buffer as `container`: GLB with a BIN chunk,
 /// or `.gltf` with the buffer as a data URI (`doc` must have one buffer).

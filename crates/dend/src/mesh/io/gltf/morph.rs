@@ -33,7 +33,7 @@ const ARRAY_BUFFER: u32 = 34962;
 
 /// The new accessors, bufferViews and bytes of an export, appended after
 /// the document's own (whose indices and bytes stay as they are).
-struct Appender {
+pub(super) struct Appender {
     /// Index of the new buffer (after the document's buffers).
     buffer: usize,
     bytes: Vec<u8>,
@@ -42,7 +42,7 @@ struct Appender {
 impl Appender {
     /// Appends `values` (`width` floats per element) as a new bufferView
     /// and accessor of type `kind`; returns the accessor's index.
-    fn push(
+    pub(super) fn push(
         &mut self,
         json: &mut Value,
         values: &[f32],
@@ -78,7 +78,7 @@ impl Appender {
 
 /// Appends `item` to the array `key` of object `json` (made an array if
 /// it is absent or is not one); returns its index.
-fn push(json: &mut Value, key: &str, item: Value) -> usize {
+pub(super) fn push(json: &mut Value, key: &str, item: Value) -> usize {
     let Some(obj) = json.as_object_mut() else {
         return 0; // a glTF document is an object (checked when read)
     };
@@ -122,6 +122,23 @@ impl GltfAsset {
         animation: bool,
         container: Container,
     ) -> Vec<u8> {
+        let mut doc = self.with_morph_targets(targets);
+        if animation && !targets.is_empty() {
+            animate(
+                &mut doc.json,
+                &mut doc.out,
+                &doc.nodes,
+                &doc.counts,
+                targets.len(),
+            );
+        }
+        doc.finish(container)
+    }
+
+    /// The document with `targets` attached to every deformed primitive
+    /// (weights 0), not yet written: what [`Self::export_morph_targets`]
+    /// and the skeleton export build on.
+    pub(super) fn with_morph_targets(&self, targets: &[MorphTarget]) -> MorphDoc {
         let mut json = self.json.clone();
         let mut out = Appender {
             buffer: self.buffers.len(),
@@ -189,12 +206,38 @@ impl GltfAsset {
             let had = attach(&mut json, m, &made, targets);
             let _ = target_counts.insert(m, (had, had + targets.len()));
         }
-        if animation && !targets.is_empty() {
-            animate(&mut json, &mut out, &nodes, &target_counts, targets.len());
-        }
         let mut buffers = self.buffers.clone();
-        buffers.push(out.bytes);
-        finish(json, &buffers, container)
+        buffers.push(Vec::new());
+        MorphDoc {
+            json,
+            out,
+            buffers,
+            nodes,
+            counts: target_counts,
+        }
+    }
+}
+
+/// A document being exported: the JSON, the data appended so far, and
+/// for each deformed node its mesh, for each mesh its target counts
+/// before and after the new targets.
+pub(super) struct MorphDoc {
+    pub json: Value,
+    pub out: Appender,
+    /// The document's buffers, and an empty last one the appended data
+    /// goes into.
+    buffers: Vec<Vec<u8>>,
+    pub nodes: BTreeMap<usize, usize>,
+    pub counts: BTreeMap<usize, (usize, usize)>,
+}
+
+impl MorphDoc {
+    /// Writes the document as `container`.
+    pub fn finish(mut self, container: Container) -> Vec<u8> {
+        if let Some(last) = self.buffers.last_mut() {
+            *last = std::mem::take(&mut self.out.bytes);
+        }
+        finish(self.json, &self.buffers, container)
     }
 }
 
