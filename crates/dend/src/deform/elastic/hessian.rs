@@ -107,11 +107,11 @@ impl ElasticOps {
         out: &mut Vec<Triplet<usize, usize, Real>>,
     ) {
         let mut blocks: Vec<(u32, Matrix3<Real>)> = Vec::new();
-        for i in 0..set.free.len() {
+        for (i, q) in rot.iter().enumerate().take(set.free.len()) {
             if !(set.free[i] && set.fit[i]) {
                 continue;
             }
-            let r = rot[i].to_rotation_matrix();
+            let r = q.to_rotation_matrix();
             let mut c = Matrix3::zeros();
             blocks.clear();
             blocks.push((i as u32, Matrix3::zeros()));
