@@ -15,9 +15,9 @@
 use axum::http::{header, HeaderName, HeaderValue};
 use axum::response::{IntoResponse, Response};
 
-use super::error::ApiError;
-use super::AppState;
+use crate::error::ApiError;
 use crate::session::SessionHandle;
+use crate::state::AppState;
 use dend::mesh::io::Format;
 
 /// `corrective=`: absent, `true`/`1` keep the correctives, `false`/`0`

@@ -20,9 +20,16 @@ fn scaled(mesh: &Mesh, s: Real) -> Mesh {
     Mesh::new(p, mesh.triangles().to_vec()).unwrap()
 }
 
+/// An edit of a mesh scaled by the given factor.
+type Edit = dyn Fn(&Mesh, Real) -> Constraints;
+
+/// Each level's vertex count, finest first, and each coarse level's
+/// vertices as vertices of the level above.
+type LevelMaps = (Vec<usize>, Vec<Vec<u32>>);
+
 /// The vertex counts of `rest`'s levels, finest first, and each coarse
 /// level's vertices as fine vertices of the level above.
-fn levels_of(rest: &Arc<Rest>) -> (Vec<usize>, Vec<Vec<u32>>) {
+fn levels_of(rest: &Arc<Rest>) -> LevelMaps {
     let mut counts = vec![rest.mesh().num_vertices()];
     let mut maps = Vec::new();
     let ratio = Params::default().elastic().unwrap().coarse_ratio;
@@ -62,11 +69,7 @@ fn jittered_creature() -> Mesh {
 /// The edit of `mesh` scaled by `s` (`edit` gives it on the unscaled
 /// mesh's terms), solved from rest with every level: the report's
 /// (fine, coarse) iterations, the pose divided by `s`, and the levels.
-fn run(
-    mesh: &Mesh,
-    s: Real,
-    edit: &dyn Fn(&Mesh, Real) -> Constraints,
-) -> ((usize, usize), Vec<Point>, (Vec<usize>, Vec<Vec<u32>>)) {
+fn run(mesh: &Mesh, s: Real, edit: &Edit) -> ((usize, usize), Vec<Point>, LevelMaps) {
     let m = scaled(mesh, s);
     let c = edit(&m, s);
     let params = Params::default();
@@ -127,7 +130,7 @@ fn creature_edit(mesh: &Mesh, s: Real) -> Constraints {
 /// boundary, obtuse and skinny triangles) and on a closed irregular mesh.
 #[test]
 fn the_hierarchy_does_not_depend_on_the_unit_of_length() {
-    let cases: Vec<(&str, Mesh, &dyn Fn(&Mesh, Real) -> Constraints)> = vec![
+    let cases: Vec<(&str, Mesh, &Edit)> = vec![
         (
             "saddle 40²",
             irregular_patch(PatchSurface::Saddle, 40, 0.4, 17),
