@@ -6,19 +6,13 @@ use std::sync::Arc;
 
 use nalgebra::{UnitQuaternion, Vector3};
 
-use super::test_util::max_dist;
+use super::test_util::{max_dist, patch_edit, scaled};
 use crate::deform::coarse::MIN_VERTICES;
-use crate::deform::{Constraints, Deformer, Factor, Levels, Params, Rest, RigidTransform};
+use crate::deform::{Constraints, Deformer, Factor, Levels, Params, Rest};
 use crate::mesh::gen::{
     creature_constraints, generate, irregular_patch, PatchSurface, Shape, ShapeSpec,
 };
 use crate::mesh::{Mesh, Point, Real};
-
-/// `mesh` with every coordinate times `s`.
-fn scaled(mesh: &Mesh, s: Real) -> Mesh {
-    let p = mesh.positions().iter().map(|p| p.map(|c| s * c)).collect();
-    Mesh::new(p, mesh.triangles().to_vec()).unwrap()
-}
 
 /// An edit of a mesh scaled by the given factor.
 type Edit = dyn Fn(&Mesh, Real) -> Constraints;
@@ -81,36 +75,6 @@ fn run(mesh: &Mesh, s: Real, edit: &Edit) -> ((usize, usize), Vec<Point>, LevelM
     assert!(r.converged, "scale {s}: {r:?}");
     let pose = d.pose().iter().map(|p| p.map(|c| c / s)).collect();
     ((r.iterations, r.coarse_iterations), pose, levels_of(&rest))
-}
-
-/// Fixed: `x < x0`; handle: `x > x1`, moved by `t` and turned by `r`
-/// about its centroid.
-fn x_edit(mesh: &Mesh, x0: Real, x1: Real, t: Point, r: UnitQuaternion<Real>) -> Constraints {
-    let pick = |keep: &dyn Fn(Real) -> bool| -> Vec<u32> {
-        (0..mesh.num_vertices() as u32)
-            .filter(|&v| keep(mesh.positions()[v as usize][0]))
-            .collect()
-    };
-    let mut c = Constraints::new(
-        mesh,
-        pick(&|x| x < x0),
-        vec![("h".into(), pick(&|x| x > x1), None)],
-    )
-    .unwrap();
-    let pivot = c.handles[0].rest_centroid;
-    c.handles[0].target = RigidTransform {
-        rotation: r,
-        translation: t,
-        pivot,
-    };
-    c
-}
-
-/// The patch edit of `open_tests`: one side fixed, the other lifted,
-/// pulled in and turned about y.
-fn patch_edit(mesh: &Mesh, s: Real) -> Constraints {
-    let r = UnitQuaternion::from_axis_angle(&Vector3::y_axis(), -0.9);
-    x_edit(mesh, -0.8 * s, 0.8 * s, [-0.3 * s, 0.1 * s, 0.4 * s], r)
 }
 
 /// The creature's edit: feet fixed, the head moved up and sideways and

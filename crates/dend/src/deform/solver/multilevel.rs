@@ -131,7 +131,7 @@ pub enum Levels {
 
 impl Levels {
     /// The levels the coarse problem's own solve uses.
-    pub(super) fn below(self) -> Levels {
+    fn below(self) -> Levels {
         match self {
             Levels::One | Levels::Two => Levels::One,
             Levels::Many => Levels::Many,

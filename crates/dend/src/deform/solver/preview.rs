@@ -153,14 +153,8 @@ impl Deformer {
             Some(p) if p.key == key => p,
             _ => Box::new(Preview {
                 key,
-                problem: coarse_problem(
-                    &self.rest,
-                    &self.params,
-                    key.1,
-                    constraints,
-                    self.levels.below(),
-                )
-                .map(Box::new),
+                problem: coarse_problem(&self.rest, &self.params, key.1, constraints, self.levels)
+                    .map(Box::new),
                 following: false,
                 pending: false,
                 pose: Vec::new(),
