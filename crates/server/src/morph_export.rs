@@ -46,15 +46,7 @@ pub(crate) async fn export(
     format: Format,
     animation: bool,
 ) -> Result<Response, ApiError> {
-    let named = s.named_poses().await?;
-    let poses: Vec<(String, Vec<[f64; 3]>)> = if named.is_empty() {
-        vec![("pose".into(), s.pose().await?.positions.to_vec())]
-    } else {
-        named
-            .iter()
-            .map(|p| (p.name.clone(), p.pose.clone()))
-            .collect()
-    };
+    let poses = poses_to_export(s, &s.named_poses().await?).await?;
     let asset = crate::meshes::stored_asset(st, &s.info().mesh_id)
         .await?
         .ok_or_else(|| {
@@ -82,4 +74,20 @@ pub(crate) async fn export(
         _ => "model/gltf-binary",
     };
     Ok(([(header::CONTENT_TYPE, ct)], bytes).into_response())
+}
+
+/// The poses an export writes: the session's `named` poses in order, or
+/// its current pose as "pose" when it has none.
+pub(crate) async fn poses_to_export(
+    s: &SessionHandle,
+    named: &[crate::store::NamedPose],
+) -> Result<Vec<(String, Vec<[f64; 3]>)>, ApiError> {
+    Ok(if named.is_empty() {
+        vec![("pose".into(), s.pose().await?.positions.to_vec())]
+    } else {
+        named
+            .iter()
+            .map(|p| (p.name.clone(), p.pose.clone()))
+            .collect()
+    })
 }

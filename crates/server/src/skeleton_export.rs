@@ -45,14 +45,7 @@ pub(crate) async fn export(
     } else {
         std::sync::Arc::new(Vec::new())
     };
-    let poses: Vec<(String, Vec<[f64; 3]>)> = if named.is_empty() {
-        vec![("pose".into(), s.pose().await?.positions.to_vec())]
-    } else {
-        named
-            .iter()
-            .map(|p| (p.name.clone(), p.pose.clone()))
-            .collect()
-    };
+    let poses = crate::morph_export::poses_to_export(s, &named).await?;
     let asset = crate::meshes::stored_asset(st, &s.info().mesh_id)
         .await?
         .ok_or_else(|| {
