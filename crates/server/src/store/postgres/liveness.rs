@@ -163,20 +163,49 @@ pub(super) fn holder_liveness(
         .map_err(pg_err)?;
     let (asking_seen, holder_seen, grace_left): (bool, bool, i64) =
         (row.get(0), row.get(1), row.get(2));
-    Ok(if !asking_seen || holder_seen {
+    Ok(classify(asking_seen, holder_seen, grace_left))
+}
+
+/// [`holder_liveness`]'s rule. Inside the grace the answer is
+/// [`Holder::Unknown`] whether or not the asking instance's own liveness
+/// connection is back yet: its thread reconnects within the grace too, so
+/// the answer is known when the grace ends (a refusal's retry hint), not
+/// when the lease expires. Past the grace, an asking instance that does
+/// not see its own connection has the check off (a pooler hides backends).
+fn classify(asking_seen: bool, holder_seen: bool, grace_left: i64) -> Holder {
+    if holder_seen {
         Holder::Present
     } else if grace_left > 0 {
         Holder::Unknown {
             left_ms: grace_left.unsigned_abs(),
         }
+    } else if !asking_seen {
+        Holder::Present
     } else {
         Holder::Gone
-    })
+    }
 }
 
 #[cfg(test)]
 mod tests {
-    use super::liveness_name;
+    use super::{classify, liveness_name, Holder};
+
+    #[test]
+    fn inside_the_grace_the_holder_is_unknown_even_before_the_own_connection_is_back() {
+        // just after a PostgreSQL restart neither connection is back yet:
+        // the retry hint must be the grace's end, not the lease's
+        assert_eq!(
+            classify(false, false, 2500),
+            Holder::Unknown { left_ms: 2500 }
+        );
+        assert_eq!(classify(true, false, 10), Holder::Unknown { left_ms: 10 });
+        // a holder seen is present, inside the grace or not
+        assert_eq!(classify(false, true, 2500), Holder::Present);
+        assert_eq!(classify(true, true, 0), Holder::Present);
+        // past the grace: gone only when the asking instance sees itself
+        assert_eq!(classify(true, false, 0), Holder::Gone);
+        assert_eq!(classify(false, false, 0), Holder::Present);
+    }
 
     #[test]
     fn liveness_names_fit_postgres() {
