@@ -449,8 +449,10 @@ async fn extra_sessions(
                 s.delete().await?;
             }
             Err(dend_client::ClientError::Api {
-                status: 503, code, ..
-            }) if code == "overloaded" => refused += 1,
+                status: 503,
+                code: dend_client::ErrorCode::Overloaded,
+                ..
+            }) => refused += 1,
             Err(e) => return Err(e.into()),
         }
         tokio::time::sleep(Duration::from_millis(50)).await;

@@ -2,6 +2,7 @@
 //! reqwest for HTTP and tokio-tungstenite (through `dend::client`) for
 //! WebSocket.
 
+use dend_client::ErrorCode;
 use std::sync::Arc;
 use std::time::Duration;
 
@@ -154,7 +155,7 @@ async fn http_drag_undo_redo_reset_export_delete() -> Result<(), ClientError> {
     match s.info().await {
         Err(ClientError::Api {
             status: 404, code, ..
-        }) => assert_eq!(code, "session_not_found"),
+        }) => assert_eq!(code, ErrorCode::SessionNotFound),
         other => panic!("expected 404, got {other:?}"),
     }
     Ok(())

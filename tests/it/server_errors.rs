@@ -1,6 +1,7 @@
 //! Each bad input gets its specific error code, over real sockets; oversize
 //! uploads are refused from `Content-Length` or while streaming.
 
+use dend_client::ErrorCode;
 use std::time::Duration;
 
 use dend_client::{Client, ClientError};
@@ -210,7 +211,7 @@ async fn session_limit_is_503() -> Result<(), ClientError> {
     match c.create_session(&mesh.id, json!({})).await {
         Err(ClientError::Api {
             status: 503, code, ..
-        }) => assert_eq!(code, "too_many_sessions"),
+        }) => assert_eq!(code, ErrorCode::TooManySessions),
         other => panic!("expected 503, got {other:?}"),
     }
     Ok(())

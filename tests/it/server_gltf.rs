@@ -2,6 +2,7 @@
 //! asset kept by the store (memory and SQLite, across a restart), exports
 //! in the asset's layout that pass the Khronos validator, typed 4xx errors.
 
+use dend_client::ErrorCode;
 use std::sync::Arc;
 use std::time::Duration;
 
@@ -270,7 +271,7 @@ async fn constraints_by_group_resolve_on_the_uploaded_asset() -> Result<(), Clie
             code,
             message,
         }) => {
-            assert_eq!((status, code.as_str()), (422, "unknown_group"));
+            assert_eq!((status, code), (422, ErrorCode::UnknownGroup));
             assert!(
                 message.contains("LeftArm") && message.contains("g \"tip\""),
                 "{message}"
@@ -286,7 +287,13 @@ async fn constraints_by_group_resolve_on_the_uploaded_asset() -> Result<(), Clie
     .await?;
     let e = ws.event("error").await?;
     assert!(
-        matches!(&e, ServerMsg::Error { code, .. } if code == "unknown_group"),
+        matches!(
+            &e,
+            ServerMsg::Error {
+                code: ErrorCode::UnknownGroup,
+                ..
+            }
+        ),
         "{e:?}"
     );
     // over the WebSocket a known group resolves like over HTTP
@@ -312,7 +319,7 @@ async fn constraints_by_group_resolve_on_the_uploaded_asset() -> Result<(), Clie
     let s = c.create_session(&plain.id, json!({})).await?;
     match s.set_constraints(&bad).await {
         Err(ClientError::Api { status, code, .. }) => {
-            assert_eq!((status, code.as_str()), (422, "unknown_group"));
+            assert_eq!((status, code), (422, ErrorCode::UnknownGroup));
         }
         other => panic!("{other:?}"),
     }

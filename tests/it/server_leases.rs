@@ -11,6 +11,7 @@
 //!   event and not applied, and after the store is back no acknowledged
 //!   drag is missing and no refused one present.
 
+use dend_client::ErrorCode;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
 use std::time::Duration;
@@ -48,7 +49,7 @@ async fn start(store: Arc<dyn Store>, cluster: Option<(&str, u64)>) -> (String, 
     (format!("http://{addr}"), state)
 }
 
-fn api_code(r: &Result<impl std::fmt::Debug, ClientError>) -> Option<(u16, String, String)> {
+fn api_code(r: &Result<impl std::fmt::Debug, ClientError>) -> Option<(u16, ErrorCode, String)> {
     match r {
         Err(ClientError::Api {
             status,
@@ -87,7 +88,7 @@ async fn leased_elsewhere_is_refused_then_taken_over_and_the_old_owner_fenced(
     // a never drives it while b's lease lives: 409 naming b, HTTP and WebSocket
     let r = sa.info().await;
     let (status, code, message) = api_code(&r).expect("refused");
-    assert_eq!((status, code.as_str()), (409, "session_owned_elsewhere"));
+    assert_eq!((status, code), (409, ErrorCode::SessionOwnedElsewhere));
     assert!(message.contains("`b`"), "{message}");
     assert!(sa.connect().await.is_err(), "no WebSocket on a");
     assert!(a.registry.is_empty());
@@ -107,15 +108,15 @@ async fn leased_elsewhere_is_refused_then_taken_over_and_the_old_owner_fenced(
         .await;
     let (status, code, message) = api_code(&r).expect("fenced");
     assert_eq!(
-        (status, code.as_str()),
-        (409, "session_owned_elsewhere"),
+        (status, code),
+        (409, ErrorCode::SessionOwnedElsewhere),
         "{message}"
     );
     assert!(message.contains("`a`"), "{message}");
     let r = sb.info().await;
     assert_eq!(
-        api_code(&r).map(|c| c.1).as_deref(),
-        Some("session_owned_elsewhere")
+        api_code(&r).map(|c| c.1),
+        Some(ErrorCode::SessionOwnedElsewhere)
     );
     assert!(b.registry.get(&s.id).is_none_or(|h| h.is_fenced()));
     assert!(
@@ -151,8 +152,8 @@ async fn the_owner_hands_a_session_over_to_the_instance_that_asks() -> Result<()
     let sa = ca.session(&s.id, &s.token);
     let first = sa.info().await;
     assert_eq!(
-        api_code(&first).map(|c| c.1).as_deref(),
-        Some("session_owned_elsewhere")
+        api_code(&first).map(|c| c.1),
+        Some(ErrorCode::SessionOwnedElsewhere)
     );
     // b hands it over at its next renewal (a third of the lifetime), long
     // before the lease would expire; b's client sees the session close
@@ -234,7 +235,7 @@ async fn an_unreachable_store_refuses_writes_and_loses_no_acknowledged_drag(
     let r = c.upload_json(&p, &t).await;
     assert_eq!(
         api_code(&r).map(|c| (c.0, c.1)),
-        Some((503, "store_unavailable".to_owned()))
+        Some((503, ErrorCode::StoreUnavailable))
     );
     // a WebSocket drag: refused with an error event, frames keep ack 1
     ws.drag(0, [0.25, 0.0, 0.0], None, 2).await?;
@@ -242,7 +243,7 @@ async fn an_unreachable_store_refuses_writes_and_loses_no_acknowledged_drag(
     while !refused {
         match ws.next().await? {
             WsEvent::Event(ServerMsg::Error { code, message, .. }) => {
-                assert_eq!(code, "store_unavailable", "{message}");
+                assert_eq!(code, ErrorCode::StoreUnavailable, "{message}");
                 refused = true;
             }
             WsEvent::Frame(h, _) => assert!(h.ack_seq <= 1, "seq 2 acknowledged"),

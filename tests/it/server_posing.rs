@@ -3,6 +3,7 @@
 //! redo span constraint edits, and a revived session gets the anchored set
 //! back from the store.
 
+use dend_client::ErrorCode;
 use std::sync::Arc;
 use std::time::Duration;
 
@@ -171,7 +172,7 @@ async fn the_session_shows_its_constraints_and_refuses_stale_edits() -> Result<(
     // a second edit based on the old revision is refused, the set unchanged
     match s.set_constraints_if(&grid_constraints(N), r1).await {
         Err(ClientError::Api { status, code, .. }) => {
-            assert_eq!((status, code.as_str()), (409, "stale_constraints"));
+            assert_eq!((status, code), (409, ErrorCode::StaleConstraints));
         }
         other => panic!("expected stale_constraints, got {other:?}"),
     }

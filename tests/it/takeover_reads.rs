@@ -9,6 +9,7 @@
 //!   rebuilt is queued and applied once it is ready (HTTP answers with
 //!   it, a WebSocket drag is acknowledged by a frame), not refused.
 
+use dend_client::ErrorCode;
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
@@ -59,7 +60,13 @@ fn offset(p: &Pose) -> f64 {
 }
 
 fn owned_elsewhere(e: &ClientError) -> bool {
-    matches!(e, ClientError::Api { code, .. } if code == "session_owned_elsewhere")
+    matches!(
+        e,
+        ClientError::Api {
+            code: ErrorCode::SessionOwnedElsewhere,
+            ..
+        }
+    )
 }
 
 /// Reads the pose on `s` in a loop until `end`, failing on any pose whose
@@ -210,7 +217,11 @@ async fn record_reads(s: SessionClient, end: Instant) -> Result<Vec<Read>, Strin
     while Instant::now() < end {
         match s.pose().await {
             Ok(p) => reads.push(Read::Pose(Instant::now(), p)),
-            Err(ClientError::Api { code, message, .. }) if code == "session_owned_elsewhere" => {
+            Err(ClientError::Api {
+                code: ErrorCode::SessionOwnedElsewhere,
+                message,
+                ..
+            }) => {
                 let hint = retry_hint(&message).ok_or(format!("no retry hint in {message:?}"))?;
                 reads.push(Read::Refused(Instant::now(), hint));
             }

@@ -25,6 +25,7 @@
 //! missing, a failure under `CI=true`.
 
 use crate::failover_support;
+use dend_client::ErrorCode;
 
 use std::collections::HashMap;
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -114,7 +115,8 @@ async fn pose_retrying(s: &SessionClient) -> Result<dend_client::Pose, String> {
         match s.pose().await {
             Ok(p) => return Ok(p),
             Err(ClientError::Api { code, .. })
-                if code == "session_owned_elsewhere" && t0.elapsed() < Duration::from_secs(10) =>
+                if code == ErrorCode::SessionOwnedElsewhere
+                    && t0.elapsed() < Duration::from_secs(10) =>
             {
                 tokio::time::sleep(Duration::from_millis(50)).await;
             }
@@ -420,15 +422,24 @@ async fn restart_postgres(
     let refused_in = t1.elapsed();
     match upload {
         Err(ClientError::Api {
-            status: 503, code, ..
-        }) if code == "store_unavailable" => {}
+            status: 503,
+            code: ErrorCode::StoreUnavailable,
+            ..
+        }) => {}
         other => return Err(format!("upload with PostgreSQL down: {other:?}")),
     }
     let put = Client::new(&owner_base)
         .session(&s.id, &s.token)
         .set_constraints(&grid_constraints(N))
         .await;
-    let put_refused = matches!(&put, Err(ClientError::Api { status: 503, code, .. }) if code == "store_unavailable");
+    let put_refused = matches!(
+        &put,
+        Err(ClientError::Api {
+            status: 503,
+            code: ErrorCode::StoreUnavailable,
+            ..
+        })
+    );
     assert!(
         put_refused,
         "a constraint edit with PostgreSQL down: {put:?}"

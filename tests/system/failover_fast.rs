@@ -18,6 +18,7 @@
 //! Needs `haproxy` and PostgreSQL's server binaries: skipped (logged to
 //! `$DEND_SKIP_LOG`) when they are missing, a failure under `CI=true`.
 
+use dend_client::ErrorCode;
 use std::collections::HashMap;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
@@ -106,7 +107,7 @@ async fn first_frame(
                 return Some(h);
             }
             Ok(WsEvent::Event(ServerMsg::Error { code, message, seq })) => {
-                seen.lock().error(&code, &message, seq)
+                seen.lock().error(code.as_str(), &message, seq)
             }
             Ok(WsEvent::Event(_)) => {}
             Ok(WsEvent::Closed(_)) | Err(_) => return None,
@@ -208,7 +209,7 @@ pub(crate) async fn drive(s: SessionClient, ctl: Arc<Ctl>, seen: Arc<Mutex<Seen>
                 }
                 Ok(Ok(WsEvent::Event(ServerMsg::Error { code, message, seq }))) => {
                     let mut t = seen.lock();
-                    t.error(&code, &message, seq);
+                    t.error(code.as_str(), &message, seq);
                     if seq == Some(w) {
                         // refused, not applied: sent again
                         t.sent = t.acked;
@@ -256,7 +257,8 @@ pub(crate) async fn pose_retrying(s: &SessionClient) -> Result<dend_client::Pose
         match s.pose().await {
             Ok(p) => return Ok(p),
             Err(ClientError::Api { code, .. })
-                if code == "session_owned_elsewhere" && t0.elapsed() < Duration::from_secs(15) =>
+                if code == ErrorCode::SessionOwnedElsewhere
+                    && t0.elapsed() < Duration::from_secs(15) =>
             {
                 tokio::time::sleep(Duration::from_millis(50)).await;
             }

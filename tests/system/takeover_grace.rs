@@ -16,6 +16,7 @@
 //! Needs PostgreSQL's server binaries: skipped (logged to `$DEND_SKIP_LOG`)
 //! when they are missing, a failure under `CI=true`.
 
+use dend_client::ErrorCode;
 use std::time::{Duration, Instant};
 
 use dend_client::ws::{ClientMsg, DeltaJson};
@@ -143,12 +144,19 @@ async fn run(pg: &Postgres, a: &mut Instance, b: &Instance) -> Result<(), String
                     break;
                 }
             }
-            Err(ClientError::Api { code, message, .. }) if code == "session_owned_elsewhere" => {
+            Err(ClientError::Api {
+                code: ErrorCode::SessionOwnedElsewhere,
+                message,
+                ..
+            }) => {
                 let hint = retry_hint(&message).ok_or(format!("no retry hint: {message}"))?;
                 refusals.push((Instant::now(), hint));
             }
             // PostgreSQL coming back
-            Err(ClientError::Api { code, .. }) if code == "store_unavailable" => {}
+            Err(ClientError::Api {
+                code: ErrorCode::StoreUnavailable,
+                ..
+            }) => {}
             Err(other) => return Err(other.to_string()),
         }
         tokio::time::sleep(Duration::from_millis(20)).await;

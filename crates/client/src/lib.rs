@@ -38,8 +38,9 @@ pub enum ClientError {
     Api {
         /// HTTP status.
         status: u16,
-        /// Error code.
-        code: String,
+        /// Error code (a code this client does not know is
+        /// [`ErrorCode::Other`]).
+        code: ErrorCode,
         /// Message.
         message: String,
     },
@@ -69,6 +70,9 @@ pub use dend_protocol::FrameEncoding;
 pub use dend_protocol::MeshInfo;
 /// A pose as JSON (the server's own type).
 pub use dend_protocol::PoseJson as Pose;
+/// The error body of a failed request and its stable codes (the server's
+/// own types).
+pub use dend_protocol::{ErrorBody, ErrorCode};
 
 /// `POST /v1/meshes` JSON body.
 #[derive(serde::Serialize)]
@@ -82,15 +86,6 @@ struct UploadJson<'a> {
 pub struct Client {
     http: reqwest::Client,
     base: String,
-}
-
-/// The API's error body `{code, message}`.
-#[derive(Debug, Default, serde::Deserialize)]
-struct ErrorBody {
-    #[serde(default)]
-    code: String,
-    #[serde(default)]
-    message: String,
 }
 
 async fn check(r: reqwest::Response) -> Result<reqwest::Response, ClientError> {

@@ -1,12 +1,15 @@
 //! The dend server's wire format, shared by the server and its clients:
 //! the binary pose frames ([`frame`]), the session socket's JSON messages
-//! and the session requests and answers ([`ws`]), and the mesh and pose
-//! JSON of the HTTP API (this module). `api/ws-protocol.md` and
+//! and the session requests and answers ([`ws`]), the error body of every
+//! failed request ([`error`]), and the mesh and pose JSON of the HTTP API
+//! (this module). `api/ws-protocol.md` and
 //! `api/openapi.yaml` describe them for clients in other languages.
 
+pub mod error;
 pub mod frame;
 pub mod ws;
 
+pub use error::{ErrorBody, ErrorCode};
 pub use frame::delta::{self, DeltaEncoder};
 pub use frame::{
     bounding_box, decode_frame, decode_frame_full, encode_frame_v3, reencode_v2, DecodedFrame,

@@ -10,6 +10,7 @@
 
 use serde::{Deserialize, Serialize};
 
+use crate::error::ErrorCode;
 use crate::frame::FrameEncoding;
 
 /// Client id within a session (assigned when a socket joins).
@@ -452,7 +453,7 @@ pub enum ServerMsg {
     /// An error (of this client's message when `seq` is set).
     Error {
         /// Stable code (same table as HTTP).
-        code: String,
+        code: ErrorCode,
         /// Message.
         message: String,
         /// The drag's seq, for drag errors.

@@ -14,7 +14,6 @@ use axum::extract::ws::rejection::WebSocketUpgradeRejection;
 use axum::extract::FromRequestParts;
 use axum::http::StatusCode;
 use axum::response::{IntoResponse, Response};
-use serde::Serialize;
 
 use crate::session::SessionError;
 use crate::store::StoreError;
@@ -206,73 +205,69 @@ pub enum ApiError {
     Internal(String),
 }
 
-/// The JSON error body.
-#[derive(Debug, Serialize, serde::Deserialize, PartialEq)]
-pub struct ErrorBody {
-    /// Stable machine-readable code (see [`ApiError::code`]).
-    pub code: String,
-    /// Human-readable message.
-    pub message: String,
-}
+/// The JSON error body, the protocol's own (codes and body are defined
+/// once, in `dend-protocol`, for the server and every Rust client).
+pub use dend_protocol::{ErrorBody, ErrorCode};
 
 impl ApiError {
     /// THE table: stable code and HTTP status of each error.
-    pub fn code_status(&self) -> (&'static str, StatusCode) {
+    pub fn code_status(&self) -> (ErrorCode, StatusCode) {
         use ApiError::*;
+        use ErrorCode as C;
         match self {
-            InvalidJson(_) => ("invalid_json", StatusCode::BAD_REQUEST),
+            InvalidJson(_) => (C::InvalidJson, StatusCode::BAD_REQUEST),
             UnsupportedMediaType(_) => {
-                ("unsupported_media_type", StatusCode::UNSUPPORTED_MEDIA_TYPE)
+                (C::UnsupportedMediaType, StatusCode::UNSUPPORTED_MEDIA_TYPE)
             }
-            InvalidQuery(_) => ("invalid_query", StatusCode::BAD_REQUEST),
-            InvalidPath(_) => ("invalid_path", StatusCode::BAD_REQUEST),
-            InvalidUpgrade(_) => ("invalid_upgrade", StatusCode::BAD_REQUEST),
-            MethodNotAllowed(_) => ("method_not_allowed", StatusCode::METHOD_NOT_ALLOWED),
-            InvalidMesh(_) => ("invalid_mesh", StatusCode::UNPROCESSABLE_ENTITY),
-            UnsupportedFormat(_) => ("unsupported_format", StatusCode::UNSUPPORTED_MEDIA_TYPE),
-            InvalidParams(_) => ("invalid_params", StatusCode::UNPROCESSABLE_ENTITY),
-            InvalidConstraints(_) => ("invalid_constraints", StatusCode::UNPROCESSABLE_ENTITY),
-            VertexOutOfRange(_) => ("vertex_out_of_range", StatusCode::UNPROCESSABLE_ENTITY),
-            UnknownGroup(_) => ("unknown_group", StatusCode::UNPROCESSABLE_ENTITY),
-            UnknownJoint(_) => ("unknown_joint", StatusCode::UNPROCESSABLE_ENTITY),
-            NotSkinned(_) => ("not_skinned", StatusCode::UNPROCESSABLE_ENTITY),
-            BadSkin(_) => ("bad_skin", StatusCode::UNPROCESSABLE_ENTITY),
-            NonFinite(_) => ("non_finite", StatusCode::UNPROCESSABLE_ENTITY),
-            MeshNotFound(_) => ("mesh_not_found", StatusCode::NOT_FOUND),
-            SessionNotFound(_) => ("session_not_found", StatusCode::NOT_FOUND),
-            UnknownHandle(_) => ("unknown_handle", StatusCode::UNPROCESSABLE_ENTITY),
-            RouteNotFound(_) => ("route_not_found", StatusCode::NOT_FOUND),
-            MissingToken => ("missing_token", StatusCode::UNAUTHORIZED),
-            WrongToken => ("forbidden", StatusCode::FORBIDDEN),
-            NotReady(_) => ("not_ready", StatusCode::CONFLICT),
-            MeshInUse { .. } => ("mesh_in_use", StatusCode::CONFLICT),
-            HandleGrabbed(_) => ("handle_grabbed", StatusCode::CONFLICT),
-            NothingToUndo(_) => ("nothing_to_undo", StatusCode::CONFLICT),
-            NothingToRedo(_) => ("nothing_to_redo", StatusCode::CONFLICT),
-            StaleConstraints(_) => ("stale_constraints", StatusCode::CONFLICT),
-            SolveFailed(_) => ("solve_failed", StatusCode::UNPROCESSABLE_ENTITY),
-            PayloadTooLarge(_) => ("payload_too_large", StatusCode::PAYLOAD_TOO_LARGE),
-            TooManyVertices { .. } => ("too_many_vertices", StatusCode::PAYLOAD_TOO_LARGE),
-            RateLimited(_) => ("rate_limited", StatusCode::TOO_MANY_REQUESTS),
-            TooManySessions(_) => ("too_many_sessions", StatusCode::SERVICE_UNAVAILABLE),
-            Overloaded { .. } => ("overloaded", StatusCode::SERVICE_UNAVAILABLE),
-            Draining => ("draining", StatusCode::SERVICE_UNAVAILABLE),
-            TooManyMeshes(_) => ("too_many_meshes", StatusCode::SERVICE_UNAVAILABLE),
-            Timeout => ("timeout", StatusCode::REQUEST_TIMEOUT),
-            SessionClosed => ("session_closed", StatusCode::GONE),
-            StoreUnavailable(_) => ("store_unavailable", StatusCode::SERVICE_UNAVAILABLE),
-            SessionOwnedElsewhere { .. } => ("session_owned_elsewhere", StatusCode::CONFLICT),
-            PoseNotFound(_) => ("pose_not_found", StatusCode::NOT_FOUND),
-            PoseExists(_) => ("pose_exists", StatusCode::CONFLICT),
-            InvalidPoseName(_) => ("invalid_pose_name", StatusCode::UNPROCESSABLE_ENTITY),
-            TooManyPoses(_) => ("too_many_poses", StatusCode::CONFLICT),
-            UnsupportedExport(_) => ("unsupported_export", StatusCode::UNPROCESSABLE_ENTITY),
-            Internal(_) => ("internal", StatusCode::INTERNAL_SERVER_ERROR),
+            InvalidQuery(_) => (C::InvalidQuery, StatusCode::BAD_REQUEST),
+            InvalidPath(_) => (C::InvalidPath, StatusCode::BAD_REQUEST),
+            InvalidUpgrade(_) => (C::InvalidUpgrade, StatusCode::BAD_REQUEST),
+            MethodNotAllowed(_) => (C::MethodNotAllowed, StatusCode::METHOD_NOT_ALLOWED),
+            InvalidMesh(_) => (C::InvalidMesh, StatusCode::UNPROCESSABLE_ENTITY),
+            UnsupportedFormat(_) => (C::UnsupportedFormat, StatusCode::UNSUPPORTED_MEDIA_TYPE),
+            InvalidParams(_) => (C::InvalidParams, StatusCode::UNPROCESSABLE_ENTITY),
+            InvalidConstraints(_) => (C::InvalidConstraints, StatusCode::UNPROCESSABLE_ENTITY),
+            VertexOutOfRange(_) => (C::VertexOutOfRange, StatusCode::UNPROCESSABLE_ENTITY),
+            UnknownGroup(_) => (C::UnknownGroup, StatusCode::UNPROCESSABLE_ENTITY),
+            UnknownJoint(_) => (C::UnknownJoint, StatusCode::UNPROCESSABLE_ENTITY),
+            NotSkinned(_) => (C::NotSkinned, StatusCode::UNPROCESSABLE_ENTITY),
+            BadSkin(_) => (C::BadSkin, StatusCode::UNPROCESSABLE_ENTITY),
+            NonFinite(_) => (C::NonFinite, StatusCode::UNPROCESSABLE_ENTITY),
+            MeshNotFound(_) => (C::MeshNotFound, StatusCode::NOT_FOUND),
+            SessionNotFound(_) => (C::SessionNotFound, StatusCode::NOT_FOUND),
+            UnknownHandle(_) => (C::UnknownHandle, StatusCode::UNPROCESSABLE_ENTITY),
+            RouteNotFound(_) => (C::RouteNotFound, StatusCode::NOT_FOUND),
+            MissingToken => (C::MissingToken, StatusCode::UNAUTHORIZED),
+            WrongToken => (C::Forbidden, StatusCode::FORBIDDEN),
+            NotReady(_) => (C::NotReady, StatusCode::CONFLICT),
+            MeshInUse { .. } => (C::MeshInUse, StatusCode::CONFLICT),
+            HandleGrabbed(_) => (C::HandleGrabbed, StatusCode::CONFLICT),
+            NothingToUndo(_) => (C::NothingToUndo, StatusCode::CONFLICT),
+            NothingToRedo(_) => (C::NothingToRedo, StatusCode::CONFLICT),
+            StaleConstraints(_) => (C::StaleConstraints, StatusCode::CONFLICT),
+            SolveFailed(_) => (C::SolveFailed, StatusCode::UNPROCESSABLE_ENTITY),
+            PayloadTooLarge(_) => (C::PayloadTooLarge, StatusCode::PAYLOAD_TOO_LARGE),
+            TooManyVertices { .. } => (C::TooManyVertices, StatusCode::PAYLOAD_TOO_LARGE),
+            RateLimited(_) => (C::RateLimited, StatusCode::TOO_MANY_REQUESTS),
+            TooManySessions(_) => (C::TooManySessions, StatusCode::SERVICE_UNAVAILABLE),
+            Overloaded { .. } => (C::Overloaded, StatusCode::SERVICE_UNAVAILABLE),
+            Draining => (C::Draining, StatusCode::SERVICE_UNAVAILABLE),
+            TooManyMeshes(_) => (C::TooManyMeshes, StatusCode::SERVICE_UNAVAILABLE),
+            Timeout => (C::Timeout, StatusCode::REQUEST_TIMEOUT),
+            SessionClosed => (C::SessionClosed, StatusCode::GONE),
+            StoreUnavailable(_) => (C::StoreUnavailable, StatusCode::SERVICE_UNAVAILABLE),
+            SessionOwnedElsewhere { .. } => (C::SessionOwnedElsewhere, StatusCode::CONFLICT),
+            PoseNotFound(_) => (C::PoseNotFound, StatusCode::NOT_FOUND),
+            PoseExists(_) => (C::PoseExists, StatusCode::CONFLICT),
+            InvalidPoseName(_) => (C::InvalidPoseName, StatusCode::UNPROCESSABLE_ENTITY),
+            TooManyPoses(_) => (C::TooManyPoses, StatusCode::CONFLICT),
+            UnsupportedExport(_) => (C::UnsupportedExport, StatusCode::UNPROCESSABLE_ENTITY),
+            Internal(_) => (C::Internal, StatusCode::INTERNAL_SERVER_ERROR),
         }
     }
 
     /// The stable code.
-    pub fn code(&self) -> &'static str {
+    pub fn code(&self) -> ErrorCode {
         self.code_status().0
     }
 
@@ -284,7 +279,7 @@ impl ApiError {
             _ => {}
         }
         ErrorBody {
-            code: self.code().to_owned(),
+            code: self.code(),
             message: self.to_string(),
         }
     }
@@ -473,33 +468,42 @@ impl From<SessionError> for ApiError {
 mod tests {
     use super::*;
 
-    #[test]
-    fn codes_are_unique_and_internal_details_hidden() {
-        let all = [
-            ApiError::InvalidJson(String::new()),
-            ApiError::UnsupportedMediaType(String::new()),
-            ApiError::InvalidQuery(String::new()),
-            ApiError::InvalidPath(String::new()),
-            ApiError::InvalidUpgrade(String::new()),
-            ApiError::MethodNotAllowed(String::new()),
-            ApiError::InvalidMesh(String::new()),
-            ApiError::UnsupportedFormat(String::new()),
-            ApiError::InvalidParams(String::new()),
-            ApiError::InvalidConstraints(String::new()),
-            ApiError::VertexOutOfRange(String::new()),
-            ApiError::NonFinite(String::new()),
-            ApiError::MeshNotFound(String::new()),
-            ApiError::SessionNotFound(String::new()),
-            ApiError::UnknownHandle(String::new()),
-            ApiError::RouteNotFound(String::new()),
+    /// One error of each kind the server reports.
+    fn every_error() -> Vec<ApiError> {
+        let s = String::new;
+        vec![
+            ApiError::InvalidJson(s()),
+            ApiError::UnsupportedMediaType(s()),
+            ApiError::InvalidQuery(s()),
+            ApiError::InvalidPath(s()),
+            ApiError::InvalidUpgrade(s()),
+            ApiError::MethodNotAllowed(s()),
+            ApiError::InvalidMesh(s()),
+            ApiError::UnsupportedFormat(s()),
+            ApiError::InvalidParams(s()),
+            ApiError::InvalidConstraints(s()),
+            ApiError::VertexOutOfRange(s()),
+            ApiError::UnknownGroup(s()),
+            ApiError::UnknownJoint(s()),
+            ApiError::NotSkinned(s()),
+            ApiError::BadSkin(s()),
+            ApiError::NonFinite(s()),
+            ApiError::MeshNotFound(s()),
+            ApiError::MeshInUse {
+                mesh: "m".into(),
+                sessions: 2,
+            },
+            ApiError::SessionNotFound(s()),
+            ApiError::UnknownHandle(s()),
+            ApiError::RouteNotFound(s()),
             ApiError::MissingToken,
             ApiError::WrongToken,
-            ApiError::NotReady(String::new()),
-            ApiError::HandleGrabbed(String::new()),
-            ApiError::NothingToUndo(String::new()),
-            ApiError::NothingToRedo(String::new()),
-            ApiError::StaleConstraints(String::new()),
-            ApiError::SolveFailed(String::new()),
+            ApiError::NotReady(s()),
+            ApiError::HandleGrabbed(s()),
+            ApiError::NothingToUndo(s()),
+            ApiError::NothingToRedo(s()),
+            ApiError::StaleConstraints(s()),
+            ApiError::SolveFailed(s()),
             ApiError::PayloadTooLarge(1),
             ApiError::TooManyVertices { got: 2, limit: 1 },
             ApiError::RateLimited(1),
@@ -518,21 +522,26 @@ mod tests {
                 owner: "i2".into(),
                 retry_after_ms: 5,
             },
-            ApiError::PoseNotFound(String::new()),
-            ApiError::PoseExists(String::new()),
-            ApiError::InvalidPoseName(String::new()),
-            ApiError::TooManyPoses(String::new()),
-            ApiError::UnsupportedExport(String::new()),
+            ApiError::PoseNotFound(s()),
+            ApiError::PoseExists(s()),
+            ApiError::InvalidPoseName(s()),
+            ApiError::TooManyPoses(s()),
+            ApiError::UnsupportedExport(s()),
             ApiError::Internal("secret path /etc".into()),
-        ];
+        ]
+    }
+
+    #[test]
+    fn codes_are_unique_and_internal_details_hidden() {
+        let all = every_error();
         let mut codes: Vec<_> = all.iter().map(|e| e.code()).collect();
-        codes.sort_unstable();
+        codes.sort_unstable_by(|a, b| a.as_str().cmp(b.as_str()));
         codes.dedup();
         assert_eq!(codes.len(), all.len());
         let unavailable = ApiError::from(StoreError::Unavailable("refused".into()));
         assert_eq!(
             unavailable.code_status(),
-            ("store_unavailable", StatusCode::SERVICE_UNAVAILABLE)
+            (ErrorCode::StoreUnavailable, StatusCode::SERVICE_UNAVAILABLE)
         );
         let fenced = ApiError::from(StoreError::Fenced {
             session: "s".into(),
@@ -540,7 +549,7 @@ mod tests {
             current: Some(2),
             owner: Some("dend2".into()),
         });
-        assert_eq!(fenced.code(), "session_owned_elsewhere");
+        assert_eq!(fenced.code(), ErrorCode::SessionOwnedElsewhere);
         assert!(fenced.to_string().contains("dend2"), "{fenced}");
         let body = ApiError::Internal("secret path /etc".into()).body();
         assert!(!body.message.contains("secret"));
@@ -548,6 +557,44 @@ mod tests {
         assert_eq!(
             ApiError::MissingToken.code_status().1,
             StatusCode::UNAUTHORIZED
+        );
+    }
+
+    /// Every code the server emits is one the protocol knows (never
+    /// `Other`), reads back from its wire string as itself, in the HTTP body
+    /// and the WebSocket `error` event alike; and the protocol lists no code
+    /// the server never sends.
+    #[test]
+    fn every_code_round_trips_through_the_wire_and_the_protocol_has_no_extra() {
+        use dend_protocol::ServerMsg;
+        let mut emitted = std::collections::HashSet::new();
+        for e in every_error() {
+            let code = e.code();
+            assert!(!matches!(code, ErrorCode::Other(_)), "{e:?}: {code:?}");
+            let wire = serde_json::to_value(e.body()).expect("body");
+            assert_eq!(wire["code"], code.as_str(), "{e:?}");
+            let back: ErrorBody = serde_json::from_value(wire).expect("read back");
+            assert_eq!(back.code, code);
+            assert_eq!(back.message, e.body().message);
+            let event = ServerMsg::Error {
+                code: code.clone(),
+                message: back.message,
+                seq: Some(3),
+            };
+            let text = serde_json::to_string(&event).expect("event");
+            let read: ServerMsg = serde_json::from_str(&text).expect("event back");
+            assert_eq!(read, event, "{text}");
+            emitted.insert(code);
+        }
+        let known: std::collections::HashSet<_> = ErrorCode::ALL.iter().cloned().collect();
+        assert_eq!(emitted, known);
+        // a newer server's code survives an older client: kept as `Other`
+        let body: ErrorBody =
+            serde_json::from_str(r#"{"code": "quota_exceeded", "message": "m"}"#).expect("body");
+        assert_eq!(body.code, ErrorCode::Other("quota_exceeded".into()));
+        assert_eq!(
+            serde_json::to_value(&body).expect("json")["code"],
+            "quota_exceeded"
         );
     }
 }

@@ -177,7 +177,7 @@ pub async fn run_connection<Si, St, E>(
     if !authed {
         if let Err((e, code)) = authenticate(&mut stream, &s, &cfg).await {
             let _ = sink.send(ServerMsg::error(&e, None).text()).await;
-            let _ = sink.send(WsMsg::Close(code, e.code().into())).await;
+            let _ = sink.send(WsMsg::Close(code, e.code().to_string())).await;
             return;
         }
     }

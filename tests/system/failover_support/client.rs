@@ -2,6 +2,7 @@
 //! session over WebSocket through HAProxy and keeps a [`Tally`] of what the
 //! servers acknowledged, reconnecting whenever its connection fails.
 
+use dend_client::ErrorCode;
 use std::collections::HashMap;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
@@ -160,9 +161,10 @@ pub async fn drive(
                             return Answer::Acked(h.ack_seq)
                         }
                         // refused, not applied (the store is down): send it again
-                        Ok(WsEvent::Event(ServerMsg::Error { code, .. }))
-                            if code == "store_unavailable" =>
-                        {
+                        Ok(WsEvent::Event(ServerMsg::Error {
+                            code: ErrorCode::StoreUnavailable,
+                            ..
+                        })) => {
                             return Answer::Refused;
                         }
                         Ok(WsEvent::Closed(_)) | Err(_) => return Answer::Broken,
