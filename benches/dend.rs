@@ -1,5 +1,5 @@
 //! Criterion benchmarks of every stage of a DEND session over meshes of
-//! growing size (issue 5). Run: `cargo bench --bench dend`.
+//! growing size (docs/performance.md). Run: `cargo bench --bench dend`.
 //!
 //! Stages per mesh: operator assembly (`Operators::new`), `Rest::new`
 //! (operators + STEP 1 μ), assembly of `M`, symbolic analysis (AMD), numeric

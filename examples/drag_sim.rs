@@ -1,5 +1,5 @@
-//! The drag loop of a session, in process and without the server (issue
-//! #32): a handle dragged along a path in `--drags` target changes with
+//! The drag loop of a session, in process and without the server (the
+//! interactive figures of docs/performance.md): a handle dragged along a path in `--drags` target changes with
 //! `--per-drag` iterations after each (what the session's frames run while
 //! a person drags), then the settle (one-iteration steps until converged or
 //! `max_iters` since the last change), against the one-shot solve of the

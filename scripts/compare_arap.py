@@ -8,8 +8,8 @@ Usage (from the crate root):
         [--formulation elastic|least_squares|square]
 
 MESH is a file or ``tube:N`` (a generated tube of about N vertices); the
-default list is tube:10000, camel_9770.off, eth_hand_14k.off (the meshes issue
-#18 asks for), armadillo_43k.obj, feline_50k.off and igea_134k.ply from ``$DEND_MESHES`` (default ``../shared/meshes``).
+default list is tube:10000, camel_9770.off, eth_hand_14k.off (the meshes the
+ARAP comparison in docs/performance.md is made on), armadillo_43k.obj, feline_50k.off and igea_134k.ply from ``$DEND_MESHES`` (default ``../shared/meshes``).
 The libigl side runs in ``$DEND_PYTHON`` (default ``.venv/bin/python``, then
 ``/work/main/.venv/bin/python``); this script itself only needs the standard
 library.

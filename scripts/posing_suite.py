@@ -35,7 +35,7 @@ Edits (cases):
   examples/cylinder-bend-{120,180}.json (steps as in
   docs/paper-reproduction.md); `bar-bend-120` (1 step), `bar-bend-180` (3
   steps): the square tube of `dend gen bar` bent the same way, with
-  examples/bar-bend-{120,180}.json (issue #33's "tube bends": a cross-section
+  examples/bar-bend-{120,180}.json (the "tube bends": a cross-section
   half as wide against a similar free length, so the inner side is
   compressed by 20 % at 120 degrees where the cylinder's is by 40 %);
   `survey-cylinder`, `survey-cactus`,
@@ -63,7 +63,8 @@ is what the area, twist and bend rules cost by themselves (bar-300 2.10,
 survey-bar 2.03, cylinder-120 1.72, cylinder-180 2.54 x ARAP's mean): why
 the shape edits are not judged by distortion.
 
-PASS rules (issue #33, the owner's ruling on #18), on our pose against
+PASS rules (what a posing tool must beat ARAP by; docs/posing.md reports
+the verdicts), on our pose against
 libigl ARAP's run to convergence on the same edit in the same run:
 - every edit: time to settle at least 5 x shorter than ARAP's on meshes of
   5,000 vertices or more, 3 x below that (fixed costs dominate there);

@@ -1,4 +1,4 @@
-// Browser test of the editor's first minutes (issue 37) against the real
+// Browser test of the editor's first minutes against the real
 // `dend serve`, in headless Chromium:
 // - first open: the page opens to the generated creature with its feet
 //   fixed and its head a handle, a prompt on the canvas and a help

@@ -1,4 +1,4 @@
-// Browser test of textured assets (issue 37) against the real `dend serve`,
+// Browser test of textured assets against the real `dend serve`,
 // in headless Chromium: an uploaded glTF with a base-colour texture is
 // drawn with it, on its own UVs, and follows the pose.
 //

@@ -1,6 +1,7 @@
 //! Irregular open patches: a saddle and a wavy sheet with obtuse and
-//! skinny triangles and a free boundary (issue #33), the open surfaces the
-//! solver's tests and the posing suite check convergence on. They are not
+//! skinny triangles and a free boundary (what real scans and sculpts have
+//! and the paper's shapes do not), the open surfaces the solver's tests
+//! and the posing suite check convergence on. They are not
 //! paper shapes (no [`super::Shape`] of their own): a jittered grid whose
 //! quads are split along a random diagonal, deterministic in a seed.
 
