@@ -7,6 +7,8 @@
 # GLTFLoader, then web/tests/texture.test.mjs for textured glTF uploads,
 # web/tests/artist.test.mjs for an artist's session at 1280x720,
 # web/tests/uploads.test.mjs for drag-and-drop, warnings and errors,
+# web/tests/rig.test.mjs for the skeleton outliner and the skeleton exports
+# in three.js's GLTFLoader,
 # then the JavaScript client package's (clients/js: types, packing, the
 # HTTP routes, its three.js example in Chromium, reconnection):
 # installs what it needs if missing (Debian's chromium,
@@ -79,6 +81,7 @@ node web/tests/morph.test.mjs
 node web/tests/texture.test.mjs
 node web/tests/artist.test.mjs
 node web/tests/uploads.test.mjs
+node web/tests/rig.test.mjs
 # the JavaScript client package (clients/js): its types checked by tsc on a
 # consumer file, `npm pack` and its exports map (Node, and Chromium through
 # an import map), every HTTP route, the three.js example dragged with the

@@ -276,6 +276,7 @@ fn mesh_info_schema_matches_the_wire_type() {
         parent: Some("root".into()),
         head: [0.0; 3],
         vertices: 3,
+        region: vec![0, 1, 2],
     };
     let info = MeshInfo {
         id: "m".into(),

@@ -9,6 +9,7 @@ import { Api, ApiError } from './api.js';
 import { OrbitCamera } from './camera.js';
 import { vertexNormals, bbox } from './mesh.js';
 import { FREE, FIXED, MIXED, faceLabels, faceColors, fieldColors } from './regions.js';
+import { headInPose } from './rig.js';
 
 const $ = (id) => document.getElementById(id);
 
@@ -20,7 +21,7 @@ export const app = {
   ws: null,
   you: null,
   state: 'none',
-  mesh: null, // {triangles, edges, rest}
+  mesh: null, // {triangles, edges, rest}; rest: the rest positions when known (a session opened here from rest)
   texture: null, // an uploaded glTF's base-colour texture as drawn: {uv, textured, size}
   positions: null,
   normals: null,
@@ -28,6 +29,7 @@ export const app = {
   labels: null,
   faceLabels: null, // per triangle: its vertices' label, or MIXED (regions.js)
   handles: 0,
+  handleJoints: new Map(), // UI handle → index of the skeleton joint it is (outliner.js): its gizmo and pivot are the joint's head
   applied: null, // {serverIndexOf: Map(uiHandle → server index), json}
   constraintsRevision: 0, // the session's constraint set these labels show
   dirtyLabels: false,
@@ -251,7 +253,23 @@ export function addHandle() {
   app.needsDraw = true;
 }
 
-/** The constraints JSON of the painted labels (empty handles are skipped). */
+/** The joints of the open mesh's skeleton (GET /v1/meshes/{id}), or null. */
+export function skeletonJoints() {
+  const a = app.meshInfo && app.meshInfo.asset;
+  return (a && a.skeleton && a.skeleton.joints) || null;
+}
+
+/** Where the joint UI handle `k` is (its joint's head in the current pose,
+ * rig.js), or null when `k` is no joint's handle. */
+export function jointHandleHead(k) {
+  const joints = skeletonJoints();
+  if (!joints || !app.handleJoints.has(k) || !app.positions) return null;
+  return headInPose(joints, app.handleJoints.get(k), app.mesh && app.mesh.rest, app.positions);
+}
+
+/** The constraints JSON of the painted labels (empty handles are skipped).
+ * A joint's handle is named after the joint and turns about its head
+ * (`pivot`): a drag's rotation is about the joint, as an animator expects. */
 export function constraintsJson() {
   const fixed = [];
   const groups = Array.from({ length: app.handles }, () => []);
@@ -264,7 +282,10 @@ export function constraintsJson() {
   groups.forEach((g, k) => {
     if (g.length) {
       serverIndexOf.set(k, handles.length);
-      handles.push({ name: `handle${k}`, vertices: g });
+      const joints = skeletonJoints();
+      const head = jointHandleHead(k);
+      if (head) handles.push({ name: joints[app.handleJoints.get(k)].name, vertices: g, pivot: head });
+      else handles.push({ name: `handle${k}`, vertices: g });
     }
   });
   return { json: { fixed, handles }, serverIndexOf };
@@ -307,6 +328,8 @@ export function showConstraints(info) {
   app.labels.fill(FREE);
   for (const o of [...$('target').options]) if (o.value.startsWith('h')) o.remove();
   app.handles = 0;
+  app.handleJoints.clear();
+  const joints = skeletonJoints() || [];
   const serverIndexOf = new Map();
   const n = app.labels.length;
   const inRange = (i) => Number.isInteger(i) && i >= 0 && i < n;
@@ -314,6 +337,9 @@ export function showConstraints(info) {
   for (const [k, h] of ((c && c.handles) || []).entries()) {
     addHandle();
     serverIndexOf.set(k, k);
+    // a handle named after a joint, with its pivot, is that joint's
+    const j = joints.findIndex((jt) => jt.name === h.name);
+    if (j >= 0 && h.pivot) app.handleJoints.set(k, j);
     if (Array.isArray(h.vertices)) for (const i of h.vertices) if (inRange(i)) app.labels[i] = k + 1;
   }
   $('target').value = 'fixed';

@@ -1,6 +1,7 @@
 // The handle gizmo: for the selected handle, three arrows along the world
 // axes (x red, y green, z blue) and three rotation rings about them, drawn
-// at the handle's centroid on a 2D overlay above the WebGL canvas (always
+// at the handle's centroid (a joint's handle: at the joint's head, its
+// pivot) on a 2D overlay above the WebGL canvas (always
 // on top, a constant size on screen). Dragging an arrow translates the
 // handle along its axis; dragging a ring rotates it about that axis
 // through the centroid (the drag protocol's rotation is about the handle's
@@ -19,7 +20,7 @@
 import { add, scale, sub, dot } from './camera.js';
 import { Renderer } from './renderer.js';
 import { project } from './select.js';
-import { send, sendDrag, serverHandle, showError } from './app.js';
+import { send, sendDrag, serverHandle, showError, jointHandleHead } from './app.js';
 
 const AXES = [[1, 0, 0], [0, 1, 0], [0, 0, 1]];
 const COLORS = ['#d22', '#2a2', '#25d'];
@@ -36,10 +37,14 @@ export class Gizmo {
     this.geom = null; // screen geometry of the last draw (hit tests, test)
   }
 
-  /** Centroid of UI handle `k`'s vertices in the current pose, or null. */
+  /** Where UI handle `k`'s gizmo sits in the current pose: a joint's
+   * handle at the joint's head, any other at its vertices' centroid; null
+   * when it has no vertex. */
   centroid(k) {
     const { labels, positions } = this.app;
     if (!labels || k === null) return null;
+    const head = jointHandleHead(k);
+    if (head && labels.includes(k + 1)) return head;
     const c = [0, 0, 0];
     let n = 0;
     for (let i = 0; i < labels.length; i++) {

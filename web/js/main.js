@@ -21,8 +21,9 @@ import {
 } from './session.js';
 import { attachGuide } from './guide.js';
 import { attachDrop } from './drop.js';
-// the Named poses section (it follows the shared state's events)
+// the Named poses and Skeleton sections (they follow the shared state's events)
 import './poses.js';
+import './outliner.js';
 
 const $ = (id) => document.getElementById(id);
 

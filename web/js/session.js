@@ -119,6 +119,9 @@ async function startSession(meshId, info) {
   // route for the mesh itself); then the socket, whose frames need them.
   const obj = parseObj(await app.api.exportObj(s.id, s.token));
   setMesh(obj);
+  // a new session is at rest: its positions are the rest a joint's head
+  // is carried from (rig.js)
+  app.mesh.rest = Float32Array.from(obj.positions);
   setState(s.state || 'empty');
   await openSession(s.id, s.token, meshId);
   await showTexture(s, info, obj);
@@ -194,6 +197,7 @@ export const upload = (ev) => {
  * makes handle 0). */
 export function resetPaint() {
   app.handles = 0;
+  app.handleJoints.clear();
   app.applied = null;
   app.constraintsRevision = 0;
   app.dirtyLabels = false;

@@ -113,6 +113,10 @@ pub struct AssetJoint {
     pub head: [f64; 3],
     /// Welded vertices whose largest skin weight is this joint's.
     pub vertices: usize,
+    /// Those vertices (welded indices, ascending): the joint's region, as a
+    /// client paints it.
+    #[serde(default)]
+    pub region: Vec<u32>,
 }
 
 /// A named part of an uploaded asset (see [`AssetSummary::groups`]).

@@ -141,6 +141,7 @@ fn skeleton_of(s: dend::rig::SkeletonInfo) -> AssetSkeleton {
                 parent: j.parent,
                 head: j.head,
                 vertices: j.vertices,
+                region: j.region,
             })
             .collect(),
         renormalised_vertices: s.renormalised_vertices,

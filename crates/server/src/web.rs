@@ -41,6 +41,10 @@ pub const FILES: &[(&str, &[u8])] = &[
     ("js/keys.js", include_bytes!("../../../web/js/keys.js")),
     ("js/main.js", include_bytes!("../../../web/js/main.js")),
     ("js/mesh.js", include_bytes!("../../../web/js/mesh.js")),
+    (
+        "js/outliner.js",
+        include_bytes!("../../../web/js/outliner.js"),
+    ),
     ("js/poses.js", include_bytes!("../../../web/js/poses.js")),
     (
         "js/regions.js",
@@ -50,6 +54,7 @@ pub const FILES: &[(&str, &[u8])] = &[
         "js/renderer.js",
         include_bytes!("../../../web/js/renderer.js"),
     ),
+    ("js/rig.js", include_bytes!("../../../web/js/rig.js")),
     ("js/select.js", include_bytes!("../../../web/js/select.js")),
     (
         "js/session.js",

@@ -57,6 +57,10 @@ pub struct JointInfo {
     pub head: [f64; 3],
     /// Welded vertices it dominates (its region).
     pub vertices: usize,
+    /// Those vertices, ascending (what `{"joint": …}` selects without
+    /// children): a client paints the region without resolving a selector.
+    #[serde(default)]
+    pub region: Vec<u32>,
 }
 
 /// The skeleton as listed.
@@ -202,23 +206,27 @@ impl Skeleton {
 
     /// The skeleton as `GET /v1/meshes/{id}` lists it.
     pub fn info(&self) -> SkeletonInfo {
-        let mut counts = vec![0usize; self.joints.len()];
-        for j in self.dominant.iter().flatten() {
-            counts[*j as usize] += 1;
+        let mut regions = vec![Vec::new(); self.joints.len()];
+        for (v, j) in self.dominant.iter().enumerate() {
+            if let Some(j) = j {
+                regions[*j as usize].push(v as u32);
+            }
         }
         SkeletonInfo {
             skin: self.skin.skin,
             joints: self
                 .joints
                 .iter()
+                .zip(regions)
                 .enumerate()
-                .map(|(k, j)| JointInfo {
+                .map(|(k, (j, region))| JointInfo {
                     name: j.name.clone(),
                     index: k,
                     node: j.node,
                     parent: j.parent.map(|p| self.joints[p].name.clone()),
                     head: [j.head.x, j.head.y, j.head.z],
-                    vertices: counts[k],
+                    vertices: region.len(),
+                    region,
                 })
                 .collect(),
             renormalised_vertices: self.skin.renormalised,

@@ -110,6 +110,10 @@ fn the_limb_lists_its_chain_and_regions() {
         })
         .collect();
     assert!(regions[3].is_empty());
+    // the listing's regions are the selectors'
+    for (k, r) in regions.iter().enumerate() {
+        assert_eq!(&info.joints[k].region, r, "bone{k}");
+    }
     let total: usize = regions.iter().map(Vec::len).sum();
     assert_eq!(total, asset.mesh().num_vertices());
     for (k, r) in regions.iter().enumerate().take(3) {
