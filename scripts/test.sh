@@ -38,11 +38,13 @@ cargo test --workspace --lib --bins --tests --examples
 # test built for the CLI tests)
 export DEND_BIN="${CARGO_TARGET_DIR:-$(pwd)/target}/debug/dend"
 .venv/bin/python -m pytest -q clients/python/tests
-# the Blender add-on's headless test, and the morph-target GLB imported
-# with its named poses as shape keys (Debian's `blender`; .ci/run installs it)
+# the Blender add-on's headless test, the morph-target GLB imported
+# with its named poses as shape keys, and the skeleton exports (imported,
+# and applied by the add-on as an action and corrective shape keys)
+# (Debian's `blender`; .ci/run installs it)
 if command -v blender >/dev/null; then
   BLENDER_LOG="$(mktemp)"
-  for t in test_addon test_import; do
+  for t in test_addon test_import test_rig; do
     if ! blender -b --factory-startup --python-exit-code 1 \
         --python "clients/blender/tests/$t.py" >"$BLENDER_LOG" 2>&1; then
       cat "$BLENDER_LOG"

@@ -6,6 +6,12 @@ with "Handle prefix", default `handle`). "Connect" uploads the mesh and
 adds one empty per handle; "Follow" (a modal operator) sends the empties'
 moves as drags and shows the pose frames live; "Save shape key" keeps the
 settled pose as a named pose on the server and as a shape key.
+
+"Apply skeleton poses" brings the named poses of a session on a rigged
+character (the editor's Share link) onto the same character in Blender:
+the poses fitted onto its joints as an action on the armature (one
+keyframe and pose marker per pose) and each pose's corrective as a shape
+key (`rig.py`).
 """
 
 from __future__ import annotations
@@ -25,7 +31,8 @@ from typing import Dict, Optional  # noqa: E402
 import bpy  # noqa: E402
 
 from .link import Link  # noqa: E402
-from .wire import DendError  # noqa: E402
+from .rig import apply_skeleton, armature_of, parse_session_link  # noqa: E402
+from .wire import DendError, Http  # noqa: E402
 
 #: Live links by object name (one per mesh object).
 LINKS: Dict[str, Link] = {}
@@ -41,6 +48,9 @@ class DendSettings(bpy.types.PropertyGroup):
     fixed_group: bpy.props.StringProperty(name="Fixed group", default="fixed")
     handle_prefix: bpy.props.StringProperty(name="Handle prefix", default="handle")
     key_name: bpy.props.StringProperty(name="Shape key", default="dend pose")
+    session_link: bpy.props.StringProperty(
+        name="Session link", description="the editor's Share link of a session on this rigged character", default=""
+    )
 
 
 class DEND_OT_connect(bpy.types.Operator):
@@ -128,6 +138,44 @@ class DEND_OT_save_shape_key(bpy.types.Operator):
         return {"FINISHED"}
 
 
+def rigged_mesh(obj: "bpy.types.Object") -> Optional["bpy.types.Object"]:
+    """The mesh an active object stands for: itself, or for an armature
+    the mesh it deforms."""
+    if obj is None:
+        return None
+    if obj.type == "MESH":
+        return obj
+    if obj.type == "ARMATURE":
+        for child in obj.children:
+            if child.type == "MESH" and armature_of(child) == obj:
+                return child
+    return None
+
+
+class DEND_OT_apply_skeleton(bpy.types.Operator):
+    """Fetch the session's named poses fitted onto the rig: an action on the armature and a corrective shape key per pose"""
+
+    bl_idname = "dend.apply_skeleton"
+    bl_label = "Apply skeleton poses"
+
+    def execute(self, context):
+        mesh = rigged_mesh(context.active_object)
+        if mesh is None or armature_of(mesh) is None:
+            self.report({"ERROR"}, "select a rigged mesh (with an Armature modifier) or its armature")
+            return {"CANCELLED"}
+        try:
+            server, session, token = parse_session_link(context.scene.dend.session_link)
+            data = Http(server, token).request(
+                "GET", f"/v1/sessions/{session}/export?format=glb&as=skeleton-animation", raw=True
+            )
+            done = apply_skeleton(data, mesh)
+        except (DendError, OSError, ValueError, KeyError) as e:
+            self.report({"ERROR"}, str(e))
+            return {"CANCELLED"}
+        self.report({"INFO"}, f"{len(done['poses'])} pose(s) in action {done['action']}")
+        return {"FINISHED"}
+
+
 class DEND_PT_panel(bpy.types.Panel):
     bl_label = "dend"
     bl_space_type = "VIEW_3D"
@@ -143,9 +191,12 @@ class DEND_PT_panel(bpy.types.Panel):
         col.operator("dend.follow")
         col.prop(st, "key_name")
         col.operator("dend.save_shape_key")
+        col.separator()
+        col.prop(st, "session_link")
+        col.operator("dend.apply_skeleton")
 
 
-CLASSES = (DendSettings, DEND_OT_connect, DEND_OT_follow, DEND_OT_save_shape_key, DEND_PT_panel)
+CLASSES = (DendSettings, DEND_OT_connect, DEND_OT_follow, DEND_OT_save_shape_key, DEND_OT_apply_skeleton, DEND_PT_panel)
 
 
 def register() -> None:
