@@ -227,6 +227,28 @@ async fn a_joint_dragged_by_its_region_is_recovered_from_the_export() -> Result<
     if let Some(rep) = dend_testkit::gltf_validator::validate(&out, "skeleton.glb") {
         assert_eq!(rep.errors, 0, "{}", rep.messages);
     }
+    // pose=rest: the rest positions of the posed session (what a client
+    // joining it carries a joint's head from); only with as=pose
+    let r = export(&s, &base, "format=obj&pose=rest").await;
+    assert_eq!(r.status(), 200);
+    let text = r.text().await?;
+    let got: Vec<[f64; 3]> = text
+        .lines()
+        .filter_map(|l| l.strip_prefix("v "))
+        .map(|l| {
+            let v: Vec<f64> = l.split_whitespace().map(|x| x.parse().unwrap()).collect();
+            [v[0], v[1], v[2]]
+        })
+        .collect();
+    let rest = Asset::read_bytes(&input, Format::Glb, Sidecars::Refuse).unwrap();
+    assert!(dend_testkit::max_dist(&got, rest.mesh().positions()) < 1e-6);
+    let now = export(&s, &base, "format=obj").await.text().await?;
+    assert_ne!(now, text, "the current pose is not the rest");
+    for q in ["format=glb&as=skeleton&pose=rest", "format=obj&pose=later"] {
+        let r = export(&s, &base, q).await;
+        assert_eq!(r.status(), 400, "{q}");
+        assert_eq!(r.json::<Value>().await?["code"], "invalid_query", "{q}");
+    }
     Ok(())
 }
 

@@ -331,6 +331,14 @@ export async function join(id, token) {
   showMeshWarnings(app.meshInfo);
   const obj = parseObj(await app.api.exportObj(id, token));
   setMesh(obj);
+  // a rig's joint heads are carried from the rest (rig.js): a joined
+  // session may be posed, so its rest comes from the server
+  if (app.meshInfo && app.meshInfo.asset && app.meshInfo.asset.skeleton) {
+    const res = await fetch(`/v1/sessions/${encodeURIComponent(id)}/export?format=obj&pose=rest`, {
+      headers: { Authorization: `Bearer ${token}` },
+    });
+    if (res.ok) app.mesh.rest = Float32Array.from(parseObj(await res.text()).positions);
+  }
   resetPaint();
   showConstraints(info);
   // a set with handles: the first one gets the gizmo

@@ -11,7 +11,8 @@
 // head (the server's constraint set holds that pivot), and the gizmo sits
 // there. A drag of the gizmo's z ring (the head stays) and one of its x
 // arrow (the head follows), each saved as a named pose from the Named
-// poses section. "Export animation" downloads as=skeleton-animation and
+// poses section; a second page joining by the share link shows the
+// handle's gizmo at the same place. "Export animation" downloads as=skeleton-animation and
 // shows the fit's residual; "Export skeleton" downloads as=skeleton. The
 // Khronos validator finds no error in either. A page with three.js
 // (from web/node_modules/three, served by this test's own route) loads
@@ -177,6 +178,19 @@ async function main() {
     assert.ok(Math.abs(g2.world[1] - g1.world[1]) < 1e-3 * diag && Math.abs(g2.world[2] - g1.world[2]) < 1e-3 * diag, 'along x only');
     await savePose(page, 'reach');
     await page.screenshot({ path: join(artifacts, 'rig-2-posed.png') });
+    // a collaborator joining the posed session by its link: the handle is
+    // bone2's again, and its gizmo at bone2's head in the pose (carried
+    // from the rest the server gives, export?pose=rest)
+    const peer = await ctx.newPage();
+    peer.on('pageerror', (e) => errors.push(`peer page: ${e.message}`));
+    await peer.goto(`${base}/#session=${session.id}&token=${session.token}`);
+    await waitFor(peer, () => window.dend && window.dend.app.opened && window.dend.app.state === 'ready' && window.dend.gizmo() !== null,
+      null, 'the joined session', 90000);
+    const joined = await peer.evaluate(() => ({ joints: [...window.dend.app.handleJoints], gizmo: window.dend.gizmo().world }));
+    log('the peer\'s gizmo is', dist(joined.gizmo, g2.world).toExponential(2), 'from the first page\'s');
+    assert.deepEqual(joined.joints, [[0, 2]], 'the joined page knows handle 0 is bone2');
+    assert.ok(dist(joined.gizmo, g2.world) < 1e-4 * diag, `the joined page's gizmo is at bone2's head too (${joined.gizmo} vs ${g2.world})`);
+    await peer.close();
     const poses = {};
     for (const name of ['bend', 'reach']) poses[name] = (await get(base, session, `/poses/${name}`)).positions;
     const current = await get(base, session, '/pose');

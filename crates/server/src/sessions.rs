@@ -250,6 +250,10 @@ pub struct ExportQuery {
     /// With `as=skeleton[-animation]`: `false` (or 0) leaves the
     /// corrective morph targets out.
     pub corrective: Option<String>,
+    /// With `as=pose`: `current` (default) or `rest`, the mesh's rest
+    /// positions (what a client joining a posed session measures motions
+    /// from, e.g. a joint's head carried by its region).
+    pub pose: Option<String>,
 }
 
 /// `GET /v1/sessions/{id}/export?format=obj|off|ply|stl|gltf|glb`: the
@@ -268,7 +272,22 @@ pub async fn export(
             .to_ascii_lowercase(),
     )?;
     use crate::morph_export::ExportAs;
-    match crate::morph_export::wanted(q.export_as.as_deref())? {
+    let rest_pose = match q.pose.as_deref() {
+        None | Some("current") => false,
+        Some("rest") => true,
+        Some(other) => {
+            return Err(ApiError::InvalidQuery(format!(
+                "pose={other} (current or rest)"
+            )))
+        }
+    };
+    let how = crate::morph_export::wanted(q.export_as.as_deref())?;
+    if rest_pose && how != ExportAs::Pose {
+        return Err(ApiError::InvalidQuery(
+            "pose=rest goes with as=pose (the other exports write the named poses)".into(),
+        ));
+    }
+    match how {
         ExportAs::Pose => {}
         ExportAs::MorphTargets => {
             return crate::morph_export::export(&st, &s, format, q.animation == Some(1)).await
@@ -279,16 +298,20 @@ pub async fn export(
             return crate::skeleton_export::export(&st, &s, format, animation, corrective).await;
         }
     }
-    let p = s.pose().await?;
-    let asset = crate::meshes::stored_asset(&st, &s.info().mesh_id).await?;
     let rest = s.rest().clone();
+    let positions = if rest_pose {
+        std::sync::Arc::new(rest.mesh().positions().to_vec())
+    } else {
+        s.pose().await?.positions
+    };
+    let asset = crate::meshes::stored_asset(&st, &s.info().mesh_id).await?;
     let (bytes, dropped) = tokio::task::spawn_blocking(move || match asset {
         Some(a) => a
-            .export(&p.positions, format)
+            .export(&positions, format)
             .map(|b| (b, a.dropped_by(format)))
             .map_err(|e| ApiError::Internal(e.to_string())),
         None => Ok((
-            dend::mesh::io::to_bytes(&p.positions, rest.mesh().triangles(), format),
+            dend::mesh::io::to_bytes(&positions, rest.mesh().triangles(), format),
             Vec::new(),
         )),
     })
