@@ -35,7 +35,6 @@
 //! element). The area targets' stretch `diag(d, 1/d)` is held as
 //! Gauss–Newton holds second derivatives of the residuals.
 
-use faer::sparse::Triplet;
 use nalgebra::{Matrix3, UnitQuaternion, Vector3};
 
 use super::{ElasticOps, ElasticSet};
@@ -52,15 +51,15 @@ fn gram(t: &Vector3<Real>) -> Matrix3<Real> {
     Matrix3::identity() * t.norm_squared() - t * t.transpose()
 }
 
-/// Appends `−Σ_k,l J_kᵀ C⁻¹ J_l` to `out` for the blocks `J` of one
-/// element (vertex, 3×3 block), in unknown numbering `col_of` (interleaved
-/// coordinates: unknown `u` has rows `3u..3u + 3`); blocks of vertices
+/// Adds `−Σ_k,l J_kᵀ C⁻¹ J_l` through `add` for the blocks `J` of one
+/// element (vertex, 3×3 block), in unknown numbering `col_of` (`add(k, l,
+/// B)` adds the 3×3 block `B` at unknowns `(k, l)`); blocks of vertices
 /// that are not unknowns are skipped. Nothing when `C` is singular.
-fn push_schur(
+fn add_schur(
     c: &Matrix3<Real>,
     blocks: &[(u32, Matrix3<Real>)],
     col_of: &[u32],
-    out: &mut Vec<Triplet<usize, usize, Real>>,
+    add: &mut impl FnMut(u32, u32, &Matrix3<Real>),
 ) {
     let Some(c_inv) = c.try_inverse() else {
         return;
@@ -76,27 +75,18 @@ fn push_schur(
             if cl == u32::MAX {
                 continue;
             }
-            let b = left * jl;
-            for r in 0..3 {
-                for s in 0..3 {
-                    out.push(Triplet::new(
-                        3 * ck as usize + r,
-                        3 * cl as usize + s,
-                        -b[(r, s)],
-                    ));
-                }
-            }
+            add(ck, cl, &-(left * jl));
         }
     }
 }
 
 impl ElasticOps {
-    /// Appends the rotation coupling `−Σ_e J_eᵀ C_e⁻¹ J_e` (module docs)
-    /// at the rotations `rot` and area targets `proj` to `out`, as
-    /// triplets of the `3|U| × 3|U|` matrix in `col_of`'s numbering
-    /// (vertex → unknown, `u32::MAX` for none; coordinates interleaved).
-    /// Both triangles of the symmetric matrix are written, duplicates to
-    /// be summed.
+    /// Adds the rotation coupling `−Σ_e J_eᵀ C_e⁻¹ J_e` (module docs) at
+    /// the rotations `rot` and area targets `proj` through `add(k, l, B)`,
+    /// the 3×3 block `B` of unknowns `(k, l)` in `col_of`'s numbering
+    /// (vertex → unknown, `u32::MAX` for none). Both triangles of the
+    /// symmetric matrix are added, duplicates to be summed. The blocks
+    /// added are among [`ElasticOps::coupling_supports`]' pairs.
     pub(crate) fn rotation_coupling(
         &self,
         set: &ElasticSet,
@@ -104,7 +94,7 @@ impl ElasticOps {
         rot: &[UnitQuaternion<Real>],
         proj: &[[Real; 6]],
         col_of: &[u32],
-        out: &mut Vec<Triplet<usize, usize, Real>>,
+        mut add: impl FnMut(u32, u32, &Matrix3<Real>),
     ) {
         let mut blocks: Vec<(u32, Matrix3<Real>)> = Vec::new();
         for (i, q) in rot.iter().enumerate().take(set.free.len()) {
@@ -137,7 +127,7 @@ impl ElasticOps {
                     }
                 }
             }
-            push_schur(&c, &blocks, col_of, out);
+            add_schur(&c, &blocks, col_of, &mut add);
         }
         for (el, p) in self.area.iter().zip(proj) {
             // ρ_c = F_c(Y) − p_c, F = [e1 e2] B: column c of F is
@@ -159,7 +149,39 @@ impl ElasticOps {
             }
             blocks.clear();
             blocks.extend(el.v.iter().zip(j).map(|(&v, m)| (v, m)));
-            push_schur(&c, &blocks, col_of, out);
+            add_schur(&c, &blocks, col_of, &mut add);
+        }
+    }
+
+    /// Calls `f` with the vertices of each element that
+    /// [`ElasticOps::rotation_coupling`] visits (a fitted free vertex with
+    /// its spokes' ends and its Laplacian row, a triangle with an area
+    /// term): every pair of unknowns among one element's vertices may get
+    /// a block, whatever the rotations. The pattern of the Newton matrix.
+    pub(crate) fn coupling_supports(
+        &self,
+        set: &ElasticSet,
+        ops: &Operators,
+        mut f: impl FnMut(&[u32]),
+    ) {
+        let mut support: Vec<u32> = Vec::new();
+        for i in 0..set.free.len() {
+            if !(set.free[i] && set.fit[i]) {
+                continue;
+            }
+            support.clear();
+            support.push(i as u32);
+            support.extend(&self.nbr[self.ptr[i]..self.ptr[i + 1]]);
+            if self.b[i] > 0.0 {
+                let row = ops.lbar.outer_view(i).expect("row of a vertex");
+                support.extend(row.indices().iter().map(|&k| k as u32));
+            }
+            support.sort_unstable();
+            support.dedup();
+            f(&support);
+        }
+        for el in &self.area {
+            f(&el.v);
         }
     }
 }

@@ -22,6 +22,8 @@ mod hierarchy_tests;
 #[cfg(test)]
 mod interrupt_tests;
 #[cfg(test)]
+mod newton_tests;
+#[cfg(test)]
 mod open_tests;
 #[cfg(test)]
 mod order_tests;

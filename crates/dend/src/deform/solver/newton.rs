@@ -9,8 +9,13 @@
 //! [`coarse::MIN_VERTICES`](crate::deform::coarse::MIN_VERTICES)
 //! vertices) a step of Newton's method is affordable: the matrix
 //! `H = Q ⊗ I₃ − Σ_e J_eᵀ C_e⁻¹ J_e` (`elastic/hessian.rs`), assembled
-//! and factored (faer's sparse Cholesky; its symbolic analysis once per
-//! constraint set) at every iteration. With `r = g(R, P) − Q Y` the
+//! and factored at every iteration. Its pattern does not depend on the
+//! rotations, so it is analysed once per constraint set
+//! ([`NewtonPattern`]): the blocks of `Q`'s pattern and of the elements'
+//! supports, ordered by AMD on the block graph (each vertex's three
+//! coordinates stay together, as one supernode column block), and each
+//! iteration writes its values in place and runs the numeric
+//! factorisation only. With `r = g(R, P) − Q Y` the
 //! residual at the pose's best rotations (`−½` the reduced energy's
 //! gradient, by the envelope theorem),
 //!
@@ -24,10 +29,13 @@
 //! largest vertex move (computed at each iteration with the cached factor
 //! of `Q_UU`).
 
-use faer::linalg::solvers::Solve;
-use faer::sparse::linalg::solvers::{Llt, SymbolicLlt};
-use faer::sparse::{SparseColMat, Triplet};
-use faer::{MatMut, Side};
+use faer::dyn_stack::{MemBuffer, MemStack};
+use faer::sparse::linalg::cholesky::{
+    factorize_symbolic_cholesky, LltRef, SymbolicCholesky, SymmetricOrdering,
+};
+use faer::sparse::SymbolicSparseColMatRef;
+use faer::{Conj, MatMut, Par, Side};
+use nalgebra::Matrix3;
 
 use super::Deformer;
 use crate::deform::elastic::{ElasticOps, ElasticSet};
@@ -43,14 +51,138 @@ const STEPS: [Real; 4] = [1.0, 0.5, 0.25, 0.125];
 /// measure [`StepReport::coarse_work`](crate::deform::StepReport::coarse_work).
 pub(super) const NEWTON_COST: Real = 4.0;
 
-/// The Newton iteration's memory: the symbolic factorisation of `H`'s
-/// pattern for one factor, the triplets and the right-hand side.
+/// The Newton iteration's memory: the pattern of `H` for one factor, and
+/// the right-hand side.
 #[derive(Default)]
 pub(super) struct NewtonState {
-    symbolic: Option<(u64, SymbolicLlt<usize>)>,
-    triplets: Vec<Triplet<usize, usize, Real>>,
+    pub(super) pattern: Option<NewtonPattern>,
     /// `r_U`, then `Δ`, interleaved (`3u + k`).
     pub(super) rhs: Vec<Real>,
+}
+
+/// The structure of `H` for one constraint set: its 3×3 block pattern,
+/// the scalar matrix whose values each iteration overwrites, and its
+/// symbolic Cholesky factorisation.
+pub(super) struct NewtonPattern {
+    /// The factor it belongs to.
+    factor_id: u64,
+    /// Block rows (CSR; symmetric, so also the block columns): the sorted
+    /// block columns of block row `k` are `cols[ptr[k]..ptr[k + 1]]`.
+    ptr: Vec<usize>,
+    cols: Vec<u32>,
+    /// `H`, `3|U| × 3|U|`, CSR; row `3k + r` holds block row `k`'s blocks'
+    /// row `r`, three entries per block.
+    pub(super) h: sprs::CsMat<Real>,
+    symbolic: SymbolicCholesky<usize>,
+}
+
+impl NewtonPattern {
+    /// The pattern of `H` for `factor`'s constraint set: `Q_UU`'s entries
+    /// and every pair of unknowns in one element's support
+    /// ([`ElasticOps::coupling_supports`]); `None` when the symbolic
+    /// analysis fails.
+    pub(super) fn new(
+        factor: &Factor,
+        el: &ElasticOps,
+        set: &ElasticSet,
+        ops: &crate::operators::Operators,
+    ) -> Option<Self> {
+        let sys = &factor.sys;
+        let nu = sys.unknowns.len();
+        let mut rows: Vec<Vec<u32>> = vec![Vec::new(); nu];
+        for (r, row) in sys.m.outer_iterator().enumerate() {
+            rows[r].extend(row.indices().iter().map(|&c| c as u32));
+        }
+        let mut unknowns = Vec::new();
+        el.coupling_supports(set, ops, |support| {
+            unknowns.clear();
+            unknowns.extend(
+                support
+                    .iter()
+                    .map(|&v| sys.col_of[v as usize])
+                    .filter(|&c| c != u32::MAX),
+            );
+            for &k in &unknowns {
+                rows[k as usize].extend(&unknowns);
+            }
+        });
+        let mut ptr = Vec::with_capacity(nu + 1);
+        let mut cols = Vec::new();
+        ptr.push(0);
+        for row in &mut rows {
+            row.sort_unstable();
+            row.dedup();
+            cols.extend_from_slice(row);
+            ptr.push(cols.len());
+        }
+        drop(rows);
+        // AMD on the block graph, expanded to the coordinates
+        let bptr: Vec<usize> = ptr.clone();
+        let bidx: Vec<usize> = cols.iter().map(|&c| c as usize).collect();
+        let block = SymbolicSparseColMatRef::new_checked(nu, nu, &bptr, None, &bidx);
+        let (bfwd, _) = dend_linalg::ordering::amd(block)?;
+        let fwd: Vec<usize> = bfwd
+            .iter()
+            .flat_map(|&b| [3 * b, 3 * b + 1, 3 * b + 2])
+            .collect();
+        let mut inv = vec![0; 3 * nu];
+        for (new, &old) in fwd.iter().enumerate() {
+            inv[old] = new;
+        }
+        // the scalar pattern
+        let n = 3 * nu;
+        let mut indptr = Vec::with_capacity(n + 1);
+        let mut indices = Vec::with_capacity(9 * cols.len());
+        indptr.push(0);
+        for k in 0..nu {
+            let row = &cols[ptr[k]..ptr[k + 1]];
+            for _ in 0..3 {
+                for &c in row {
+                    indices.extend([3 * c as usize, 3 * c as usize + 1, 3 * c as usize + 2]);
+                }
+                indptr.push(indices.len());
+            }
+        }
+        let data = vec![0.0; indices.len()];
+        let h = sprs::CsMat::new((n, n), indptr, indices, data);
+        let symbolic = {
+            let indptr = h.indptr();
+            let pattern =
+                SymbolicSparseColMatRef::new_checked(n, n, indptr.raw_storage(), None, h.indices());
+            let perm = faer::perm::PermRef::new_checked(&fwd, &inv, n);
+            factorize_symbolic_cholesky(
+                pattern,
+                Side::Lower,
+                SymmetricOrdering::Custom(perm),
+                Default::default(),
+            )
+            .ok()?
+        };
+        Some(NewtonPattern {
+            factor_id: factor.id(),
+            ptr,
+            cols,
+            h,
+            symbolic,
+        })
+    }
+
+    /// Adds the 3×3 block `b` at unknowns `(k, l)` (a pair of the pattern).
+    fn add(&mut self, k: u32, l: u32, b: &Matrix3<Real>) {
+        let (k, l) = (k as usize, l as usize);
+        let row = &self.cols[self.ptr[k]..self.ptr[k + 1]];
+        let p = row
+            .binary_search(&(l as u32))
+            .expect("a block of the pattern");
+        let width = 3 * row.len();
+        let base = 9 * self.ptr[k] + 3 * p;
+        let data = self.h.data_mut();
+        for r in 0..3 {
+            for s in 0..3 {
+                data[base + r * width + s] += b[(r, s)];
+            }
+        }
+    }
 }
 
 impl Deformer {
@@ -67,6 +199,37 @@ impl Deformer {
         }
     }
 
+    /// `H`'s values at the current rotations and area targets, written
+    /// into the pattern of `factor` (built on first use); `None` when the
+    /// pattern could not be analysed.
+    pub(super) fn assemble_newton(
+        &mut self,
+        factor: &Factor,
+        (el, set): (&ElasticOps, &ElasticSet),
+    ) -> Option<()> {
+        let st = &mut self.elastic;
+        let n = &mut st.newton;
+        if n.pattern.as_ref().map(|p| p.factor_id) != Some(factor.id()) {
+            n.pattern = NewtonPattern::new(factor, el, set, &self.rest.ops);
+        }
+        let pattern = n.pattern.as_mut()?;
+        pattern.h.data_mut().fill(0.0);
+        for (r, row) in factor.sys.m.outer_iterator().enumerate() {
+            for (c, &v) in row.iter() {
+                pattern.add(r as u32, c as u32, &(Matrix3::identity() * v));
+            }
+        }
+        el.rotation_coupling(
+            set,
+            &self.rest.ops,
+            &st.rot,
+            &st.proj,
+            &factor.sys.col_of,
+            |k, l, b| pattern.add(k, l, b),
+        );
+        Some(())
+    }
+
     /// The Newton candidate of this iteration (module docs): sets the pose
     /// (and rotations, area targets) to the first step along `Δ` whose
     /// energy is below `e` and returns that energy; `None`, with the pose
@@ -78,38 +241,21 @@ impl Deformer {
         (el, set): (&ElasticOps, &ElasticSet),
         e: Real,
     ) -> Option<Real> {
-        let sys = &factor.sys;
-        let nu = sys.unknowns.len();
-        let st = &mut self.elastic;
-        let n = &mut st.newton;
-        n.triplets.clear();
-        for (r, row) in sys.m.outer_iterator().enumerate() {
-            for (c, &v) in row.iter() {
-                for a in 0..3 {
-                    n.triplets.push(Triplet::new(3 * r + a, 3 * c + a, v));
-                }
-            }
-        }
-        el.rotation_coupling(
-            set,
-            &self.rest.ops,
-            &st.rot,
-            &st.proj,
-            &sys.col_of,
-            &mut n.triplets,
+        let nu = factor.sys.unknowns.len();
+        self.assemble_newton(factor, (el, set))?;
+        let n = &mut self.elastic.newton;
+        let pattern = n.pattern.as_ref()?;
+        let values = dend_linalg::cholesky::factorise(&pattern.symbolic, &pattern.h).ok()?;
+        let llt = LltRef::new(&pattern.symbolic, &values);
+        let mut mem =
+            MemBuffer::try_new(pattern.symbolic.solve_in_place_scratch::<Real>(1, Par::Seq))
+                .ok()?;
+        llt.solve_in_place_with_conj(
+            Conj::No,
+            MatMut::from_column_major_slice_mut(&mut n.rhs, 3 * nu, 1),
+            Par::Seq,
+            MemStack::new(&mut mem),
         );
-        let h =
-            SparseColMat::<usize, Real>::try_new_from_triplets(3 * nu, 3 * nu, &n.triplets).ok()?;
-        let symbolic = match &n.symbolic {
-            Some((id, s)) if *id == factor.id() => s.clone(),
-            _ => {
-                let s = SymbolicLlt::try_new(h.symbolic(), Side::Lower).ok()?;
-                n.symbolic = Some((factor.id(), s.clone()));
-                s
-            }
-        };
-        let llt = Llt::try_new_with_symbolic(symbolic, h.as_ref(), Side::Lower).ok()?;
-        llt.solve_in_place(MatMut::from_column_major_slice_mut(&mut n.rhs, 3 * nu, 1));
         if n.rhs.iter().any(|v| !v.is_finite()) {
             return None;
         }
