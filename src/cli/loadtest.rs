@@ -19,10 +19,12 @@ use std::time::{Duration, Instant};
 
 use anyhow::Context;
 use clap::ValueEnum;
+use dend_client::constraints::BoxSel;
 use dend_client::ws::{DeltaJson, StreamOptions};
-use dend_client::{Client, FrameEncoding, MeshInfo};
+use dend_client::{
+    Client, ConstraintsSpec, FrameEncoding, HandleSpec, MeshInfo, SessionParams, VertexSet,
+};
 use dend_server::{self as server, AppState, Config};
-use serde_json::json;
 
 use super::preset::PresetArg;
 use drive::{median, DragPath, Pace, Path, Summary};
@@ -163,8 +165,17 @@ pub struct LoadtestArgs {
 
 /// The `params` object of the drag sessions: the preset by name, as the
 /// web editor sends it.
-fn session_params(preset: PresetArg) -> serde_json::Value {
-    json!({ "preset": preset.preset().name() })
+fn session_params(preset: PresetArg) -> SessionParams {
+    SessionParams::preset(preset.preset().name())
+}
+
+/// Constraints fixing the box `fixed` and dragging the box `handle` (named
+/// `h`), each `[min, max]`.
+fn box_constraints(fixed: [[f64; 3]; 2], handle: [[f64; 3]; 2]) -> ConstraintsSpec {
+    let boxed = |[min, max]: [[f64; 3]; 2]| VertexSet::Box {
+        bbox: BoxSel { min, max },
+    };
+    ConstraintsSpec::new(boxed(fixed), vec![HandleSpec::named("h", boxed(handle))])
 }
 
 /// Runs the load test and prints its report.
@@ -208,10 +219,7 @@ async fn run_async(args: LoadtestArgs) -> anyhow::Result<()> {
     let (mut fixed_max, mut handle_min) = (hi, lo);
     fixed_max[k] = lo[k] + 0.1 * ext[k];
     handle_min[k] = hi[k] - 0.1 * ext[k];
-    let spec = json!({
-        "fixed": {"box": {"min": lo, "max": fixed_max}},
-        "handles": [{"name": "h", "vertices": {"box": {"min": handle_min, "max": hi}}}],
-    });
+    let spec = box_constraints([lo, fixed_max], [handle_min, hi]);
     let path = Path {
         kind: args.path,
         axis: k,
@@ -282,7 +290,7 @@ impl LoadtestArgs {
 /// constraints and parameters of `run`) and prints its report; returns the
 /// `--check-*` rules it broke.
 async fn run_mode(
-    (client, mesh_id, spec, params): (&Client, &str, &serde_json::Value, &serde_json::Value),
+    (client, mesh_id, spec, params): (&Client, &str, &ConstraintsSpec, &SessionParams),
     mode: StreamMode,
     args: &LoadtestArgs,
     path: Path,
@@ -443,7 +451,10 @@ async fn extra_sessions(
     }
     let (mut refused, mut admitted) = (0, 0);
     for _ in 0..n {
-        match client.create_session(&mesh_id, json!({})).await {
+        match client
+            .create_session(&mesh_id, SessionParams::default())
+            .await
+        {
             Ok(s) => {
                 admitted += 1;
                 s.delete().await?;
@@ -549,15 +560,14 @@ async fn idle_sessions(
     let t0 = Instant::now();
     let mut sessions = vec![];
     for i in 0..n {
-        let s = client.create_session(mesh_id, json!({})).await?;
+        let s = client
+            .create_session(mesh_id, SessionParams::default())
+            .await?;
         let ext = hi[k] - lo[k];
         let (mut fixed_max, mut handle_min) = (hi, lo);
         fixed_max[k] = lo[k] + (0.05 + 0.3 * i as f64 / n as f64) * ext;
         handle_min[k] = hi[k] - 0.1 * ext;
-        let spec = json!({
-            "fixed": {"box": {"min": lo, "max": fixed_max}},
-            "handles": [{"name": "h", "vertices": {"box": {"min": handle_min, "max": hi}}}],
-        });
+        let spec = box_constraints([lo, fixed_max], [handle_min, hi]);
         s.set_constraints(&spec).await?;
         s.wait_ready(Duration::from_secs(600)).await?;
         let _ = s
@@ -591,7 +601,7 @@ async fn idle_sessions(
 /// Returns what its client saw, and the times to ready (from creation and
 /// from the constraints).
 async fn one_session(
-    (client, mesh_id, params, spec): (Client, String, serde_json::Value, serde_json::Value),
+    (client, mesh_id, params, spec): (Client, String, SessionParams, ConstraintsSpec),
     opts: StreamOptions,
     path: Path,
     pace: Pace,
@@ -620,8 +630,10 @@ mod tests {
     /// the default preset as `Params::default()`.
     #[test]
     fn session_params_read_back_as_the_named_presets() {
-        let read =
-            |p: PresetArg| -> Params { serde_json::from_value(session_params(p)).expect("parse") };
+        let read = |p: PresetArg| -> Params {
+            let wire = serde_json::to_value(session_params(p)).expect("write");
+            serde_json::from_value(wire).expect("parse")
+        };
         assert_eq!(read(PresetArg::Characters), Params::default());
         assert_eq!(read(PresetArg::Elastica), Preset::Elastica.params());
         assert_ne!(read(PresetArg::Characters), read(PresetArg::Elastica));

@@ -5,6 +5,7 @@
 //! drains, sessions are created again. The load is made exact by holding
 //! the only solver worker busy from the test (no clock involved).
 
+use dend_client::SessionParams;
 use std::sync::mpsc;
 use std::time::Duration;
 
@@ -74,7 +75,7 @@ async fn new_sessions_get_503_overloaded_with_retry_after_while_solvers_are_satu
         tokio::time::sleep(Duration::from_millis(5)).await;
     }
     let s = c
-        .create_session(&mesh.id, json!({}))
+        .create_session(&mesh.id, SessionParams::default())
         .await
         .expect("admitted once the solvers have room");
     assert!(!s.id.is_empty());

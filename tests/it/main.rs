@@ -12,6 +12,7 @@ mod cli;
 mod cli_curvature;
 mod cli_deform;
 mod cli_gltf;
+mod client_routes;
 mod constraint_edits;
 mod constraints_schema;
 mod deform_props;

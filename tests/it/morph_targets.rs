@@ -14,7 +14,9 @@ use dend::mesh::asset::Asset;
 use dend::mesh::io::gltf::{Container, Sidecars};
 use dend::mesh::io::Format;
 use dend_client::ws::DeltaJson;
-use dend_client::{Client, ClientError, SessionClient};
+use dend_client::{
+    Client, ClientError, ConstraintsSpec, HandleSpec, SessionClient, SessionParams, VertexSet,
+};
 use dend_server::Config;
 use dend_testkit::server::start;
 use serde_json::{json, Value};
@@ -198,12 +200,12 @@ fn check_morph_export(
 async fn pose_and_save(
     base: &str,
     input: Vec<u8>,
-    spec: Value,
+    spec: ConstraintsSpec,
     drags: &[(&str, Value)],
 ) -> Result<(SessionClient, Vec<(String, Vec<[f64; 3]>)>), ClientError> {
     let c = Client::new(base);
     let mesh = c.upload_file(input, "glb").await?;
-    let s = c.create_session(&mesh.id, json!({})).await?;
+    let s = c.create_session(&mesh.id, SessionParams::default()).await?;
     s.set_constraints(&spec).await?;
     s.wait_ready(Duration::from_secs(120)).await?;
     let http = reqwest::Client::new();
@@ -240,11 +242,14 @@ async fn export(s: &SessionClient, base: &str, query: &str) -> reqwest::Response
         .unwrap()
 }
 
-fn tube_spec() -> Value {
-    json!({
-        "fixed": {"box": {"min": [-9, -9, -0.01], "max": [9, 9, 0.3]}},
-        "handles": [{"name": "top", "vertices": {"box": {"min": [-9, -9, 2.7], "max": [9, 9, 3.1]}}}]
-    })
+fn tube_spec() -> ConstraintsSpec {
+    ConstraintsSpec::new(
+        VertexSet::bbox([-9.0, -9.0, -0.01], [9.0, 9.0, 0.3]),
+        vec![HandleSpec::named(
+            "top",
+            VertexSet::bbox([-9.0, -9.0, 2.7], [9.0, 9.0, 3.1]),
+        )],
+    )
 }
 
 #[tokio::test]
@@ -309,7 +314,7 @@ async fn without_saved_poses_the_current_pose_is_the_one_target() -> Result<(), 
     let c = Client::new(&base);
     let (pts, tris) = dend_testkit::server::grid(4);
     let m = c.upload_json(&pts, &tris).await?;
-    let plain = c.create_session(&m.id, json!({})).await?;
+    let plain = c.create_session(&m.id, SessionParams::default()).await?;
     let r = export(&plain, &base, "format=glb&as=morph-targets").await;
     assert_eq!(r.status(), 422);
     Ok(())
@@ -324,10 +329,19 @@ async fn a_shared_character_round_trips_as_morph_targets() -> Result<(), ClientE
         dend::mesh::io::gltf::write_mesh(mesh.positions(), mesh.triangles(), Container::Glb);
     let (lo, hi) = bounds(mesh.positions());
     let x = |f: f64| lo[0] + f * (hi[0] - lo[0]);
-    let spec = json!({
-        "fixed": {"box": {"min": [lo[0] - 1.0, lo[1] - 1.0, lo[2] - 1.0], "max": [x(0.15), hi[1] + 1.0, hi[2] + 1.0]}},
-        "handles": [{"name": "top", "vertices": {"box": {"min": [x(0.85), lo[1] - 1.0, lo[2] - 1.0], "max": [hi[0] + 1.0, hi[1] + 1.0, hi[2] + 1.0]}}}]
-    });
+    let spec = ConstraintsSpec::new(
+        VertexSet::bbox(
+            [lo[0] - 1.0, lo[1] - 1.0, lo[2] - 1.0],
+            [x(0.15), hi[1] + 1.0, hi[2] + 1.0],
+        ),
+        vec![HandleSpec::named(
+            "top",
+            VertexSet::bbox(
+                [x(0.85), lo[1] - 1.0, lo[2] - 1.0],
+                [hi[0] + 1.0, hi[1] + 1.0, hi[2] + 1.0],
+            ),
+        )],
+    );
     let size = hi[0] - lo[0];
     let drags = [
         ("up", json!({"translate": [0, 0.15 * size, 0]})),

@@ -8,7 +8,9 @@ use std::process::{Child, Command, Stdio};
 use std::time::Duration;
 
 use dend_client::ws::{ClientMsg, DeltaJson};
-use dend_client::{Client, ClientError, SessionClient};
+use dend_client::{
+    Client, ClientError, ConstraintsSpec, HandleSpec, SessionClient, SessionParams, VertexSet,
+};
 use dend_server::Config;
 use dend_testkit::server::{grid, grid_constraints, start};
 use serde_json::{json, Value};
@@ -50,7 +52,7 @@ async fn ready_grid(base: &str) -> Result<SessionClient, ClientError> {
     let c = Client::new(base);
     let (p, t) = grid(N);
     let m = c.upload_json(&p, &t).await?;
-    let s = c.create_session(&m.id, json!({})).await?;
+    let s = c.create_session(&m.id, SessionParams::default()).await?;
     s.set_constraints(&grid_constraints(N)).await?;
     s.wait_ready(Duration::from_secs(60)).await?;
     Ok(s)
@@ -236,8 +238,11 @@ async fn a_restore_brings_back_the_pose_constraint_set() -> Result<(), ClientErr
     // another set: the left column fixed, the right one the handle
     let left: Vec<usize> = (0..N).map(|j| j * N).collect();
     let right: Vec<usize> = (0..N).map(|j| j * N + N - 1).collect();
-    s.set_constraints(&json!({"fixed": left, "handles": [{"name": "side", "vertices": right}]}))
-        .await?;
+    let side = ConstraintsSpec::new(
+        VertexSet::indices(left),
+        vec![HandleSpec::named("side", VertexSet::indices(right))],
+    );
+    s.set_constraints(&side).await?;
     s.wait_ready(Duration::from_secs(60)).await?;
     s.drag("side", delta(json!({"translate": [0, 0, 1]})), Some(50))
         .await?;

@@ -16,7 +16,9 @@ use std::time::Duration;
 use dend::mesh::gen::{generate, Shape, ShapeSpec};
 use dend::mesh::Mesh;
 use dend_client::ws::{ServerMsg, StreamOptions};
-use dend_client::{Client, FrameEncoding, WsFull};
+use dend_client::{
+    Client, ConstraintsSpec, FrameEncoding, HandleSpec, SessionParams, VertexSet, WsFull,
+};
 use dend_server::Config;
 use dend_testkit::server::start;
 use nalgebra::{UnitQuaternion, Vector3};
@@ -33,7 +35,7 @@ fn creature(levels: u32) -> Mesh {
 
 /// The load test's edit: the lowest 10 % along the longest axis fixed, the
 /// highest 10 % the handle; (constraints JSON, axis, extent).
-fn edit(mesh: &Mesh) -> (serde_json::Value, usize, f64) {
+fn edit(mesh: &Mesh) -> (ConstraintsSpec, usize, f64) {
     let (lo, hi) = mesh.bounding_box();
     let axis = (0..3)
         .max_by(|&a, &b| (hi[a] - lo[a]).total_cmp(&(hi[b] - lo[b])))
@@ -47,7 +49,10 @@ fn edit(mesh: &Mesh) -> (serde_json::Value, usize, f64) {
     let handle: Vec<usize> = (0..n)
         .filter(|&v| at(v) > hi[axis] - 0.1 * extent)
         .collect();
-    let c = serde_json::json!({"fixed": fixed, "handles": [{"name": "h", "vertices": handle}]});
+    let c = ConstraintsSpec::new(
+        VertexSet::indices(fixed),
+        vec![HandleSpec::named("h", VertexSet::indices(handle))],
+    );
     (c, axis, extent)
 }
 
@@ -82,7 +87,11 @@ async fn drag_in(base: &str, mesh: &Mesh, drags: u64) -> R<Settled> {
         // refinement that had started)
         .create_session(
             &uploaded.id,
-            serde_json::json!({"tol": 1e-5, "max_iters": 300}),
+            SessionParams {
+                tol: Some(1e-5),
+                max_iters: Some(300),
+                ..SessionParams::default()
+            },
         )
         .await?;
     let (constraints, axis, extent) = edit(mesh);

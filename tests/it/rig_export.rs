@@ -15,7 +15,9 @@ use dend::mesh::io::gltf::Sidecars;
 use dend::mesh::io::Format;
 use dend::rig::sample::{limb, LimbOptions};
 use dend_client::ws::DeltaJson;
-use dend_client::{Client, ClientError, SessionClient};
+use dend_client::{
+    Client, ClientError, ConstraintsSpec, HandleSpec, SessionClient, SessionParams, VertexSet,
+};
 use dend_server::Config;
 use dend_testkit::server::start;
 use nalgebra::{Matrix4, Quaternion, UnitQuaternion, Vector3, Vector4};
@@ -166,14 +168,24 @@ fn turn(doc: &Value, n: usize) -> (f64, Vector3<f64>) {
     (q.angle().to_degrees(), axis)
 }
 
+/// `bone0` held, the handle `name` on `joint` and its children, turning
+/// about `pivot`.
+fn limb_spec(name: &str, joint: &str, pivot: [f64; 3]) -> ConstraintsSpec {
+    let handle = HandleSpec {
+        pivot: Some(pivot),
+        ..HandleSpec::named(name, VertexSet::joint(joint, true))
+    };
+    ConstraintsSpec::new(VertexSet::joint("bone0", false), vec![handle])
+}
+
 async fn session(
     c: &Client,
     input: Vec<u8>,
-    spec: Value,
+    spec: ConstraintsSpec,
 ) -> Result<(SessionClient, Value), ClientError> {
     let mesh = c.upload_file(input, "glb").await?;
     let info = serde_json::to_value(&mesh).unwrap();
-    let s = c.create_session(&mesh.id, json!({})).await?;
+    let s = c.create_session(&mesh.id, SessionParams::default()).await?;
     s.set_constraints(&spec).await?;
     s.wait_ready(Duration::from_secs(120)).await?;
     Ok((s, info))
@@ -188,10 +200,7 @@ async fn a_joint_dragged_by_its_region_is_recovered_from_the_export() -> Result<
         blend: 0.0,
         ..LimbOptions::default()
     });
-    let spec = json!({
-        "fixed": {"joint": "bone0"},
-        "handles": [{"name": "arm", "vertices": {"joint": "bone1", "with_children": true}, "pivot": [0.0, 1.0, 0.0]}]
-    });
+    let spec = limb_spec("arm", "bone1", [0.0, 1.0, 0.0]);
     let (s, info) = session(&c, input.clone(), spec).await?;
     // the skeleton is listed
     let joints = info["asset"]["skeleton"]["joints"].as_array().unwrap();
@@ -262,10 +271,7 @@ async fn a_dend_pose_is_reproduced_by_skeleton_and_corrective() -> Result<(), Cl
         let (lo, hi) = asset.mesh().bounding_box();
         (0..3).map(|k| (hi[k] - lo[k]).powi(2)).sum::<f64>().sqrt()
     };
-    let spec = json!({
-        "fixed": {"joint": "bone0"},
-        "handles": [{"name": "hand", "vertices": {"joint": "bone2", "with_children": true}, "pivot": [0.0, 2.0, 0.0]}]
-    });
+    let spec = limb_spec("hand", "bone2", [0.0, 2.0, 0.0]);
     let (s, _) = session(&c, input, spec).await?;
     let http = reqwest::Client::new();
     let mut solved = vec![];
@@ -351,7 +357,7 @@ async fn rig_errors_are_typed() -> Result<(), ClientError> {
     let c = Client::new(&base);
     let input = limb(LimbOptions::default());
     let mesh = c.upload_file(input, "glb").await?;
-    let s = c.create_session(&mesh.id, json!({})).await?;
+    let s = c.create_session(&mesh.id, SessionParams::default()).await?;
     let http = reqwest::Client::new();
     let put = |spec: Value| {
         http.put(format!("{base}/v1/sessions/{}/constraints", s.id))
@@ -371,7 +377,7 @@ async fn rig_errors_are_typed() -> Result<(), ClientError> {
     })
     .unwrap();
     let m2 = c.upload_file(tube, "glb").await?;
-    let s2 = c.create_session(&m2.id, json!({})).await?;
+    let s2 = c.create_session(&m2.id, SessionParams::default()).await?;
     let r = http
         .put(format!("{base}/v1/sessions/{}/constraints", s2.id))
         .bearer_auth(&s2.token)

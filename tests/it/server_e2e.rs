@@ -2,14 +2,13 @@
 //! reqwest for HTTP and tokio-tungstenite (through `dend::client`) for
 //! WebSocket.
 
-use dend_client::ErrorCode;
 use std::sync::Arc;
 use std::time::Duration;
 
 use dend::deform::{ConstraintsSpec, Deformer, Factor, Params, Rest};
 use dend::mesh::Mesh;
 use dend_client::ws::DeltaJson;
-use dend_client::{Client, ClientError, WsEvent};
+use dend_client::{Client, ClientError, ErrorCode, SessionParams, WsEvent};
 use dend_server::Config;
 use dend_testkit::server::{grid, grid_constraints, start};
 use nalgebra::{Unit, UnitQuaternion, Vector3};
@@ -17,8 +16,12 @@ use serde_json::json;
 
 const N: usize = 8;
 
-fn params() -> serde_json::Value {
-    json!({"tol": 1e-10, "max_iters": 2000})
+fn params() -> SessionParams {
+    SessionParams {
+        tol: Some(1e-10),
+        max_iters: Some(2000),
+        ..SessionParams::default()
+    }
 }
 
 /// The i-th of the 100 test deltas: a small translation and a small
@@ -61,9 +64,11 @@ async fn hundred_ws_drags_equal_the_library_result_for_the_composed_transform(
     assert!(pose.converged);
 
     // The library, directly: compose the 100 deltas, run to convergence.
-    let lib_params: Params = serde_json::from_value(params()).expect("params");
+    let lib_params: Params =
+        serde_json::from_value(serde_json::to_value(params()).unwrap()).expect("params");
     let rest = Arc::new(Rest::new(Mesh::new(p, t).expect("mesh")).expect("rest"));
-    let spec: ConstraintsSpec = serde_json::from_value(grid_constraints(N)).expect("spec");
+    let spec: ConstraintsSpec =
+        serde_json::from_value(serde_json::to_value(grid_constraints(N)).unwrap()).expect("spec");
     let mut cons = spec.resolve(rest.mesh()).expect("resolve");
     for i in 0..100 {
         let (tr, q) = delta(i);
@@ -100,7 +105,7 @@ async fn two_clients_in_one_session_both_receive_frames() -> Result<(), ClientEr
     let c = Client::new(&base);
     let (p, t) = grid(N);
     let mesh = c.upload_json(&p, &t).await?;
-    let s = c.create_session(&mesh.id, json!({})).await?;
+    let s = c.create_session(&mesh.id, SessionParams::default()).await?;
     s.set_constraints(&grid_constraints(N)).await?;
     s.wait_ready(Duration::from_secs(60)).await?;
     let mut a = s.connect().await?;
@@ -167,7 +172,7 @@ async fn wrong_or_missing_token_is_refused() -> Result<(), ClientError> {
     let c = Client::new(&base);
     let (p, t) = grid(4);
     let mesh = c.upload_json(&p, &t).await?;
-    let s = c.create_session(&mesh.id, json!({})).await?;
+    let s = c.create_session(&mesh.id, SessionParams::default()).await?;
     assert!(s.token.len() >= 32, "128+ bit token");
     let http = reqwest::Client::new();
     let url = format!("{base}/v1/sessions/{}", s.id);
@@ -260,7 +265,13 @@ async fn settle_frames_report_a_falling_objective_and_end_settled() -> Result<()
     let (p, t) = grid(N);
     let mesh = c.upload_json(&p, &t).await?;
     let s = c
-        .create_session(&mesh.id, json!({"max_iters": 300}))
+        .create_session(
+            &mesh.id,
+            SessionParams {
+                max_iters: Some(300),
+                ..SessionParams::default()
+            },
+        )
         .await?;
     s.set_constraints(&grid_constraints(N)).await?;
     s.wait_ready(Duration::from_secs(60)).await?;

@@ -1,10 +1,9 @@
 //! Each bad input gets its specific error code, over real sockets; oversize
 //! uploads are refused from `Content-Length` or while streaming.
 
-use dend_client::ErrorCode;
 use std::time::Duration;
 
-use dend_client::{Client, ClientError};
+use dend_client::{Client, ClientError, ErrorCode, SessionParams};
 use dend_server::Config;
 use dend_testkit::server::{grid, grid_constraints, start};
 use serde_json::{json, Value};
@@ -92,7 +91,7 @@ async fn each_bad_input_gets_its_code() -> Result<(), ClientError> {
         "invalid_params",
     )
     .await;
-    let s = c.create_session(&mesh.id, json!({})).await?;
+    let s = c.create_session(&mesh.id, SessionParams::default()).await?;
     let auth = format!("Bearer {}", s.token);
     let sess = |m: reqwest::Method, tail: &str| {
         http.request(m, format!("{base}/v1/sessions/{}{tail}", s.id))
@@ -207,8 +206,8 @@ async fn session_limit_is_503() -> Result<(), ClientError> {
     let c = Client::new(&base);
     let (p, t) = grid(4);
     let mesh = c.upload_json(&p, &t).await?;
-    let _s = c.create_session(&mesh.id, json!({})).await?;
-    match c.create_session(&mesh.id, json!({})).await {
+    let _s = c.create_session(&mesh.id, SessionParams::default()).await?;
+    match c.create_session(&mesh.id, SessionParams::default()).await {
         Err(ClientError::Api {
             status: 503, code, ..
         }) => assert_eq!(code, ErrorCode::TooManySessions),
@@ -241,7 +240,9 @@ async fn a_wrong_token_on_a_stored_session_starts_no_work() -> Result<(), Client
     let first = Client::new(&start_on_store(dir.path()).await);
     let (p, t) = grid(8);
     let mesh = first.upload_json(&p, &t).await?;
-    let s = first.create_session(&mesh.id, json!({})).await?;
+    let s = first
+        .create_session(&mesh.id, SessionParams::default())
+        .await?;
     s.set_constraints(&grid_constraints(8)).await?;
     s.wait_ready(Duration::from_secs(60)).await?;
 

@@ -2,25 +2,38 @@
 //! asset kept by the store (memory and SQLite, across a restart), exports
 //! in the asset's layout that pass the Khronos validator, typed 4xx errors.
 
-use dend_client::ErrorCode;
 use std::sync::Arc;
 use std::time::Duration;
 
 use dend::mesh::asset::sample::{self, TubeOptions};
 use dend::mesh::io::gltf::{Container, GltfAsset, Sidecars};
 use dend_client::ws::{ClientMsg, DeltaJson, ServerMsg};
-use dend_client::{Client, ClientError};
+use dend_client::{
+    Client, ClientError, ConstraintsSpec, ErrorBody, ErrorCode, HandleSpec, SessionParams,
+    VertexSet,
+};
 use dend_server::store::SqliteStore;
 use dend_server::Config;
 use dend_testkit::assets::{banded_tube_obj, AROUND, RINGS};
 use dend_testkit::server::{start, start_with_store};
 use serde_json::json;
 
-fn twist() -> serde_json::Value {
-    json!({
-        "fixed": {"box": {"min": [-9, -9, -0.01], "max": [9, 9, 0.3]}},
-        "handles": [{"name": "top", "vertices": {"box": {"min": [-9, -9, 2.7], "max": [9, 9, 3.1]}}}]
-    })
+fn twist() -> ConstraintsSpec {
+    ConstraintsSpec::new(
+        VertexSet::bbox([-9.0, -9.0, -0.01], [9.0, 9.0, 0.3]),
+        vec![HandleSpec::named(
+            "top",
+            VertexSet::bbox([-9.0, -9.0, 2.7], [9.0, 9.0, 3.1]),
+        )],
+    )
+}
+
+/// Fixes the asset's group `fixed` and drags its group `handle` as `name`.
+fn by_groups(fixed: &str, name: &str, handle: &str) -> ConstraintsSpec {
+    ConstraintsSpec::new(
+        VertexSet::group(fixed),
+        vec![HandleSpec::named(name, VertexSet::group(handle))],
+    )
 }
 
 async fn upload(base: &str, bytes: Vec<u8>, content_type: &str) -> reqwest::Response {
@@ -54,7 +67,7 @@ async fn a_glb_upload_exports_posed_in_its_own_layout() -> Result<(), ClientErro
         .unwrap();
     assert_eq!(got, info, "GET /v1/meshes/{{id}} reports the same asset");
 
-    let s = c.create_session(id, json!({})).await?;
+    let s = c.create_session(id, SessionParams::default()).await?;
     // at rest the export is the uploaded file, byte for byte
     assert_eq!(s.export("glb").await?, input);
     s.set_constraints(&twist()).await?;
@@ -138,7 +151,7 @@ async fn the_sqlite_store_keeps_the_asset_across_a_restart() -> Result<(), Clien
     let store = Arc::new(SqliteStore::open(dir.path()).unwrap());
     let (base, _state) = start_with_store(Config::default(), store).await;
     let c = Client::new(&base);
-    let s = c.create_session(&id, json!({})).await?;
+    let s = c.create_session(&id, SessionParams::default()).await?;
     assert_eq!(s.export("glb").await?, input);
     Ok(())
 }
@@ -156,7 +169,7 @@ async fn delete_mesh_is_refused_while_a_session_uses_it() -> Result<(), ClientEr
     // the one slot is taken
     let r = upload(&base, input.clone(), "model/gltf-binary").await;
     assert_eq!(r.status(), 503);
-    let s = c.create_session(&id, json!({})).await?;
+    let s = c.create_session(&id, SessionParams::default()).await?;
     s.set_constraints(&twist()).await?;
     s.wait_ready(Duration::from_secs(60)).await?;
     assert!(state.cache.bytes() > 0, "a factor is cached");
@@ -226,18 +239,23 @@ async fn constraints_by_group_resolve_on_the_uploaded_asset() -> Result<(), Clie
     )
     .unwrap();
     let rest = rest.mesh().positions();
-    let s = c.create_session(&info.id, json!({})).await?;
-    s.set_constraints(&json!({
+    let s = c.create_session(&info.id, SessionParams::default()).await?;
+    // deliberately malformed (`{"o": …}` is no group selector, which the
+    // typed client cannot write): sent as raw JSON
+    let malformed = json!({
         "fixed": {"group": "base"},
         "handles": [{"name": "tip", "vertices": {"group": {"o": "x"}}}]
-    }))
-    .await
-    .expect_err("not a group selector: invalid constraints");
-    s.set_constraints(&json!({
-        "fixed": {"group": "base"},
-        "handles": [{"name": "tip", "vertices": {"group": "tip"}}]
-    }))
-    .await?;
+    });
+    let r = reqwest::Client::new()
+        .put(format!("{base}/v1/sessions/{}/constraints", s.id))
+        .bearer_auth(&s.token)
+        .json(&malformed)
+        .send()
+        .await?;
+    assert_eq!(r.status(), 422, "not a group selector");
+    let e: ErrorBody = r.json().await?;
+    assert_eq!(e.code, ErrorCode::InvalidConstraints);
+    s.set_constraints(&by_groups("base", "tip", "tip")).await?;
     s.wait_ready(Duration::from_secs(60)).await?;
     let p = s
         .drag("tip", DeltaJson::translate([1.5, 0.0, 0.0]), Some(60))
@@ -264,7 +282,7 @@ async fn constraints_by_group_resolve_on_the_uploaded_asset() -> Result<(), Clie
 
     // an unknown group: 422 unknown_group naming it and listing the groups,
     // over HTTP and over the WebSocket; the session keeps its constraints
-    let bad = json!({"fixed": {"group": "base"}, "handles": [{"vertices": {"group": "LeftArm"}}]});
+    let bad = by_groups("base", "arm", "LeftArm");
     match s.set_constraints(&bad).await {
         Err(ClientError::Api {
             status,
@@ -297,7 +315,7 @@ async fn constraints_by_group_resolve_on_the_uploaded_asset() -> Result<(), Clie
         "{e:?}"
     );
     // over the WebSocket a known group resolves like over HTTP
-    let good = json!({"fixed": {"group": "tip"}, "handles": [{"name": "b", "vertices": {"group": "base"}}]});
+    let good = by_groups("tip", "b", "base");
     ws.send(&ClientMsg::SetConstraints {
         constraints: good,
         if_revision: None,
@@ -306,17 +324,17 @@ async fn constraints_by_group_resolve_on_the_uploaded_asset() -> Result<(), Clie
     s.wait_ready(Duration::from_secs(60)).await?;
     let stored = s.info().await?;
     let constraints = stored.constraints.expect("constraints");
-    let fixed: Vec<u64> = serde_json::from_value(constraints["fixed"].clone()).unwrap();
-    assert_eq!(
-        fixed.len(),
-        2 * AROUND,
-        "stored as the index list: {constraints}"
-    );
+    let VertexSet::Indices(fixed) = &constraints.fixed else {
+        panic!("stored as the index list: {constraints:?}")
+    };
+    assert_eq!(fixed.len(), 2 * AROUND);
     ws.close().await?;
 
     // a mesh without an asset has no groups
     let plain = c.generate(json!({"shape": "bar"})).await?;
-    let s = c.create_session(&plain.id, json!({})).await?;
+    let s = c
+        .create_session(&plain.id, SessionParams::default())
+        .await?;
     match s.set_constraints(&bad).await {
         Err(ClientError::Api { status, code, .. }) => {
             assert_eq!((status, code), (422, ErrorCode::UnknownGroup));
@@ -337,7 +355,7 @@ async fn an_export_that_drops_the_assets_attributes_says_so() -> Result<(), Clie
     .await;
     let info: serde_json::Value = r.json().await.unwrap();
     let s = Client::new(&base)
-        .create_session(info["id"].as_str().unwrap(), json!({}))
+        .create_session(info["id"].as_str().unwrap(), SessionParams::default())
         .await?;
     let get = |format: &str| {
         reqwest::Client::new()

@@ -11,18 +11,16 @@
 //!   event and not applied, and after the store is back no acknowledged
 //!   drag is missing and no refused one present.
 
-use dend_client::ErrorCode;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
 use std::time::Duration;
 
 use dend_client::ws::{DeltaJson, ServerMsg};
-use dend_client::{Client, ClientError, WsEvent};
+use dend_client::{Client, ClientError, ErrorCode, SessionParams, WsEvent};
 use dend_server::lease::Cluster;
 use dend_server::store::{with_faults, JournalEntry, MemoryStore, SessionLog, Store, StoreError};
 use dend_server::{app, AppState, Config};
 use dend_testkit::server::{grid, grid_constraints};
-use serde_json::json;
 
 const N: usize = 5;
 
@@ -76,7 +74,9 @@ async fn leased_elsewhere_is_refused_then_taken_over_and_the_old_owner_fenced(
     let (p, t) = grid(N);
     let mesh = ca.upload_json(&p, &t).await?;
     // created on a, opened (and leased) by b, where its first request goes
-    let s = ca.create_session(&mesh.id, json!({})).await?;
+    let s = ca
+        .create_session(&mesh.id, SessionParams::default())
+        .await?;
     assert!(a.registry.is_empty(), "creation does not open it");
     let sb = cb.session(&s.id, &s.token);
     let sa = ca.session(&s.id, &s.token);
@@ -142,7 +142,9 @@ async fn the_owner_hands_a_session_over_to_the_instance_that_asks() -> Result<()
     let (ca, cb) = (Client::new(&a_url), Client::new(&b_url));
     let (p, t) = grid(N);
     let mesh = ca.upload_json(&p, &t).await?;
-    let s = ca.create_session(&mesh.id, json!({})).await?;
+    let s = ca
+        .create_session(&mesh.id, SessionParams::default())
+        .await?;
     let sb = cb.session(&s.id, &s.token);
     sb.set_constraints(&grid_constraints(N)).await?;
     sb.wait_ready(Duration::from_secs(20)).await?;
@@ -213,7 +215,7 @@ async fn an_unreachable_store_refuses_writes_and_loses_no_acknowledged_drag(
     let c = Client::new(&url);
     let (p, t) = grid(N);
     let mesh = c.upload_json(&p, &t).await?;
-    let s = c.create_session(&mesh.id, json!({})).await?;
+    let s = c.create_session(&mesh.id, SessionParams::default()).await?;
     s.set_constraints(&grid_constraints(N)).await?;
     s.wait_ready(Duration::from_secs(20)).await?;
     assert_eq!(status_code(&format!("{url}/healthz/ready")).await?.0, 200);

@@ -3,12 +3,14 @@
 //! redo span constraint edits, and a revived session gets the anchored set
 //! back from the store.
 
-use dend_client::ErrorCode;
 use std::sync::Arc;
 use std::time::Duration;
 
 use dend_client::ws::{ClientMsg, DeltaJson, ServerMsg, SessionInfo};
-use dend_client::{Client, ClientError, SessionClient};
+use dend_client::{
+    Client, ClientError, ConstraintsSpec, ErrorCode, HandleSpec, SessionClient, SessionParams,
+    VertexSet,
+};
 use dend_server::store::MemoryStore;
 use dend_server::Config;
 use dend_testkit::server::{grid, grid_constraints, start_with_store};
@@ -43,7 +45,14 @@ async fn posed_session(
     let (p, t) = grid(N);
     let mesh = c.upload_json(&p, &t).await?;
     let s = c
-        .create_session(&mesh.id, json!({"tol": 1e-9, "max_iters": 2000}))
+        .create_session(
+            &mesh.id,
+            SessionParams {
+                tol: Some(1e-9),
+                max_iters: Some(2000),
+                ..SessionParams::default()
+            },
+        )
         .await?;
     s.set_constraints(&grid_constraints(N)).await?;
     s.wait_ready(Duration::from_secs(60)).await?;
@@ -52,10 +61,13 @@ async fn posed_session(
 }
 
 /// Bottom and row 3 fixed, the top row the handle `top`.
-fn pinned_middle() -> serde_json::Value {
+fn pinned_middle() -> ConstraintsSpec {
     let mut fixed = row(0);
     fixed.extend(row(3));
-    json!({"fixed": fixed, "handles": [{"name": "top", "vertices": row(N - 1)}]})
+    ConstraintsSpec::new(
+        VertexSet::indices(fixed),
+        vec![HandleSpec::named("top", VertexSet::indices(row(N - 1)))],
+    )
 }
 
 #[tokio::test]
@@ -231,8 +243,11 @@ async fn the_session_reports_the_warnings_of_its_constraint_set() -> Result<(), 
     // one handle, nothing fixed, and a stray handle vertex in row 3
     let mut top = row(N - 1);
     top.push(3 * N + 3);
-    s.set_constraints(&json!({"handles": [{"name": "top", "vertices": top}]}))
-        .await?;
+    let no_fixed = ConstraintsSpec::new(
+        VertexSet::indices([]),
+        vec![HandleSpec::named("top", VertexSet::indices(top))],
+    );
+    s.set_constraints(&no_fixed).await?;
     let w = s.info().await?.warnings;
     let codes: Vec<&str> = w
         .iter()
@@ -267,7 +282,7 @@ async fn curvature_of_the_pose_matches_a_sphere() -> Result<(), ClientError> {
     let sphere = dend_testkit::uv_sphere(23, 48, 2.0);
     let (p, t) = (sphere.positions().to_vec(), sphere.triangles().to_vec());
     let mesh = c.upload_json(&p, &t).await?;
-    let s = c.create_session(&mesh.id, json!({})).await?;
+    let s = c.create_session(&mesh.id, SessionParams::default()).await?;
     let http = reqwest::Client::new();
     let url = format!("{base}/v1/sessions/{}/curvature", s.id);
     assert_eq!(http.get(&url).send().await?.status(), 401);

@@ -6,7 +6,7 @@ use std::sync::Arc;
 use std::time::{Duration, Instant};
 
 use dend_client::ws::{DeltaJson, ServerMsg};
-use dend_client::{Client, ClientError, WsEvent};
+use dend_client::{Client, ClientError, SessionParams, WsEvent};
 use dend_server::store::{with_faults, MemoryStore, Store};
 use dend_server::Config;
 use dend_testkit::server::{grid, grid_constraints, start_with_store};
@@ -57,8 +57,8 @@ async fn a_slow_store_for_one_session_does_not_stall_another() -> Result<(), Cli
     let c = Client::new(&base);
     let (p, t) = grid(8);
     let mesh = c.upload_json(&p, &t).await?;
-    let a = c.create_session(&mesh.id, json!({})).await?;
-    let b = c.create_session(&mesh.id, json!({})).await?;
+    let a = c.create_session(&mesh.id, SessionParams::default()).await?;
+    let b = c.create_session(&mesh.id, SessionParams::default()).await?;
     for s in [&a, &b] {
         s.set_constraints(&grid_constraints(8)).await?;
         s.wait_ready(Duration::from_secs(60)).await?;

@@ -9,17 +9,17 @@
 //!   rebuilt is queued and applied once it is ready (HTTP answers with
 //!   it, a WebSocket drag is acknowledged by a frame), not refused.
 
-use dend_client::ErrorCode;
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
 use dend_client::ws::{ClientMsg, DeltaJson, ServerMsg};
-use dend_client::{Client, ClientError, Pose, SessionClient, WsEvent};
+use dend_client::{
+    Client, ClientError, ErrorCode, Pose, SessionClient, SessionParams, VertexSet, WsEvent,
+};
 use dend_server::lease::Cluster;
 use dend_server::store::{MemoryStore, Store};
 use dend_server::{app, AppState, Config};
 use dend_testkit::server::{grid, grid_constraints};
-use serde_json::json;
 
 const N: usize = 6;
 
@@ -111,7 +111,9 @@ async fn reads_through_a_takeover_hold_every_acknowledged_drag_and_drags_then_ar
     let (ca, cb) = (Client::new(&a_url), Client::new(&b_url));
     let (p, t) = grid(N);
     let mesh = ca.upload_json(&p, &t).await?;
-    let s = ca.create_session(&mesh.id, json!({})).await?;
+    let s = ca
+        .create_session(&mesh.id, SessionParams::default())
+        .await?;
     let sa = ca.session(&s.id, &s.token);
     sa.set_constraints(&grid_constraints(N)).await?;
     sa.wait_ready(Duration::from_secs(20)).await?;
@@ -165,14 +167,14 @@ async fn drags_during_a_factor_rebuild_are_queued_and_applied() -> Result<(), Cl
     let c = Client::new(&url);
     let (p, t) = grid(BIG);
     let mesh = c.upload_json(&p, &t).await?;
-    let s = c.create_session(&mesh.id, json!({})).await?;
+    let s = c.create_session(&mesh.id, SessionParams::default()).await?;
     s.set_constraints(&grid_constraints(BIG)).await?;
     s.wait_ready(Duration::from_secs(20)).await?;
     let mut ws = s.connect().await?;
     // a new constraint set (building), then at once a WebSocket drag and an
     // HTTP drag: both wait for the factor and are applied, in order
     let mut other = grid_constraints(BIG);
-    other["fixed"] = json!((0..BIG - 1).collect::<Vec<usize>>());
+    other.fixed = VertexSet::indices(0..BIG - 1);
     s.set_constraints(&other).await?;
     ws.drag(0, [0.25, 0.0, 0.0], None, 1).await?;
     let http = s
@@ -263,7 +265,9 @@ async fn reads_through_a_lease_expiry_takeover_get_the_settled_revived_pose(
     let (ca, cb) = (Client::new(&a_url), Client::new(&b_url));
     let (p, t) = grid(M);
     let mesh = ca.upload_json(&p, &t).await?;
-    let s = ca.create_session(&mesh.id, json!({})).await?;
+    let s = ca
+        .create_session(&mesh.id, SessionParams::default())
+        .await?;
     let sa = ca.session(&s.id, &s.token);
     sa.set_constraints(&grid_constraints(M)).await?;
     sa.wait_ready(Duration::from_secs(20)).await?;

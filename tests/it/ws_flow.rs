@@ -8,7 +8,7 @@ use std::collections::BTreeMap;
 use std::time::{Duration, Instant};
 
 use dend_client::ws::{ServerMsg, StreamOptions};
-use dend_client::{Client, FrameEncoding, SessionClient, WsFull};
+use dend_client::{Client, FrameEncoding, SessionClient, SessionParams, WsFull};
 use dend_server::Config;
 use dend_testkit::server::{grid, grid_constraints, start};
 
@@ -17,7 +17,7 @@ type R = Result<(), Box<dyn std::error::Error>>;
 /// A server, and a session on an `n`×`n` grid, ready to drag.
 async fn ready_session(
     n: usize,
-    params: serde_json::Value,
+    params: SessionParams,
 ) -> Result<(Client, SessionClient), Box<dyn std::error::Error>> {
     let (base, _state) = start(Config {
         ws_max_messages_per_sec: 100_000,
@@ -46,7 +46,7 @@ fn median(mut v: Vec<f64>) -> f64 {
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn a_slow_client_sees_a_flat_drag_to_frame_latency() -> R {
     let n = 30;
-    let (_c, s) = ready_session(n, serde_json::json!({})).await?;
+    let (_c, s) = ready_session(n, SessionParams::default()).await?;
     let mut ws = s
         .connect_with(StreamOptions::flow(1, FrameEncoding::Q16))
         .await?;
@@ -167,7 +167,14 @@ async fn q16_frames_are_half_the_bytes_and_the_settled_frame_is_exact() -> R {
     // a tolerance it does not reach: every frame of the drag's 100
     // iterations is one the pose moved in, and some reach the clients
     let n = 40;
-    let (_c, s) = ready_session(n, serde_json::json!({"tol": 1e-12})).await?;
+    let (_c, s) = ready_session(
+        n,
+        SessionParams {
+            tol: Some(1e-12),
+            ..SessionParams::default()
+        },
+    )
+    .await?;
     let mut q16 = s
         .connect_with(StreamOptions::flow(1, FrameEncoding::Q16))
         .await?;
@@ -241,7 +248,7 @@ async fn q16_frames_are_half_the_bytes_and_the_settled_frame_is_exact() -> R {
 /// Bad stream options are refused before the upgrade, with the API's error.
 #[tokio::test]
 async fn bad_stream_options_are_refused_before_the_upgrade() -> R {
-    let (_c, s) = ready_session(4, serde_json::json!({})).await?;
+    let (_c, s) = ready_session(4, SessionParams::default()).await?;
     for opts in [
         StreamOptions {
             window: Some(0),
@@ -275,7 +282,14 @@ async fn bad_stream_options_are_refused_before_the_upgrade() -> R {
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn delta_frames_are_within_the_grid_and_cost_what_moved() -> R {
     let n = 40;
-    let (_c, s) = ready_session(n, serde_json::json!({"tol": 1e-12})).await?;
+    let (_c, s) = ready_session(
+        n,
+        SessionParams {
+            tol: Some(1e-12),
+            ..SessionParams::default()
+        },
+    )
+    .await?;
     let mut delta = s
         .connect_with(StreamOptions::flow(1, FrameEncoding::Delta))
         .await?;
@@ -339,7 +353,14 @@ async fn delta_frames_are_within_the_grid_and_cost_what_moved() -> R {
 /// and gets fewer frames than a client without the cap on the same drags.
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn a_declared_frame_rate_caps_the_frames_and_the_settled_one_still_comes() -> R {
-    let (_c, s) = ready_session(30, serde_json::json!({"tol": 1e-6})).await?;
+    let (_c, s) = ready_session(
+        30,
+        SessionParams {
+            tol: Some(1e-6),
+            ..SessionParams::default()
+        },
+    )
+    .await?;
     let max_fps = 20;
     let mut capped = s
         .connect_with(StreamOptions::flow(1, FrameEncoding::Delta).at_most_fps(max_fps))
@@ -411,7 +432,14 @@ async fn a_declared_frame_rate_caps_the_frames_and_the_settled_one_still_comes()
 /// a client without the cap gets every refinement.
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn refinements_wait_for_refine_fps_and_drag_answers_do_not() -> R {
-    let (_c, s) = ready_session(30, serde_json::json!({"tol": 1e-9})).await?;
+    let (_c, s) = ready_session(
+        30,
+        SessionParams {
+            tol: Some(1e-9),
+            ..SessionParams::default()
+        },
+    )
+    .await?;
     // an answer held back like a refinement would make the drags below
     // take a tenth of a second each
     let refine_fps = 10;
@@ -510,7 +538,15 @@ async fn the_settled_frame_is_converged_only_when_the_convergence_test_held() ->
     // (the grid's edges are 1 long)
     let lift = [0.0, 0.0, 0.4 * (n - 1) as f64];
 
-    let (_c, cut) = ready_session(n, serde_json::json!({"max_iters": 3, "tol": 1e-9})).await?;
+    let (_c, cut) = ready_session(
+        n,
+        SessionParams {
+            max_iters: Some(3),
+            tol: Some(1e-9),
+            ..SessionParams::default()
+        },
+    )
+    .await?;
     let mut ws = cut
         .connect_with(StreamOptions::flow(1, FrameEncoding::F32))
         .await?;
@@ -520,7 +556,14 @@ async fn the_settled_frame_is_converged_only_when_the_convergence_test_held() ->
     assert_eq!(its, 3);
 
     let tol = 1e-4;
-    let (_c, full) = ready_session(n, serde_json::json!({"tol": tol})).await?;
+    let (_c, full) = ready_session(
+        n,
+        SessionParams {
+            tol: Some(tol),
+            ..SessionParams::default()
+        },
+    )
+    .await?;
     let mut ws = full
         .connect_with(StreamOptions::flow(1, FrameEncoding::F32))
         .await?;
@@ -579,7 +622,11 @@ async fn a_drag_stops_the_refinement_it_arrives_during() -> R {
     let s = c
         .create_session(
             &mesh.id,
-            serde_json::json!({"tol": 1e-300, "max_iters": 1_000_000}),
+            SessionParams {
+                tol: Some(1e-300),
+                max_iters: Some(1_000_000),
+                ..SessionParams::default()
+            },
         )
         .await?;
     s.set_constraints(&grid_constraints(n)).await?;

@@ -21,14 +21,13 @@ use std::time::Duration;
 use dend::deform::{ConstraintsSpec, RigidTransform};
 use dend::mesh::Mesh;
 use dend_client::ws::{ServerMsg, SessionState};
-use dend_client::{Client, WsClient, WsEvent};
+use dend_client::{Client, SessionParams, WsClient, WsEvent};
 use dend_server::session::Recovered;
 use dend_server::store::{SessionLog, SqliteStore};
 use nalgebra::{Quaternion, UnitQuaternion};
 use parking_lot::Mutex;
 use rand::rngs::StdRng;
 use rand::{Rng, SeedableRng};
-use serde_json::{json, Value};
 
 const RUNS: usize = 22;
 const SESSIONS: usize = 3;
@@ -71,12 +70,16 @@ fn start(dir: &std::path::Path) -> Res<Server> {
     Ok(Server { child, base })
 }
 
-fn spec() -> Value {
+fn spec() -> dend_client::ConstraintsSpec {
+    use dend_client::{HandleSpec, VertexSet};
     let hi = N as f64 - 1.5;
-    json!({
-        "fixed": {"box": {"min": [-1, -1, -1], "max": [0.5, 100, 1]}},
-        "handles": [{"name": "right", "vertices": {"box": {"min": [hi, -1, -1], "max": [100, 100, 1]}}}]
-    })
+    dend_client::ConstraintsSpec::new(
+        VertexSet::bbox([-1.0, -1.0, -1.0], [0.5, 100.0, 1.0]),
+        vec![HandleSpec::named(
+            "right",
+            VertexSet::bbox([hi, -1.0, -1.0], [100.0, 100.0, 1.0]),
+        )],
+    )
 }
 
 /// One sent delta: (seq, translation, quaternion `[x, y, z, w]`).
@@ -174,7 +177,7 @@ async fn kill_9_loses_no_acknowledged_drag() -> Res<()> {
     let (positions, triangles) = dend_testkit::server::grid(N);
     let mesh = Mesh::new(positions.clone(), triangles.clone())?;
     let spec_json = spec();
-    let initial = serde_json::from_value::<ConstraintsSpec>(spec_json.clone())?
+    let initial = serde_json::from_value::<ConstraintsSpec>(serde_json::to_value(&spec_json)?)?
         .resolve(&mesh)?
         .handles[0]
         .target;
@@ -186,7 +189,13 @@ async fn kill_9_loses_no_acknowledged_drag() -> Res<()> {
     let mut sessions = vec![];
     for _ in 0..SESSIONS {
         let s = client
-            .create_session(&info.id, json!({"max_iters": 8}))
+            .create_session(
+                &info.id,
+                SessionParams {
+                    max_iters: Some(8),
+                    ..SessionParams::default()
+                },
+            )
             .await?;
         s.set_constraints(&spec_json).await?;
         s.wait_ready(Duration::from_secs(30)).await?;

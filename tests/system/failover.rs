@@ -25,14 +25,13 @@
 //! missing, a failure under `CI=true`.
 
 use crate::failover_support;
-use dend_client::ErrorCode;
 
 use std::collections::HashMap;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
-use dend_client::{Client, ClientError, SessionClient};
+use dend_client::{Client, ClientError, ErrorCode, SessionClient, SessionParams};
 use dend_testkit::server::{grid, grid_constraints};
 use failover_support::client::{drive, dx, Cut, Shared, Tally};
 use failover_support::{http_status, prerequisites, Haproxy, Instance, Postgres};
@@ -167,7 +166,10 @@ async fn run(
     let mesh = api.upload_json(&p, &t).await.map_err(e)?;
     let mut sessions = vec![];
     for _ in 0..SESSIONS {
-        let s = api.create_session(&mesh.id, json!({})).await.map_err(e)?;
+        let s = api
+            .create_session(&mesh.id, SessionParams::default())
+            .await
+            .map_err(e)?;
         s.set_constraints(&grid_constraints(N)).await.map_err(e)?;
         s.wait_ready(Duration::from_secs(30)).await.map_err(e)?;
         sessions.push(s);

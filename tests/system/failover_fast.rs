@@ -18,14 +18,13 @@
 //! Needs `haproxy` and PostgreSQL's server binaries: skipped (logged to
 //! `$DEND_SKIP_LOG`) when they are missing, a failure under `CI=true`.
 
-use dend_client::ErrorCode;
 use std::collections::HashMap;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
 use dend_client::ws::{ClientMsg, ServerMsg};
-use dend_client::{Client, ClientError, SessionClient, WsEvent};
+use dend_client::{Client, ClientError, ErrorCode, SessionClient, SessionParams, WsEvent};
 use dend_testkit::server::{grid, grid_constraints};
 use parking_lot::Mutex;
 use serde_json::json;
@@ -337,7 +336,10 @@ async fn run(
     let mesh = api.upload_json(&p, &t).await.map_err(e)?;
     let mut sessions = vec![];
     for _ in 0..SESSIONS {
-        let s = api.create_session(&mesh.id, json!({})).await.map_err(e)?;
+        let s = api
+            .create_session(&mesh.id, SessionParams::default())
+            .await
+            .map_err(e)?;
         s.set_constraints(&grid_constraints(N)).await.map_err(e)?;
         s.wait_ready(Duration::from_secs(30)).await.map_err(e)?;
         sessions.push(s);

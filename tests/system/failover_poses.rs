@@ -12,7 +12,7 @@
 use std::time::{Duration, Instant};
 
 use dend_client::ws::DeltaJson;
-use dend_client::{Client, ClientError, SessionClient};
+use dend_client::{Client, ClientError, SessionClient, SessionParams};
 use dend_testkit::server::{grid, grid_constraints};
 use serde_json::{json, Value};
 
@@ -119,7 +119,10 @@ async fn run(a: &mut Instance, b: &Instance) -> Result<(), String> {
     let api = Client::new(&a.base);
     let (p, t) = grid(N);
     let mesh = api.upload_json(&p, &t).await.map_err(e)?;
-    let s = api.create_session(&mesh.id, json!({})).await.map_err(e)?;
+    let s = api
+        .create_session(&mesh.id, SessionParams::default())
+        .await
+        .map_err(e)?;
     s.set_constraints(&grid_constraints(N)).await.map_err(e)?;
     s.wait_ready(Duration::from_secs(60)).await.map_err(e)?;
     let mut saved = vec![];

@@ -15,10 +15,9 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
-use dend_client::{Client, ClientError};
+use dend_client::{Client, ClientError, SessionParams};
 use dend_testkit::server::{grid, grid_constraints};
 use parking_lot::Mutex;
-use serde_json::json;
 
 use crate::failover_fast::{drive, pose_retrying, sum_dx, Ctl, Seen};
 use crate::failover_support::{http_status, prerequisites, Haproxy, Instance, Postgres};
@@ -85,7 +84,10 @@ async fn run(
     let mesh = api.upload_json(&p, &t).await.map_err(e)?;
     let mut sessions = vec![];
     for _ in 0..SESSIONS {
-        let s = api.create_session(&mesh.id, json!({})).await.map_err(e)?;
+        let s = api
+            .create_session(&mesh.id, SessionParams::default())
+            .await
+            .map_err(e)?;
         s.set_constraints(&grid_constraints(N)).await.map_err(e)?;
         s.wait_ready(Duration::from_secs(30)).await.map_err(e)?;
         sessions.push(s);

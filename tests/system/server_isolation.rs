@@ -4,7 +4,7 @@
 //! every numeric field, message floods, clients that never read and many
 //! connections each get a bounded, typed answer.
 
-use dend_client::{ErrorBody, ErrorCode};
+use dend_client::{ErrorBody, ErrorCode, SessionParams};
 use std::collections::HashSet;
 use std::time::Duration;
 
@@ -41,8 +41,8 @@ async fn a_token_opens_its_own_session_only() -> Res {
     let c = Client::new(&base);
     let (p, t) = grid(5);
     let mesh = c.upload_json(&p, &t).await?;
-    let a = c.create_session(&mesh.id, json!({})).await?;
-    let b = c.create_session(&mesh.id, json!({})).await?;
+    let a = c.create_session(&mesh.id, SessionParams::default()).await?;
+    let b = c.create_session(&mesh.id, SessionParams::default()).await?;
     b.set_constraints(&grid_constraints(5)).await?;
     b.wait_ready(Duration::from_secs(60)).await?;
     let http = reqwest::Client::new();
@@ -104,7 +104,7 @@ async fn ids_and_tokens_are_random_128_bit_or_more() -> Res {
     let mesh = c.upload_json(&p, &t).await?;
     let (mut ids, mut tokens, mut prefixes) = (HashSet::new(), HashSet::new(), HashSet::new());
     for _ in 0..40 {
-        let s = c.create_session(&mesh.id, json!({})).await?;
+        let s = c.create_session(&mesh.id, SessionParams::default()).await?;
         assert!(
             s.id.len() >= 32 && s.id.chars().all(|ch| ch.is_ascii_hexdigit()),
             "id {}",
@@ -130,7 +130,7 @@ async fn hostile_json_gets_typed_4xx() -> Res {
     let n = 6;
     let (p, t) = grid(n);
     let mesh = c.upload_json(&p, &t).await?;
-    let s = c.create_session(&mesh.id, json!({})).await?;
+    let s = c.create_session(&mesh.id, SessionParams::default()).await?;
     s.set_constraints(&grid_constraints(n)).await?;
     s.wait_ready(Duration::from_secs(60)).await?;
     let http = reqwest::Client::new();
@@ -284,7 +284,7 @@ async fn floods_slow_readers_and_many_connections_stay_bounded() -> Res {
     let n = 20;
     let (p, t) = grid(n);
     let mesh = c.upload_json(&p, &t).await?;
-    let s = c.create_session(&mesh.id, json!({})).await?;
+    let s = c.create_session(&mesh.id, SessionParams::default()).await?;
     s.set_constraints(&grid_constraints(n)).await?;
     s.wait_ready(Duration::from_secs(60)).await?;
 

@@ -16,13 +16,11 @@
 //! Needs PostgreSQL's server binaries: skipped (logged to `$DEND_SKIP_LOG`)
 //! when they are missing, a failure under `CI=true`.
 
-use dend_client::ErrorCode;
 use std::time::{Duration, Instant};
 
 use dend_client::ws::{ClientMsg, DeltaJson};
-use dend_client::{Client, ClientError, Pose};
+use dend_client::{Client, ClientError, ErrorCode, Pose, SessionParams};
 use dend_testkit::server::{grid, grid_constraints};
-use serde_json::json;
 
 use crate::failover_support::{free_port, postgres_prerequisite, Instance, Postgres};
 
@@ -85,7 +83,10 @@ async fn run(pg: &Postgres, a: &mut Instance, b: &Instance) -> Result<(), String
     let ca = Client::new(&a.base);
     let (p, t) = grid(N);
     let mesh = ca.upload_json(&p, &t).await.map_err(e)?;
-    let s = ca.create_session(&mesh.id, json!({})).await.map_err(e)?;
+    let s = ca
+        .create_session(&mesh.id, SessionParams::default())
+        .await
+        .map_err(e)?;
     let sa = ca.session(&s.id, &s.token);
     sa.set_constraints(&grid_constraints(N)).await.map_err(e)?;
     sa.wait_ready(Duration::from_secs(30)).await.map_err(e)?;

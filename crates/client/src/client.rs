@@ -4,7 +4,7 @@
 use serde_json::Value;
 
 use dend_protocol::ws::{CreateSession, Created};
-use dend_protocol::MeshInfo;
+use dend_protocol::{MeshInfo, PresetList, SessionParams};
 
 use crate::error::{check, ClientError};
 use crate::session::SessionClient;
@@ -71,6 +71,44 @@ impl Client {
             }))
     }
 
+    /// `GET /healthz/ready`: `Ok` when the instance takes requests (its
+    /// store answers, it is not draining), else the server's error.
+    pub async fn ready(&self) -> Result<(), ClientError> {
+        let r = self
+            .http
+            .get(format!("{}/healthz/ready", self.base))
+            .send()
+            .await?;
+        let _ = check(r).await?;
+        Ok(())
+    }
+
+    /// `GET /v1/presets`: the named parameter sets, the default first.
+    pub async fn presets(&self) -> Result<PresetList, ClientError> {
+        let r = self
+            .http
+            .get(format!("{}/v1/presets", self.base))
+            .send()
+            .await?;
+        Ok(check(r).await?.json().await?)
+    }
+
+    /// `GET /v1/meshes/{id}`.
+    pub async fn mesh(&self, id: &str) -> Result<MeshInfo, ClientError> {
+        let url = segment(&self.base, &["v1", "meshes", id])?;
+        let r = self.http.get(url).send().await?;
+        Ok(check(r).await?.json().await?)
+    }
+
+    /// `DELETE /v1/meshes/{id}` (refused with `mesh_in_use` while sessions
+    /// edit it).
+    pub async fn delete_mesh(&self, id: &str) -> Result<(), ClientError> {
+        let url = segment(&self.base, &["v1", "meshes", id])?;
+        let r = self.http.delete(url).send().await?;
+        let _ = check(r).await?;
+        Ok(())
+    }
+
     /// Uploads a mesh as JSON.
     pub async fn upload_json(
         &self,
@@ -123,11 +161,12 @@ impl Client {
         )
     }
 
-    /// Creates a session on a mesh.
+    /// Creates a session on a mesh (`SessionParams::default()`: the
+    /// default preset).
     pub async fn create_session(
         &self,
         mesh_id: &str,
-        params: Value,
+        params: SessionParams,
     ) -> Result<SessionClient, ClientError> {
         let r = self
             .http
@@ -146,4 +185,16 @@ impl Client {
             created.token,
         ))
     }
+}
+
+/// `base` with the path `parts`, each percent-encoded as one segment (a
+/// mesh id or a pose name may hold spaces, `/` or `?`).
+pub(crate) fn segment(base: &str, parts: &[&str]) -> Result<reqwest::Url, ClientError> {
+    let mut url =
+        reqwest::Url::parse(base).map_err(|e| ClientError::Protocol(format!("{base}: {e}")))?;
+    url.path_segments_mut()
+        .map_err(|()| ClientError::Protocol(format!("{base} cannot have a path")))?
+        .pop_if_empty()
+        .extend(parts);
+    Ok(url)
 }

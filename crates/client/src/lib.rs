@@ -6,7 +6,7 @@
 //! use dend_client::Client;
 //! let c = Client::new("http://127.0.0.1:8080");
 //! let mesh = c.upload_json(&[[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]], &[[0, 1, 2]]).await?;
-//! let s = c.create_session(&mesh.id, serde_json::json!({})).await?;
+//! let s = c.create_session(&mesh.id, dend_client::SessionParams::default()).await?;
 //! let mut ws = s.connect().await?;
 //! ws.drag(0, [0.0, 0.0, 0.1], None, 1).await?;
 //! let (header, positions) = ws.frame_acking(1, false).await?;
@@ -16,6 +16,7 @@
 
 mod client;
 mod error;
+mod poses;
 mod session;
 mod socket;
 
@@ -32,6 +33,13 @@ pub use dend_protocol::FrameEncoding;
 pub use dend_protocol::MeshInfo;
 /// A pose as JSON (the server's own type).
 pub use dend_protocol::PoseJson as Pose;
+/// What a client sends: session parameters and constraints (typed), the
+/// server's answers about them, curvatures, presets and named poses.
+pub use dend_protocol::{
+    constraints, params, ConstraintsAccepted, ConstraintsSpec, Curvature, HandleSpec, MeshJson,
+    NamedPose, PoseList, PresetInfo, PresetList, RenamePose, RotationSpec, SavePose, SessionParams,
+    VertexSet,
+};
 /// The error body of a failed request and its stable codes (the server's
 /// own types).
 pub use dend_protocol::{ErrorBody, ErrorCode};

@@ -3,12 +3,10 @@
 
 use std::time::Duration;
 
-use serde_json::Value;
-
 use dend_protocol::ws::{
     DeltaJson, DragRequest, HandleRef, SessionInfo, SessionState, StreamOptions,
 };
-use dend_protocol::FrameEncoding;
+use dend_protocol::{ConstraintsAccepted, ConstraintsSpec, Curvature, FrameEncoding};
 
 use crate::error::{check, ClientError};
 use crate::socket::WsClient;
@@ -17,8 +15,8 @@ use dend_protocol::PoseJson as Pose;
 /// A session opened with its token.
 #[derive(Debug, Clone)]
 pub struct SessionClient {
-    http: reqwest::Client,
-    base: String,
+    pub(crate) http: reqwest::Client,
+    pub(crate) base: String,
     /// Session id.
     pub id: String,
     /// Access token.
@@ -39,7 +37,7 @@ impl SessionClient {
         format!("{}/v1/sessions/{}{}", self.base, self.id, tail)
     }
 
-    async fn post<B: serde::Serialize>(
+    pub(crate) async fn post<B: serde::Serialize>(
         &self,
         tail: &str,
         body: Option<&B>,
@@ -63,7 +61,10 @@ impl SessionClient {
     }
 
     /// Sets constraints (202; the factor builds in the background).
-    pub async fn set_constraints(&self, spec: &Value) -> Result<(), ClientError> {
+    pub async fn set_constraints(
+        &self,
+        spec: &ConstraintsSpec,
+    ) -> Result<ConstraintsAccepted, ClientError> {
         let r = self
             .http
             .put(self.url("/constraints"))
@@ -71,8 +72,7 @@ impl SessionClient {
             .json(spec)
             .send()
             .await?;
-        let _ = check(r).await?;
-        Ok(())
+        Ok(check(r).await?.json().await?)
     }
 
     /// Sets constraints only if the session's constraints revision is still
@@ -80,7 +80,7 @@ impl SessionClient {
     /// edit in between gives `ClientError::Api` with `stale_constraints`.
     pub async fn set_constraints_if(
         &self,
-        spec: &Value,
+        spec: &ConstraintsSpec,
         revision: u64,
     ) -> Result<u64, ClientError> {
         let r = self
@@ -91,11 +91,7 @@ impl SessionClient {
             .json(spec)
             .send()
             .await?;
-        #[derive(serde::Deserialize)]
-        struct Accepted {
-            constraints_revision: u64,
-        }
-        let body: Accepted = check(r).await?.json().await?;
+        let body: ConstraintsAccepted = check(r).await?.json().await?;
         Ok(body.constraints_revision)
     }
 
@@ -176,6 +172,18 @@ impl SessionClient {
             .send()
             .await?;
         Ok(check(r).await?.bytes().await?.to_vec())
+    }
+
+    /// `GET /v1/sessions/{id}/curvature`: per-vertex curvatures of the
+    /// current pose.
+    pub async fn curvature(&self) -> Result<Curvature, ClientError> {
+        let r = self
+            .http
+            .get(self.url("/curvature"))
+            .bearer_auth(&self.token)
+            .send()
+            .await?;
+        Ok(check(r).await?.json().await?)
     }
 
     /// Undo.

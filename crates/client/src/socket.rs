@@ -10,6 +10,9 @@ use dend_protocol::{DecodedFrame, FrameDecoder, FrameHeader};
 use crate::error::ClientError;
 
 /// A message from the server.
+// an event holds the whole session snapshot (`state`); boxing it would buy
+// nothing for a message handed once to its reader
+#[allow(clippy::large_enum_variant)]
 #[derive(Debug, Clone)]
 pub enum WsEvent {
     /// A pose frame.
@@ -188,6 +191,8 @@ impl WsClient {
 }
 
 /// A message from the server, frames with their box and encoding.
+// as `WsEvent`
+#[allow(clippy::large_enum_variant)]
 #[derive(Debug, Clone)]
 pub enum WsFull {
     /// A pose frame.

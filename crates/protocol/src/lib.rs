@@ -1,14 +1,19 @@
 //! The dend server's wire format, shared by the server and its clients:
 //! the binary pose frames ([`frame`]), the session socket's JSON messages
 //! and the session requests and answers ([`ws`]), the error body of every
-//! failed request ([`error`]), and the mesh and pose JSON of the HTTP API
-//! (this module). `api/ws-protocol.md` and
+//! failed request ([`error`]), the solver parameters ([`params`]) and the
+//! constraints ([`constraints`]) a client sends, the other HTTP bodies
+//! ([`http`]), and the mesh and pose JSON of the HTTP API (this module). `api/ws-protocol.md` and
 //! `api/openapi.yaml` describe them for clients in other languages.
 
+pub mod constraints;
 pub mod error;
 pub mod frame;
+pub mod http;
+pub mod params;
 pub mod ws;
 
+pub use constraints::{ConstraintsSpec, HandleSpec, RotationSpec, VertexSet};
 pub use error::{ErrorBody, ErrorCode};
 pub use frame::delta::{self, DeltaEncoder};
 pub use frame::{
@@ -16,9 +21,14 @@ pub use frame::{
     FrameBody, FrameDecoder, FrameEncoding, FrameError, FrameHeader, FRAME_HEADER_BYTES,
     FRAME_MAGIC, FRAME_V3_HEADER_BYTES, FRAME_VERSION, FRAME_VERSION_3, LEVEL_COARSE, LEVEL_FULL,
 };
+pub use http::{
+    ConstraintsAccepted, Curvature, MeshJson, NamedPose, PoseList, PresetInfo, PresetList,
+    RenamePose, SavePose,
+};
+pub use params::SessionParams;
 pub use ws::{
     AxisAngle, BuildStage, ClientId, ClientMsg, CreateSession, Created, DeltaJson, DragRequest,
-    HandleRef, PeerEvent, ServerMsg, SessionInfo, SessionState, StreamOptions,
+    HandleRef, PeerEvent, PoseInfo, ServerMsg, SessionInfo, SessionState, StreamOptions,
 };
 
 use serde::{Deserialize, Serialize};

@@ -10,8 +10,10 @@
 
 use serde::{Deserialize, Serialize};
 
+use crate::constraints::ConstraintsSpec;
 use crate::error::ErrorCode;
 use crate::frame::FrameEncoding;
+use crate::params::SessionParams;
 
 /// Client id within a session (assigned when a socket joins).
 pub type ClientId = u64;
@@ -151,8 +153,10 @@ pub struct SessionInfo {
     pub can_redo: bool,
     /// Vertex count of the mesh.
     pub vertices: usize,
-    /// The constraint set as its client sent it (null before the first).
-    pub constraints: Option<serde_json::Value>,
+    /// The installed constraint set (null before the first): as its
+    /// client sent it, asset groups resolved into the vertex indices they
+    /// name.
+    pub constraints: Option<ConstraintsSpec>,
     /// Revision of the constraint set: it changes with every constraint
     /// edit, and with undo, redo or reset to another set. An edit may name
     /// the revision it is based on (`If-Match`, or `if_revision` over
@@ -187,15 +191,17 @@ pub struct PoseInfo {
     pub created_unix: u64,
 }
 
-/// `POST /v1/sessions` body.
+/// `POST /v1/sessions` body. `P` is the parameters' type: typed for a
+/// client; the server reads them as raw JSON first, so that parameters
+/// which do not parse are answered `invalid_params`, not `invalid_json`.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
-pub struct CreateSession {
+pub struct CreateSession<P = SessionParams> {
     /// The mesh to edit.
     pub mesh_id: String,
     /// Solver parameters (all optional).
     #[serde(default)]
-    pub params: serde_json::Value,
+    pub params: P,
 }
 
 /// `POST /v1/sessions` answer.
@@ -326,10 +332,13 @@ impl StreamOptions {
     }
 }
 
-/// Client → server messages (JSON, `type` tagged).
+/// Client → server messages (JSON, `type` tagged). `C` is the constraint
+/// set's type: typed for a client; the server reads it as raw JSON first,
+/// so that a set which does not parse is answered `invalid_constraints`,
+/// not `invalid_json`.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(tag = "type", rename_all = "snake_case")]
-pub enum ClientMsg {
+pub enum ClientMsg<C = ConstraintsSpec> {
     /// Authenticate (first message, when no `?token=` was given).
     Auth {
         /// The session token.
@@ -358,7 +367,7 @@ pub enum ClientMsg {
     /// Replace the constraints (the CLI's constraints JSON).
     SetConstraints {
         /// The spec.
-        constraints: serde_json::Value,
+        constraints: C,
         /// The constraints revision the edit is based on: refused with
         /// `stale_constraints` if another edit replaced it (omitted: any).
         #[serde(default, skip_serializing_if = "Option::is_none")]
@@ -442,6 +451,9 @@ pub enum PeerEvent {
 }
 
 /// Server → client JSON events (`type` tagged).
+// `State` carries the whole session snapshot; the messages live only
+// between a socket and its reader, so boxing it would buy nothing
+#[allow(clippy::large_enum_variant)]
 #[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
 #[serde(tag = "type", rename_all = "snake_case")]
 pub enum ServerMsg {

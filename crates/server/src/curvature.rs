@@ -5,24 +5,11 @@
 //! `dend curvature` (`dend::operators::Operators`), in the mesh's own units.
 
 use axum::Json;
-use serde::Serialize;
+pub use dend_protocol::Curvature as CurvatureJson;
 
 use crate::error::ApiError;
 use crate::sessions::Authed;
 use dend::operators::Operators;
-
-/// The curvatures of the pose, one value per vertex (mesh units).
-#[derive(Debug, Serialize)]
-pub struct CurvatureJson {
-    /// The session revision of the pose they were computed on.
-    pub revision: u64,
-    /// Mean curvature `H` (`+1/r` on a sphere of radius `r`).
-    pub mean: Vec<f64>,
-    /// Gaussian curvature `K` (angle defect over area).
-    pub gaussian: Vec<f64>,
-    /// `G = H² − K`.
-    pub g: Vec<f64>,
-}
 
 /// `GET /v1/sessions/{id}/curvature`.
 pub async fn curvature(Authed(s): Authed) -> Result<Json<CurvatureJson>, ApiError> {

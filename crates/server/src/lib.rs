@@ -31,6 +31,7 @@ pub mod state;
 pub mod store;
 pub mod timed_store;
 pub mod web;
+mod wire;
 pub mod ws;
 
 use std::time::Duration;

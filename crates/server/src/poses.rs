@@ -9,49 +9,13 @@ use axum::http::StatusCode;
 use axum::response::IntoResponse;
 use axum::Json;
 use bytes::Bytes;
-use serde::{Deserialize, Serialize};
+pub use dend_protocol::{NamedPose as NamedPoseJson, PoseList, RenamePose as PoseName, SavePose};
 
 use crate::auth::{bearer, check_token};
 use crate::error::{ApiError, Path};
 use crate::session::{pose_list, PoseInfo, SessionHandle};
 use crate::sessions::{find, parse_json, pose_json, Authed, PoseJson};
 use crate::state::AppState;
-
-/// `PATCH /v1/sessions/{id}/poses/{name}` body.
-#[derive(Debug, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct PoseName {
-    /// The pose's new name.
-    pub name: String,
-}
-
-/// `POST /v1/sessions/{id}/poses` body.
-#[derive(Debug, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct SavePose {
-    /// The pose's name.
-    pub name: String,
-    /// Replace a pose of the same name (else 409 `pose_exists`).
-    #[serde(default)]
-    pub replace: bool,
-}
-
-/// `GET /v1/sessions/{id}/poses` answer.
-#[derive(Debug, Serialize)]
-pub struct PoseList {
-    /// The named poses, in save order.
-    pub poses: Vec<PoseInfo>,
-}
-
-/// `GET /v1/sessions/{id}/poses/{name}` answer: the listing plus positions.
-#[derive(Debug, Serialize)]
-pub struct NamedPoseJson {
-    /// Name, index, revision, save time.
-    #[serde(flatten)]
-    pub info: PoseInfo,
-    /// Vertex positions (mesh units), `#V×3`.
-    pub positions: Vec<[f64; 3]>,
-}
 
 /// Extractor: the session and the pose name of the path, the session
 /// opened by the bearer token (as `sessions::Authed`).

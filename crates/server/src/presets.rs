@@ -3,48 +3,30 @@
 //! build their menus from the server and never copy the numbers.
 
 use axum::Json;
-use dend::deform::{Params, Preset};
-use serde::Serialize;
+use dend::deform::Preset;
+pub use dend_protocol::{PresetInfo, PresetList};
 
-/// One preset as listed.
-#[derive(Debug, Serialize)]
-pub struct PresetInfo {
-    /// The name a session's `params.preset` takes.
-    pub name: &'static str,
-    /// A short title for a menu.
-    pub label: &'static str,
-    /// What the preset is for.
-    pub description: &'static str,
-    /// Every parameter the preset sets (the session parameters' JSON).
-    pub params: Params,
-}
-
-/// The answer of `GET /v1/presets`.
-#[derive(Debug, Serialize)]
-pub struct PresetList {
-    /// The preset of a session whose parameters name none.
-    pub default: &'static str,
-    /// Every preset, the default first.
-    pub presets: Vec<PresetInfo>,
-}
+use crate::error::ApiError;
 
 /// The preset list.
-pub fn list() -> PresetList {
-    PresetList {
-        default: Preset::default().name(),
+pub fn list() -> Result<PresetList, ApiError> {
+    Ok(PresetList {
+        default: Preset::default().name().to_owned(),
         presets: Preset::ALL
             .into_iter()
-            .map(|p| PresetInfo {
-                name: p.name(),
-                label: p.label(),
-                description: p.description(),
-                params: p.params(),
+            .map(|p| {
+                Ok(PresetInfo {
+                    name: p.name().to_owned(),
+                    label: p.label().to_owned(),
+                    description: p.description().to_owned(),
+                    params: crate::wire::params(&p.params())?,
+                })
             })
-            .collect(),
-    }
+            .collect::<Result<_, ApiError>>()?,
+    })
 }
 
 /// `GET /v1/presets`.
-pub async fn get() -> Json<PresetList> {
-    Json(list())
+pub async fn get() -> Result<Json<PresetList>, ApiError> {
+    Ok(Json(list()?))
 }

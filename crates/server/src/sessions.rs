@@ -18,6 +18,7 @@ use crate::state::AppState;
 use dend::deform::Params;
 use dend::mesh::io::Format;
 pub use dend_protocol::ws::{CreateSession, DeltaJson, DragRequest};
+use dend_protocol::ConstraintsAccepted;
 
 /// Looks a live session up, re-opening a stored one
 /// ([`SessionRegistry::find`](crate::registry::SessionRegistry::find)).
@@ -48,7 +49,7 @@ impl FromRequestParts<AppState> for Authed {
 /// `POST /v1/sessions`.
 pub async fn create(
     State(st): State<AppState>,
-    body: Result<Json<CreateSession>, JsonRejection>,
+    body: Result<Json<CreateSession<serde_json::Value>>, JsonRejection>,
 ) -> Result<impl IntoResponse, ApiError> {
     let Json(req) = body?;
     let params_json = if req.params.is_null() {
@@ -104,7 +105,10 @@ pub async fn set_constraints(
     Ok((
         StatusCode::ACCEPTED,
         [(header::ETAG, format!("\"{revision}\""))],
-        Json(serde_json::json!({ "state": state, "constraints_revision": revision })),
+        Json(ConstraintsAccepted {
+            state,
+            constraints_revision: revision,
+        }),
     ))
 }
 

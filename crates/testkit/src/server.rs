@@ -2,6 +2,7 @@
 
 use std::sync::Arc;
 
+use dend_protocol::{ConstraintsSpec, HandleSpec};
 use dend_server::store::{MemoryStore, Store};
 use dend_server::{app, AppState, Config};
 
@@ -38,8 +39,9 @@ pub fn grid(n: usize) -> (Vec<[f64; 3]>, Vec<[u32; 3]>) {
 }
 
 /// Constraints on an n×n grid: bottom row fixed, top row the handle `top`.
-pub fn grid_constraints(n: usize) -> serde_json::Value {
-    let bottom: Vec<usize> = (0..n).collect();
-    let top: Vec<usize> = (n * (n - 1)..n * n).collect();
-    serde_json::json!({"fixed": bottom, "handles": [{"name": "top", "vertices": top}]})
+pub fn grid_constraints(n: usize) -> ConstraintsSpec {
+    let n = n as u64;
+    let bottom: Vec<u64> = (0..n).collect();
+    let top: Vec<u64> = (n * (n - 1)..n * n).collect();
+    ConstraintsSpec::new(bottom.into(), vec![HandleSpec::named("top", top.into())])
 }

@@ -546,7 +546,13 @@ impl Actor {
             .collect();
         {
             let mut s = self.inner.shared.lock();
-            s.constraints = serde_json::to_value(&set.client).ok().map(Arc::new);
+            s.constraints = match crate::wire::constraints(&set.client) {
+                Ok(c) => Some(Arc::new(c)),
+                Err(e) => {
+                    tracing::error!(%e, "installed constraints");
+                    None
+                }
+            };
             s.constraints_revision = set.id;
             s.warnings = Arc::new(warnings);
         }

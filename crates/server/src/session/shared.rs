@@ -64,9 +64,9 @@ pub(super) struct Shared {
     pub grabs: Grabs,
     pub can_undo: bool,
     pub can_redo: bool,
-    /// The installed constraint set as its client sent it, and its
-    /// revision (0: none yet).
-    pub constraints: Option<Arc<serde_json::Value>>,
+    /// The installed constraint set as its client sent it (as the
+    /// protocol writes it), and its revision (0: none yet).
+    pub constraints: Option<Arc<dend_protocol::ConstraintsSpec>>,
     pub constraints_revision: u64,
     /// The installed set's warnings (`Constraints::warnings`), each with
     /// its `code`, details and a `message`.
