@@ -5,6 +5,7 @@
 //! drains, sessions are created again. The load is made exact by holding
 //! the only solver worker busy from the test (no clock involved).
 
+use dend_client::ws::CreateSession;
 use dend_client::SessionParams;
 use std::sync::mpsc;
 use std::time::Duration;
@@ -12,7 +13,6 @@ use std::time::Duration;
 use dend_client::Client;
 use dend_server::{app, AppState, Config};
 use dend_testkit::server::grid;
-use serde_json::json;
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn new_sessions_get_503_overloaded_with_retry_after_while_solvers_are_saturated() {
@@ -50,7 +50,10 @@ async fn new_sessions_get_503_overloaded_with_retry_after_while_solvers_are_satu
     assert_eq!(scheduler.waiting(), 2);
     let r = reqwest::Client::new()
         .post(format!("{url}/v1/sessions"))
-        .json(&json!({"mesh_id": mesh.id}))
+        .json(&CreateSession {
+            mesh_id: mesh.id.clone(),
+            params: SessionParams::default(),
+        })
         .send()
         .await
         .expect("post");

@@ -15,16 +15,12 @@ use dend::mesh::io::gltf::{Container, Sidecars};
 use dend::mesh::io::Format;
 use dend_client::ws::DeltaJson;
 use dend_client::{
-    Client, ClientError, ConstraintsSpec, HandleSpec, SessionClient, SessionParams, VertexSet,
+    Client, ClientError, ConstraintsSpec, HandleSpec, SavePose, SessionClient, SessionParams,
+    VertexSet,
 };
 use dend_server::Config;
 use dend_testkit::server::start;
 use serde_json::{json, Value};
-
-/// A drag delta written as its JSON (the typed client's [`DeltaJson`]).
-fn delta(v: Value) -> DeltaJson {
-    serde_json::from_value(v).expect("a drag delta")
-}
 
 /// The JSON chunk and BIN chunk of a GLB (an independent split).
 fn glb_parts(bytes: &[u8]) -> (Value, Vec<u8>) {
@@ -201,7 +197,7 @@ async fn pose_and_save(
     base: &str,
     input: Vec<u8>,
     spec: ConstraintsSpec,
-    drags: &[(&str, Value)],
+    drags: &[(&str, DeltaJson)],
 ) -> Result<(SessionClient, Vec<(String, Vec<[f64; 3]>)>), ClientError> {
     let c = Client::new(base);
     let mesh = c.upload_file(input, "glb").await?;
@@ -212,11 +208,15 @@ async fn pose_and_save(
     let url = |tail: &str| format!("{base}/v1/sessions/{}{tail}", s.id);
     let mut poses = vec![];
     for (name, drag) in drags {
-        s.drag("top", delta(drag.clone()), Some(40)).await?;
+        s.drag("top", drag.clone(), Some(40)).await?;
+        let save = SavePose {
+            name: name.to_string(),
+            replace: false,
+        };
         let r = http
             .post(url("/poses"))
             .bearer_auth(&s.token)
-            .json(&json!({"name": name}))
+            .json(&save)
             .send()
             .await?;
         assert_eq!(r.status(), 201);
@@ -262,11 +262,8 @@ async fn the_sample_tube_round_trips_as_morph_targets() -> Result<(), ClientErro
         })
         .unwrap();
         let drags = [
-            (
-                "twist",
-                json!({"rotate": {"axis": [0, 0, 1], "degrees": 60}}),
-            ),
-            ("lean", json!({"translate": [0.6, 0, -0.2]})),
+            ("twist", DeltaJson::axis_angle([0.0, 0.0, 1.0], 60.0)),
+            ("lean", DeltaJson::translate([0.6, 0.0, -0.2])),
         ];
         let (s, poses) = pose_and_save(&base, input.clone(), tube_spec(), &drags).await?;
         for animation in [false, true] {
@@ -292,7 +289,7 @@ async fn without_saved_poses_the_current_pose_is_the_one_target() -> Result<(), 
     let input = sample::tube(TubeOptions::default()).unwrap();
     let (s, _) = pose_and_save(&base, input.clone(), tube_spec(), &[]).await?;
     let p = s
-        .drag("top", delta(json!({"translate": [0.3, 0.2, 0]})), Some(40))
+        .drag("top", DeltaJson::translate([0.3, 0.2, 0.0]), Some(40))
         .await?;
     let out = export(&s, &base, "format=glb&as=morph-targets")
         .await
@@ -344,11 +341,8 @@ async fn a_shared_character_round_trips_as_morph_targets() -> Result<(), ClientE
     );
     let size = hi[0] - lo[0];
     let drags = [
-        ("up", json!({"translate": [0, 0.15 * size, 0]})),
-        (
-            "curl",
-            json!({"rotate": {"axis": [0, 0, 1], "degrees": 25}}),
-        ),
+        ("up", DeltaJson::translate([0.0, 0.15 * size, 0.0])),
+        ("curl", DeltaJson::axis_angle([0.0, 0.0, 1.0], 25.0)),
     ];
     let (base, _state) = start(Config::default()).await;
     let (s, poses) = pose_and_save(&base, input.clone(), spec, &drags).await?;

@@ -9,20 +9,23 @@ use std::time::Duration;
 
 use dend_client::ws::{ClientMsg, DeltaJson};
 use dend_client::{
-    Client, ClientError, ConstraintsSpec, HandleSpec, SessionClient, SessionParams, VertexSet,
+    Client, ClientError, ConstraintsSpec, HandleSpec, RenamePose, SavePose, SessionClient,
+    SessionParams, VertexSet,
 };
 use dend_server::Config;
 use dend_testkit::server::{grid, grid_constraints, start};
 use serde_json::{json, Value};
 
-/// A drag delta written as its JSON (the typed client's [`DeltaJson`]).
-fn delta(v: Value) -> DeltaJson {
-    serde_json::from_value(v).expect("a drag delta")
+/// The body of a save as `name`.
+fn save(name: &str, replace: bool) -> Option<Value> {
+    let name = name.to_owned();
+    Some(json_of(SavePose { name, replace }))
 }
 
-/// A WebSocket message written as its JSON (the typed [`ClientMsg`]).
-fn client_msg(v: Value) -> ClientMsg {
-    serde_json::from_value(v).expect("a client message")
+/// The body of a rename to `name`.
+fn rename(name: &str) -> Option<Value> {
+    let name = name.to_owned();
+    Some(json_of(RenamePose { name }))
 }
 
 const N: usize = 8;
@@ -85,9 +88,9 @@ async fn save_list_rename_delete_and_restore_over_http() -> Result<(), ClientErr
     let s = ready_grid(&base).await?;
     let (st, v) = call(&s, &base, "GET", "/poses", None).await;
     assert_eq!((st, names(&v)), (200, Vec::<String>::new()));
-    s.drag("top", delta(json!({"translate": [0, 0, 2]})), Some(100))
+    s.drag("top", DeltaJson::translate([0.0, 0.0, 2.0]), Some(100))
         .await?;
-    let (st, lift) = call(&s, &base, "POST", "/poses", Some(json!({"name": "lift"}))).await;
+    let (st, lift) = call(&s, &base, "POST", "/poses", save("lift", false)).await;
     assert_eq!(st, 201, "{lift}");
     assert_eq!(
         (lift["name"].as_str(), lift["index"].as_u64()),
@@ -97,11 +100,11 @@ async fn save_list_rename_delete_and_restore_over_http() -> Result<(), ClientErr
     assert!(settled.settled, "a save waits for the pose to settle");
     s.drag(
         "top",
-        delta(json!({"rotate": {"axis": [1, 0, 0], "degrees": 40}})),
+        DeltaJson::axis_angle([1.0, 0.0, 0.0], 40.0),
         Some(100),
     )
     .await?;
-    let (st, _) = call(&s, &base, "POST", "/poses", Some(json!({"name": "curl"}))).await;
+    let (st, _) = call(&s, &base, "POST", "/poses", save("curl", false)).await;
     assert_eq!(st, 201);
     let curl = s.pose().await?;
     // listed in save order, in the session's state too
@@ -123,7 +126,7 @@ async fn save_list_rename_delete_and_restore_over_http() -> Result<(), ClientErr
     );
     assert_eq!(s.redo().await?.positions, settled.positions);
     let moved = s
-        .drag("top", delta(json!({"translate": [0, 0, -0.5]})), Some(100))
+        .drag("top", DeltaJson::translate([0.0, 0.0, -0.5]), Some(100))
         .await?;
     let dz = moved.positions[N * N - 1][2] - settled.positions[N * N - 1][2];
     assert!(
@@ -131,34 +134,13 @@ async fn save_list_rename_delete_and_restore_over_http() -> Result<(), ClientErr
         "the handle target was restored with the pose: {dz}"
     );
     // rename, replace in place, delete; typed errors
-    let (st, r) = call(
-        &s,
-        &base,
-        "PATCH",
-        "/poses/lift",
-        Some(json!({"name": "raised arm"})),
-    )
-    .await;
+    let (st, r) = call(&s, &base, "PATCH", "/poses/lift", rename("raised arm")).await;
     assert_eq!((st, r["name"].as_str()), (200, Some("raised arm")));
-    let (st, e) = call(
-        &s,
-        &base,
-        "PATCH",
-        "/poses/curl",
-        Some(json!({"name": "raised arm"})),
-    )
-    .await;
+    let (st, e) = call(&s, &base, "PATCH", "/poses/curl", rename("raised arm")).await;
     assert_eq!((st, e["code"].as_str()), (409, Some("pose_exists")));
     // saving over a name is refused unless asked for: the first pose stays
     let (_, before) = call(&s, &base, "GET", "/poses/raised%20arm", None).await;
-    let (st, e) = call(
-        &s,
-        &base,
-        "POST",
-        "/poses",
-        Some(json!({"name": "raised arm"})),
-    )
-    .await;
+    let (st, e) = call(&s, &base, "POST", "/poses", save("raised arm", false)).await;
     assert_eq!((st, e["code"].as_str()), (409, Some("pose_exists")), "{e}");
     let (_, kept) = call(&s, &base, "GET", "/poses/raised%20arm", None).await;
     assert_eq!(
@@ -166,14 +148,7 @@ async fn save_list_rename_delete_and_restore_over_http() -> Result<(), ClientErr
         positions(&before),
         "a refused save keeps the pose"
     );
-    let (st, _) = call(
-        &s,
-        &base,
-        "POST",
-        "/poses",
-        Some(json!({"name": "raised arm", "replace": true})),
-    )
-    .await;
+    let (st, _) = call(&s, &base, "POST", "/poses", save("raised arm", true)).await;
     assert_eq!(st, 201, "saving with `replace` replaces it");
     let (_, v) = call(&s, &base, "GET", "/poses", None).await;
     assert_eq!(names(&v), ["raised arm", "curl"], "in its place");
@@ -190,7 +165,7 @@ async fn save_list_rename_delete_and_restore_over_http() -> Result<(), ClientErr
         ("GET", "/poses/nope", None),
         ("DELETE", "/poses/nope", None),
         ("POST", "/poses/nope/restore", None),
-        ("PATCH", "/poses/nope", Some(json!({"name": "x"}))),
+        ("PATCH", "/poses/nope", rename("x")),
     ] {
         let (st, e) = call(&s, &base, method, tail, body).await;
         assert_eq!(
@@ -199,19 +174,16 @@ async fn save_list_rename_delete_and_restore_over_http() -> Result<(), ClientErr
             "{method} {tail}"
         );
     }
-    for bad in [
-        json!({"name": ""}),
-        json!({"name": " \t"}),
-        json!({"name": "a\nb"}),
-        json!({"name": "x".repeat(129)}),
-    ] {
-        let (st, e) = call(&s, &base, "POST", "/poses", Some(bad.clone())).await;
+    for bad in ["", " \t", "a\nb", &"x".repeat(129)] {
+        let (st, e) = call(&s, &base, "POST", "/poses", save(bad, false)).await;
         assert_eq!(
             (st, e["code"].as_str()),
             (422, Some("invalid_pose_name")),
-            "{bad}"
+            "{bad:?}"
         );
     }
+    // deliberately malformed (a misspelt field), which the typed body
+    // cannot write: sent as raw JSON
     let (st, e) = call(&s, &base, "POST", "/poses", Some(json!({"nom": "x"}))).await;
     assert_eq!((st, e["code"].as_str()), (400, Some("invalid_json")));
     let (st, _) = call(&s, &base, "DELETE", "/poses/curl", None).await;
@@ -229,9 +201,9 @@ async fn save_list_rename_delete_and_restore_over_http() -> Result<(), ClientErr
 async fn a_restore_brings_back_the_pose_constraint_set() -> Result<(), ClientError> {
     let (base, _state) = start(Config::default()).await;
     let s = ready_grid(&base).await?;
-    s.drag("top", delta(json!({"translate": [0, 1, 1]})), Some(100))
+    s.drag("top", DeltaJson::translate([0.0, 1.0, 1.0]), Some(100))
         .await?;
-    let (st, _) = call(&s, &base, "POST", "/poses", Some(json!({"name": "a"}))).await;
+    let (st, _) = call(&s, &base, "POST", "/poses", save("a", false)).await;
     assert_eq!(st, 201);
     let saved = s.pose().await?;
     let first = json_of(s.info().await?)["constraints"].clone();
@@ -244,14 +216,15 @@ async fn a_restore_brings_back_the_pose_constraint_set() -> Result<(), ClientErr
     );
     s.set_constraints(&side).await?;
     s.wait_ready(Duration::from_secs(60)).await?;
-    s.drag("side", delta(json!({"translate": [0, 0, 1]})), Some(50))
+    s.drag("side", DeltaJson::translate([0.0, 0.0, 1.0]), Some(50))
         .await?;
     let (st, back) = call(&s, &base, "POST", "/poses/a/restore", None).await;
     assert_eq!(st, 200, "{back}");
     assert_eq!(positions(&back), saved.positions);
     s.wait_ready(Duration::from_secs(60)).await?;
-    let info = json_of(s.info().await?);
-    assert_eq!(info["handles"], json!(["top"]));
+    let typed = s.info().await?;
+    assert_eq!(typed.handles, ["top"]);
+    let info = json_of(typed);
     assert_eq!(
         info["constraints"]["handles"][0]["name"],
         first["handles"][0]["name"]
@@ -269,37 +242,49 @@ async fn poses_over_the_websocket() -> Result<(), ClientError> {
     let (base, _state) = start(Config::default()).await;
     let s = ready_grid(&base).await?;
     let mut ws = s.connect().await?;
-    ws.send(&client_msg(json!({"type": "save_pose", "name": "rest"})))
-        .await?;
+    ws.send(&ClientMsg::SavePose {
+        name: "rest".into(),
+        replace: false,
+    })
+    .await?;
     let mut state = ws.event("state").await?;
     while names(&state).is_empty() {
         state = ws.event("state").await?;
     }
     assert_eq!(names(&state), ["rest"]);
     // the same name again: refused, unless `replace`
-    ws.send(&client_msg(json!({"type": "save_pose", "name": "rest"})))
-        .await?;
+    ws.send(&ClientMsg::SavePose {
+        name: "rest".into(),
+        replace: false,
+    })
+    .await?;
     let e = json_of(ws.event("error").await?);
     assert_eq!(e["code"], "pose_exists", "{e}");
-    ws.send(&client_msg(
-        json!({"type": "save_pose", "name": "rest", "replace": true}),
-    ))
+    ws.send(&ClientMsg::SavePose {
+        name: "rest".into(),
+        replace: true,
+    })
     .await?;
     // (had it been refused, its error would come before the one below)
-    ws.send(&client_msg(
-        json!({"type": "rename_pose", "name": "rest", "to": "start"}),
-    ))
+    ws.send(&ClientMsg::RenamePose {
+        name: "rest".into(),
+        to: "start".into(),
+    })
     .await?;
     let mut state = ws.event("state").await?;
     while names(&state) != ["start"] {
         state = ws.event("state").await?;
     }
-    ws.send(&client_msg(json!({"type": "restore_pose", "name": "gone"})))
-        .await?;
+    ws.send(&ClientMsg::RestorePose {
+        name: "gone".into(),
+    })
+    .await?;
     let e = json_of(ws.event("error").await?);
     assert_eq!(e["code"], "pose_not_found");
-    ws.send(&client_msg(json!({"type": "delete_pose", "name": "start"})))
-        .await?;
+    ws.send(&ClientMsg::DeletePose {
+        name: "start".into(),
+    })
+    .await?;
     let mut state = ws.event("state").await?;
     while !names(&state).is_empty() {
         state = ws.event("state").await?;
@@ -347,27 +332,13 @@ async fn named_poses_survive_a_sigkill_with_sqlite() -> Result<(), ClientError> 
     let s = ready_grid(&server.base).await?;
     let mut saved = vec![];
     for (name, dz) in [("low", 0.5), ("high", 2.0)] {
-        s.drag("top", delta(json!({"translate": [0, 0, dz]})), Some(100))
+        s.drag("top", DeltaJson::translate([0.0, 0.0, dz]), Some(100))
             .await?;
-        let (st, _) = call(
-            &s,
-            &server.base,
-            "POST",
-            "/poses",
-            Some(json!({"name": name})),
-        )
-        .await;
+        let (st, _) = call(&s, &server.base, "POST", "/poses", save(name, false)).await;
         assert_eq!(st, 201);
         saved.push(s.pose().await?.positions);
     }
-    let (st, _) = call(
-        &s,
-        &server.base,
-        "PATCH",
-        "/poses/low",
-        Some(json!({"name": "lower"})),
-    )
-    .await;
+    let (st, _) = call(&s, &server.base, "PATCH", "/poses/low", rename("lower")).await;
     assert_eq!(st, 200);
     // acknowledged, then killed without warning
     server.child.kill().unwrap();

@@ -8,6 +8,7 @@
 //! skinning is computed here; that must be the solved pose within 1e-4 of
 //! the diagonal. The Khronos validator finds no error.
 
+use dend_client::constraints::{JointSel, NameOrIndex};
 use std::time::Duration;
 
 use dend::mesh::asset::Asset;
@@ -16,7 +17,8 @@ use dend::mesh::io::Format;
 use dend::rig::sample::{limb, LimbOptions};
 use dend_client::ws::DeltaJson;
 use dend_client::{
-    Client, ClientError, ConstraintsSpec, HandleSpec, SessionClient, SessionParams, VertexSet,
+    Client, ClientError, ConstraintsSpec, HandleSpec, SavePose, SessionClient, SessionParams,
+    VertexSet,
 };
 use dend_server::Config;
 use dend_testkit::server::start;
@@ -138,10 +140,6 @@ fn skinned(doc: &Value, bin: &[u8], target_weight: f64) -> Vec<[f64; 3]> {
         .collect()
 }
 
-fn delta(v: Value) -> DeltaJson {
-    serde_json::from_value(v).expect("a drag delta")
-}
-
 async fn export(s: &SessionClient, base: &str, query: &str) -> reqwest::Response {
     reqwest::Client::new()
         .get(format!("{base}/v1/sessions/{}/export?{query}", s.id))
@@ -210,7 +208,7 @@ async fn a_joint_dragged_by_its_region_is_recovered_from_the_export() -> Result<
     assert!((joints[1]["head"][1].as_f64().unwrap() - 1.0).abs() < 1e-6);
     s.drag(
         "arm",
-        delta(json!({"rotate": {"axis": [0, 0, 1], "degrees": 40}})),
+        DeltaJson::axis_angle([0.0, 0.0, 1.0], 40.0),
         Some(40),
     )
     .await?;
@@ -276,20 +274,18 @@ async fn a_dend_pose_is_reproduced_by_skeleton_and_corrective() -> Result<(), Cl
     let http = reqwest::Client::new();
     let mut solved = vec![];
     for (name, d) in [
-        (
-            "bend",
-            json!({"rotate": {"axis": [0, 0, 1], "degrees": 50}}),
-        ),
-        (
-            "twist",
-            json!({"rotate": {"axis": [1, 0, 0], "degrees": -35}}),
-        ),
+        ("bend", DeltaJson::axis_angle([0.0, 0.0, 1.0], 50.0)),
+        ("twist", DeltaJson::axis_angle([1.0, 0.0, 0.0], -35.0)),
     ] {
-        let p = s.drag("hand", delta(d), Some(60)).await?;
+        let p = s.drag("hand", d, Some(60)).await?;
+        let save = SavePose {
+            name: name.to_owned(),
+            replace: false,
+        };
         let r = http
             .post(format!("{base}/v1/sessions/{}/poses", s.id))
             .bearer_auth(&s.token)
-            .json(&json!({"name": name}))
+            .json(&save)
             .send()
             .await?;
         assert_eq!(r.status(), 201);
@@ -359,13 +355,17 @@ async fn rig_errors_are_typed() -> Result<(), ClientError> {
     let mesh = c.upload_file(input, "glb").await?;
     let s = c.create_session(&mesh.id, SessionParams::default()).await?;
     let http = reqwest::Client::new();
-    let put = |spec: Value| {
+    let put = |spec: ConstraintsSpec| {
         http.put(format!("{base}/v1/sessions/{}/constraints", s.id))
             .bearer_auth(&s.token)
             .json(&spec)
             .send()
     };
-    let r = put(json!({"fixed": {"joint": "hand.L"}, "handles": []})).await?;
+    let r = put(ConstraintsSpec::new(
+        VertexSet::joint("hand.L", false),
+        vec![],
+    ))
+    .await?;
     assert_eq!(r.status(), 422);
     let e: Value = r.json().await?;
     assert_eq!(e["code"], "unknown_joint");
@@ -381,7 +381,13 @@ async fn rig_errors_are_typed() -> Result<(), ClientError> {
     let r = http
         .put(format!("{base}/v1/sessions/{}/constraints", s2.id))
         .bearer_auth(&s2.token)
-        .json(&json!({"fixed": {"joint": 0}, "handles": []}))
+        .json(&ConstraintsSpec::new(
+            VertexSet::Joint(JointSel {
+                joint: NameOrIndex::Index(0),
+                with_children: false,
+            }),
+            vec![],
+        ))
         .send()
         .await?;
     assert_eq!(r.status(), 422);

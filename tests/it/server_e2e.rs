@@ -2,6 +2,7 @@
 //! reqwest for HTTP and tokio-tungstenite (through `dend::client`) for
 //! WebSocket.
 
+use dend_client::ws::ClientMsg;
 use std::sync::Arc;
 use std::time::Duration;
 
@@ -12,7 +13,6 @@ use dend_client::{Client, ClientError, ErrorCode, SessionParams, WsEvent};
 use dend_server::Config;
 use dend_testkit::server::{grid, grid_constraints, start};
 use nalgebra::{Unit, UnitQuaternion, Vector3};
-use serde_json::json;
 
 const N: usize = 8;
 
@@ -206,7 +206,11 @@ async fn wrong_or_missing_token_is_refused() -> Result<(), ClientError> {
     use futures_util::{SinkExt, StreamExt};
     use tokio_tungstenite::tungstenite::Message;
     ws.send(Message::Text(
-        json!({"type": "auth", "token": "bad"}).to_string().into(),
+        serde_json::to_string(&ClientMsg::Auth {
+            token: "bad".into(),
+        })
+        .expect("json")
+        .into(),
     ))
     .await
     .map_err(Box::new)?;

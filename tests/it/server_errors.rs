@@ -1,9 +1,14 @@
 //! Each bad input gets its specific error code, over real sockets; oversize
 //! uploads are refused from `Content-Length` or while streaming.
 
+use dend_client::ws::CreateSession;
+use dend_client::ws::DeltaJson;
+use dend_client::ws::DragRequest;
 use std::time::Duration;
 
-use dend_client::{Client, ClientError, ErrorCode, SessionParams};
+use dend_client::{
+    Client, ClientError, ConstraintsSpec, ErrorCode, HandleSpec, MeshJson, SessionParams, VertexSet,
+};
 use dend_server::Config;
 use dend_testkit::server::{grid, grid_constraints, start};
 use serde_json::{json, Value};
@@ -55,7 +60,11 @@ async fn each_bad_input_gets_its_code() -> Result<(), ClientError> {
     )
     .await;
     let (p, t) = grid(11);
-    let big = json!({"positions": p, "triangles": t}).to_string();
+    let big = serde_json::to_string(&MeshJson {
+        positions: p,
+        triangles: t,
+    })
+    .expect("json");
     expect(
         post("/v1/meshes", &big, json_ct).await?,
         413,
@@ -77,13 +86,25 @@ async fn each_bad_input_gets_its_code() -> Result<(), ClientError> {
 
     let (p, t) = grid(6);
     let mesh = c.upload_json(&p, &t).await?;
-    let body = json!({"mesh_id": mesh.id, "params": {"tol": -1.0}}).to_string();
+    let create = |params: SessionParams| {
+        serde_json::to_string(&CreateSession {
+            mesh_id: mesh.id.clone(),
+            params,
+        })
+        .expect("json")
+    };
+    let body = create(SessionParams {
+        tol: Some(-1.0),
+        ..SessionParams::default()
+    });
     expect(
         post("/v1/sessions", &body, json_ct).await?,
         422,
         "invalid_params",
     )
     .await;
+    // deliberately malformed (an unknown parameter, which the typed body
+    // cannot write): raw JSON
     let body = json!({"mesh_id": mesh.id, "params": {"bogus": 1}}).to_string();
     expect(
         post("/v1/sessions", &body, json_ct).await?,
@@ -107,7 +128,11 @@ async fn each_bad_input_gets_its_code() -> Result<(), ClientError> {
     )
     .await;
     // drag before constraints are ready
-    let drag = json!({"handle": 0, "translate": [0, 0, 1]});
+    let drag = DragRequest {
+        handle: 0.into(),
+        delta: DeltaJson::translate([0.0, 0.0, 1.0]),
+        max_iters: None,
+    };
     expect(
         sess(reqwest::Method::POST, "/drag")
             .json(&drag)
@@ -124,7 +149,10 @@ async fn each_bad_input_gets_its_code() -> Result<(), ClientError> {
     )
     .await;
     // constraints: out-of-range vertex, malformed, invalid JSON
-    let bad = json!({"fixed": [0, 1, 999], "handles": [{"name": "h", "vertices": [30]}]});
+    let bad = ConstraintsSpec::new(
+        VertexSet::indices([0, 1, 999]),
+        vec![HandleSpec::named("h", VertexSet::indices([30]))],
+    );
     expect(
         sess(reqwest::Method::PUT, "/constraints")
             .json(&bad)
@@ -134,6 +162,7 @@ async fn each_bad_input_gets_its_code() -> Result<(), ClientError> {
         "vertex_out_of_range",
     )
     .await;
+    // deliberately malformed (an unknown member): raw JSON
     let bad = json!({"fixed": [0], "handles": [{"name": "h", "vertices": [30]}], "extra": true});
     expect(
         sess(reqwest::Method::PUT, "/constraints")
@@ -154,7 +183,15 @@ async fn each_bad_input_gets_its_code() -> Result<(), ClientError> {
     s.wait_ready(Duration::from_secs(60)).await?;
     // deltas: NaN (JS sends null, Python sends NaN), unknown handle, bad rotation
     let r = sess(reqwest::Method::POST, "/drag")
-        .json(&json!({"handle": 0, "translate": [0, null, 1]}))
+        .json(&DragRequest {
+            handle: 0.into(),
+            // JavaScript's NaN, as `JSON.stringify` writes it: null
+            delta: DeltaJson {
+                translate: Some([Some(0.0), None, Some(1.0)]),
+                ..DeltaJson::default()
+            },
+            max_iters: None,
+        })
         .send()
         .await?;
     expect(r, 422, "non_finite").await;
@@ -165,16 +202,27 @@ async fn each_bad_input_gets_its_code() -> Result<(), ClientError> {
         .await?;
     expect(r, 422, "non_finite").await;
     let r = sess(reqwest::Method::POST, "/drag")
-        .json(&json!({"handle": 0, "quaternion": [0, 0, 0, 0]}))
+        .json(&DragRequest {
+            handle: 0.into(),
+            delta: DeltaJson {
+                quaternion: Some([Some(0.0); 4]),
+                ..DeltaJson::default()
+            },
+            max_iters: None,
+        })
         .send()
         .await?;
     expect(r, 422, "non_finite").await;
     let r = sess(reqwest::Method::POST, "/drag")
-        .json(&json!({"handle": "nope", "translate": [0, 0, 1]}))
+        .json(&DragRequest {
+            handle: "nope".into(),
+            ..drag.clone()
+        })
         .send()
         .await?;
     expect(r, 422, "unknown_handle").await;
     let r = sess(reqwest::Method::POST, "/drag")
+        // deliberately malformed (a misspelt member): raw JSON
         .json(&json!({"handle": 0, "translation": [0, 0, 1]}))
         .send()
         .await?;

@@ -6,12 +6,11 @@ use std::sync::Arc;
 use std::time::{Duration, Instant};
 
 use dend_client::ws::{DeltaJson, ServerMsg};
-use dend_client::{Client, ClientError, SessionParams, WsEvent};
+use dend_client::{Client, ClientError, MeshJson, SessionParams, WsEvent};
 use dend_server::store::{with_faults, MemoryStore, Store};
 use dend_server::Config;
 use dend_testkit::server::{grid, grid_constraints, start_with_store};
 use parking_lot::Mutex;
-use serde_json::json;
 
 /// How a memory store is made slow: the constraint and checkpoint writes
 /// of one session sleep `delay` first, and `mesh_count` takes
@@ -123,7 +122,10 @@ async fn concurrent_uploads_never_exceed_max_meshes() {
     };
     let (base, _state) = start_with_store(config, slow_store(&store)).await;
     let (p, t) = grid(4);
-    let body = json!({"positions": p, "triangles": t});
+    let body = MeshJson {
+        positions: p,
+        triangles: t,
+    };
     let http = reqwest::Client::new();
     let uploads: Vec<_> = (0..12)
         .map(|_| {

@@ -12,9 +12,9 @@
 use std::time::{Duration, Instant};
 
 use dend_client::ws::DeltaJson;
-use dend_client::{Client, ClientError, SessionClient, SessionParams};
+use dend_client::{Client, ClientError, RenamePose, SavePose, SessionClient, SessionParams};
 use dend_testkit::server::{grid, grid_constraints};
-use serde_json::{json, Value};
+use serde_json::Value;
 
 use crate::failover_support::{free_port, postgres_prerequisite, Instance, Postgres};
 
@@ -127,10 +127,13 @@ async fn run(a: &mut Instance, b: &Instance) -> Result<(), String> {
     s.wait_ready(Duration::from_secs(60)).await.map_err(e)?;
     let mut saved = vec![];
     for (name, dz) in [("low", 0.5), ("high", 2.0)] {
-        let delta: DeltaJson =
-            serde_json::from_value(json!({"translate": [0, 0, dz]})).map_err(|e| e.to_string())?;
+        let delta = DeltaJson::translate([0.0, 0.0, dz]);
         s.drag("top", delta, Some(100)).await.map_err(e)?;
-        let (st, v) = call(&s, &a.base, "POST", "/poses", Some(json!({"name": name}))).await?;
+        let save = SavePose {
+            name: name.to_owned(),
+            replace: false,
+        };
+        let (st, v) = call(&s, &a.base, "POST", "/poses", Some(json_of(save))).await?;
         assert_eq!(st, 201, "save {name} on A: {v}");
         let (st, v) = call(&s, &a.base, "GET", &format!("/poses/{name}"), None).await?;
         assert_eq!(st, 200, "read {name} on A: {v}");
@@ -154,7 +157,9 @@ async fn run(a: &mut Instance, b: &Instance) -> Result<(), String> {
         &a.base,
         "PATCH",
         "/poses/low",
-        Some(json!({"name": "lower"})),
+        Some(json_of(RenamePose {
+            name: "lower".into(),
+        })),
     )
     .await?;
     assert_eq!(st, 200, "rename on A: {v}");
@@ -195,4 +200,9 @@ async fn run(a: &mut Instance, b: &Instance) -> Result<(), String> {
         "the current pose on B after the restore"
     );
     Ok(())
+}
+
+/// A typed body as its JSON.
+fn json_of(v: impl serde::Serialize) -> serde_json::Value {
+    serde_json::to_value(v).expect("a body")
 }

@@ -4,7 +4,9 @@
 //! every numeric field, message floods, clients that never read and many
 //! connections each get a bounded, typed answer.
 
-use dend_client::{ErrorBody, ErrorCode, SessionParams};
+use dend_client::ws::DeltaJson;
+use dend_client::ws::DragRequest;
+use dend_client::{ConstraintsSpec, ErrorBody, ErrorCode, HandleSpec, SessionParams, VertexSet};
 use std::collections::HashSet;
 use std::time::Duration;
 
@@ -47,7 +49,11 @@ async fn a_token_opens_its_own_session_only() -> Res {
     b.wait_ready(Duration::from_secs(60)).await?;
     let http = reqwest::Client::new();
     let url = |tail: &str| format!("{base}/v1/sessions/{}{tail}", b.id);
-    let drag = json!({"handle": 0, "translate": [0, 0, 1]});
+    let drag = DragRequest {
+        handle: 0.into(),
+        delta: DeltaJson::translate([0.0, 0.0, 1.0]),
+        max_iters: None,
+    };
     let attempts = [
         http.get(url("")),
         http.get(url("/pose")),
@@ -74,7 +80,11 @@ async fn a_token_opens_its_own_session_only() -> Res {
         .await
         .map_err(Box::new)?;
     ws.send(Message::Text(
-        json!({"type": "auth", "token": a.token}).to_string().into(),
+        serde_json::to_string(&ClientMsg::Auth {
+            token: a.token.clone(),
+        })
+        .expect("json")
+        .into(),
     ))
     .await
     .map_err(Box::new)?;
@@ -167,12 +177,17 @@ async fn hostile_json_gets_typed_4xx() -> Res {
 
     // huge index lists: a million out-of-range indices, u64::MAX, and a million duplicates
     let huge: Vec<u64> = (0..1_000_000).collect();
-    let body =
-        json!({"fixed": huge, "handles": [{"name": "h", "vertices": [n * n - 1]}]}).to_string();
+    let one = |fixed: Vec<u64>, handle: u64| {
+        let spec = ConstraintsSpec::new(
+            VertexSet::Indices(fixed),
+            vec![HandleSpec::named("h", VertexSet::Indices(vec![handle]))],
+        );
+        serde_json::to_string(&spec).expect("json")
+    };
+    let body = one(huge, (n * n - 1) as u64);
     let (status, code) = code_of(send(reqwest::Method::PUT, "/constraints", body).await?).await;
     assert_eq!(status, 422, "{code}");
-    let body =
-        json!({"fixed": [u64::MAX], "handles": [{"name": "h", "vertices": [0]}]}).to_string();
+    let body = one(vec![u64::MAX], 0);
     assert_eq!(
         code_of(send(reqwest::Method::PUT, "/constraints", body).await?)
             .await
@@ -180,8 +195,7 @@ async fn hostile_json_gets_typed_4xx() -> Res {
         422
     );
     let dup = vec![0u64; 1_000_000];
-    let body =
-        json!({"fixed": dup, "handles": [{"name": "h", "vertices": [n * n - 1]}]}).to_string();
+    let body = one(dup, (n * n - 1) as u64);
     let status = send(reqwest::Method::PUT, "/constraints", body)
         .await?
         .status()

@@ -27,8 +27,9 @@ pub use http::{
 };
 pub use params::SessionParams;
 pub use ws::{
-    AxisAngle, BuildStage, ClientId, ClientMsg, CreateSession, Created, DeltaJson, DragRequest,
-    HandleRef, PeerEvent, PoseInfo, ServerMsg, SessionInfo, SessionState, StreamOptions,
+    AxisAngle, BuildStage, ClientId, ClientMsg, ClientMsgOf, CreateSession, CreateSessionOf,
+    Created, DeltaJson, DragRequest, HandleRef, PeerEvent, PoseInfo, ServerMsg, SessionInfo,
+    SessionState, StreamOptions,
 };
 
 use serde::{Deserialize, Serialize};

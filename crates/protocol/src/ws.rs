@@ -191,12 +191,16 @@ pub struct PoseInfo {
     pub created_unix: u64,
 }
 
-/// `POST /v1/sessions` body. `P` is the parameters' type: typed for a
-/// client; the server reads them as raw JSON first, so that parameters
-/// which do not parse are answered `invalid_params`, not `invalid_json`.
+/// `POST /v1/sessions` body, parameters typed.
+pub type CreateSession = CreateSessionOf<SessionParams>;
+
+/// `POST /v1/sessions` body with parameters of type `P`: [`CreateSession`]
+/// for a client; the server reads them as raw JSON first, so that
+/// parameters which do not parse are answered `invalid_params`, not
+/// `invalid_json`.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
-pub struct CreateSession<P = SessionParams> {
+pub struct CreateSessionOf<P> {
     /// The mesh to edit.
     pub mesh_id: String,
     /// Solver parameters (all optional).
@@ -332,13 +336,16 @@ impl StreamOptions {
     }
 }
 
-/// Client → server messages (JSON, `type` tagged). `C` is the constraint
-/// set's type: typed for a client; the server reads it as raw JSON first,
+/// Client → server messages (JSON, `type` tagged), constraints typed.
+pub type ClientMsg = ClientMsgOf<ConstraintsSpec>;
+
+/// Client → server messages with a constraint set of type `C`:
+/// [`ClientMsg`] for a client; the server reads the set as raw JSON first,
 /// so that a set which does not parse is answered `invalid_constraints`,
 /// not `invalid_json`.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(tag = "type", rename_all = "snake_case")]
-pub enum ClientMsg<C = ConstraintsSpec> {
+pub enum ClientMsgOf<C> {
     /// Authenticate (first message, when no `?token=` was given).
     Auth {
         /// The session token.

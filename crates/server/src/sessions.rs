@@ -17,7 +17,7 @@ use crate::session::{Delta, PoseSnapshot, SessionHandle};
 use crate::state::AppState;
 use dend::deform::Params;
 use dend::mesh::io::Format;
-pub use dend_protocol::ws::{CreateSession, DeltaJson, DragRequest};
+pub use dend_protocol::ws::{CreateSessionOf, DeltaJson, DragRequest};
 use dend_protocol::ConstraintsAccepted;
 
 /// Looks a live session up, re-opening a stored one
@@ -49,7 +49,7 @@ impl FromRequestParts<AppState> for Authed {
 /// `POST /v1/sessions`.
 pub async fn create(
     State(st): State<AppState>,
-    body: Result<Json<CreateSession<serde_json::Value>>, JsonRejection>,
+    body: Result<Json<CreateSessionOf<serde_json::Value>>, JsonRejection>,
 ) -> Result<impl IntoResponse, ApiError> {
     let Json(req) = body?;
     let params_json = if req.params.is_null() {

@@ -28,7 +28,7 @@ pub use dend_protocol::ws::{ClientId, ServerMsg, SessionInfo, StreamOptions};
 /// A client message as the server reads it: the protocol's, with the
 /// constraint set as raw JSON (a set that does not parse is answered
 /// `invalid_constraints` by the session, not `invalid_json`).
-pub type ClientMsg = dend_protocol::ws::ClientMsg<serde_json::Value>;
+pub type ClientMsg = dend_protocol::ws::ClientMsgOf<serde_json::Value>;
 use dend_protocol::FrameEncoding;
 use flow::Flow;
 
