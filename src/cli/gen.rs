@@ -1,11 +1,15 @@
 //! `dend gen SHAPE -o FILE [--constraints C.json]`: writes a procedural
-//! test shape (and, for the creature, its default edit).
+//! test shape (and, for the creature, its default edit); the rigged `limb`
+//! written as `.glb`/`.gltf` is its skinned asset.
 
 use std::path::PathBuf;
 
 use anyhow::Context;
 use clap::Args;
-use dend::mesh::gen::{creature_constraints, generate, Shape, ShapeParams, ShapeSpec};
+use dend::mesh::gen::{
+    creature_constraints, generate, generate_asset, Shape, ShapeParams, ShapeSpec,
+};
+use dend::mesh::io::gltf::Container;
 use dend::mesh::io::{write_path_with, Encoding};
 
 /// Arguments of `dend gen`.
@@ -44,7 +48,17 @@ pub fn run(args: GenArgs) -> anyhow::Result<()> {
     } else {
         Encoding::BinaryLittleEndian
     };
-    write_path_with(&args.output, mesh.positions(), mesh.triangles(), enc)?;
+    // a rigged shape written as glTF keeps its skin (other formats get the mesh)
+    let container = match args.output.extension().and_then(|e| e.to_str()) {
+        Some(e) if e.eq_ignore_ascii_case("glb") => Some(Container::Glb),
+        Some(e) if e.eq_ignore_ascii_case("gltf") => Some(Container::Json),
+        _ => None,
+    };
+    match container.map(|c| generate_asset(&spec, c)).transpose()? {
+        Some(Some(bytes)) => std::fs::write(&args.output, bytes)
+            .with_context(|| format!("cannot write {}", args.output.display()))?,
+        _ => write_path_with(&args.output, mesh.positions(), mesh.triangles(), enc)?,
+    }
     println!(
         "wrote {}: {} vertices, {} triangles",
         args.output.display(),

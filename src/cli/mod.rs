@@ -26,7 +26,7 @@ struct Cli {
 
 #[derive(Debug, Subcommand)]
 enum Command {
-    /// Write a procedural test shape (bar, cylinder, flag, plane, bumpy-plane, torus, creature, saddle, wavy-sheet).
+    /// Write a procedural test shape (bar, cylinder, flag, plane, bumpy-plane, torus, creature, saddle, wavy-sheet, limb).
     Gen(gen::GenArgs),
     /// Print counts, bounding box, topology and the validation result of a mesh file.
     Info(info::InfoArgs),

@@ -20,7 +20,7 @@ fn normal(m: &Mesh, f: usize) -> [f64; 3] {
 }
 
 /// (shape, V, F, boundary loops, genus)
-const TABLE: [(Shape, usize, usize, usize, i64); 8] = [
+const TABLE: [(Shape, usize, usize, usize, i64); 9] = [
     (Shape::Bar, 856, 1708, 0, 0),
     (Shape::Cylinder, 1088, 2112, 2, 0),
     (Shape::Flag, 289, 512, 1, 0),
@@ -29,6 +29,7 @@ const TABLE: [(Shape, usize, usize, usize, i64); 8] = [
     (Shape::Torus, 576, 1152, 0, 1),
     (Shape::Saddle, 2025, 3872, 1, 0),
     (Shape::WavySheet, 2025, 3872, 1, 0),
+    (Shape::Limb, 302, 600, 0, 0),
 ];
 
 #[test]
@@ -56,6 +57,10 @@ fn closed_shapes_have_positive_volume_and_open_ones_face_out() {
     // polygonal torus: a bit less than 2π²Rr² = 3.158
     let v = signed_volume(&torus);
     assert!(v > 2.9 && v < 3.16, "torus volume {v}");
+    // the limb: a tube of radius 0.3, length 3 with cone caps, a bit
+    // less than π 0.3² 3 + 2 · π 0.3³ / 3 = 0.905
+    let v = signed_volume(&generate(&ShapeSpec::default_for(Shape::Limb)).unwrap());
+    assert!(v > 0.8 && v < 0.905, "limb volume {v}");
     let cyl = generate(&ShapeSpec::default_for(Shape::Cylinder)).unwrap();
     for f in 0..cyl.num_triangles() {
         let c = cyl.triangles()[f].map(|i| cyl.positions()[i as usize]);

@@ -473,3 +473,71 @@ fn the_cli_writes_the_skeleton_beside_the_pose() {
     assert!(err.contains("not skinned"), "{err}");
     assert!(!err.contains("panicked"), "{err}");
 }
+
+#[tokio::test]
+async fn the_generated_limb_is_a_rigged_asset_with_its_default_edit() -> Result<(), ClientError> {
+    let (base, _state) = start(Config::default()).await;
+    let http = reqwest::Client::new();
+    let r = http
+        .post(format!("{base}/v1/meshes/generate"))
+        .json(&json!({"shape": "limb"}))
+        .send()
+        .await?;
+    assert_eq!(r.status(), 201);
+    let m: Value = r.json().await?;
+    assert_eq!(m["vertices"], 302);
+    let joints = m["asset"]["skeleton"]["joints"].as_array().unwrap();
+    let names: Vec<&str> = joints.iter().map(|j| j["name"].as_str().unwrap()).collect();
+    assert_eq!(names, ["bone0", "bone1", "bone2", "end"]);
+    // the default edit: bone0's region fixed, bone2 and end a handle about
+    // bone2's head, as index lists
+    let c = &m["constraints"];
+    assert_eq!(c["fixed"], joints[0]["region"]);
+    let h = &c["handles"][0];
+    assert_eq!(h["name"], "bone2");
+    assert_eq!(h["pivot"], json!([0.0, 2.0, 0.0]));
+    assert_eq!(
+        h["vertices"], joints[2]["region"],
+        "end has no vertex of its own"
+    );
+    // it poses and exports onto its rig like an upload
+    let c2 = Client::new(&base);
+    let s = c2
+        .create_session(m["id"].as_str().unwrap(), SessionParams::default())
+        .await?;
+    s.set_constraints(&serde_json::from_value::<ConstraintsSpec>(c.clone()).unwrap())
+        .await?;
+    s.wait_ready(Duration::from_secs(120)).await?;
+    s.drag(
+        "bone2",
+        delta(json!({"rotate": {"axis": [0, 0, 1], "degrees": 30}})),
+        Some(40),
+    )
+    .await?;
+    let r = export(&s, &base, "format=glb&as=skeleton").await;
+    assert_eq!(r.status(), 200);
+    // parameters out of range are 422 invalid_params, not a panic
+    let r = http
+        .post(format!("{base}/v1/meshes/generate"))
+        .json(&json!({"shape": "limb", "params": {"nu": 0}}))
+        .send()
+        .await?;
+    assert_eq!(r.status(), 422);
+    assert_eq!(r.json::<Value>().await?["code"], "invalid_params");
+    Ok(())
+}
+
+#[test]
+fn dend_gen_writes_the_limb_with_its_skin() {
+    let dir = tempfile::tempdir().unwrap();
+    let glb = dir.path().join("limb.glb");
+    let o = std::process::Command::new(env!("CARGO_BIN_EXE_dend"))
+        .args(["gen", "limb", "--nu", "4", "-o", glb.to_str().unwrap()])
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let asset =
+        Asset::read_bytes(&std::fs::read(&glb).unwrap(), Format::Glb, Sidecars::Refuse).unwrap();
+    let sk = asset.skeleton().unwrap();
+    assert_eq!(sk.joints().len(), 5, "four bones and the end");
+}

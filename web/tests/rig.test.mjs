@@ -14,6 +14,8 @@
 // poses section; a second page joining by the share link shows the
 // handle's gizmo at the same place. "Export animation" downloads as=skeleton-animation and
 // shows the fit's residual; "Export skeleton" downloads as=skeleton. The
+// Mesh menu's generated limb opens with its default edit shown as joints.
+// The
 // Khronos validator finds no error in either. A page with three.js
 // (from web/node_modules/three, served by this test's own route) loads
 // both with GLTFLoader: the skeleton file, skinned by three with its
@@ -216,6 +218,23 @@ async function main() {
       log(`glTF validator on the ${what} export: ${numErrors} errors, ${numWarnings} warnings`);
       assert.equal(numErrors, 0, JSON.stringify(report.issues.messages.filter((m) => m.severity === 0)));
     }
+    // the generated limb of the Mesh menu: the same rig, with its default
+    // edit (bone0 fixed, bone2 a handle about its head) shown as joints
+    const last = await page.evaluate(() => window.dend.app.session.id);
+    await page.selectOption('#shape', 'limb');
+    await page.click('#generate');
+    await waitFor(page, (b) => window.dend.app.session.id !== b && window.dend.app.ws && window.dend.app.state === 'ready'
+      && window.dend.gizmo() !== null, last, 'the generated limb', 90000);
+    const gen = await page.evaluate(() => ({
+      joints: [...window.dend.app.handleJoints],
+      gizmo: window.dend.gizmo().world,
+      tree: [...document.querySelectorAll('#rigTree button.joint')].map((b) => b.textContent),
+      states: [0, 1, 2].map((k) => document.getElementById(`joint-${k}`).nextSibling.textContent.trim()),
+    }));
+    assert.deepEqual(gen.tree, ['bone0', 'bone1', 'bone2', 'end']);
+    assert.deepEqual(gen.joints, [[0, 2]], 'its handle is bone2');
+    assert.deepEqual(gen.states, ['pinned', '', 'handle 0']);
+    assert.ok(dist(gen.gizmo, [0, 2, 0]) < 1e-6, `its gizmo at bone2's head (${gen.gizmo})`);
     assert.deepEqual(errors, [], 'no page errors');
 
     // three.js: the files as a game would load them

@@ -20,7 +20,7 @@ use crate::store::StoredAsset;
 use dend::deform::ConstraintsSpec;
 use dend::mesh::asset::Asset;
 use dend::mesh::gen::{self, ShapeSpec};
-use dend::mesh::io::gltf::Sidecars;
+use dend::mesh::io::gltf::{Container, Sidecars};
 use dend::mesh::io::{self, Format, IoError};
 use dend::mesh::Mesh;
 
@@ -340,23 +340,38 @@ pub async fn upload(
 /// `POST /v1/meshes/generate`: a procedural test shape,
 /// `{"shape": "bar", "params": {"nu": .., "nv": .., "size": .., ...}}`.
 /// The answer is the mesh's info, plus, for a shape with a default edit
-/// (the creature), that edit as `constraints` (index lists, ready for
-/// `PUT …/constraints`).
+/// (the creature, the limb), that edit as `constraints` (index lists, ready
+/// for `PUT …/constraints`). The rigged `limb` is stored as its skinned
+/// GLB, as an upload of that file would be (its skeleton listed, joint
+/// selectors and skeleton exports).
 pub async fn generate(
     State(st): State<AppState>,
     body: Result<Json<ShapeSpec>, axum::extract::rejection::JsonRejection>,
 ) -> Result<impl IntoResponse, ApiError> {
     let Json(spec) = body?;
-    let (mesh, constraints) = tokio::task::spawn_blocking(move || {
-        let mesh = gen::generate(&spec)?;
+    let max_v = st.config.max_vertices;
+    let (parsed, constraints) = tokio::task::spawn_blocking(move || {
+        let invalid = |e: gen::GenError| ApiError::InvalidParams(e.to_string());
+        // a rigged shape is kept as its skinned file, as an upload would be
+        if let Some(bytes) = gen::generate_asset(&spec, Container::Glb).map_err(invalid)? {
+            let parsed = parse_mesh("glb", &bytes, max_v)?;
+            let defaults = match &parsed.1 {
+                Some((asset, _)) => Some(
+                    dend::rig::sample::limb_constraints(asset)
+                        .map_err(|e| ApiError::Internal(e.to_string()))?,
+                ),
+                None => None,
+            };
+            return Ok((parsed, defaults));
+        }
+        let mesh = gen::generate(&spec).map_err(invalid)?;
         let defaults =
             (spec.shape == gen::Shape::Creature).then(|| gen::creature_constraints(&mesh));
-        Ok::<_, gen::GenError>((mesh, defaults))
+        Ok::<_, ApiError>(((mesh, None), defaults))
     })
     .await
-    .map_err(|e| ApiError::Internal(e.to_string()))?
-    .map_err(|e| ApiError::InvalidParams(e.to_string()))?;
-    let (status, Json(info)) = store_mesh(&st, (mesh, None)).await?;
+    .map_err(|e| ApiError::Internal(e.to_string()))??;
+    let (status, Json(info)) = store_mesh(&st, parsed).await?;
     let mut answer = serde_json::to_value(info).map_err(|e| ApiError::Internal(e.to_string()))?;
     if let (Some(c), Some(obj)) = (constraints, answer.as_object_mut()) {
         let c = serde_json::to_value(c).map_err(|e| ApiError::Internal(e.to_string()))?;

@@ -15,6 +15,7 @@
 //! | `creature` | 2 Catmull–Clark levels of a 146-vertex quadruped cage | 2306 | closed, genus 0, +y up, head at +x, 4 legs, neck + head, tail (`gen/creature.rs`) |
 //! | `saddle` | 45 × 45 jittered grid over `[-1, 1]²`, `z = ½(x² − y²)`, random diagonals | 2025 | **open**, 1 boundary loop; obtuse and skinny triangles (`gen/patch.rs`) |
 //! | `wavy-sheet` | as `saddle`, `z = 0.15 sin(2.5πx) cos(1.5πy)` | 2025 | **open**, 1 boundary loop; obtuse and skinny triangles |
+//! | `limb` | 3 bones of length 1, 8 rings of 12 per bone, 2 poles | 302 | closed, genus 0, along +y; **rigged**: a skinned glTF asset (`crate::rig::sample`, [`generate_asset`]) |
 //!
 //! The bar and the cylinder have their long axis along z with the end that is
 //! usually fixed at z = 0, so constraints can be picked by a z range, as in
@@ -28,7 +29,11 @@ use std::collections::HashMap;
 use serde::{Deserialize, Serialize};
 use thiserror::Error;
 
+use super::asset::Asset;
+use super::io::gltf::{Container, Sidecars};
+use super::io::Format;
 use super::{Mesh, MeshError, Point, Real};
+use crate::rig::sample::{limb, LimbOptions};
 
 mod creature;
 mod patch;
@@ -60,6 +65,11 @@ pub enum Shape {
     Saddle,
     /// An irregular open wavy sheet (default 2025 vertices), as `saddle`.
     WavySheet,
+    /// A rigged limb: a capped tube along +y skinned to a chain of bones
+    /// (`crate::rig::sample::limb`; default 3 bones, 302 vertices), a
+    /// skinned glTF asset ([`generate_asset`]) whose skeleton the server
+    /// lists; its default edit is `crate::rig::sample::limb_constraints`.
+    Limb,
 }
 
 /// Optional size parameters; `None` takes the shape's default (module table).
@@ -140,6 +150,9 @@ pub enum GenError {
     /// validation's message is in this one, not a `source`.)
     #[error("generated mesh is invalid: {0}")]
     Mesh(MeshError),
+    /// A generated asset could not be read back (should not happen).
+    #[error("generated asset is unreadable: {0}")]
+    Asset(String),
 }
 
 impl From<MeshError> for GenError {
@@ -177,10 +190,51 @@ fn size(v: Option<Real>, default: Real, what: &'static str) -> Result<Real, GenE
     }
 }
 
+/// The rigged limb's options for `spec`'s parameters: `nu` bones [3]
+/// (1..=64), `nv` rings per bone [8] (2..=64), `size` the bone length [1].
+fn limb_options(p: &ShapeParams, container: Container) -> Result<LimbOptions, GenError> {
+    let bones = res(p.nu, 3, "nu", 1)?;
+    let rings = res(p.nv, 8, "nv", 2)?;
+    for (what, value) in [("nu", bones), ("nv", rings)] {
+        if value > 64 {
+            return Err(GenError::Resolution {
+                what,
+                value,
+                min: if what == "nu" { 1 } else { 2 },
+                max: 64,
+            });
+        }
+    }
+    Ok(LimbOptions {
+        bones: bones as usize,
+        rings_per_bone: rings as usize,
+        bone: size(p.size, 1.0, "size")? as f32,
+        container,
+        ..LimbOptions::default()
+    })
+}
+
+/// The file of a shape that is an asset rather than a bare mesh (the rigged
+/// `limb`: a skinned glTF, GLB or `.gltf` as `container` says); `None` for
+/// the others.
+pub fn generate_asset(spec: &ShapeSpec, container: Container) -> Result<Option<Vec<u8>>, GenError> {
+    match spec.shape {
+        Shape::Limb => Ok(Some(limb(limb_options(&spec.params, container)?))),
+        _ => Ok(None),
+    }
+}
+
 /// Generates `spec`'s mesh (validated).
 pub fn generate(spec: &ShapeSpec) -> Result<Mesh, GenError> {
     let p = &spec.params;
     let (positions, triangles) = match spec.shape {
+        Shape::Limb => {
+            let bytes = limb(limb_options(p, Container::Glb)?);
+            let asset = Asset::read_bytes(&bytes, Format::Glb, Sidecars::Refuse)
+                .map_err(|e| GenError::Asset(e.to_string()))?;
+            let m = asset.mesh();
+            (m.positions().to_vec(), m.triangles().to_vec())
+        }
         Shape::Bar => bar(
             res(p.nu, 7, "nu", 1)?,
             res(p.nv, 27, "nv", 1)?,

@@ -13,10 +13,19 @@
 //!   `blend · bone` either side of each inner joint by a smoothstep, so at
 //!   most two joints influence a vertex and the weights sum to one;
 //! - the bind pose is the rest pose (`IBM_j = G_j⁻¹`).
+//!
+//! [`limb_constraints`] is its default edit (the `limb` of
+//! `POST /v1/meshes/generate`): the first bone's region fixed, the last
+//! bone's (with the `end` joint's) a handle named after it that turns
+//! about its head.
 
 use serde_json::json;
 
+use super::RigError;
+use crate::mesh::asset::groups::NameOrIndex;
+use crate::mesh::asset::Asset;
 use crate::mesh::io::gltf::{assemble, Container};
+use crate::mesh::selection::{ConstraintsSpec, HandleSpec, JointSel, VertexSet};
 
 /// Options of [`limb`].
 #[derive(Debug, Clone, Copy)]
@@ -245,4 +254,44 @@ pub fn limb(o: LimbOptions) -> Vec<u8> {
     });
     let text = serde_json::to_vec(&doc).unwrap_or_default();
     assemble(&text, bin, o.container)
+}
+
+/// The limb's default edit as index lists (ready for `PUT …/constraints`):
+/// `bone0`'s region fixed, and the last bone with its children a handle
+/// named after it, its pivot the bone's head (a drag's rotation bends the
+/// limb at that joint). [`RigError`] when `asset` has no usable skin.
+pub fn limb_constraints(asset: &Asset) -> Result<ConstraintsSpec, RigError> {
+    let sk = asset.skeleton()?;
+    let joints = sk.joints();
+    // the last joint with vertices of its own (the limb's `end` has none)
+    let last = (0..joints.len())
+        .rev()
+        .find(|&k| {
+            sk.joint_vertices(&JointSel {
+                joint: NameOrIndex::Index(k),
+                with_children: false,
+            })
+            .is_ok_and(|v| !v.is_empty())
+        })
+        .unwrap_or(0);
+    let indices = |k: usize, with_children: bool| -> Result<VertexSet, RigError> {
+        let v = sk.joint_vertices(&JointSel {
+            joint: NameOrIndex::Index(k),
+            with_children,
+        })?;
+        Ok(VertexSet::Indices(v.into_iter().map(u64::from).collect()))
+    };
+    let head = joints[last].head;
+    Ok(ConstraintsSpec {
+        fixed: indices(0, false)?,
+        fixed_positions: None,
+        handles: vec![HandleSpec {
+            name: Some(joints[last].name.clone()),
+            vertices: indices(last, true)?,
+            translate: None,
+            rotate: None,
+            pivot: Some([head.x, head.y, head.z]),
+            positions: None,
+        }],
+    })
 }
