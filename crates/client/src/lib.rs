@@ -36,9 +36,9 @@ pub use dend_protocol::PoseJson as Pose;
 /// What a client sends: session parameters and constraints (typed), the
 /// server's answers about them, curvatures, presets and named poses.
 pub use dend_protocol::{
-    constraints, params, ConstraintsAccepted, ConstraintsSpec, Curvature, HandleSpec, MeshJson,
-    NamedPose, PoseList, PresetInfo, PresetList, RenamePose, RotationSpec, SavePose, SessionParams,
-    VertexSet,
+    constraints, params, ConstraintWarning, ConstraintsAccepted, ConstraintsSpec, Curvature,
+    HandleSpec, MeshJson, NamedPose, PoseList, PresetInfo, PresetList, RenamePose, RotationSpec,
+    SavePose, SessionParams, VertexSet, WarningKind,
 };
 /// The error body of a failed request and its stable codes (the server's
 /// own types).

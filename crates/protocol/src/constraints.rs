@@ -274,3 +274,39 @@ pub enum RotationSpec {
         quaternion_wxyz: [f64; 4],
     },
 }
+
+/// What an installed constraint set does that its user should know (the
+/// set is valid): a session's `warnings`.
+#[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
+pub struct ConstraintWarning {
+    /// Which warning, with its details (`code` on the wire).
+    #[serde(flatten)]
+    pub kind: WarningKind,
+    /// What it means, for people.
+    pub message: String,
+}
+
+/// The kinds of [`ConstraintWarning`], tagged by their `code`.
+#[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(tag = "code", rename_all = "snake_case")]
+pub enum WarningKind {
+    /// Nothing is fixed: the mesh moves rigidly with its one handle.
+    NothingFixed,
+    /// A connected part holds no constrained vertex: it stays at rest.
+    UnconstrainedComponent {
+        /// The part's index.
+        component: u32,
+        /// Its vertex count.
+        vertices: usize,
+    },
+    /// Constrained vertices cut off from the rest of their region.
+    StrayVertices {
+        /// How many.
+        count: usize,
+        /// The first of them (at most a few listed).
+        vertices: Vec<u32>,
+    },
+    /// A warning this build does not know (a newer server's).
+    #[serde(other)]
+    Other,
+}

@@ -13,7 +13,9 @@ pub mod http;
 pub mod params;
 pub mod ws;
 
-pub use constraints::{ConstraintsSpec, HandleSpec, RotationSpec, VertexSet};
+pub use constraints::{
+    ConstraintWarning, ConstraintsSpec, HandleSpec, RotationSpec, VertexSet, WarningKind,
+};
 pub use error::{ErrorBody, ErrorCode};
 pub use frame::delta::{self, DeltaEncoder};
 pub use frame::{

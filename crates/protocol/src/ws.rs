@@ -10,7 +10,7 @@
 
 use serde::{Deserialize, Serialize};
 
-use crate::constraints::ConstraintsSpec;
+use crate::constraints::{ConstraintWarning, ConstraintsSpec};
 use crate::error::ErrorCode;
 use crate::frame::FrameEncoding;
 use crate::params::SessionParams;
@@ -167,7 +167,7 @@ pub struct SessionInfo {
     /// (the set is valid): `nothing_fixed`, `unconstrained_component`
     /// (`component`, `vertices`), `stray_vertices` (`count`, `vertices`),
     /// each with a readable `message`.
-    pub warnings: Vec<serde_json::Value>,
+    pub warnings: Vec<ConstraintWarning>,
     /// While the state is `building` and the factor is being built (not
     /// found in the cache): the stage under way, `assembly`, `symbolic` or
     /// `numeric` (in that order; `build_progress` events announce each).

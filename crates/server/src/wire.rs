@@ -37,6 +37,17 @@ pub(crate) fn params(p: &dend::deform::Params) -> Result<dend_protocol::SessionP
     to_wire("parameters", p)
 }
 
+/// A warning about the core's constraints as the protocol writes it: its
+/// `code` and details, and its `message`.
+pub(crate) fn warning(
+    w: &dend::deform::ConstraintWarning,
+) -> Result<dend_protocol::ConstraintWarning, ApiError> {
+    Ok(dend_protocol::ConstraintWarning {
+        kind: to_wire("constraint warning", w)?,
+        message: w.to_string(),
+    })
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -125,6 +136,37 @@ mod tests {
                 "{doc}"
             );
         }
+    }
+
+    #[test]
+    fn every_constraint_warning_is_written_as_the_core_writes_it() {
+        use dend::deform::ConstraintWarning as W;
+        for w in [
+            W::NothingFixed,
+            W::UnconstrainedComponent {
+                component: 2,
+                vertices: 40,
+            },
+            W::StrayVertices {
+                count: 3,
+                vertices: vec![4, 9, 11],
+            },
+        ] {
+            let mut core = serde_json::to_value(&w).expect("core json");
+            core["message"] = w.to_string().into();
+            let wire = warning(&w).expect("to the protocol");
+            assert!(!matches!(wire.kind, dend_protocol::WarningKind::Other));
+            assert_eq!(serde_json::to_value(&wire).expect("wire json"), core);
+            let back: dend_protocol::ConstraintWarning =
+                serde_json::from_value(core).expect("read back");
+            assert_eq!(back, wire);
+        }
+        // a newer server's warning is kept as `Other`, with its message
+        let newer: dend_protocol::ConstraintWarning =
+            serde_json::from_value(json!({"code": "thin_handle", "message": "m", "width": 1}))
+                .expect("an unknown code");
+        assert_eq!(newer.kind, dend_protocol::WarningKind::Other);
+        assert_eq!(newer.message, "m");
     }
 
     #[test]

@@ -534,14 +534,14 @@ impl Actor {
         let constraints = Arc::new(set.constraints.clone());
         self.constraints = Some(constraints.clone());
         self.confirmed = Some(constraints.clone());
-        let warnings: Vec<serde_json::Value> = set
+        let warnings: Vec<_> = set
             .constraints
             .warnings(self.inner.rest.mesh())
             .iter()
             .filter_map(|w| {
-                let mut j = serde_json::to_value(w).ok()?;
-                j["message"] = w.to_string().into();
-                Some(j)
+                crate::wire::warning(w)
+                    .map_err(|e| tracing::error!(%e, "constraint warning"))
+                    .ok()
             })
             .collect();
         {

@@ -70,7 +70,7 @@ pub(super) struct Shared {
     pub constraints_revision: u64,
     /// The installed set's warnings (`Constraints::warnings`), each with
     /// its `code`, details and a `message`.
-    pub warnings: Arc<Vec<serde_json::Value>>,
+    pub warnings: Arc<Vec<dend_protocol::ConstraintWarning>>,
     /// The factor build's stage under way (`SessionInfo::build_stage`).
     pub build_stage: Option<BuildStage>,
     /// The named poses, listed (`SessionInfo::poses`).
