@@ -510,7 +510,7 @@ async fn the_generated_limb_is_a_rigged_asset_with_its_default_edit() -> Result<
     s.wait_ready(Duration::from_secs(120)).await?;
     s.drag(
         "bone2",
-        delta(json!({"rotate": {"axis": [0, 0, 1], "degrees": 30}})),
+        DeltaJson::axis_angle([0.0, 0.0, 1.0], 30.0),
         Some(40),
     )
     .await?;
