@@ -5,12 +5,11 @@
 //! drains, sessions are created again. The load is made exact by holding
 //! the only solver worker busy from the test (no clock involved).
 
-use dend_client::ws::CreateSession;
-use dend_client::SessionParams;
 use std::sync::mpsc;
 use std::time::Duration;
 
-use dend_client::Client;
+use dend_client::ws::CreateSession;
+use dend_client::{Client, SessionParams};
 use dend_server::{app, AppState, Config};
 use dend_testkit::server::grid;
 

@@ -8,13 +8,13 @@
 //! skinning is computed here; that must be the solved pose within 1e-4 of
 //! the diagonal. The Khronos validator finds no error.
 
-use dend_client::constraints::{JointSel, NameOrIndex};
 use std::time::Duration;
 
 use dend::mesh::asset::Asset;
 use dend::mesh::io::gltf::Sidecars;
 use dend::mesh::io::Format;
 use dend::rig::sample::{limb, LimbOptions};
+use dend_client::constraints::{JointSel, NameOrIndex};
 use dend_client::ws::DeltaJson;
 use dend_client::{
     Client, ClientError, ConstraintsSpec, HandleSpec, SavePose, SessionClient, SessionParams,

@@ -2,13 +2,12 @@
 //! reqwest for HTTP and tokio-tungstenite (through `dend::client`) for
 //! WebSocket.
 
-use dend_client::ws::ClientMsg;
 use std::sync::Arc;
 use std::time::Duration;
 
 use dend::deform::{ConstraintsSpec, Deformer, Factor, Params, Rest};
 use dend::mesh::Mesh;
-use dend_client::ws::DeltaJson;
+use dend_client::ws::{ClientMsg, DeltaJson};
 use dend_client::{Client, ClientError, ErrorCode, SessionParams, WsEvent};
 use dend_server::Config;
 use dend_testkit::server::{grid, grid_constraints, start};

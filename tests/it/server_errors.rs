@@ -1,11 +1,9 @@
 //! Each bad input gets its specific error code, over real sockets; oversize
 //! uploads are refused from `Content-Length` or while streaming.
 
-use dend_client::ws::CreateSession;
-use dend_client::ws::DeltaJson;
-use dend_client::ws::DragRequest;
 use std::time::Duration;
 
+use dend_client::ws::{CreateSession, DeltaJson, DragRequest};
 use dend_client::{
     Client, ClientError, ConstraintsSpec, ErrorCode, HandleSpec, MeshJson, SessionParams, VertexSet,
 };

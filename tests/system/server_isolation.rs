@@ -4,14 +4,12 @@
 //! every numeric field, message floods, clients that never read and many
 //! connections each get a bounded, typed answer.
 
-use dend_client::ws::DeltaJson;
-use dend_client::ws::DragRequest;
-use dend_client::{ConstraintsSpec, ErrorBody, ErrorCode, HandleSpec, SessionParams, VertexSet};
 use std::collections::HashSet;
 use std::time::Duration;
 
-use dend_client::ws::{ClientMsg, ServerMsg, SessionState};
+use dend_client::ws::{ClientMsg, DeltaJson, DragRequest, ServerMsg, SessionState};
 use dend_client::{Client, ClientError, WsEvent};
+use dend_client::{ConstraintsSpec, ErrorBody, ErrorCode, HandleSpec, SessionParams, VertexSet};
 use dend_server::Config;
 use dend_testkit::server::{grid, grid_constraints, start};
 use futures_util::{SinkExt, StreamExt};

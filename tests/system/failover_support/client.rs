@@ -2,14 +2,13 @@
 //! session over WebSocket through HAProxy and keeps a [`Tally`] of what the
 //! servers acknowledged, reconnecting whenever its connection fails.
 
-use dend_client::ErrorCode;
 use std::collections::HashMap;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
 use dend_client::ws::{ClientMsg, ServerMsg};
-use dend_client::{SessionClient, WsEvent};
+use dend_client::{ErrorCode, SessionClient, WsEvent};
 use parking_lot::Mutex;
 
 /// The x translation of drag `seq` (distinct per seq, so the final pose
