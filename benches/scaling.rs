@@ -1,0 +1,115 @@
+//! Whether the solver's work grows with the mesh: the time to convergence
+//! of one edit at three resolutions of the same generated shape, in fine
+//! iterations (docs/performance.md, "Fine-iteration equivalents"). Run:
+//! `cargo bench --bench scaling`.
+//!
+//! The shape is `dend_testkit::tube_of_size` at about 8k, 32k and 128k
+//! vertices, the edit `dend_testkit::standard_edit` (the lowest 10 % in z
+//! fixed, the highest 10 % moved by 0.15 of the diagonal and turned 30°).
+//! For each resolution and each of [`Levels::Two`] (the default) and
+//! [`Levels::Many`], criterion times one fine iteration (from a deformed
+//! pose, one level) and the solve from rest to convergence; stderr gets
+//! the medians of both and their ratio, the fine-iteration equivalents,
+//! which should stay flat across the three resolutions (the largest within
+//! 1.5× of the smallest).
+//!
+//! Environment: `DEND_BENCH_SIZES=8000,32000` to pick resolutions.
+
+use std::cell::RefCell;
+use std::sync::Arc;
+use std::time::{Duration, Instant};
+
+use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion};
+use dend::deform::{Deformer, Factor, Levels, Params, Rest};
+
+fn sizes() -> Vec<usize> {
+    std::env::var("DEND_BENCH_SIZES")
+        .ok()
+        .map(|s| s.split(',').filter_map(|v| v.trim().parse().ok()).collect())
+        .unwrap_or_else(|| vec![8_000, 32_000, 128_000])
+}
+
+fn median(v: &[Duration]) -> f64 {
+    let mut s: Vec<f64> = v.iter().map(Duration::as_secs_f64).collect();
+    s.sort_by(f64::total_cmp);
+    match s.len() {
+        0 => f64::NAN,
+        n if n % 2 == 1 => s[n / 2],
+        n => 0.5 * (s[n / 2 - 1] + s[n / 2]),
+    }
+}
+
+fn bench(c: &mut Criterion) {
+    let params = Params::default();
+    let mut rows = Vec::new();
+    for n in sizes() {
+        let mesh = dend_testkit::tube_of_size(n);
+        let nv = mesh.num_vertices();
+        let edit = dend_testkit::standard_edit(&mesh);
+        let rest = Arc::new(Rest::new(mesh).expect("rest"));
+        let factor = Factor::build(&rest, &params, &edit).expect("factor");
+        let mut g = c.benchmark_group(format!("tube_{}k", n / 1000));
+        g.sample_size(10);
+        g.warm_up_time(Duration::from_millis(200));
+        g.measurement_time(Duration::from_secs(if nv > 60_000 { 20 } else { 5 }));
+        let iteration = RefCell::new(Vec::new());
+        g.bench_function(BenchmarkId::new("iteration", nv), |b| {
+            let mut d = Deformer::new(rest.clone(), params);
+            d.set_levels(Levels::One);
+            d.step(&factor, &edit, 2).expect("step");
+            b.iter_custom(|iters| {
+                let mut total = Duration::ZERO;
+                for _ in 0..iters {
+                    let t = Instant::now();
+                    std::hint::black_box(d.step(&factor, &edit, 1).expect("step"));
+                    let dt = t.elapsed();
+                    iteration.borrow_mut().push(dt);
+                    total += dt;
+                }
+                total
+            })
+        });
+        let fine = median(&iteration.borrow());
+        for (name, levels) in [("two", Levels::Two), ("many", Levels::Many)] {
+            let solves = RefCell::new(Vec::new());
+            let report = RefCell::new(None);
+            g.bench_function(BenchmarkId::new(format!("converge_{name}"), nv), |b| {
+                let mut d = Deformer::new(rest.clone(), params);
+                d.set_levels(levels);
+                b.iter_custom(|iters| {
+                    let mut total = Duration::ZERO;
+                    for _ in 0..iters {
+                        d.reset();
+                        let t = Instant::now();
+                        let r = d.step(&factor, &edit, 200).expect("step");
+                        let dt = t.elapsed();
+                        solves.borrow_mut().push(dt);
+                        total += dt;
+                        *report.borrow_mut() = Some(r);
+                    }
+                    total
+                })
+            });
+            let solve = median(&solves.borrow());
+            let r = (*report.borrow()).expect("a solve ran");
+            rows.push(format!(
+                "{nv:>7} vertices, {name:>4} levels: fine iteration {:.2} ms, solve {:.1} ms = \
+                 {:.1} fine-iteration equivalents ({} fine iterations, {:.1} coarse work, \
+                 converged {})",
+                fine * 1e3,
+                solve * 1e3,
+                solve / fine,
+                r.iterations,
+                r.coarse_work,
+                r.converged
+            ));
+        }
+        g.finish();
+    }
+    for row in rows {
+        eprintln!("{row}");
+    }
+}
+
+criterion_group!(benches, bench);
+criterion_main!(benches);
