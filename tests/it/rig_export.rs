@@ -17,8 +17,8 @@ use dend::rig::sample::{limb, LimbOptions};
 use dend_client::constraints::{JointSel, NameOrIndex};
 use dend_client::ws::DeltaJson;
 use dend_client::{
-    Client, ClientError, ConstraintsSpec, HandleSpec, SavePose, SessionClient, SessionParams,
-    VertexSet,
+    Client, ClientError, ConstraintsSpec, GenerateMesh, HandleSpec, SavePose, SessionClient,
+    SessionParams, ShapeParams, VertexSet,
 };
 use dend_server::Config;
 use dend_testkit::server::start;
@@ -480,7 +480,7 @@ async fn the_generated_limb_is_a_rigged_asset_with_its_default_edit() -> Result<
     let http = reqwest::Client::new();
     let r = http
         .post(format!("{base}/v1/meshes/generate"))
-        .json(&json!({"shape": "limb"}))
+        .json(&GenerateMesh::new("limb"))
         .send()
         .await?;
     assert_eq!(r.status(), 201);
@@ -519,7 +519,13 @@ async fn the_generated_limb_is_a_rigged_asset_with_its_default_edit() -> Result<
     // parameters out of range are 422 invalid_params, not a panic
     let r = http
         .post(format!("{base}/v1/meshes/generate"))
-        .json(&json!({"shape": "limb", "params": {"nu": 0}}))
+        .json(&GenerateMesh {
+            params: ShapeParams {
+                nu: Some(0),
+                ..ShapeParams::default()
+            },
+            ..GenerateMesh::new("limb")
+        })
         .send()
         .await?;
     assert_eq!(r.status(), 422);

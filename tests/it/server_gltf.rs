@@ -9,8 +9,8 @@ use dend::mesh::asset::sample::{self, TubeOptions};
 use dend::mesh::io::gltf::{Container, GltfAsset, Sidecars};
 use dend_client::ws::{ClientMsg, DeltaJson, ServerMsg};
 use dend_client::{
-    Client, ClientError, ConstraintsSpec, ErrorBody, ErrorCode, HandleSpec, SessionParams,
-    VertexSet,
+    Client, ClientError, ConstraintsSpec, ErrorBody, ErrorCode, GenerateMesh, HandleSpec,
+    SessionParams, VertexSet,
 };
 use dend_server::store::SqliteStore;
 use dend_server::Config;
@@ -331,7 +331,7 @@ async fn constraints_by_group_resolve_on_the_uploaded_asset() -> Result<(), Clie
     ws.close().await?;
 
     // a mesh without an asset has no groups
-    let plain = c.generate(json!({"shape": "bar"})).await?;
+    let plain = c.generate(&GenerateMesh::new("bar")).await?;
     let s = c
         .create_session(&plain.id, SessionParams::default())
         .await?;

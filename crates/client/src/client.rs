@@ -1,10 +1,8 @@
 //! The HTTP client bound to a server: health, metrics, meshes, and
 //! creating or reopening sessions.
 
-use serde_json::Value;
-
 use dend_protocol::ws::{CreateSession, Created};
-use dend_protocol::{MeshInfo, PresetList, SessionParams};
+use dend_protocol::{GenerateMesh, MeshInfo, PresetList, SessionParams};
 
 use crate::error::{check, ClientError};
 use crate::session::SessionClient;
@@ -139,12 +137,12 @@ impl Client {
         Ok(check(r).await?.json().await?)
     }
 
-    /// Generates a mesh (`{"shape": .., ...}`).
-    pub async fn generate(&self, body: Value) -> Result<MeshInfo, ClientError> {
+    /// `POST /v1/meshes/generate`: a generated shape.
+    pub async fn generate(&self, body: &GenerateMesh) -> Result<MeshInfo, ClientError> {
         let r = self
             .http
             .post(format!("{}/v1/meshes/generate", self.base))
-            .json(&body)
+            .json(body)
             .send()
             .await?;
         Ok(check(r).await?.json().await?)

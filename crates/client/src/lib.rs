@@ -37,8 +37,8 @@ pub use dend_protocol::PoseJson as Pose;
 /// server's answers about them, curvatures, presets and named poses.
 pub use dend_protocol::{
     constraints, params, ConstraintWarning, ConstraintsAccepted, ConstraintsSpec, Curvature,
-    HandleSpec, MeshJson, NamedPose, PoseList, PresetInfo, PresetList, RenamePose, RotationSpec,
-    SavePose, SessionParams, VertexSet, WarningKind,
+    GenerateMesh, HandleSpec, MeshJson, NamedPose, PoseList, PresetInfo, PresetList, RenamePose,
+    RotationSpec, SavePose, SessionParams, ShapeParams, VertexSet, WarningKind,
 };
 /// The error body of a failed request and its stable codes (the server's
 /// own types).

@@ -16,6 +16,53 @@ pub struct MeshJson {
     pub triangles: Vec<[u32; 3]>,
 }
 
+/// `POST /v1/meshes/generate` body: a shape and its sizes (the core's
+/// `dend::mesh::gen::ShapeSpec` on the wire; `crates/server/src/wire.rs`
+/// keeps the two equal).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct GenerateMesh {
+    /// `bar`, `cylinder`, `flag`, `plane`, `bumpy-plane`, `torus`,
+    /// `creature`, `saddle`, `wavy-sheet` or `limb` (an unknown one is
+    /// answered `invalid_json`).
+    pub shape: String,
+    /// Its sizes, each the shape's default when absent.
+    #[serde(default)]
+    pub params: ShapeParams,
+}
+
+impl GenerateMesh {
+    /// The shape `shape` at its default sizes.
+    pub fn new(shape: &str) -> Self {
+        GenerateMesh {
+            shape: shape.to_owned(),
+            params: ShapeParams::default(),
+        }
+    }
+}
+
+/// The sizes of a generated shape (`api/openapi.yaml` says what each
+/// means for each shape).
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct ShapeParams {
+    /// First resolution.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub nu: Option<u32>,
+    /// Second resolution.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub nv: Option<u32>,
+    /// First size.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub size: Option<f64>,
+    /// Second size.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub size2: Option<f64>,
+    /// The bumpy plane's bump height, a fraction of its x extent.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub amplitude: Option<f64>,
+}
+
 /// `PUT /v1/sessions/{id}/constraints` answer (202, the factor builds in
 /// the background; the `ETag` is the revision too).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]

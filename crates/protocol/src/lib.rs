@@ -24,8 +24,8 @@ pub use frame::{
     FRAME_MAGIC, FRAME_V3_HEADER_BYTES, FRAME_VERSION, FRAME_VERSION_3, LEVEL_COARSE, LEVEL_FULL,
 };
 pub use http::{
-    ConstraintsAccepted, Curvature, MeshJson, NamedPose, PoseList, PresetInfo, PresetList,
-    RenamePose, SavePose,
+    ConstraintsAccepted, Curvature, GenerateMesh, MeshJson, NamedPose, PoseList, PresetInfo,
+    PresetList, RenamePose, SavePose, ShapeParams,
 };
 pub use params::SessionParams;
 pub use ws::{

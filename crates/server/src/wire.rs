@@ -170,6 +170,34 @@ mod tests {
     }
 
     #[test]
+    fn generated_shapes_read_alike_by_the_core_and_the_protocol() {
+        use dend::mesh::gen::ShapeSpec;
+        // (an unknown shape name is the one difference: the protocol keeps
+        // the name as a string, the server refuses it)
+        let accepted = [
+            json!({"shape": "bar"}),
+            json!({"shape": "bumpy-plane", "params": {"amplitude": 0.2}}),
+            json!({"shape": "torus", "params": {"nu": 8, "nv": 6, "size": 2.0, "size2": 0.3}}),
+            json!({"shape": "limb", "params": {"nu": 0}}),
+        ];
+        for doc in &accepted {
+            assert!(same::<ShapeSpec, dend_protocol::GenerateMesh>(doc), "{doc}");
+        }
+        let refused = [
+            json!({"shape": "bar", "extra": 1}),
+            json!({"shape": "bar", "params": {"bogus": 1}}),
+            json!({"shape": "bar", "params": {"nu": -1}}),
+            json!({"params": {}}),
+        ];
+        for doc in &refused {
+            assert!(
+                !same::<ShapeSpec, dend_protocol::GenerateMesh>(doc),
+                "{doc}"
+            );
+        }
+    }
+
+    #[test]
     fn parameters_read_alike_by_the_core_and_the_protocol() {
         // every preset's parameters as the server writes them (presets list)
         for p in Preset::ALL {
