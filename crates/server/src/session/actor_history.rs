@@ -5,7 +5,7 @@
 use std::sync::atomic::Ordering;
 use std::sync::Arc;
 
-use super::{Actor, AfterBuild, InstalledSet, Snapshot, HISTORY_LIMIT};
+use super::{Actor, AfterBuild, InstalledSet, Snapshot, Step, HISTORY_LIMIT};
 use crate::session::frame::FrameBody;
 use crate::session::shared::off_worker;
 use crate::session::{Event, Frame, PoseSnapshot, SessionError, SessionState};
@@ -24,35 +24,35 @@ impl Actor {
 
     /// Records the settled state as a history entry and checkpoints it.
     pub(super) fn commit(&mut self) {
-        if !self.uncommitted {
+        if !self.history.uncommitted {
             return;
         }
-        self.uncommitted = false;
-        if !self.history.is_empty() {
-            self.history.truncate(self.cursor + 1);
+        self.history.uncommitted = false;
+        if !self.history.entries.is_empty() {
+            self.history.entries.truncate(self.history.cursor + 1);
         }
-        let Some(set) = self.set.clone() else {
+        let Some(set) = self.set.current.clone() else {
             return;
         };
         let targets = self.targets();
-        match self.history.last_mut() {
+        match self.history.entries.last_mut() {
             // a gesture that left the set and the targets as they were (a
             // zero drag, a drag back to where it started, the settle of a
             // set's first solve that a drag joined late) is not an undo
             // step of its own: the step it would repeat takes its pose
             Some(top) if top.set.id == set.id && top.targets == targets => {
-                top.pose = self.pose.clone();
+                top.pose = self.shown.pose.clone();
             }
-            _ => self.history.push(Snapshot {
-                pose: self.pose.clone(),
+            _ => self.history.entries.push(Snapshot {
+                pose: self.shown.pose.clone(),
                 targets,
                 set,
             }),
         }
-        if self.history.len() > HISTORY_LIMIT {
-            let _ = self.history.remove(0);
+        if self.history.entries.len() > HISTORY_LIMIT {
+            let _ = self.history.entries.remove(0);
         }
-        self.cursor = self.history.len() - 1;
+        self.history.cursor = self.history.entries.len() - 1;
         self.checkpoint();
         self.sync_shared();
         // clients enable their undo/redo buttons from `can_undo`/`can_redo`
@@ -61,9 +61,9 @@ impl Actor {
 
     pub(super) fn checkpoint(&mut self) {
         let cp = Checkpoint {
-            revision: self.revision,
-            ack_seq: self.applied_seq,
-            pose: self.pose.to_vec(),
+            revision: self.shown.revision,
+            ack_seq: self.shown.applied_seq,
+            pose: self.shown.pose.to_vec(),
             targets: self.targets().iter().map(StoredTransform::from).collect(),
         };
         let (store, id, fence) = (&self.opts.store, &self.inner.id, self.opts.fence);
@@ -89,8 +89,8 @@ impl Actor {
     pub(super) fn on_store_error(&mut self, e: &StoreError) {
         if matches!(e, StoreError::Fenced { .. }) {
             tracing::warn!(session = %self.inner.id, error = %e, "lease lost: closing the session here");
-            self.inner.fenced.store(true, Ordering::Relaxed);
-            self.stop = true;
+            self.inner.ownership.fenced.store(true, Ordering::Relaxed);
+            self.go(Step::Fenced);
         }
     }
 
@@ -102,61 +102,65 @@ impl Actor {
     ) -> Result<PoseSnapshot, SessionError> {
         // a solve in flight holds the deformer: it gets this pose when it
         // returns (`pose_epoch`)
-        if let Some(d) = self.deformer.as_mut() {
+        if let Some(d) = self.solve.deformer.as_mut() {
             d.set_pose(pose.to_vec())?;
         }
-        self.pose_epoch += 1;
-        if let Some(c) = self.constraints.as_mut() {
+        self.solve.pose_epoch += 1;
+        if let Some(c) = self.set.constraints.as_mut() {
             for (h, t) in Arc::make_mut(c).handles.iter_mut().zip(targets) {
                 h.target = *t;
             }
         }
-        self.confirmed = self.constraints.clone();
-        self.pose = pose;
+        self.set.confirmed = self.set.constraints.clone();
+        self.shown.pose = pose;
         self.drags_taken();
-        self.settled = true;
-        self.converged = true;
-        self.objective = f64::NAN;
-        self.iters_since_change = 0;
-        self.journal.clear();
-        for (_, w) in self.waiters.drain(..) {
-            let _ = w.send(Err(SessionError::NotReady { state: self.state }));
+        self.shown.settled = true;
+        self.shown.converged = true;
+        self.shown.objective = f64::NAN;
+        self.solve.iters_since_change = 0;
+        self.solve.journal.clear();
+        let state = self.state();
+        for (_, w) in self.flow.waiters.drain(..) {
+            let _ = w.send(Err(SessionError::NotReady { state }));
         }
-        self.revision += 1;
+        self.shown.revision += 1;
         // iteration 0, converged and settled, no objective (set above)
         let header = self.header();
-        let bytes = FrameBody::from_pose(&self.pose).finish(&header);
+        let bytes = FrameBody::from_pose(&self.shown.pose).finish(&header);
         self.frames_tx.send_replace(Some(Frame { header, bytes }));
         Ok(self.snapshot_for(&header))
     }
 
     pub(super) fn undo_redo(&mut self, undo: bool) -> Result<PoseSnapshot, SessionError> {
-        if self.state != SessionState::Ready {
-            return Err(SessionError::NotReady { state: self.state });
+        if self.state() != SessionState::Ready {
+            return Err(SessionError::NotReady {
+                state: self.state(),
+            });
         }
         let target = if undo {
-            if self.uncommitted && !self.history.is_empty() {
-                Some(self.cursor)
+            if self.history.uncommitted && !self.history.entries.is_empty() {
+                Some(self.history.cursor)
             } else {
-                self.cursor
+                self.history
+                    .cursor
                     .checked_sub(1)
-                    .filter(|_| !self.history.is_empty())
+                    .filter(|_| !self.history.entries.is_empty())
             }
             .ok_or(SessionError::NothingToUndo)?
         } else {
-            Some(self.cursor + 1)
-                .filter(|i| !self.uncommitted && *i < self.history.len())
+            Some(self.history.cursor + 1)
+                .filter(|i| !self.history.uncommitted && *i < self.history.entries.len())
                 .ok_or(SessionError::NothingToRedo)?
         };
-        let entry = &self.history[target];
+        let entry = &self.history.entries[target];
         let (pose, targets, set) = (entry.pose.clone(), entry.targets.clone(), entry.set.clone());
-        if self.set.as_ref().map(|s| s.id) != Some(set.id) {
+        if self.set.current.as_ref().map(|s| s.id) != Some(set.id) {
             // back to another constraint set: its factor is looked up (or
             // rebuilt) while the pose is already the entry's
             self.install(set, AfterBuild::Keep)?;
         }
-        self.cursor = target;
-        self.uncommitted = false;
+        self.history.cursor = target;
+        self.history.uncommitted = false;
         let snap = self.restore(pose, &targets)?;
         self.checkpoint();
         self.sync_shared();
@@ -165,21 +169,23 @@ impl Actor {
     }
 
     pub(super) fn reset(&mut self) -> Result<PoseSnapshot, SessionError> {
-        if self.state != SessionState::Ready {
-            return Err(SessionError::NotReady { state: self.state });
+        if self.state() != SessionState::Ready {
+            return Err(SessionError::NotReady {
+                state: self.state(),
+            });
         }
         let mesh = self.inner.rest.mesh();
         let rest = Arc::new(mesh.positions().to_vec());
         // the set anchored at rest again (a set installed on a posed mesh
         // holds its vertices where that pose had them)
-        if let Some(set) = self.set.clone() {
+        if let Some(set) = self.set.current.clone() {
             let at_rest = set.client.resolve(mesh)?;
             let stored = serde_json::to_value(set.client.anchored(mesh, &at_rest))
                 .map_err(|e| SessionError::InvalidConstraints(e.to_string()))?;
             if stored != set.stored {
-                self.sets_installed += 1;
+                self.set.installed += 1;
                 let set = Arc::new(InstalledSet {
-                    id: self.sets_installed,
+                    id: self.set.installed,
                     client: set.client.clone(),
                     stored,
                     constraints: at_rest,
@@ -188,6 +194,7 @@ impl Actor {
             }
         }
         let targets: Vec<RigidTransform> = self
+            .set
             .constraints
             .as_ref()
             .map(|c| {
@@ -198,7 +205,7 @@ impl Actor {
             })
             .unwrap_or_default();
         let snap = self.restore(rest, &targets)?;
-        self.uncommitted = true;
+        self.history.uncommitted = true;
         self.commit();
         Ok(snap)
     }

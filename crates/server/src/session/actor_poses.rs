@@ -17,7 +17,9 @@ impl Actor {
     /// Whether a queued pose command may run now: the pose is settled, no
     /// solve is running and no factor is being built.
     pub(super) fn pose_settled(&self) -> bool {
-        self.deformer.is_some() && self.settled && self.state != SessionState::Building
+        self.solve.deformer.is_some()
+            && self.shown.settled
+            && self.state() != SessionState::Building
     }
 
     /// Reads the named poses of a revived session (none for a new one); a
@@ -30,13 +32,13 @@ impl Actor {
 
     /// The named poses, read from the store the first time.
     fn named(&mut self) -> Result<&mut Vec<NamedPose>, SessionError> {
-        if self.named.is_none() {
+        if self.poses.named.is_none() {
             let (store, id) = (&self.opts.store, &self.inner.id);
             let poses = off_worker(|| store.named_poses(id))?;
             self.publish_names(&poses);
-            self.named = Some(poses);
+            self.poses.named = Some(poses);
         }
-        Ok(self.named.get_or_insert_with(Vec::new))
+        Ok(self.poses.named.get_or_insert_with(Vec::new))
     }
 
     /// Tells the session's clients the pose names (in `state`).
@@ -47,7 +49,7 @@ impl Actor {
     /// After a change of the list: store it in the shared state and tell
     /// every client.
     fn names_changed(&mut self) {
-        if let Some(poses) = &self.named {
+        if let Some(poses) = &self.poses.named {
             self.publish_names(poses);
         }
         let _ = self.inner.events.send(Event::State);
@@ -86,9 +88,9 @@ impl Actor {
     }
 
     fn save_pose(&mut self, name: String, replace: bool) -> Result<PoseInfo, SessionError> {
-        let (pose, targets) = (self.pose.to_vec(), self.targets());
-        let constraints = self.set.as_ref().map(|s| s.stored.clone());
-        let revision = self.revision;
+        let (pose, targets) = (self.shown.pose.to_vec(), self.targets());
+        let constraints = self.set.current.as_ref().map(|s| s.stored.clone());
+        let revision = self.shown.revision;
         let poses = self.named()?;
         let existing = poses.iter().position(|p| p.name == name);
         if existing.is_some() && !replace {
@@ -183,13 +185,13 @@ impl Actor {
             .find(|p| p.name == name)
             .cloned()
             .ok_or_else(|| SessionError::UnknownPose { name: name.into() })?;
-        if named.pose.len() != self.pose.len() {
+        if named.pose.len() != self.shown.pose.len() {
             return Err(StoreError::Corrupt {
                 what: format!("named pose `{name}` of session `{}`", self.inner.id),
                 reason: format!(
                     "{} positions for {} vertices",
                     named.pose.len(),
-                    self.pose.len()
+                    self.shown.pose.len()
                 ),
             }
             .into());
@@ -201,7 +203,7 @@ impl Actor {
             .collect::<Result<_, _>>()?;
         self.commit();
         match &named.constraints {
-            Some(stored) if self.set.as_ref().map(|s| &s.stored) != Some(stored) => {
+            Some(stored) if self.set.current.as_ref().map(|s| &s.stored) != Some(stored) => {
                 let corrupt = |reason: String| StoreError::Corrupt {
                     what: format!("constraints of named pose `{name}`"),
                     reason,
@@ -209,9 +211,9 @@ impl Actor {
                 let spec: ConstraintsSpec =
                     serde_json::from_value(stored.clone()).map_err(|e| corrupt(e.to_string()))?;
                 let constraints = spec.resolve(self.inner.rest.mesh())?;
-                self.sets_installed += 1;
+                self.set.installed += 1;
                 let set = Arc::new(InstalledSet {
-                    id: self.sets_installed,
+                    id: self.set.installed,
                     client: spec,
                     stored: stored.clone(),
                     constraints,
@@ -222,7 +224,7 @@ impl Actor {
             None => targets = self.targets(),
         }
         let snap = self.restore(Arc::new(named.pose), &targets)?;
-        self.uncommitted = true;
+        self.history.uncommitted = true;
         self.commit();
         Ok(snap)
     }

@@ -7,13 +7,13 @@
 use std::sync::Arc;
 use std::time::Instant;
 
-use super::Actor;
+use super::{Actor, Phase, Step};
 use crate::session::{Event, FrameHeader, SessionError};
 
 impl Actor {
     /// The factor is ready: applies the queued drags in their order.
     pub(super) fn apply_queued(&mut self) {
-        while let Some(q) = self.queued.pop_front() {
+        while let Some(q) = self.flow.queued.pop_front() {
             self.on_drag(q.handle, q.delta, q.seq, q.reply);
         }
     }
@@ -22,7 +22,7 @@ impl Actor {
     /// WebSocket clients get it as an `error` event).
     pub(super) fn refuse_queued(&mut self, error: impl Fn() -> SessionError) {
         let mut told = false;
-        for q in self.queued.drain(..) {
+        for q in self.flow.queued.drain(..) {
             match q.reply {
                 Some((_, r)) => {
                     let _ = r.send(Err(error()));
@@ -39,14 +39,15 @@ impl Actor {
     /// Refuses the queued drags that waited longer than `build_wait`.
     pub(super) fn expire_queued(&mut self) {
         let wait = self.opts.build_wait;
-        let state = self.state;
+        let state = self.state();
         let now = Instant::now();
         let keep = self
+            .flow
             .queued
             .iter()
             .position(|q| now.duration_since(q.at) < wait)
-            .unwrap_or(self.queued.len());
-        let expired: Vec<_> = self.queued.drain(..keep).collect();
+            .unwrap_or(self.flow.queued.len());
+        let expired: Vec<_> = self.flow.queued.drain(..keep).collect();
         let mut told = false;
         for q in expired {
             let e = SessionError::NotReady { state };
@@ -67,11 +68,11 @@ impl Actor {
     /// drag, as the solver settled it) is the session's; the reads that
     /// waited get it.
     pub(super) fn end_revival(&mut self, header: &FrameHeader) {
-        if !self.reviving {
+        if self.phase != Phase::Reviving {
             return;
         }
-        self.reviving = false;
-        for w in std::mem::take(&mut self.pose_waiters) {
+        self.go(Step::Settled);
+        for w in std::mem::take(&mut self.flow.pose_waiters) {
             let _ = w.send(Ok(self.snapshot_for(header)));
         }
     }
@@ -79,7 +80,7 @@ impl Actor {
     /// A revival's factor build failed: the reads that waited get the
     /// error (later reads are refused until a constraint set is solved).
     pub(super) fn fail_revival(&mut self, e: &Arc<SessionError>) {
-        for w in std::mem::take(&mut self.pose_waiters) {
+        for w in std::mem::take(&mut self.flow.pose_waiters) {
             let _ = w.send(Err(SessionError::Shared(e.clone())));
         }
     }

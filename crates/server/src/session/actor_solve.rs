@@ -6,7 +6,7 @@
 use std::sync::Arc;
 use std::time::Instant;
 
-use super::{Actor, AfterBuild};
+use super::{Actor, AfterBuild, Step};
 use crate::session::frame::{FrameBody, FrameHeader};
 use crate::session::shared::Internal;
 use crate::session::{Event, Frame, PoseSnapshot, SessionError, SessionState};
@@ -17,27 +17,28 @@ impl Actor {
     /// it settles); the drags composed since the last solve are journaled
     /// first, in the same task.
     pub(super) fn maybe_start_solve(&mut self) {
-        if self.deformer.is_none() || self.state != SessionState::Ready {
+        if self.solve.deformer.is_none() || self.state() != SessionState::Ready {
             return;
         }
-        let Some(constraints) = self.constraints.clone() else {
+        let Some(constraints) = self.set.constraints.clone() else {
             return;
         };
-        if self.dirty {
-            self.iters_since_change = 0;
+        if self.solve.dirty {
+            self.solve.iters_since_change = 0;
         }
         let max_iters = self.inner.params.max_iters;
-        let budget = if !self.waiters.is_empty() {
-            self.waiters
+        let budget = if !self.flow.waiters.is_empty() {
+            self.flow
+                .waiters
                 .iter()
                 .map(|w| w.0)
                 .max()
                 .unwrap_or(max_iters)
                 .max(1)
-        } else if !self.settled {
-            let remaining = max_iters.saturating_sub(self.iters_since_change);
+        } else if !self.shown.settled {
+            let remaining = max_iters.saturating_sub(self.solve.iters_since_change);
             if remaining == 0 {
-                self.settled = true;
+                self.shown.settled = true;
                 self.commit_gesture();
                 return;
             }
@@ -49,9 +50,9 @@ impl Actor {
         // came within the quiet time, or waits for this solve: a drag that
         // waited behind a longer solve is still a drag): the coarse
         // corrections wait
-        let hold = self.waiters.is_empty()
-            && self.last_stream_drag.is_some_and(|t| {
-                self.drag_pending || t.elapsed() < crate::session::CORRECTION_QUIET
+        let hold = self.flow.waiters.is_empty()
+            && self.solve.last_stream_drag.is_some_and(|t| {
+                self.solve.drag_pending || t.elapsed() < crate::session::CORRECTION_QUIET
             });
         // drags faster than the full mesh can follow: coarse previews
         // answer them (`Deformer::preview`) and, between drags, refine
@@ -64,18 +65,19 @@ impl Actor {
         let preview = hold
             && threshold >= 0.0
             // (unknown before the first fine solve: previewed)
-            && (self.fine_iter_ms.is_nan() || self.fine_iter_ms > threshold)
-            && self.deformer.as_ref().is_some_and(|d| d.can_preview());
-        self.wake_at = None;
+            && (self.solve.fine_iter_ms.is_nan() || self.solve.fine_iter_ms > threshold)
+            && self.solve.deformer.as_ref().is_some_and(|d| d.can_preview());
+        self.solve.wake_at = None;
         if let Some(due) = self.next_drag_due() {
             // the next drag of the stream would stop this refinement before
             // it finished an iteration: wait for it (or for a little past
             // when it was due, then refine)
-            self.wake_at = Some(due);
+            self.solve.wake_at = Some(due);
             return;
         }
-        if preview && !self.dirty && self.preview_converged {
-            self.wake_at = self
+        if preview && !self.solve.dirty && self.solve.preview_converged {
+            self.solve.wake_at = self
+                .solve
                 .last_stream_drag
                 .map(|t| t + crate::session::CORRECTION_QUIET);
             return;
@@ -83,16 +85,17 @@ impl Actor {
         // a refinement (no new drags, nobody waiting: between drags, over
         // the settle, or the solve towards a new constraint set) stops
         // early when a drag arrives (`Actor::interrupt`)
-        self.refining = !self.drag_pending && self.waiters.is_empty();
-        self.inflight = self.waiters.drain(..).map(|w| w.1).collect();
+        self.solve.refining = !self.solve.drag_pending && self.flow.waiters.is_empty();
+        self.flow.inflight = self.flow.waiters.drain(..).map(|w| w.1).collect();
         self.drags_taken();
-        let Some(mut deformer) = self.deformer.take() else {
+        let Some(mut deformer) = self.solve.deformer.take() else {
             return;
         };
-        self.interrupt
+        self.solve
+            .interrupt
             .store(false, std::sync::atomic::Ordering::Relaxed);
-        deformer.set_interrupt(self.refining.then(|| self.interrupt.clone()));
-        let journal = std::mem::take(&mut self.journal);
+        deformer.set_interrupt(self.solve.refining.then(|| self.solve.interrupt.clone()));
+        let journal = std::mem::take(&mut self.solve.journal);
         let (id, store, cache, fence) = (
             self.inner.id.clone(),
             self.opts.store.clone(),
@@ -104,10 +107,13 @@ impl Actor {
             self.inner.params,
             self.internal_tx.clone(),
         );
-        let (applied_seq, generation, pose_epoch) =
-            (self.last_seq, self.generation, self.pose_epoch);
-        let installed = self.factor.clone();
-        let refining = self.refining;
+        let (applied_seq, generation, pose_epoch) = (
+            self.shown.last_seq,
+            self.set.generation,
+            self.solve.pose_epoch,
+        );
+        let installed = self.set.factor.clone();
+        let refining = self.solve.refining;
         // other sessions' solves wait for a worker: a drag's step from the
         // rest pose skips its coarse start (`Deformer::hold_coarse_start`)
         let contended = self.opts.scheduler.waiting() > 0;
@@ -170,15 +176,15 @@ impl Actor {
     /// been timed yet.
     fn next_drag_due(&self) -> Option<std::time::Instant> {
         // (NaN, before a fine solve was timed: none)
-        let timed = self.fine_iter_ms > 0.0;
-        if self.dirty || self.drag_pending || !self.waiters.is_empty() || !timed {
+        let timed = self.solve.fine_iter_ms > 0.0;
+        if self.solve.dirty || self.solve.drag_pending || !self.flow.waiters.is_empty() || !timed {
             return None;
         }
-        let iteration = std::time::Duration::from_secs_f64(self.fine_iter_ms * 1e-3);
+        let iteration = std::time::Duration::from_secs_f64(self.solve.fine_iter_ms * 1e-3);
         refinement_wait(
             std::time::Instant::now(),
-            self.last_stream_drag?,
-            self.drag_gap?,
+            self.solve.last_stream_drag?,
+            self.solve.drag_gap?,
             iteration,
         )
     }
@@ -186,7 +192,7 @@ impl Actor {
     pub(super) fn on_internal(&mut self, msg: Internal) {
         match msg {
             Internal::Stage { generation, stage } => {
-                if generation == self.generation && self.state == SessionState::Building {
+                if generation == self.set.generation && self.state() == SessionState::Building {
                     self.inner.shared.lock().build_stage = Some(stage);
                     let _ = self.inner.events.send(Event::BuildProgress { stage });
                 }
@@ -196,35 +202,36 @@ impl Actor {
                 result,
                 seconds,
             } => {
-                if generation == self.generation {
+                if generation == self.set.generation {
                     self.inner.shared.lock().build_stage = None;
                 }
                 if result.is_ok() {
                     self.opts.observer.factor_ready(seconds);
                 }
-                if generation != self.generation {
+                if generation != self.set.generation {
                     return;
                 }
-                self.revision += 1;
+                self.shown.revision += 1;
                 match result {
                     Ok(factor) => {
-                        self.factor = Some(factor);
-                        self.state = SessionState::Ready;
-                        if self.after_build == AfterBuild::Solve {
+                        self.set.factor = Some(factor);
+                        let after = self.phase.after_build();
+                        self.go(Step::Built);
+                        if after == Some(AfterBuild::Solve) {
                             // solve towards the set's targets; the settled
                             // result becomes a history entry
-                            self.dirty = true;
-                            self.settled = false;
-                            self.uncommitted = true;
+                            self.solve.dirty = true;
+                            self.shown.settled = false;
+                            self.history.uncommitted = true;
                         }
                         self.sync_shared();
                         let _ = self.inner.events.send(Event::Ready {
-                            revision: self.revision,
+                            revision: self.shown.revision,
                         });
                         self.apply_queued();
                     }
                     Err(e) => {
-                        self.state = SessionState::Failed;
+                        self.go(Step::BuildFailed);
                         self.sync_shared();
                         let e = Arc::new(e);
                         self.refuse_queued(|| SessionError::Shared(e.clone()));
@@ -246,22 +253,22 @@ impl Actor {
                 generation,
                 pose_epoch,
             } => {
-                self.refining = false;
-                if pose_epoch != self.pose_epoch {
+                self.solve.refining = false;
+                if pose_epoch != self.solve.pose_epoch {
                     // an undo, redo, reset or restore replaced the pose while
                     // this solve ran: its pose and frame are not the
                     // session's; the deformer takes the current pose, and
                     // the drags it carried were journaled (acknowledged)
                     let mut deformer = deformer;
-                    if let Err(e) = deformer.set_pose(self.pose.to_vec()) {
+                    if let Err(e) = deformer.set_pose(self.shown.pose.to_vec()) {
                         tracing::error!(session = %self.inner.id, error = %e, "restoring the pose after a solve");
                     }
-                    self.deformer = Some(deformer);
-                    if generation == self.generation && !journal_failed {
-                        self.applied_seq = applied_seq;
+                    self.solve.deformer = Some(deformer);
+                    if generation == self.set.generation && !journal_failed {
+                        self.shown.applied_seq = applied_seq;
                     }
                     let header = self.header();
-                    for w in std::mem::take(&mut self.inflight) {
+                    for w in std::mem::take(&mut self.flow.inflight) {
                         let _ = w.send(Ok(self.snapshot_for(&header)));
                     }
                     drop((result, body, constraints, seconds));
@@ -272,66 +279,66 @@ impl Actor {
                     // a refinement stopped by a drag before its first
                     // iteration ended: the pose is the last frame's, and
                     // the drag's solve starts now
-                    self.deformer = Some(deformer);
+                    self.solve.deformer = Some(deformer);
                     return;
                 }
-                self.pose = Arc::new(deformer.shown_pose().to_vec());
-                self.deformer = Some(deformer);
-                if generation == self.generation {
+                self.shown.pose = Arc::new(deformer.shown_pose().to_vec());
+                self.solve.deformer = Some(deformer);
+                if generation == self.set.generation {
                     if journal_failed {
                         self.journal_failed(&result);
                     } else {
-                        self.applied_seq = applied_seq;
-                        self.confirmed = Some(constraints);
+                        self.shown.applied_seq = applied_seq;
+                        self.set.confirmed = Some(constraints);
                     }
                 }
-                self.level = if preview {
+                self.shown.level = if preview {
                     dend_protocol::LEVEL_COARSE
                 } else {
                     dend_protocol::LEVEL_FULL
                 };
                 let error = match result {
                     Ok(report) if preview => {
-                        self.preview_converged = report.converged;
+                        self.solve.preview_converged = report.converged;
                         // a picture of where the drag goes: not converged,
                         // no fine objective, never settled
-                        self.converged = false;
-                        self.objective = f64::NAN;
-                        self.settled = false;
+                        self.shown.converged = false;
+                        self.shown.objective = f64::NAN;
+                        self.shown.settled = false;
                         None
                     }
                     Ok(report) => {
                         if report.iterations > 0 && !report.interrupted {
-                            self.fine_iter_ms = (seconds * 1e3 - report.coarse_ms).max(0.0)
+                            self.solve.fine_iter_ms = (seconds * 1e3 - report.coarse_ms).max(0.0)
                                 / report.iterations as f64;
                         }
-                        self.iters_since_change += report.iterations;
-                        self.converged = report.converged;
-                        self.objective = report.objective;
+                        self.solve.iters_since_change += report.iterations;
+                        self.shown.converged = report.converged;
+                        self.shown.objective = report.objective;
                         self.opts
                             .observer
                             .solved(report.iterations, seconds, report.converged);
                         let done = report.converged
-                            || self.iters_since_change >= self.inner.params.max_iters;
-                        self.settled = !self.dirty && (done || report.diverged);
+                            || self.solve.iters_since_change >= self.inner.params.max_iters;
+                        self.shown.settled = !self.solve.dirty && (done || report.diverged);
                         None
                     }
                     Err(e) => {
-                        self.settled = true;
+                        self.shown.settled = true;
                         Some(Arc::new(e))
                     }
                 };
-                self.revision += 1;
+                self.shown.revision += 1;
                 let header = self.header();
                 let bytes = body.finish(&header);
                 self.frames_tx.send_replace(Some(Frame { header, bytes }));
-                if generation == self.generation && !journal_failed && self.settled {
+                if generation == self.set.generation && !journal_failed && self.shown.settled {
                     // the revived pose is the settled one: an iterate on
                     // the way there is not the pose the acknowledged drags
                     // led to, and is not served
                     self.end_revival(&header);
                 }
-                for w in std::mem::take(&mut self.inflight) {
+                for w in std::mem::take(&mut self.flow.inflight) {
                     let _ = w.send(match &error {
                         None => Ok(self.snapshot_for(&header)),
                         Some(e) => Err(SessionError::Shared(e.clone())),
@@ -340,7 +347,7 @@ impl Actor {
                 if let Some(e) = error {
                     let _ = self.inner.events.send(Event::Error(e));
                 }
-                if self.settled {
+                if self.shown.settled {
                     self.commit_gesture();
                 }
                 self.sync_shared();
@@ -362,11 +369,11 @@ impl Actor {
         if let Err(SessionError::Store(e)) = result {
             self.on_store_error(e);
         }
-        self.constraints = self.confirmed.clone();
-        self.journal.clear();
-        self.last_seq = self.applied_seq;
+        self.set.constraints = self.set.confirmed.clone();
+        self.solve.journal.clear();
+        self.shown.last_seq = self.shown.applied_seq;
         self.drags_taken();
-        for (_, w) in self.waiters.drain(..) {
+        for (_, w) in self.flow.waiters.drain(..) {
             let _ = w.send(Err(match result {
                 Err(SessionError::Store(e)) => SessionError::Store(e.clone()),
                 _ => SessionError::Closed,
@@ -377,7 +384,7 @@ impl Actor {
     pub(super) fn snapshot_for(&self, h: &FrameHeader) -> PoseSnapshot {
         PoseSnapshot {
             header: *h,
-            positions: self.pose.clone(),
+            positions: self.shown.pose.clone(),
         }
     }
 }

@@ -9,7 +9,7 @@ use tokio::sync::{broadcast, mpsc, oneshot, watch};
 
 use super::actor::Actor;
 pub use super::shared::SessionOptions;
-use super::shared::{Cmd, Grabs, Inner, Restore, Shared};
+use super::shared::{Cmd, Grabs, Inner, Ownership, Presence, Restore, Shared};
 use super::{
     wire_stage, ClientId, Delta, Event, Frame, HandleRef, PeerEvent, PoseSnapshot, Recovered,
     SessionError, SessionInfo, SessionState,
@@ -57,13 +57,17 @@ impl SessionHandle {
                 build_stage: None,
                 poses: Arc::default(),
             }),
-            started: Instant::now(),
-            last_active_ms: AtomicU64::new(0),
-            clients: AtomicUsize::new(0),
-            fenced: std::sync::atomic::AtomicBool::new(false),
-            moving: std::sync::atomic::AtomicBool::new(false),
-            fence: opts.fence,
-            next_client: AtomicU64::new(1),
+            presence: Presence {
+                started: Instant::now(),
+                last_active_ms: AtomicU64::new(0),
+                clients: AtomicUsize::new(0),
+                next_client: AtomicU64::new(1),
+            },
+            ownership: Ownership {
+                fence: opts.fence,
+                fenced: std::sync::atomic::AtomicBool::new(false),
+                moving: std::sync::atomic::AtomicBool::new(false),
+            },
         });
         let actor = Actor::new(inner.clone(), frames_tx, opts);
         drop(tokio::spawn(actor.run(cmd_rx)));
@@ -73,24 +77,24 @@ impl SessionHandle {
     /// Whether a store write was refused because another instance took the
     /// session's lease over: the session no longer runs here.
     pub fn is_fenced(&self) -> bool {
-        self.inner.fenced.load(Ordering::Relaxed)
+        self.inner.ownership.fenced.load(Ordering::Relaxed)
     }
 
     /// Marks the session as handed over to another instance: when it
     /// closes here, its WebSocket clients are told to reconnect at once
     /// (close code `CLOSE_RECONNECT`), not that it was closed.
     pub fn mark_moving(&self) {
-        self.inner.moving.store(true, Ordering::Relaxed);
+        self.inner.ownership.moving.store(true, Ordering::Relaxed);
     }
 
     /// Whether the session is being handed over (see [`mark_moving`](Self::mark_moving)).
     pub fn is_moving(&self) -> bool {
-        self.inner.moving.load(Ordering::Relaxed)
+        self.inner.ownership.moving.load(Ordering::Relaxed)
     }
 
     /// The lease revision the session runs under (its fencing token).
     pub fn fence(&self) -> crate::store::Fence {
-        self.inner.fence
+        self.inner.ownership.fence
     }
 
     /// Session id.
@@ -122,7 +126,7 @@ impl SessionHandle {
             state: s.state,
             revision: s.revision,
             handles: s.handles.clone(),
-            peers: self.inner.clients.load(Ordering::Relaxed),
+            peers: self.inner.presence.clients.load(Ordering::Relaxed),
             can_undo: s.can_undo,
             can_redo: s.can_redo,
             vertices: self.inner.rest.mesh().num_vertices(),
@@ -136,15 +140,18 @@ impl SessionHandle {
 
     /// Marks activity now (for the idle timeout).
     pub fn touch(&self) {
-        let ms = self.inner.started.elapsed().as_millis() as u64;
-        self.inner.last_active_ms.store(ms, Ordering::Relaxed);
+        let ms = self.inner.presence.started.elapsed().as_millis() as u64;
+        self.inner
+            .presence
+            .last_active_ms
+            .store(ms, Ordering::Relaxed);
     }
 
     /// Whether the session had no activity and no client for `timeout`.
     pub fn is_idle(&self, timeout: std::time::Duration) -> bool {
-        let now = self.inner.started.elapsed().as_millis() as u64;
-        let last = self.inner.last_active_ms.load(Ordering::Relaxed);
-        self.inner.clients.load(Ordering::Relaxed) == 0
+        let now = self.inner.presence.started.elapsed().as_millis() as u64;
+        let last = self.inner.presence.last_active_ms.load(Ordering::Relaxed);
+        self.inner.presence.clients.load(Ordering::Relaxed) == 0
             && now.saturating_sub(last) >= timeout.as_millis() as u64
     }
 
@@ -339,8 +346,12 @@ impl SessionHandle {
 
     /// Registers a client; everyone gets `PeerJoined`.
     pub fn join(&self) -> ClientId {
-        let id = self.inner.next_client.fetch_add(1, Ordering::Relaxed);
-        let _ = self.inner.clients.fetch_add(1, Ordering::Relaxed);
+        let id = self
+            .inner
+            .presence
+            .next_client
+            .fetch_add(1, Ordering::Relaxed);
+        let _ = self.inner.presence.clients.fetch_add(1, Ordering::Relaxed);
         let _ = self
             .inner
             .events
@@ -361,7 +372,7 @@ impl SessionHandle {
                 .events
                 .send(Event::Peer(PeerEvent::HandleReleased { handle, client }));
         }
-        let _ = self.inner.clients.fetch_sub(1, Ordering::Relaxed);
+        let _ = self.inner.presence.clients.fetch_sub(1, Ordering::Relaxed);
         let _ = self
             .inner
             .events

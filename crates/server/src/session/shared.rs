@@ -87,17 +87,33 @@ pub(super) struct Inner {
     pub frames: watch::Receiver<Option<Frame>>,
     pub events: broadcast::Sender<Event>,
     pub shared: Mutex<Shared>,
+    /// Its clients and when it was last used.
+    pub presence: Presence,
+    /// Its lease and whether another instance owns it now.
+    pub ownership: Ownership,
+}
+
+/// A session's clients and when it was last used (an idle session with
+/// no client is closed).
+pub(super) struct Presence {
     pub started: Instant,
+    /// Milliseconds from `started` to the last use.
     pub last_active_ms: AtomicU64,
+    /// Clients connected now.
     pub clients: AtomicUsize,
+    /// The next client's id.
+    pub next_client: AtomicU64,
+}
+
+/// A session's lease, and whether it is another instance's now.
+pub(super) struct Ownership {
+    /// The lease revision this session runs under.
+    pub fence: crate::store::Fence,
     /// Set when a store write was fenced: another instance owns the session.
     pub fenced: std::sync::atomic::AtomicBool,
     /// Set when the session is handed over to another instance (a drain,
     /// a hand-over request): its clients are told to reconnect at once.
     pub moving: std::sync::atomic::AtomicBool,
-    /// The lease revision this session runs under.
-    pub fence: crate::store::Fence,
-    pub next_client: AtomicU64,
 }
 
 /// Which client holds which handle (by index): one holder per handle.
