@@ -24,21 +24,22 @@
 //! `a = 7, m = 27`; the open tube `4a(m+1) = 856` has no reasonable one), and
 //! the cylinder's 1088 only as an *open* tube (`n·rings = 1088 = 32·34`).
 
-use std::collections::HashMap;
-
 use serde::{Deserialize, Serialize};
 use thiserror::Error;
 
 use super::asset::Asset;
 use super::io::gltf::{Container, Sidecars};
 use super::io::Format;
-use super::{Mesh, MeshError, Point, Real};
+use super::{Mesh, MeshError, Real};
 use crate::rig::sample::{limb, LimbOptions};
 
 mod creature;
+mod lattice;
 mod patch;
 pub use creature::{creature_constraints, BELLY_HEIGHT, FOOT_HEIGHT, HEAD_DEPTH};
 pub use patch::{irregular_patch, PatchSurface};
+
+use lattice::{lattice_box, quad, Raw};
 
 /// The generated shapes.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize, clap::ValueEnum)]
@@ -312,56 +313,9 @@ pub fn generate(spec: &ShapeSpec) -> Result<Mesh, GenError> {
     Ok(Mesh::new(positions, triangles)?)
 }
 
-type Raw = (Vec<Point>, Vec<[u32; 3]>);
-
 /// The `saddle` and `wavy-sheet` shapes' jitter, in cells, and seed.
 const PATCH_JITTER: Real = 0.4;
 const PATCH_SEED: u64 = 1;
-
-/// Splits quad `q` (counter-clockwise) into two triangles.
-fn quad(out: &mut Vec<[u32; 3]>, q: [u32; 4]) {
-    out.push([q[0], q[1], q[2]]);
-    out.push([q[0], q[2], q[3]]);
-}
-
-/// The surface of the lattice box `[0,n₀]×[0,n₁]×[0,n₂]`: its corners
-/// numbered in order of first use, and its cells as quads of those numbers,
-/// counter-clockwise seen from outside; the faces normal to each axis of
-/// `axes` in that order, the low side first.
-fn lattice_box(n: [u32; 3], axes: [usize; 3]) -> (Vec<[u32; 3]>, Vec<[u32; 4]>) {
-    let mut index: HashMap<[u32; 3], u32> = HashMap::new();
-    let mut corners = Vec::new();
-    let mut quads = Vec::new();
-    let mut vid = |c: [u32; 3]| -> u32 {
-        *index.entry(c).or_insert_with(|| {
-            corners.push(c);
-            (corners.len() - 1) as u32
-        })
-    };
-    for axis in axes {
-        let (u, v) = ((axis + 1) % 3, (axis + 2) % 3); // u × v = +axis
-        for high in [false, true] {
-            for i in 0..n[u] {
-                for j in 0..n[v] {
-                    let corner = |di: u32, dj: u32| {
-                        let mut c = [0u32; 3];
-                        c[axis] = if high { n[axis] } else { 0 };
-                        c[u] = i + di;
-                        c[v] = j + dj;
-                        c
-                    };
-                    let mut q =
-                        [corner(0, 0), corner(1, 0), corner(1, 1), corner(0, 1)].map(&mut vid);
-                    if !high {
-                        q.reverse();
-                    }
-                    quads.push(q);
-                }
-            }
-        }
-    }
-    (corners, quads)
-}
 
 /// The surface of the lattice box `[0,a]×[0,a]×[0,m]`, mapped to a
 /// `w × w × len` bar centred on the z axis with z ∈ [0, len].

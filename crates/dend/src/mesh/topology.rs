@@ -4,7 +4,7 @@
 //! part of validation): the ordered 1-ring of every vertex, the undirected
 //! edge list, boundary loops and connected components.
 
-use super::MeshError;
+use super::error::MeshError;
 
 /// The adjacency of a validated mesh.
 ///

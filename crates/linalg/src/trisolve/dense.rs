@@ -10,10 +10,9 @@
 //! threads by rows (one `rayon::join` per panel; the classic blocked
 //! triangular solve, e.g. Golub & Van Loan §3.1).
 
-use super::{
-    dots_block, has_fma, triangle_backward, triangle_forward, update_block, FactorValue, Lanes,
-    Rows, Supernodal,
-};
+use super::sweep::{dots_block, triangle_backward, triangle_forward, update_block};
+use super::types::{FactorValue, Lanes, Rows, Supernodal};
+use crate::cpu::has_fma;
 
 /// Columns per panel: one `rayon::join` per panel and sweep.
 pub(crate) const PANEL: usize = 32;

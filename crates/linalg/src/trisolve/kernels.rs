@@ -14,7 +14,7 @@
 //! spent most of its instructions transposing them (measured: 3–5 cycles
 //! per factor value, tube:10000).
 
-use super::{FactorValue, Lanes};
+use super::types::{FactorValue, Lanes};
 use crate::Real;
 
 /// Portable [`update`]: `dst[i] += s Σ_c col_c[i] x_c` with `s = +1` if

@@ -16,7 +16,8 @@
 use faer::dyn_stack::{MemStack, StackReq};
 use faer::sparse::linalg::cholesky::supernodal::SymbolicSupernodalCholesky;
 
-use super::{backward, forward, FactorValue, Lanes, Rows, Scatter, Supernodal};
+use super::sweep::{backward, forward};
+use super::types::{FactorValue, Lanes, Rows, Scatter, Supernodal};
 
 /// The split of a factor's supernodes between two threads. Analysed once
 /// per factor; every solve reuses it.

@@ -1,3 +1,4 @@
+use super::sweep::{backward_impl, forward_impl};
 use super::*;
 use faer::dyn_stack::MemBuffer;
 use faer::sparse::linalg::cholesky::{

@@ -97,11 +97,11 @@ impl Part {
         }
     }
 
-    fn triangles(&self) -> usize {
+    pub(super) fn triangles(&self) -> usize {
         self.ranges.iter().map(|r| r.len()).sum()
     }
 
-    fn matches(&self, g: &GroupRef) -> bool {
+    pub(super) fn matches(&self, g: &GroupRef) -> bool {
         let is = |k: &NameOrIndex| match k {
             NameOrIndex::Index(i) => self.index == Some(*i),
             NameOrIndex::Name(n) => self.name.as_deref() == Some(n.as_str()),
@@ -296,7 +296,7 @@ pub struct GroupInfo {
 }
 
 /// The welded vertices of `parts` (sorted, without unreferenced ones).
-fn welded_vertices<'a>(
+pub(super) fn welded_vertices<'a>(
     parts: impl IntoIterator<Item = &'a Part>,
     triangles: &[[u32; 3]],
     to_welded: &[u32],
@@ -317,43 +317,4 @@ fn welded_vertices<'a>(
     (0..mesh.num_vertices() as u32)
         .filter(|&v| seen[v as usize] && !mesh.topology().ring(v as usize).is_empty())
         .collect()
-}
-
-impl super::Asset {
-    /// The asset's named parts, with the welded vertices each selects.
-    pub fn groups(&self) -> Vec<GroupInfo> {
-        self.parts
-            .iter()
-            .map(|p| GroupInfo {
-                kind: p.kind,
-                name: p.name.clone(),
-                index: p.index,
-                primitive: p.primitive,
-                triangles: p.triangles(),
-                vertices: welded_vertices([p], &self.triangles, &self.weld.to_welded, &self.mesh)
-                    .len(),
-            })
-            .collect()
-    }
-
-    /// The welded vertices `group` selects (sorted): the union of the
-    /// matching parts' vertices; `None` when no part matches (see
-    /// `Asset::group_vertices`, which says which parts there are).
-    pub(crate) fn matching_vertices(&self, group: &GroupRef) -> Option<Vec<u32>> {
-        let hits: Vec<&Part> = self.parts.iter().filter(|p| p.matches(group)).collect();
-        if hits.is_empty() {
-            return None;
-        }
-        Some(welded_vertices(
-            hits,
-            &self.triangles,
-            &self.weld.to_welded,
-            &self.mesh,
-        ))
-    }
-
-    /// The asset's parts, as an unknown group's error lists them.
-    pub(crate) fn part_names(&self) -> Vec<String> {
-        self.parts.iter().map(Part::to_string).collect()
-    }
 }

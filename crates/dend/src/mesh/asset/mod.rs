@@ -36,10 +36,10 @@ use std::path::Path;
 
 use serde::{Deserialize, Serialize};
 
-use crate::mesh::io::gltf::{Container, GltfAsset, GltfSummary, Shading, Sidecars};
+use crate::mesh::io::gltf::{Container, GltfAsset, GltfSummary, MorphTarget, Shading, Sidecars};
 use crate::mesh::io::{self, Format, IoError};
 use crate::mesh::{Mesh, Point};
-use groups::{GroupInfo, Part};
+use groups::{welded_vertices, GroupInfo, GroupRef, Part};
 use normals::{group_shading, Shade};
 use obj::ObjAsset;
 use ply::PlyAsset;
@@ -395,6 +395,88 @@ impl Asset {
             .map(|a| g.tangents()[a].and_then(|t| shades[a].tangent(t, g.normals()[a])))
             .collect();
         Shading { normals, tangents }
+    }
+}
+
+impl Asset {
+    /// The asset's named parts, with the welded vertices each selects.
+    pub fn groups(&self) -> Vec<GroupInfo> {
+        self.parts
+            .iter()
+            .map(|p| GroupInfo {
+                kind: p.kind,
+                name: p.name.clone(),
+                index: p.index,
+                primitive: p.primitive,
+                triangles: p.triangles(),
+                vertices: welded_vertices([p], &self.triangles, &self.weld.to_welded, &self.mesh)
+                    .len(),
+            })
+            .collect()
+    }
+
+    /// The welded vertices `group` selects (sorted): the union of the
+    /// matching parts' vertices; `None` when no part matches (see
+    /// `Asset::group_vertices`, which says which parts there are).
+    pub(crate) fn matching_vertices(&self, group: &GroupRef) -> Option<Vec<u32>> {
+        let hits: Vec<&Part> = self.parts.iter().filter(|p| p.matches(group)).collect();
+        if hits.is_empty() {
+            return None;
+        }
+        Some(welded_vertices(
+            hits,
+            &self.triangles,
+            &self.weld.to_welded,
+            &self.mesh,
+        ))
+    }
+
+    /// The asset's parts, as an unknown group's error lists them.
+    pub(crate) fn part_names(&self) -> Vec<String> {
+        self.parts.iter().map(Part::to_string).collect()
+    }
+}
+
+impl Asset {
+    /// The asset as read plus one morph target per `(name, welded pose)`
+    /// (each `#W×3`) on every deformed primitive, as `format` (glTF or GLB);
+    /// with `animation`, an animation keying the weights through them in
+    /// order. Normals of each pose are those [`Asset::export`] writes.
+    pub fn export_morph_targets(
+        &self,
+        poses: &[(String, &[Point])],
+        animation: bool,
+        format: Format,
+    ) -> Result<Vec<u8>, MorphExportError> {
+        let container = match format {
+            Format::Glb => Container::Glb,
+            Format::Gltf => Container::Json,
+            requested => {
+                return Err(MorphExportError::NotGltf {
+                    asset: self.format,
+                    requested,
+                })
+            }
+        };
+        let Source::Gltf(g) = &self.source else {
+            return Err(MorphExportError::NotGltf {
+                asset: self.format,
+                requested: format,
+            });
+        };
+        let targets = poses
+            .iter()
+            .map(|(name, pose)| {
+                let pose = self.asset_pose(pose)?;
+                let shading = self.gltf_shading(g, &pose);
+                Ok(MorphTarget {
+                    name: name.clone(),
+                    pose,
+                    shading,
+                })
+            })
+            .collect::<Result<Vec<_>, IoError>>()?;
+        Ok(g.export_morph_targets(&targets, animation, container))
     }
 }
 

@@ -13,7 +13,7 @@
 
 use std::collections::HashMap;
 
-use super::{quad, Raw};
+use super::lattice::{lattice_box, quad, Raw};
 use crate::mesh::selection::{ConstraintsSpec, HandleSpec, VertexSet};
 use crate::mesh::{Mesh, Point, Real};
 
@@ -36,7 +36,7 @@ struct Cage {
 impl Cage {
     /// The surface of the box `lo..hi` cut into `n[a]` cells along axis `a`.
     fn boxed(n: [u32; 3], lo: Point, hi: Point) -> Cage {
-        let (corners, quads) = super::lattice_box(n, [0, 1, 2]);
+        let (corners, quads) = lattice_box(n, [0, 1, 2]);
         let pos = corners
             .iter()
             .map(|c| [0, 1, 2].map(|a| lo[a] + (hi[a] - lo[a]) * c[a] as Real / n[a] as Real))

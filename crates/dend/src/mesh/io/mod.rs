@@ -32,6 +32,11 @@ mod off;
 pub(crate) mod ply;
 mod stl;
 pub mod survey;
+mod text;
+mod types;
+
+pub(crate) use text::{fan, fmt_real, index_u32, parse_real, text_lines};
+pub use types::{Encoding, ParseError, Position, RawMesh};
 
 use std::fmt;
 use std::path::{Path, PathBuf};
@@ -116,69 +121,6 @@ impl fmt::Display for Format {
     }
 }
 
-/// How binary-capable formats (PLY, STL) are written. OBJ and OFF are always text.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
-#[serde(rename_all = "snake_case")]
-pub enum Encoding {
-    /// Text. Coordinates are written in Rust's shortest round-trip form, so
-    /// reading them back gives the same `f64` values.
-    Ascii,
-    /// Binary little-endian (PLY: `double` coordinates, `uint` indices; STL:
-    /// `f32` coordinates as the format prescribes, so STL is lossy for f64).
-    #[default]
-    BinaryLittleEndian,
-    /// Binary big-endian (PLY only; STL is always little-endian).
-    BinaryBigEndian,
-}
-
-/// Where in the input a parse error happened.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
-#[serde(rename_all = "snake_case")]
-pub enum Position {
-    /// 1-based line number (text formats).
-    Line(usize),
-    /// 0-based byte offset (binary formats).
-    Byte(usize),
-    /// A structural problem of a glTF document; the message names the element
-    /// (`accessor 3`, `mesh 0 primitive 1`, …).
-    Document,
-}
-
-impl fmt::Display for Position {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        match self {
-            Position::Line(l) => write!(f, "line {l}"),
-            Position::Byte(b) => write!(f, "byte {b}"),
-            Position::Document => f.write_str("document"),
-        }
-    }
-}
-
-/// A malformed or truncated input, with the position of the problem.
-#[derive(Debug, Clone, PartialEq, Eq, Error)]
-#[error("{position}: {message}")]
-pub struct ParseError {
-    /// Where the problem is.
-    pub position: Position,
-    /// What is wrong.
-    pub message: String,
-}
-
-impl ParseError {
-    pub(crate) fn line(line: usize, message: impl Into<String>) -> Self {
-        ParseError {
-            position: Position::Line(line),
-            message: message.into(),
-        }
-    }
-    pub(crate) fn byte(byte: usize, message: impl Into<String>) -> Self {
-        ParseError {
-            position: Position::Byte(byte),
-            message: message.into(),
-        }
-    }
-}
-
 /// Why a mesh could not be read or written.
 #[derive(Debug, Error)]
 pub enum IoError {
@@ -237,22 +179,6 @@ impl IoError {
             position: e.position,
             message: e.message,
         }
-    }
-}
-
-/// Positions and triangles as parsed, not yet validated.
-#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
-pub struct RawMesh {
-    /// Vertex positions, `#V×3`.
-    pub positions: Vec<Point>,
-    /// Triangles, `#F×3` (polygons already fanned).
-    pub triangles: Vec<[u32; 3]>,
-}
-
-impl RawMesh {
-    /// Validates into a [`Mesh`].
-    pub fn into_mesh(self) -> Result<Mesh, MeshError> {
-        Mesh::new(self.positions, self.triangles)
     }
 }
 
@@ -403,87 +329,4 @@ pub fn parse_json(bytes: &[u8]) -> Result<RawMesh, IoError> {
 /// Parses and validates the JSON form.
 pub fn read_json(bytes: &[u8]) -> Result<Mesh, IoError> {
     Ok(parse_json(bytes)?.into_mesh()?)
-}
-
-// --- helpers shared by the text readers ------------------------------------
-
-/// Lines of `bytes` as `(1-based number, text)`, with `#` comments removed
-/// when `strip_comments`. Invalid UTF-8 is an error naming the line.
-pub(crate) fn text_lines(
-    bytes: &[u8],
-    strip_comments: bool,
-) -> impl Iterator<Item = Result<(usize, &str), ParseError>> {
-    bytes.split(|&b| b == b'\n').enumerate().map(move |(i, l)| {
-        let s = std::str::from_utf8(l)
-            .map_err(|_| ParseError::line(i + 1, "invalid UTF-8 (binary data in a text file?)"))?;
-        let s = if strip_comments {
-            s.split('#').next().unwrap_or("")
-        } else {
-            s
-        };
-        Ok((i + 1, s.trim_end_matches('\r')))
-    })
-}
-
-/// Parses a coordinate token.
-pub(crate) fn parse_real(tok: &str, line: usize, what: &str) -> Result<f64, ParseError> {
-    tok.parse::<f64>()
-        .map_err(|_| ParseError::line(line, format!("expected a number for {what}, found {tok:?}")))
-}
-
-/// Parses a non-negative count or index token.
-pub(crate) fn parse_count(tok: &str, line: usize, what: &str) -> Result<usize, ParseError> {
-    tok.parse::<usize>().map_err(|_| {
-        ParseError::line(
-            line,
-            format!("expected a non-negative integer for {what}, found {tok:?}"),
-        )
-    })
-}
-
-/// Converts a 0-based index to `u32`.
-pub(crate) fn index_u32(i: u64, pos: Position) -> Result<u32, ParseError> {
-    u32::try_from(i)
-        .ok()
-        .filter(|&i| i != u32::MAX)
-        .ok_or(ParseError {
-            position: pos,
-            message: format!("vertex index {i} too large"),
-        })
-}
-
-/// Fans polygon `poly` into `out`: `(p0, p_k, p_k+1)` for `k = 1..n-2`.
-pub(crate) fn fan(poly: &[u32], out: &mut Vec<[u32; 3]>) {
-    for k in 1..poly.len().saturating_sub(1) {
-        out.push([poly[0], poly[k], poly[k + 1]]);
-    }
-}
-
-/// A capacity guess bounded by what `input_len` bytes can hold at
-/// `min_bytes` per item.
-pub(crate) fn bounded_capacity(count: usize, input_len: usize, min_bytes: usize) -> usize {
-    count.min(input_len / min_bytes.max(1) + 1)
-}
-
-/// Formats an `f64` so that parsing it gives the same value.
-pub(crate) fn fmt_real(x: f64) -> String {
-    format!("{x:?}")
-}
-
-/// The vertex and face lines OFF and ASCII PLY share: `x y z` (exact
-/// round trip) per vertex, then `3 a b c` per triangle.
-pub(crate) fn write_ascii_body(s: &mut String, positions: &[Point], triangles: &[[u32; 3]]) {
-    use std::fmt::Write;
-    for p in positions {
-        let _ = writeln!(
-            s,
-            "{} {} {}",
-            fmt_real(p[0]),
-            fmt_real(p[1]),
-            fmt_real(p[2])
-        );
-    }
-    for t in triangles {
-        let _ = writeln!(s, "3 {} {} {}", t[0], t[1], t[2]);
-    }
 }

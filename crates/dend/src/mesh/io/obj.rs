@@ -7,7 +7,8 @@
 
 use std::fmt::Write;
 
-use super::{fan, fmt_real, index_u32, parse_real, text_lines, ParseError, Position, RawMesh};
+use super::text::{fan, fmt_real, index_u32, parse_real, text_lines};
+use super::types::{ParseError, Position, RawMesh};
 use crate::mesh::Point;
 
 /// Parses OBJ text.

@@ -6,10 +6,10 @@
 
 use std::fmt::Write;
 
-use super::{
+use super::text::{
     bounded_capacity, fan, index_u32, parse_count, parse_real, text_lines, write_ascii_body,
-    ParseError, Position, RawMesh,
 };
+use super::types::{ParseError, Position, RawMesh};
 use crate::mesh::Point;
 
 /// Parses OFF text.

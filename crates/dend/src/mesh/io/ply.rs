@@ -9,9 +9,8 @@
 
 use std::fmt::Write;
 
-use super::{
-    bounded_capacity, fan, index_u32, write_ascii_body, Encoding, ParseError, Position, RawMesh,
-};
+use super::text::{bounded_capacity, fan, index_u32, write_ascii_body};
+use super::types::{Encoding, ParseError, Position, RawMesh};
 use crate::mesh::Point;
 
 /// A PLY scalar type.

@@ -10,7 +10,8 @@
 use std::collections::HashMap;
 use std::fmt::Write;
 
-use super::{bounded_capacity, fmt_real, parse_real, text_lines, Encoding, ParseError, RawMesh};
+use super::text::{bounded_capacity, fmt_real, parse_real, text_lines};
+use super::types::{Encoding, ParseError, RawMesh};
 use crate::mesh::{cross, sub, Point};
 
 /// Collects corners and welds equal ones.

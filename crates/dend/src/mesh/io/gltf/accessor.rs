@@ -9,7 +9,7 @@
 
 use gltf::accessor::{DataType, Dimensions};
 
-use super::GltfError;
+use super::error::GltfError;
 
 /// Where an accessor's elements are, checked against the buffers.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]

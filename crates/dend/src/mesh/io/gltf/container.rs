@@ -11,7 +11,7 @@ use std::path::Path;
 
 use base64::Engine as _;
 
-use super::GltfError;
+use super::error::GltfError;
 
 /// `glTF` little-endian.
 const GLB_MAGIC: u32 = 0x4654_6C67;

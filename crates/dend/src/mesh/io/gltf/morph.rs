@@ -9,9 +9,9 @@ use nalgebra::{Vector3, Vector4};
 use serde_json::{json, Value};
 
 use super::accessor::read_f32;
+use super::asset::{Container, GltfAsset};
 use super::read::unit;
 use super::write::{finish, set_min_max, Shading};
-use super::{Container, GltfAsset};
 use crate::mesh::Point;
 
 /// One morph target to write: its name and its pose on the asset layout.

@@ -3,40 +3,21 @@
 
 use gltf::accessor::{DataType, Dimensions};
 use gltf::mesh::Mode;
-use nalgebra::{Matrix3, Matrix4, Vector3, Vector4};
+use nalgebra::{Matrix4, Vector3, Vector4};
 
 use super::accessor::{check_bounds, locate, read_f32, read_indices, Located};
+use super::asset::{Block, Container, GltfAsset, PrimitivePart};
 use super::container::{is_glb, resolve_buffer, split_glb, Sidecars};
-use super::{Container, GltfAsset, GltfError, PrimitivePart, REFUSED_EXTENSIONS};
+use super::error::GltfError;
 use crate::mesh::Point;
 
-/// The vertices of one POSITION accessor as placed by one node.
-#[derive(Debug, Clone)]
-pub(crate) struct Block {
-    /// The node placing it.
-    pub node: usize,
-    /// The POSITION accessor.
-    pub position: Located,
-    /// The NORMAL accessor, if any.
-    pub normal: Option<Located>,
-    /// The TANGENT accessor, if any.
-    pub tangent: Option<Located>,
-    /// The first asset vertex of this block.
-    pub first: usize,
-    /// Local → world (identity for skinned meshes).
-    pub world: Matrix4<f64>,
-    /// World → local.
-    pub inverse: Matrix4<f64>,
-    /// The positions as stored in the file.
-    pub local: Vec<[f32; 3]>,
-}
-
-impl Block {
-    /// The linear part of the world matrix.
-    pub fn linear(&self) -> Matrix3<f64> {
-        self.world.fixed_view::<3, 3>(0, 0).into_owned()
-    }
-}
+/// Extensions that change how geometry is stored: refused.
+pub(crate) const REFUSED_EXTENSIONS: &[&str] = &[
+    "KHR_draco_mesh_compression",
+    "EXT_meshopt_compression",
+    "KHR_mesh_quantization",
+    "EXT_mesh_gpu_instancing",
+];
 
 fn matrix_of(node: &gltf::Node<'_>) -> Matrix4<f64> {
     let m = node.transform().matrix();

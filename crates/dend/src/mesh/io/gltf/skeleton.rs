@@ -22,8 +22,9 @@ use std::collections::BTreeSet;
 
 use serde_json::{json, Value};
 
+use super::asset::{Container, GltfAsset};
 use super::morph::push;
-use super::{Container, GltfAsset, MorphTarget};
+use super::morph::MorphTarget;
 
 /// One joint node's local transform in a pose (`f32`, as glTF stores it).
 #[derive(Debug, Clone, Copy, PartialEq)]

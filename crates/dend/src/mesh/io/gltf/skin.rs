@@ -14,7 +14,7 @@ use nalgebra::{Matrix4, Quaternion, UnitQuaternion, Vector3};
 use thiserror::Error;
 
 use super::accessor::{locate, Located};
-use super::GltfAsset;
+use super::asset::GltfAsset;
 
 /// How far a vertex's weights may sum from one before it is normalised and
 /// counted in [`SkinData::renormalised`]: the glTF validator's own

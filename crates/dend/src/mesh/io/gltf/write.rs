@@ -11,9 +11,9 @@ use nalgebra::{Vector3, Vector4};
 use serde_json::{json, Value};
 
 use super::accessor::write_f32;
+use super::asset::{Container, GltfAsset};
 use super::container::{assemble_glb, data_uri};
 use super::read::unit;
-use super::{Container, GltfAsset};
 use crate::mesh::{cross, sub, Point};
 
 /// Per asset vertex, what export writes besides positions: `None` keeps the
