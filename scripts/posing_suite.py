@@ -146,34 +146,16 @@ def _load(name):
 
 RP = _load("render_poses")       # face_colours, view_matrix, rasterise, write_png
 AREF = _load("arap_reference")   # Rigid, from_json, from_survey (same reading as Rust)
+ARAP = _load("posing_arap")      # cached_arap: libigl ARAP's side of each edit
+VERDICT = _load("posing_verdict")  # the PASS rules (judge) and the tables
 
 MESHES = os.environ.get("DEND_MESHES", os.path.join(ROOT, "..", "shared", "meshes"))
 IMG_DIR = os.path.join(ROOT, "docs", "img", "posing")
 LARGE = 40_000
 PNG_LIMIT = 150_000
-MAX_ITERS_PER_STEP = 30
-ARAP_MAX_ITERS = 1000
 FREE_MESHES = [("camel", "camel_9770.off"), ("dino", "dino_6013.obj"),
                ("hand", "hand_1502.obj"), ("eth_hand", "eth_hand_14k.off"),
                ("armadillo", "armadillo_43k.obj"), ("feline", "feline_50k.off")]
-# meshes of this many vertices or more must settle 5x sooner than ARAP, below 3x
-SETTLE_LARGE = 5000
-# a shape measure judged against ARAP's: (key, "higher" or "lower" is better)
-SHAPE_MEASURES = {"bar": [("min_area", "higher"), ("twist_dev_deg", "lower")],
-                  "bend": [("bend_cv", "lower")]}
-TWIST_135 = {"min_area": (">=", 0.92), "twist_dev_deg": ("<=", 3.0)}
-# the paper's figures a preset is held to, on top of the rules against ARAP
-PRESET_RULES = {
-    "elastica": {
-        "bar-135": TWIST_135,
-        "bar-300": {"min_area": (">=", 0.8), "twist_dev_deg": ("<=", 45.0)},
-        "survey-bar": TWIST_135,
-        "cylinder-120": {"bend_cv": ("<=", 0.1)},
-        "cylinder-180": {"bend_cv": ("<=", 0.1)},
-        "bar-bend-120": {"bend_cv": ("<=", 0.1)},
-        "bar-bend-180": {"bend_cv": ("<=", 0.1)},
-    },
-}
 # (name, `dend gen` shape or None for a survey set-up, examples/ file or survey
 #  name, steps, `dend measure` kind, view az/el)
 SHAPE_CASES = [
@@ -399,62 +381,6 @@ def run_ours(dend, case, args, tmp):
     return u, row
 
 
-def run_arap(case, tol):
-    v, f, fixed, handle = case["v"], case["f"], case["fixed"], case["handle"]
-    b = np.concatenate([fixed, handle]).astype(np.int32)
-    data = igl.ARAPData()
-    data.max_iter = 1
-    t0 = time.perf_counter()
-    igl.arap_precomputation(v, f, 3, b, data)
-    pre = (time.perf_counter() - t0) * 1e3
-    thresh = tol * float(case["rest_len"].mean())
-    u, times, steps = v.copy(), [], []
-    for s in range(1, case["steps"] + 1):
-        tgt = case["target"].fraction(s / case["steps"])
-        bc = np.ascontiguousarray(np.vstack([v[fixed], tgt.apply(v[handle])]))
-        its, move = 0, float("inf")
-        while its < ARAP_MAX_ITERS and not move < thresh:
-            t = time.perf_counter()
-            un = igl.arap_solve(bc, data, u)
-            times.append((time.perf_counter() - t) * 1e3)
-            move = float(np.linalg.norm(un - u, axis=1).max())
-            u, its = un, its + 1
-            if not np.isfinite(move):
-                break
-        steps.append({"iterations": its, "converged": bool(move < thresh),
-                      "last_move_mean_edges": move / thresh * tol})
-    return u, {
-        "iterations": sum(s["iterations"] for s in steps),
-        "converged": all(s["converged"] for s in steps),
-        "steps": steps,
-        "precompute_ms": pre,
-        "iteration_ms": float(np.median(times)) if times else float("nan"),
-        "solve_ms": float(sum(times)),
-        "settle_ms": pre + float(sum(times)),
-    }
-
-
-def cached_arap(case, args):
-    """`run_arap`, or its result stored by an earlier run in `--arap-cache`
-    (keyed by case, tol and the rest mesh's and constraints' bytes: ARAP's
-    timings are then those of the run that stored it)."""
-    if not args.arap_cache:
-        return run_arap(case, args.tol)
-    import hashlib
-    h = hashlib.sha256()
-    for a in (case["v"], case["f"], case["fixed"], case["handle"]):
-        h.update(np.ascontiguousarray(a).tobytes())
-    h.update(repr((case["steps"], args.tol)).encode())
-    path = os.path.join(args.arap_cache, f"{case['name']}-{h.hexdigest()[:16]}.npz")
-    if os.path.exists(path):
-        with np.load(path, allow_pickle=False) as z:
-            return z["u"], json.loads(str(z["row"]))
-    u, row = run_arap(case, args.tol)
-    os.makedirs(args.arap_cache, exist_ok=True)
-    np.savez(path, u=u, row=json.dumps(row))
-    return u, row
-
-
 # --- the even reference pose ----------------------------------------------------
 
 def even_pose(case):
@@ -527,134 +453,6 @@ def even_pose(case):
     return u
 
 
-# --- verdict, render, table ----------------------------------------------------
-
-def objective_failures(o):
-    """The rules on our objective alone: it never grows, no edit diverged."""
-    fails = []
-    if o["monotone"] is not True:
-        fails.append("objective not monotone" if o["monotone"] is False else "no objectives")
-    if o["diverged"] is not False:
-        fails.append(f"diverged {o['diverged']}")
-    return fails
-
-
-def judge(row):
-    """Fills row["failures"] and row["verdict"] (PASS / FAIL / ERROR) by the
-    rules of the module docstring."""
-    if row.get("error"):
-        row["verdict"] = "ERROR"
-        return
-    o, a, fails = row["ours"], row["arap"], []
-    o["distortion"]["mean_ratio"] = rm = o["distortion"]["mean"] / a["distortion"]["mean"]
-    o["distortion"]["max_ratio"] = rx = o["distortion"]["max"] / a["distortion"]["max"]
-    row["settle_ratio"] = a["settle_ms"] / o["settle_ms"] if o["settle_ms"] else float("nan")
-    need = 5.0 if row["vertices"] >= SETTLE_LARGE else 3.0
-    if not row["settle_ratio"] >= need:
-        fails.append(f"settle only x{row['settle_ratio']:.1f} faster than ARAP (need x{need:g})")
-    shape = row.get("kind") in SHAPE_MEASURES
-    for k, s in enumerate(o["steps"], 1):
-        if not s.get("converged"):
-            fails.append(f"step {k}: not converged in {s.get('iterations')} it")
-        elif not shape and not (s.get("iterations") or 0) <= MAX_ITERS_PER_STEP:
-            fails.append(f"step {k}: {s.get('iterations')} it > {MAX_ITERS_PER_STEP}")
-    fails += objective_failures(o)
-    if shape:
-        om, am = o["measure"], a["measure"]
-        for key, better in SHAPE_MEASURES[row["kind"]]:
-            x, y = om.get(key, float("nan")), am.get(key, float("nan"))
-            if not (x >= y if better == "higher" else x <= y):
-                fails.append(f"{key} {x:.3g} worse than ARAP's {y:.3g}")
-    else:
-        if not rm <= 1.5:
-            fails.append(f"mean distortion x{rm:.2f} ARAP")
-        if not rx <= 2.0:
-            fails.append(f"max distortion x{rx:.2f} ARAP")
-    for key, (op, lim) in row["rules"].items():
-        x = o["measure"].get(key, float("nan"))
-        if not (x >= lim if op == ">=" else x <= lim):
-            fails.append(f"{key} {x:.3g} (need {op} {lim})")
-    row["failures"] = fails
-    row["verdict"] = "PASS" if not fails else "FAIL"
-
-
-def judge_objective(row):
-    """`--no-arap`'s verdict: only the rules on our objective (it never
-    grows, no edit diverged) and that the run completed."""
-    if row.get("error"):
-        row["verdict"] = "ERROR"
-        return
-    fails = objective_failures(row["ours"])
-    row["failures"] = fails
-    row["verdict"] = "PASS" if not fails else "FAIL"
-
-
-def fmt(x, spec=".3g"):
-    if x is None or (isinstance(x, float) and not math.isfinite(x)):
-        return "-"
-    if isinstance(x, bool):
-        return "yes" if x else "no"
-    return format(x, spec)
-
-
-def figures(o, a):
-    om, am = o.get("measure", {}), a.get("measure", {})
-    if "min_area" in om or "min_area" in am:
-        return (f"area {fmt(om.get('min_area'))}/{fmt(am.get('min_area'))}, "
-                f"dev {fmt(om.get('twist_dev_deg'), '.1f')}/{fmt(am.get('twist_dev_deg'), '.1f')}°")
-    if "bend_cv" in om or "bend_cv" in am:
-        return f"CV {fmt(om.get('bend_cv'))}/{fmt(am.get('bend_cv'))}"
-    return ""
-
-
-def print_table(rows):
-    print("| case | V | steps | ours it | conv | objective first→last | mono | ours dist mean/max "
-          "| ours ms/it | ours settle ms | ARAP it | conv | ARAP dist mean/max | ARAP ms/it "
-          "| ARAP settle ms | mean÷ | max÷ | settle ARAP÷ours | figures ours/ARAP | verdict |")
-    print("|" + "---|" * 20)
-    for r in rows:
-        o, a = r.get("ours", {}), r.get("arap", {})
-        od, ad = o.get("distortion", {}), a.get("distortion", {})
-        verdict = r["verdict"]
-        if r.get("error"):
-            verdict += ": " + r["error"]
-        elif r.get("failures"):
-            verdict += ": " + "; ".join(r["failures"])
-        print(f"| {r['case']} | {r.get('vertices', '-')} | {r.get('steps', '-')} "
-              f"| {fmt(o.get('iterations'), 'd')} | {fmt(o.get('converged'))} "
-              f"| {fmt(o.get('objective_first'))}→{fmt(o.get('objective_last'))} "
-              f"| {fmt(o.get('monotone'))} | {fmt(od.get('mean'))}/{fmt(od.get('max'))} "
-              f"| {fmt(o.get('iteration_ms'), '.1f')} | {fmt(o.get('settle_ms'), '.0f')} "
-              f"| {fmt(a.get('iterations'), 'd')} | {fmt(a.get('converged'))} "
-              f"| {fmt(ad.get('mean'))}/{fmt(ad.get('max'))} | {fmt(a.get('iteration_ms'), '.1f')} "
-              f"| {fmt(a.get('settle_ms'), '.0f')} | {fmt(od.get('mean_ratio'), '.2f')} "
-              f"| {fmt(od.get('max_ratio'), '.2f')} | {fmt(r.get('settle_ratio'), '.2f')} "
-              f"| {figures(o, a)} | {verdict} |")
-    even = [r for r in rows if "even" in r]
-    if even:
-        print("\nThe even pose (`even_pose`: every cross-section kept, the twist or bend "
-              "spread evenly, the handle on its target): what the area, twist and bend "
-              "rules cost in edge distortion.\n")
-        print("| case | even dist mean/max | even mean ÷ ARAP | ours mean ÷ ARAP "
-              "| figures even/ours/ARAP |")
-        print("|" + "---|" * 5)
-        for r in even:
-            e, o, a = r["even"], r.get("ours", {}), r.get("arap", {})
-            ed, ad = e["distortion"], a.get("distortion", {})
-            ratio = ed["mean"] / ad["mean"] if ad.get("mean") else float("nan")
-            em, om, am = e.get("measure", {}), o.get("measure", {}), a.get("measure", {})
-            if "bend_cv" in em:
-                fig = (f"CV {fmt(em.get('bend_cv'))}/{fmt(om.get('bend_cv'))}"
-                       f"/{fmt(am.get('bend_cv'))}")
-            else:
-                fig = (f"area {fmt(em.get('min_area'))}/{fmt(om.get('min_area'))}"
-                       f"/{fmt(am.get('min_area'))}, dev "
-                       f"{fmt(em.get('twist_dev_deg'), '.1f')}/{fmt(om.get('twist_dev_deg'), '.1f')}"
-                       f"/{fmt(am.get('twist_dev_deg'), '.1f')}°")
-            print(f"| {r['case']} | {fmt(ed['mean'])}/{fmt(ed['max'])} | {fmt(ratio, '.2f')} "
-                  f"| {fmt(o.get('distortion', {}).get('mean_ratio'), '.2f')} | {fig} |")
-
-
 def run_case(name, dend, args, tmp):
     row = {"case": name, "verdict": "ERROR"}
     try:
@@ -662,7 +460,7 @@ def run_case(name, dend, args, tmp):
     except Exception as e:  # noqa: BLE001 -- a bad case is an error row
         row["error"] = f"set-up: {e}"
         return row, None
-    rules = PRESET_RULES.get(args.preset or "", {}).get(name, {})
+    rules = VERDICT.PRESET_RULES.get(args.preset or "", {}).get(name, {})
     row.update(vertices=len(case["v"]), steps=case["steps"], rules=rules, kind=case["kind"],
                fixed=len(case["fixed"]), handle=len(case["handle"]),
                rest=case.get("label", case["rest"]))
@@ -680,11 +478,11 @@ def run_case(name, dend, args, tmp):
     if args.no_arap:
         if errors:
             row["error"] = "; ".join(errors)
-        judge_objective(row)
+        VERDICT.judge_objective(row)
         return row, case
     log(f"{name}: libigl ARAP")
     try:
-        u_arap, row["arap"] = cached_arap(case, args)
+        u_arap, row["arap"] = ARAP.cached_arap(case, args)
         row["arap"]["distortion"] = edge_distortion(case, u_arap)
         pose = os.path.join(tmp, f"{name}_arap.off")
         write_off(pose, u_arap, case["f"])
@@ -704,7 +502,7 @@ def run_case(name, dend, args, tmp):
     if errors:
         row["error"] = "; ".join(errors)
     try:
-        judge(row)
+        VERDICT.judge(row)
     except Exception as e:  # noqa: BLE001
         row.update(verdict="ERROR", error=f"judging: {e}")
     if not args.no_render:
@@ -778,9 +576,9 @@ def main():
             o = r.get("ours", {})
             print(f"{r['case']}: {r['verdict']} {'; '.join(r.get('failures', []))}"
                   f"{r.get('error', '')} (iterations {o.get('iterations')}, objective "
-                  f"{fmt(o.get('objective_first'))} -> {fmt(o.get('objective_last'))})")
+                  f"{VERDICT.fmt(o.get('objective_first'))} -> {VERDICT.fmt(o.get('objective_last'))})")
     else:
-        print_table(rows)
+        VERDICT.print_table(rows)
     ran = [r for r in rows if r["verdict"] != "SKIP"]
     passed = sum(r["verdict"] == "PASS" for r in ran)
     errors = sum(r["verdict"] == "ERROR" for r in ran)
@@ -793,7 +591,7 @@ def main():
         with open(args.json, "w") as fh:
             json.dump(nan_to_none({
                 "dend": dend, "formulation": formulation, "preset": args.preset, "tol": args.tol,
-                "max_iters": args.max_iters, "arap_max_iters": ARAP_MAX_ITERS,
+                "max_iters": args.max_iters, "arap_max_iters": ARAP.ARAP_MAX_ITERS,
                 "passed": passed, "total": len(ran), "cases": rows}), fh, indent=1)
     return 0 if passed == len(ran) else 1
 
