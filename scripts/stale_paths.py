@@ -24,11 +24,7 @@ DIR_WORD = re.compile(r'(?<![\w./:-])((?:crates|docs|scripts|tests|src|web|api|c
 MD_LINK = re.compile(r'\]\(([^)#\s]+)(?:#[^)]*)?\)')
 # Stale citations known and not yet fixed, (file, path): reported, not
 # failing; the list only shrinks.
-KNOWN = {
-    ('docs/performance.md', 'benches/support/mod.rs'),
-    ('docs/posing.md', 'params.rs'),
-    ('docs/posing.md', 'tests/elastic.proptest-regressions'),
-}
+KNOWN: set = set()
 # names that are not paths of this repository (other projects' files,
 # files a program writes, placeholders)
 NOT_OURS = {'three.js', 'three.module.js'}

@@ -35,8 +35,7 @@ pub struct Rest {
     order: Option<(Mesh, VertexOrder)>,
     pub(super) ops: Operators,
     /// STEP 1 (§6.1) of the least-squares formulations, each mode's built
-    /// on first use: the default elastic formulation never uses them
-    /// (issue #34).
+    /// on first use: the default elastic formulation never uses them.
     mu_default: std::sync::OnceLock<Mu>,
     mu_paper: std::sync::OnceLock<Mu>,
     /// The Procrustes weights of the least-squares formulations' local

@@ -1,4 +1,4 @@
-//! The coarse level of the elastic solver's two-level start (issue #18):
+//! The coarse level of the elastic solver's two-level start (design.md §7):
 //! a coarse mesh whose vertices are a subset of the fine ones, the
 //! restriction of a constraint set to it and the prolongation of its
 //! rotations back to the fine mesh.

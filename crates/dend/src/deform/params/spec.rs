@@ -12,7 +12,7 @@ use crate::deform::energy::Energy;
 use crate::deform::DeformError;
 
 /// A named set of parameters: what the API's `"preset"` and the CLI's
-/// `--preset` name (issue #33). Explicit fields override a preset's.
+/// `--preset` name. Explicit fields override a preset's.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize, Default)]
 #[serde(rename_all = "kebab-case")]
 pub enum Preset {

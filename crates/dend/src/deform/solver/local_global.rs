@@ -29,15 +29,15 @@
 
 use faer::dyn_stack::{MemBuffer, MemStack};
 use faer::MatMut;
-use nalgebra::{UnitQuaternion, Vector3};
+use nalgebra::UnitQuaternion;
 
-use super::multilevel::{CoarseRun, Correction, Levels};
+use super::multilevel::{CoarseRun, Levels};
 use super::{Deformer, StepReport};
 use crate::deform::anderson::Anderson;
 use crate::deform::constraints::Constraints;
 use crate::deform::elastic::{ElasticOps, ElasticSet};
 use crate::deform::factor::Factor;
-use crate::deform::params::{Corrections, DetailTerm};
+use crate::deform::params::DetailTerm;
 use crate::deform::stacked::mul_l;
 use crate::deform::DeformError;
 use crate::mesh::{Point, Real};
@@ -55,9 +55,9 @@ pub(super) struct State {
     pub(super) ly: Vec<Point>,
     /// `R_i δ_i` and `R_i` as matrices (scratch), and the residual
     /// `g(R) − Q Y`, `#V`.
-    t: Vec<Point>,
-    rm: Vec<[Real; 4]>,
-    res: Vec<Point>,
+    pub(super) t: Vec<Point>,
+    pub(super) rm: Vec<[Real; 4]>,
+    pub(super) res: Vec<Point>,
     /// Right-hand side / update, column-major `|U| × 3`.
     pub(super) rhs: Vec<Real>,
     /// Flat `3|U|` current iterate, Anderson candidate and `Q_UU Δ`.
@@ -71,7 +71,7 @@ pub(super) struct State {
     sized_for: (u64, usize),
     /// The energy of the current pose and the factor it was computed with,
     /// when the next call may continue the sequence.
-    chain: Option<(u64, Real)>,
+    pub(super) chain: Option<(u64, Real)>,
     /// The handles' target rotations the current pose was solved for
     /// (empty from the rest pose): a new target turns the rotations by
     /// the change ([`Deformer::propagate_rotation_change`]).
@@ -84,9 +84,9 @@ pub(super) struct State {
     pub(super) linear: Vec<Point>,
     /// Whether this sequence still tries coarse corrections, the fine
     /// iterations since the last one, and the energy after it.
-    corrections: bool,
-    since_correction: usize,
-    e_mark: Real,
+    pub(super) corrections: bool,
+    pub(super) since_correction: usize,
+    pub(super) e_mark: Real,
     /// The sequence's last update (largest vertex move) and how many
     /// iterations in a row it has grown ([`Deformer::drift_limit`]).
     last_update: Real,
@@ -459,151 +459,6 @@ impl Deformer {
         })
     }
 
-    /// A coarse correction (`solver/multilevel.rs`) of the pose with energy
-    /// `e`; returns the energy after it. Corrections stop for the sequence
-    /// once one gains less than the fine iterations since the last one
-    /// (`ElasticParams::corrections`: or once one gains nothing).
-    fn correct(
-        &mut self,
-        factor: &Factor,
-        (el, set): (&ElasticOps, &ElasticSet),
-        constraints: &Constraints,
-        mut e: Real,
-        report: &mut StepReport,
-    ) -> Real {
-        let gain_before = self.elastic.e_mark - e;
-        let (gain, run) = match self.coarse_correction(factor, (el, set), constraints, e) {
-            Correction::Kept(e_new, run) => {
-                let gain = e - e_new;
-                e = e_new;
-                // the Anderson history is kept: its pairs are secants of the
-                // same fixed-point map, and restarting it after a correction
-                // cost iterations (camel limb 45 against 40, dino limb 26
-                // against 22, armadillo limb 19 against 17)
-                (gain, run)
-            }
-            Correction::Dropped(run) => (0.0, run),
-            Correction::Unavailable(run) => (Real::NEG_INFINITY, run),
-            Correction::Interrupted(run) => {
-                // nothing changed: the correction is tried again after the
-                // next iteration
-                report.coarse_iterations += run.iterations;
-                report.coarse_ms += run.ms;
-                report.coarse_work += run.work;
-                report.interrupted = true;
-                return e;
-            }
-        };
-        report.coarse_iterations += run.iterations;
-        report.coarse_ms += run.ms;
-        report.coarse_work += run.work;
-        tracing::debug!(
-            vertices = self.rest.mesh.num_vertices(),
-            after = report.iterations,
-            gain,
-            gain_before,
-            coarse_iterations = run.iterations,
-            work = run.work,
-            "coarse correction"
-        );
-        let st = &mut self.elastic;
-        st.since_correction = 0;
-        st.corrections = match self.params.elastic().map(|e| e.corrections) {
-            Some(Corrections::WhileFaster) => gain >= gain_before,
-            Some(Corrections::WhileGaining) => gain > 0.0,
-            None => false,
-        };
-        st.e_mark = e;
-        e
-    }
-
-    /// `r = g(R, P) − Q Y` (plus the linear term) at the current pose,
-    /// rotations and area targets, `#V`.
-    pub(super) fn residual_now(&mut self, el: &ElasticOps, set: &ElasticSet) -> &[Point] {
-        let st = &mut self.elastic;
-        el.residual(
-            set,
-            &self.rest.ops,
-            &self.y,
-            &st.rot,
-            &st.proj,
-            (&mut st.t, &mut st.rm),
-            &mut st.res,
-        );
-        if !st.linear.is_empty() {
-            for (r, s) in st.res.iter_mut().zip(&st.linear) {
-                for k in 0..3 {
-                    r[k] += s[k];
-                }
-            }
-        }
-        &st.res
-    }
-
-    /// Adds the linear term `−2⟨s, Y⟩` to the objective (empty `s`: none);
-    /// the next step continues from the current pose and rotations.
-    pub(super) fn set_linear_term(&mut self, s: Vec<Point>) {
-        let st = &mut self.elastic;
-        st.linear = s;
-        st.chain = None;
-    }
-
-    /// The fine half of a coarse correction: turns the rotations by the
-    /// rotation vectors `w` (`R_i ← exp(w_i) R_i`, area targets with their
-    /// first vertex), takes one global step `D` from them and keeps
-    /// `Y + αD` for the first `α ∈ {1, ½, ¼}` whose energy (rotations
-    /// refitted) is below `e`. Returns that energy, or `None` with the pose
-    /// and rotations unchanged.
-    pub(super) fn apply_rotation_correction(
-        &mut self,
-        factor: &Factor,
-        (el, set): (&ElasticOps, &ElasticSet),
-        w: &[Vector3<Real>],
-        e: Real,
-    ) -> Option<Real> {
-        let nu = factor.sys.unknowns.len();
-        let st = &mut self.elastic;
-        st.rot_try.copy_from_slice(&st.rot);
-        st.proj_try.copy_from_slice(&st.proj);
-        self.turn_rotations((el, set), w);
-        self.global_rhs(factor, (el, set));
-        let st = &mut self.elastic;
-        {
-            let b = MatMut::from_column_major_slice_mut(&mut st.rhs, nu, 3);
-            let mem = st.mem.as_mut().expect("sized before");
-            factor.solve_in_place(b, MemStack::new(mem));
-        }
-        std::mem::swap(&mut st.rot, &mut st.rot_try);
-        std::mem::swap(&mut st.proj, &mut st.proj_try);
-        if st.rhs.iter().any(|v| !v.is_finite()) {
-            return None;
-        }
-        for (k, &u) in factor.sys.unknowns.iter().enumerate() {
-            let p = self.y[u as usize];
-            st.x_flat[k] = p[0];
-            st.x_flat[nu + k] = p[1];
-            st.x_flat[2 * nu + k] = p[2];
-        }
-        for alpha in [1.0, 0.5, 0.25] {
-            let st = &mut self.elastic;
-            for (c, (x, d)) in st.cand.iter_mut().zip(st.x_flat.iter().zip(&st.rhs)) {
-                *c = x + alpha * d;
-            }
-            self.set_unknowns(factor, Flat::Candidate);
-            let e_try = self.local_step(factor, (el, set), true, true);
-            if e_try.is_finite() && e_try < e {
-                let st = &mut self.elastic;
-                std::mem::swap(&mut st.rot, &mut st.rot_try);
-                std::mem::swap(&mut st.proj, &mut st.proj_try);
-                return Some(e_try);
-            }
-        }
-        let st = &mut self.elastic;
-        st.cand.copy_from_slice(&st.x_flat);
-        self.set_unknowns(factor, Flat::Candidate);
-        None
-    }
-
     /// The local step on the current pose (`L Y`, then the rotations; into
     /// `rot_try` when `trial`, warm-started from `rot`), returning
     /// `E(Y, R)` plus the soft-constraint term. Without `fit` (the linear
@@ -636,7 +491,7 @@ impl Deformer {
     }
 
     /// `rhs = (g(R) − Q Y)_U` (+ `λ1 (C − Y)` on constrained unknowns).
-    fn global_rhs(&mut self, factor: &Factor, (el, set): (&ElasticOps, &ElasticSet)) {
+    pub(super) fn global_rhs(&mut self, factor: &Factor, (el, set): (&ElasticOps, &ElasticSet)) {
         let ops = &self.rest.ops;
         let st = &mut self.elastic;
         el.residual(

@@ -10,6 +10,7 @@ use super::rest::Rest;
 use super::DeformError;
 use crate::mesh::{Point, Real};
 
+mod correct;
 mod least_squares;
 mod local_global;
 mod multilevel;

@@ -1,5 +1,5 @@
 //! The elastic iteration on irregular open patches and on the generated
-//! creature (issue #33): its path does not depend on the unit of length,
+//! creature: its path does not depend on the unit of length,
 //! and open surfaces converge as fast as closed ones.
 
 use std::sync::Arc;
@@ -47,17 +47,10 @@ fn run_scaled_with(
 /// default tolerance, so every decision of the loop (the convergence
 /// test, the acceleration's safeguard) is exercised.
 ///
-/// On the fine level only: the coarse level is not unit-free yet. Its mesh
-/// is meshoptimizer's simplification of the f32 coordinates, and which
-/// edges collapse follows their last bits. Fed a unit-free copy (divided
-/// by its largest side in f64), the 40² saddle and 45² wavy sheet kept
-/// their paths at 37 and 1/37, but the feline got another coarse mesh and
-/// its one-shot edit took 50 iterations instead of 15 (its settle after a
-/// 60-drag gesture 84 instead of 27, 19 s instead of 4.7): the raw
-/// coordinates are fed as before, and with them the 40² saddle takes
-/// 16 + 66 (fine + coarse) iterations at scale 1, 22 + 67 at 37 and
-/// 16 + 64 at 1/37 (poses 1.7e-3 of the diagonal apart). A simplification
-/// whose result does not hang on rounding is the open part of issue #33.
+/// On the fine level only here; the levels' own independence of the unit
+/// (the simplification is fed the mesh divided by its largest side, and a
+/// collapse that pinches two sheets is locked and run again:
+/// `coarse/simplify.rs`) is tested in `solver/hierarchy_tests.rs`.
 ///
 /// Not here: testkit's random Delaunay discs, whose hull slivers (boundary
 /// edges 5× the mean, cotangent weights −11 and +92) leave the energy nearly

@@ -1,4 +1,4 @@
-//! Coarse previews of a drag ([`Deformer::preview`], issue #32): while a
+//! Coarse previews of a drag ([`Deformer::preview`]): while a
 //! person drags faster than the full mesh can follow, a frame can show the
 //! solve of a coarse level of about [`PREVIEW_VERTICES`] vertices instead,
 //! prolongated to every vertex with its detail; the full mesh refines from
