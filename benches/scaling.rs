@@ -29,16 +29,6 @@ fn sizes() -> Vec<usize> {
         .unwrap_or_else(|| vec![8_000, 32_000, 128_000])
 }
 
-fn median(v: &[Duration]) -> f64 {
-    let mut s: Vec<f64> = v.iter().map(Duration::as_secs_f64).collect();
-    s.sort_by(f64::total_cmp);
-    match s.len() {
-        0 => f64::NAN,
-        n if n % 2 == 1 => s[n / 2],
-        n => 0.5 * (s[n / 2 - 1] + s[n / 2]),
-    }
-}
-
 fn bench(c: &mut Criterion) {
     let params = Params::default();
     let mut rows = Vec::new();
@@ -69,7 +59,13 @@ fn bench(c: &mut Criterion) {
                 total
             })
         });
-        let fine = median(&iteration.borrow());
+        let fine = dend_testkit::median(
+            iteration
+                .borrow()
+                .iter()
+                .map(Duration::as_secs_f64)
+                .collect(),
+        );
         for (name, levels) in [("two", Levels::Two), ("many", Levels::Many)] {
             let solves = RefCell::new(Vec::new());
             let report = RefCell::new(None);
@@ -90,7 +86,8 @@ fn bench(c: &mut Criterion) {
                     total
                 })
             });
-            let solve = median(&solves.borrow());
+            let solve =
+                dend_testkit::median(solves.borrow().iter().map(Duration::as_secs_f64).collect());
             let r = (*report.borrow()).expect("a solve ran");
             rows.push(format!(
                 "{nv:>7} vertices, {name:>4} levels: fine iteration {:.2} ms, solve {:.1} ms = \

@@ -57,19 +57,6 @@ fn arg<T: std::str::FromStr>(args: &[String], name: &str) -> Option<T> {
         .and_then(|v| v.parse().ok())
 }
 
-fn median(mut v: Vec<f64>) -> f64 {
-    v.sort_by(f64::total_cmp);
-    if v.is_empty() {
-        return f64::NAN;
-    }
-    let k = v.len();
-    if k % 2 == 1 {
-        v[k / 2]
-    } else {
-        0.5 * (v[k / 2 - 1] + v[k / 2])
-    }
-}
-
 fn load(spec: &str) -> Result<Mesh, String> {
     if let Some(n) = spec.strip_prefix("tube:") {
         let n: usize = n.parse().map_err(|_| format!("bad tube size {n:?}"))?;
@@ -218,7 +205,7 @@ fn bench(
             w.push(v);
         }
     }
-    let [warm_assembly, warm_symbolic, warm_numeric, warm_build] = warm.map(median);
+    let [warm_assembly, warm_symbolic, warm_numeric, warm_build] = warm.map(dend_testkit::median);
     // a new upload in a warm process (a server's case): the rest
     // precomputation and the first factor of a new `Rest`, whose energy
     // matrix is not cached yet
@@ -235,7 +222,7 @@ fn bench(
         warm_precompute.push(ms(t.elapsed()));
         drop(again);
     }
-    let warm_precompute = median(warm_precompute);
+    let warm_precompute = dend_testkit::median(warm_precompute);
     let (iteration, converge, report) =
         time_iterations(rest, &params, &factor, constraints, iters)?;
     let n = mesh.num_vertices();
@@ -323,7 +310,7 @@ fn time_iterations(
         last = Some((ms(t.elapsed()), r));
     }
     let (converge, r) = last.expect("two runs");
-    Ok((median(times), converge, r))
+    Ok((dend_testkit::median(times), converge, r))
 }
 
 /// Resident set size (Linux `/proc/self/statm`), 0 elsewhere: the growth

@@ -295,8 +295,7 @@ fn fine_iteration_ms(
         d.step(factor, c, 1).map_err(|e| e.to_string())?;
         times.push(t.elapsed().as_secs_f64() * 1e3);
     }
-    times.sort_by(f64::total_cmp);
-    Ok(times[times.len() / 2])
+    Ok(dend_testkit::median(times))
 }
 
 fn bbox(mesh: &Mesh) -> (Point, Point) {

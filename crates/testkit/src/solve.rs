@@ -118,3 +118,15 @@ fn centroid(mesh: &Mesh, vs: &[u32]) -> Point {
     }
     c
 }
+
+/// The median of `v` (the mean of the two middle values for an even
+/// count; NaN when empty): how benches and examples report timings.
+pub fn median(mut v: Vec<f64>) -> f64 {
+    v.sort_by(f64::total_cmp);
+    let k = v.len();
+    match k {
+        0 => f64::NAN,
+        _ if k % 2 == 1 => v[k / 2],
+        _ => 0.5 * (v[k / 2 - 1] + v[k / 2]),
+    }
+}
