@@ -120,9 +120,8 @@ impl NewtonPattern {
         }
         drop(rows);
         // AMD on the block graph, expanded to the coordinates
-        let bptr: Vec<usize> = ptr.clone();
         let bidx: Vec<usize> = cols.iter().map(|&c| c as usize).collect();
-        let block = SymbolicSparseColMatRef::new_checked(nu, nu, &bptr, None, &bidx);
+        let block = SymbolicSparseColMatRef::new_checked(nu, nu, &ptr, None, &bidx);
         let (bfwd, _) = dend_linalg::ordering::amd(block)?;
         let fwd: Vec<usize> = bfwd
             .iter()
