@@ -8,7 +8,8 @@ use nalgebra::{Matrix3, SymmetricEigen, UnitQuaternion, Vector3};
 use rayon::prelude::*;
 
 use super::params::Mode;
-use super::rotation::{fit_rotation_quat, fit_rotation_quat4, LANES};
+use super::rotation::fit_rotation_quat;
+use super::rotation::lanes::{fit_rotation_quat4, LANES};
 use crate::mesh::{cross, norm, sub, Point, Real, Topology};
 
 /// Vertex count above which per-vertex loops run on the rayon pool.

@@ -34,9 +34,9 @@
 use sprs::{CsMat, TriMat};
 
 use super::energy::{Energy, Shape};
+use super::error::DeformError;
 use super::params::{Formulation, Params};
 use super::system::{add_soft_diagonal, partition, System};
-use super::DeformError;
 use crate::mesh::{Point, Real};
 use crate::operators::Operators;
 use dend_linalg::sparse::{matmul, scale_entries};

@@ -221,7 +221,7 @@ impl System {
         params: &Params,
         constrained: &[u32],
         active: &[bool],
-    ) -> Result<Self, super::DeformError> {
+    ) -> Result<Self, super::error::DeformError> {
         let prep = Prepared::new(ops, a, params, constrained, active);
         let values = prep.values();
         Ok(prep.into_system(values))

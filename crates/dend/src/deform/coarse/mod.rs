@@ -108,7 +108,7 @@ impl Rest {
     /// ([`ElasticParams::coarse_ratio`]; a server calls it when a session
     /// with a non-default ratio opens); `false` for the paper formulations,
     /// which have no coarse level.
-    pub fn prepare_coarse_level_for(&self, params: &crate::deform::Params) -> bool {
+    pub fn prepare_coarse_level_for(&self, params: &crate::deform::params::Params) -> bool {
         params
             .elastic()
             .is_some_and(|e| self.coarse_at_most(e.coarse_ratio).is_some())

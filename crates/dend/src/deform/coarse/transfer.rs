@@ -16,8 +16,7 @@
 
 use nalgebra::Vector3;
 
-use super::CoarseLevel;
-use crate::deform::rest::Rest;
+use crate::deform::rest::{CoarseLevel, Rest};
 use crate::mesh::{Point, Real};
 
 /// Smoothing passes of the restriction `Pᵀ` (prototype: 3).

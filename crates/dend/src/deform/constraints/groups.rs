@@ -4,7 +4,7 @@
 //! and by the joints of its skin (`crate::rig`): a joint resolves to its
 //! region, or to [`DeformError::Rig`].
 
-use crate::deform::DeformError;
+use crate::deform::error::DeformError;
 use crate::mesh::asset::groups::{GroupRef, GroupSel};
 use crate::mesh::asset::Asset;
 use crate::mesh::io::gltf::SkinError;

@@ -21,7 +21,7 @@ pub use groups::{names_groups, resolve_groups};
 pub use select::select;
 pub use transform::RigidTransform;
 
-use super::DeformError;
+use super::error::DeformError;
 use crate::mesh::{Mesh, Point};
 
 /// A handle group, resolved against a mesh.

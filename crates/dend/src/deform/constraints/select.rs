@@ -2,7 +2,7 @@
 //! boxes, spheres, asset groups) and [`select`], which picks them on the
 //! rest mesh.
 
-use crate::deform::DeformError;
+use crate::deform::error::DeformError;
 use crate::mesh::asset::groups::GroupSel;
 use crate::mesh::selection::VertexSet;
 use crate::mesh::Mesh;

@@ -8,7 +8,7 @@ use nalgebra::UnitQuaternion;
 use super::{
     centroid, select, Constraints, ConstraintsSpec, HandleGroup, HandleSpec, RigidTransform,
 };
-use crate::deform::DeformError;
+use crate::deform::error::DeformError;
 use crate::mesh::{Mesh, Point};
 
 impl ConstraintsSpec {

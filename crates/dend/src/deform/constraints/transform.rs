@@ -4,7 +4,7 @@
 
 use nalgebra::{Matrix3, Rotation3, Unit, UnitQuaternion, Vector3};
 
-use crate::deform::DeformError;
+use crate::deform::error::DeformError;
 use crate::mesh::selection::RotationSpec;
 use crate::mesh::Point;
 

@@ -59,7 +59,8 @@ use rayon::prelude::*;
 use sprs::{CsMat, TriMat};
 
 use super::params::{ElasticParams, Params};
-use super::rotation::{fit_rotation_quat, fit_rotation_quat4, LANES};
+use super::rotation::fit_rotation_quat;
+use super::rotation::lanes::{fit_rotation_quat4, LANES};
 use super::system::{add_soft_diagonal, partition, System};
 use crate::mesh::{Mesh, Point, Real};
 

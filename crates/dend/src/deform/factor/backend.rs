@@ -8,15 +8,16 @@ use faer::sparse::linalg::cholesky::{SymbolicCholesky, SymbolicCholeskyRaw};
 use faer::sparse::linalg::solvers::Lu;
 use faer::sparse::{SparseColMat, SymbolicSparseColMat};
 
-use super::{BuildStage, FactorPrecision, SolveOptions, SolverChoice};
-use crate::deform::cg::Cg;
-use crate::deform::cholesky::{self, analyse, csr_arrays};
+use super::options::{FactorPrecision, SolveOptions, SolverChoice};
+use super::stage::BuildStage;
+use crate::deform::error::DeformError;
 use crate::deform::params::Formulation;
 use crate::deform::square::Square;
 use crate::deform::system::System;
-use crate::deform::trisolve;
-use crate::deform::DeformError;
 use crate::mesh::Real;
+use dend_linalg::cg::Cg;
+use dend_linalg::cholesky::{self, analyse, csr_arrays};
+use dend_linalg::trisolve;
 use dend_linalg::LinalgError;
 
 /// The solve of a factor.

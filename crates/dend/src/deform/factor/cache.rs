@@ -7,11 +7,13 @@ use std::sync::Arc;
 
 use parking_lot::Mutex;
 
-use super::{BuildStage, Factor, FactorKey, SolveOptions};
+use super::options::SolveOptions;
+use super::stage::BuildStage;
+use super::{Factor, FactorKey};
 use crate::deform::constraints::Constraints;
+use crate::deform::error::DeformError;
 use crate::deform::params::Params;
 use crate::deform::rest::Rest;
-use crate::deform::DeformError;
 
 /// An LRU cache of factors under a byte budget, shared by every session of a
 /// process. Evicts factors only (they are rebuilt on demand); counts builds

@@ -15,44 +15,31 @@ use faer::dyn_stack::{MemStack, StackReq};
 use faer::sparse::linalg::cholesky::{LltRef, SymbolicCholeskyRaw};
 use faer::{Conj, MatMut, Par};
 
-use crate::deform::cg::Cg;
-use crate::deform::cholesky::analyse;
 use crate::deform::constraints::Constraints;
 use crate::deform::elastic::{ElasticOps, ElasticSet};
 use crate::deform::energy::Energy;
+use crate::deform::error::DeformError;
 use crate::deform::params::{Formulation, FormulationParams, Mode, Params};
 use crate::deform::rest::Rest;
 use crate::deform::square::{self, Square};
 use crate::deform::system::{Prepared, System};
-use crate::deform::trisolve;
-use crate::deform::DeformError;
 use crate::mesh::{Point, Real};
+use dend_linalg::cg::Cg;
+use dend_linalg::cholesky::analyse;
+use dend_linalg::trisolve;
 
 mod backend;
-mod cache;
+pub(super) mod cache;
 mod options;
+mod stage;
 
-/// A stage of a factor build, reported as it starts
-/// ([`Factor::build_reporting`]; the editor shows it while a large mesh's
-/// factor builds).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
-#[serde(rename_all = "snake_case")]
-pub enum BuildStage {
-    /// Assembling the normal matrix (eq. (24): with its symbolic analysis
-    /// at the same time).
-    Assembly,
-    /// The sparse Cholesky's symbolic analysis (ordering, elimination tree).
-    Symbolic,
-    /// The numeric factorisation.
-    Numeric,
-}
 #[cfg(test)]
 pub(super) mod tests;
 
 use crate::deform::elastic::elastic_system;
 use backend::{symbolic_flops, Backend, Values};
-pub use cache::FactorCache;
 pub use options::{FactorPrecision, SolveOptions, SolverChoice};
+pub use stage::BuildStage;
 
 /// What a factor depends on, and nothing else: two equal keys give the same
 /// matrix `M`. Handle *targets* are not part of it.

@@ -1,8 +1,8 @@
 //! How a factor is built and stored: the solve back end, the memory
 //! budget, the ordering and the precision.
 
-use crate::deform::ordering::FillOrdering;
 use crate::mesh::Real;
+use dend_linalg::ordering::FillOrdering;
 
 /// How [`Factor::build_with`] solves `M`.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]

@@ -3,7 +3,7 @@
 
 use serde::{Deserialize, Serialize};
 
-use crate::deform::DeformError;
+use crate::deform::error::DeformError;
 
 /// When the elastic iteration's coarse corrections stop within one
 /// sequence (`solver/multilevel.rs`; every [`ElasticParams::correction_period`] fine

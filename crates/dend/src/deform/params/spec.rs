@@ -1,15 +1,13 @@
 //! The parameters as they travel: named [`Preset`]s, and the flat
 //! [`ParamsSpec`] of a client's JSON (a preset and any overrides), mapped
-//! into the typed [`Params`] at the edge and written back flat.
+//! into the typed [`Params`](super::Params) at the edge and written back
+//! flat (both in `typed.rs`, above this file).
 
 use serde::{Deserialize, Serialize};
 
-use super::{
-    Corrections, DetailTerm, ElasticParams, Formulation, FormulationParams, Mode, PaperParams,
-    Params,
-};
+use super::elastic::Corrections;
+use super::formulation::{DetailTerm, Formulation, Mode};
 use crate::deform::energy::Energy;
-use crate::deform::DeformError;
 
 /// A named set of parameters: what the API's `"preset"` and the CLI's
 /// `--preset` name. Explicit fields override a preset's.
@@ -65,14 +63,6 @@ impl Preset {
         }
     }
 
-    /// The preset's parameters.
-    pub fn params(self) -> Params {
-        match self {
-            Preset::Characters => Params::default(),
-            Preset::Elastica => Params::elastica(),
-        }
-    }
-
     /// Parses a name (`characters`, `elastica`).
     pub fn from_name(name: &str) -> Option<Self> {
         Preset::ALL.into_iter().find(|p| p.name() == name)
@@ -88,59 +78,59 @@ pub struct ParamsSpec {
     #[serde(skip_serializing_if = "Option::is_none")]
     #[serde(deserialize_with = "present")]
     pub preset: Option<Preset>,
-    /// Overrides [`Params::energy`].
+    /// Overrides [`Params::energy`](super::Params::energy).
     #[serde(deserialize_with = "present")]
     pub energy: Option<Energy>,
-    /// Overrides [`Params::lambda1`].
+    /// Overrides [`Params::lambda1`](super::Params::lambda1).
     #[serde(deserialize_with = "present")]
     pub lambda1: Option<f64>,
-    /// Overrides [`Params::lambda2`].
+    /// Overrides [`Params::lambda2`](super::Params::lambda2).
     #[serde(deserialize_with = "present")]
     pub lambda2: Option<f64>,
-    /// Overrides [`Params::detail`].
+    /// Overrides [`Params::detail`](super::Params::detail).
     #[serde(deserialize_with = "present")]
     pub detail: Option<DetailTerm>,
-    /// Overrides [`PaperParams::mode`] (the paper formulations; only
+    /// Overrides [`PaperParams::mode`](super::PaperParams::mode) (the paper formulations; only
     /// `default` is accepted with the elastic one).
     #[serde(deserialize_with = "present")]
     pub mode: Option<Mode>,
-    /// Overrides [`Params::tol`].
+    /// Overrides [`Params::tol`](super::Params::tol).
     #[serde(deserialize_with = "present")]
     pub tol: Option<f64>,
-    /// Overrides [`Params::max_iters`].
+    /// Overrides [`Params::max_iters`](super::Params::max_iters).
     #[serde(deserialize_with = "present")]
     pub max_iters: Option<usize>,
-    /// Overrides [`Params::anderson`].
+    /// Overrides [`Params::anderson`](super::Params::anderson).
     #[serde(deserialize_with = "present")]
     pub anderson: Option<usize>,
-    /// Overrides the formulation ([`FormulationParams::kind`]).
+    /// Overrides the formulation ([`FormulationParams::kind`](super::FormulationParams::kind)).
     #[serde(deserialize_with = "present")]
     pub formulation: Option<Formulation>,
-    /// Overrides [`ElasticParams::stretch`] (read by the elastic formulation
+    /// Overrides [`ElasticParams::stretch`](super::ElasticParams::stretch) (read by the elastic formulation
     /// only; checked whatever the formulation).
     #[serde(deserialize_with = "present")]
     pub stretch: Option<f64>,
-    /// Overrides [`ElasticParams::bending`] (read by the elastic formulation
+    /// Overrides [`ElasticParams::bending`](super::ElasticParams::bending) (read by the elastic formulation
     /// only; checked whatever the formulation).
     #[serde(deserialize_with = "present")]
     pub bending: Option<f64>,
-    /// Overrides [`ElasticParams::area`] (read by the elastic formulation
+    /// Overrides [`ElasticParams::area`](super::ElasticParams::area) (read by the elastic formulation
     /// only; checked whatever the formulation).
     #[serde(deserialize_with = "present")]
     pub area: Option<f64>,
-    /// Overrides [`ElasticParams::laplacian`] (read by the elastic formulation
+    /// Overrides [`ElasticParams::laplacian`](super::ElasticParams::laplacian) (read by the elastic formulation
     /// only; checked whatever the formulation).
     #[serde(deserialize_with = "present")]
     pub laplacian: Option<f64>,
-    /// Overrides [`ElasticParams::coarse_ratio`] (read by the elastic formulation
+    /// Overrides [`ElasticParams::coarse_ratio`](super::ElasticParams::coarse_ratio) (read by the elastic formulation
     /// only; checked whatever the formulation).
     #[serde(deserialize_with = "present")]
     pub coarse_ratio: Option<usize>,
-    /// Overrides [`ElasticParams::corrections`] (read by the elastic formulation
+    /// Overrides [`ElasticParams::corrections`](super::ElasticParams::corrections) (read by the elastic formulation
     /// only; checked whatever the formulation).
     #[serde(deserialize_with = "present")]
     pub corrections: Option<Corrections>,
-    /// Overrides [`ElasticParams::correction_period`] (read by the elastic formulation
+    /// Overrides [`ElasticParams::correction_period`](super::ElasticParams::correction_period) (read by the elastic formulation
     /// only; checked whatever the formulation).
     #[serde(deserialize_with = "present")]
     pub correction_period: Option<usize>,
@@ -154,86 +144,4 @@ where
     T: Deserialize<'de>,
 {
     T::deserialize(d).map(Some)
-}
-
-impl TryFrom<ParamsSpec> for Params {
-    type Error = DeformError;
-
-    /// The preset's parameters with the spec's overrides. The elastic
-    /// weights are read (and checked, as they always were) whatever the
-    /// formulation, and kept only by the elastic one: a client may send
-    /// one set of fields for every formulation. The paper mode with the
-    /// elastic formulation is refused ([`DeformError::Unsupported`]).
-    fn try_from(s: ParamsSpec) -> Result<Params, DeformError> {
-        let b = s.preset.unwrap_or_default().params();
-        let e = b.elastic().copied().unwrap_or_default();
-        let elastic = ElasticParams {
-            stretch: s.stretch.unwrap_or(e.stretch),
-            bending: s.bending.unwrap_or(e.bending),
-            area: s.area.unwrap_or(e.area),
-            laplacian: s.laplacian.unwrap_or(e.laplacian),
-            coarse_ratio: s.coarse_ratio.unwrap_or(e.coarse_ratio),
-            corrections: s.corrections.unwrap_or(e.corrections),
-            correction_period: s.correction_period.unwrap_or(e.correction_period),
-        };
-        let paper = PaperParams {
-            mode: s.mode.unwrap_or(b.mode()),
-        };
-        let formulation = match s.formulation.unwrap_or(b.formulation.kind()) {
-            Formulation::Elastic if paper.mode == Mode::Paper => {
-                return Err(DeformError::Unsupported {
-                    what: "the paper mode with the elastic formulation (use formulation least_squares)",
-                });
-            }
-            Formulation::Elastic => FormulationParams::Elastic(elastic),
-            other => {
-                elastic.validate()?;
-                FormulationParams::paper(other, paper)
-            }
-        };
-        Ok(Params {
-            energy: s.energy.unwrap_or(b.energy),
-            lambda1: s.lambda1.unwrap_or(b.lambda1),
-            lambda2: s.lambda2.unwrap_or(b.lambda2),
-            detail: s.detail.unwrap_or(b.detail),
-            tol: s.tol.unwrap_or(b.tol),
-            max_iters: s.max_iters.unwrap_or(b.max_iters),
-            anderson: s.anderson.unwrap_or(b.anderson),
-            formulation,
-        })
-    }
-}
-
-/// [`Params`] as written: every field explicit (no preset), the elastic
-/// weights only with the elastic formulation.
-#[derive(Serialize)]
-pub(super) struct WrittenParams {
-    energy: Energy,
-    lambda1: f64,
-    lambda2: f64,
-    detail: DetailTerm,
-    mode: Mode,
-    tol: f64,
-    max_iters: usize,
-    anderson: usize,
-    formulation: Formulation,
-    #[serde(flatten)]
-    elastic: Option<ElasticParams>,
-}
-
-impl From<Params> for WrittenParams {
-    fn from(p: Params) -> Self {
-        WrittenParams {
-            energy: p.energy,
-            lambda1: p.lambda1,
-            lambda2: p.lambda2,
-            detail: p.detail,
-            mode: p.mode(),
-            tol: p.tol,
-            max_iters: p.max_iters,
-            anderson: p.anderson,
-            formulation: p.formulation.kind(),
-            elastic: p.elastic().copied(),
-        }
-    }
 }

@@ -29,8 +29,7 @@ use nalgebra::{Matrix3, Quaternion, Rotation3, UnitQuaternion};
 
 use crate::mesh::Real;
 
-mod lanes;
-pub use lanes::{fit_rotation_quat4, LANES};
+pub(super) mod lanes;
 
 /// Newton iterations before falling back to the SVD.
 const MAX_NEWTON: usize = 12;

@@ -14,11 +14,11 @@ use crate::deform::anderson::Anderson;
 use crate::deform::constraints::Constraints;
 use crate::deform::detail::local_rotations;
 use crate::deform::energy::Shape;
+use crate::deform::error::DeformError;
 use crate::deform::factor::Factor;
 use crate::deform::params::{DetailTerm, Mode};
 use crate::deform::square::apply_p;
 use crate::deform::stacked;
-use crate::deform::DeformError;
 use crate::mesh::{Point, Real};
 
 /// The safeguard's slack: a step may raise the objective by this factor

@@ -36,10 +36,10 @@ use super::{Deformer, StepReport};
 use crate::deform::anderson::Anderson;
 use crate::deform::constraints::Constraints;
 use crate::deform::elastic::{ElasticOps, ElasticSet};
+use crate::deform::error::DeformError;
 use crate::deform::factor::Factor;
 use crate::deform::params::DetailTerm;
 use crate::deform::stacked::mul_l;
-use crate::deform::DeformError;
 use crate::mesh::{Point, Real};
 
 /// The elastic iteration's memory, sized once per constraint set.

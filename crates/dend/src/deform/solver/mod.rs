@@ -4,10 +4,10 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
 
 use super::constraints::Constraints;
-use super::factor::Factor;
+use super::error::DeformError;
+use super::factor::{Factor, FactorKey};
 use super::params::Params;
 use super::rest::Rest;
-use super::DeformError;
 use crate::mesh::{Point, Real};
 
 mod correct;
@@ -347,7 +347,7 @@ impl Deformer {
     /// this rest mesh and these parameters.
     fn check_factor(&self, factor: &Factor, constraints: &Constraints) -> Result<(), DeformError> {
         if factor.sys.constrained != constraints.constrained()
-            || factor.key() != &super::FactorKey::of_internal(&self.rest, &self.params, constraints)
+            || factor.key() != &FactorKey::of_internal(&self.rest, &self.params, constraints)
         {
             return Err(DeformError::FactorMismatch);
         }

@@ -50,10 +50,10 @@ use super::Deformer;
 use crate::deform::coarse::{CoarseLevel, PROLONGATION_PASSES, RESTRICTION_PASSES};
 use crate::deform::constraints::{Constraints, RigidTransform};
 use crate::deform::elastic::{ElasticOps, ElasticSet};
+use crate::deform::error::DeformError;
 use crate::deform::factor::Factor;
 use crate::deform::params::{DetailTerm, Formulation, Params};
 use crate::deform::rest::Rest;
-use crate::deform::DeformError;
 use crate::mesh::{Point, Real};
 
 /// Iteration cap of the coarse solve of a start (the prototype's camel
@@ -260,7 +260,7 @@ pub(super) fn solve_until_stalled(
     coarse: &mut Deformer,
     factor: &Factor,
     cc: &Constraints,
-) -> Option<crate::deform::StepReport> {
+) -> Option<super::StepReport> {
     let mut its = 0;
     let mut start = None;
     loop {

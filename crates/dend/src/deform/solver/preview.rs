@@ -32,9 +32,9 @@ use super::multilevel::{coarse_params, coarse_problem, CoarseProblem};
 use super::Deformer;
 use crate::deform::constraints::Constraints;
 use crate::deform::elastic::{ElasticOps, ElasticSet};
+use crate::deform::error::DeformError;
 use crate::deform::factor::Factor;
 use crate::deform::params::{DetailTerm, Params};
-use crate::deform::DeformError;
 use crate::mesh::{Point, Real};
 
 /// The vertex count a preview level aims at: its iteration costs about
@@ -103,7 +103,7 @@ fn preview_ratio(n: usize, params: &Params) -> Option<usize> {
         .then(|| e.coarse_ratio.max(n / PREVIEW_VERTICES))
 }
 
-impl crate::deform::Rest {
+impl crate::deform::rest::Rest {
     /// Builds the preview level of sessions with `params` now (a server
     /// calls it in the background when a session opens, so that the first
     /// preview does not pay for the simplification); `false` when they
