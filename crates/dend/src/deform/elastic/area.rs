@@ -224,7 +224,7 @@ fn project_area_flat(
 /// inside a bracket. Otherwise (`σ2 ≥ 2`) it is the general search: a
 /// local minimum from `√(σ1/σ2)`, else from `σ1`, and the best of those
 /// and `d = 1`.
-fn area_root(s1: Real, s2: Real) -> Real {
+pub(super) fn area_root(s1: Real, s2: Real) -> Real {
     let start = (s1 / s2.max(1e-12)).sqrt();
     if s2 < 2.0 {
         return halley_root(s1, s2, start).unwrap_or_else(|| convex_root(s1, s2, start));
@@ -250,7 +250,7 @@ fn area_root(s1: Real, s2: Real) -> Real {
 
 /// `f''(d) = 2 + 6/d⁴ − 4σ2/d³` of `f(d) = (d − σ1)² + (1/d − σ2)²`
 /// ([`area_root`]; it does not depend on `σ1`).
-fn curvature(s2: Real, d: Real) -> Real {
+pub(super) fn curvature(s2: Real, d: Real) -> Real {
     let id = 1.0 / d;
     let id3 = id * id * id;
     2.0 + 6.0 * id3 * id - 4.0 * s2 * id3

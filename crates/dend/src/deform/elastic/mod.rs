@@ -72,6 +72,7 @@ use crate::operators::Operators;
 pub use area::project_area;
 use area::{area_element, gradient, AreaElement, AreaForces};
 use dend_linalg::sparse::matmul;
+pub(crate) use hessian::Curvature;
 
 /// Element count from which the local step runs on the rayon pool.
 const PARALLEL_MIN: usize = 2048;

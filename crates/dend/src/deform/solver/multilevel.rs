@@ -122,7 +122,7 @@ pub enum Levels {
     /// A hierarchy: as `Two`, and the coarse problem is solved the same way
     /// on a level of its own, down to a level under
     /// [`coarse::MIN_VERTICES`](crate::deform::coarse::MIN_VERTICES),
-    /// whose iteration takes Gauss–Newton steps (`solver/newton.rs`).
+    /// whose iteration takes Newton steps (`solver/newton.rs`).
     /// Not the default: measured against `Two` in docs/performance.md
     /// (fewer fine-iteration equivalents for some one-shot solves, more for
     /// the settles after a gesture).

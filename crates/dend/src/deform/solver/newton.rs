@@ -1,5 +1,5 @@
-//! The coarsest level's iteration: Gauss–Newton steps on the energy
-//! reduced over the rotations, with a line search on the energy.
+//! The coarsest level's iteration: Newton steps on the energy reduced
+//! over the rotations and area targets, with a line search on the energy.
 //!
 //! The local/global iteration converges slowly where a far part must turn
 //! as a whole: at fixed rotations the global step resists the turn, so
@@ -9,7 +9,9 @@
 //! [`coarse::MIN_VERTICES`](crate::deform::coarse::MIN_VERTICES)
 //! vertices) a step of Newton's method is affordable: the matrix
 //! `H = Q ⊗ I₃ − Σ_e J_eᵀ C_e⁻¹ J_e` (`elastic/hessian.rs`), assembled
-//! and factored at every iteration. Its pattern does not depend on the
+//! and factored at every iteration: the reduced energy's Hessian where it
+//! is positive definite (it factors), else its convex model, each
+//! element's curvature cut to its positive semi-definite part. Its pattern does not depend on the
 //! rotations, so it is analysed once per constraint set
 //! ([`NewtonPattern`]): the blocks of `Q`'s pattern and of the elements'
 //! supports, ordered by AMD on the block graph (each vertex's three
@@ -38,7 +40,7 @@ use faer::{Conj, MatMut, Par, Side};
 use nalgebra::Matrix3;
 
 use super::Deformer;
-use crate::deform::elastic::{ElasticOps, ElasticSet};
+use crate::deform::elastic::{Curvature, ElasticOps, ElasticSet};
 use crate::deform::factor::Factor;
 use crate::mesh::Real;
 
@@ -208,6 +210,7 @@ impl Deformer {
         &mut self,
         factor: &Factor,
         (el, set): (&ElasticOps, &ElasticSet),
+        curvature: Curvature,
     ) -> Option<()> {
         let st = &mut self.elastic;
         let n = &mut st.newton;
@@ -224,9 +227,11 @@ impl Deformer {
         el.rotation_coupling(
             set,
             &self.rest.ops,
+            &self.y,
             &st.rot,
             &st.proj,
             &factor.sys.col_of,
+            curvature,
             |k, l, b| pattern.add(k, l, b),
         );
         Some(())
@@ -244,10 +249,20 @@ impl Deformer {
         e: Real,
     ) -> Option<Real> {
         let nu = factor.sys.unknowns.len();
-        self.assemble_newton(factor, (el, set))?;
+        // the reduced energy's Hessian where it is positive definite (near
+        // a minimum: quadratic convergence), else its convex model
+        let mut values = None;
+        for curvature in [Curvature::Full, Curvature::Projected] {
+            self.assemble_newton(factor, (el, set), curvature)?;
+            let pattern = self.elastic.newton.pattern.as_ref()?;
+            if let Ok(v) = dend_linalg::cholesky::factorise(&pattern.symbolic, &pattern.h) {
+                values = Some(v);
+                break;
+            }
+        }
+        let values = values?;
         let n = &mut self.elastic.newton;
         let pattern = n.pattern.as_ref()?;
-        let values = dend_linalg::cholesky::factorise(&pattern.symbolic, &pattern.h).ok()?;
         let llt = LltRef::new(&pattern.symbolic, &values);
         let mut mem =
             MemBuffer::try_new(pattern.symbolic.solve_in_place_scratch::<Real>(1, Par::Seq))
