@@ -8,10 +8,13 @@ in docs/architecture.md ("Layering").
 Rust: a file is a module; it depends on every module it names by path
 (`crate::a::b`, `super::x`, `self::y`, or `x::…` for a child module `x`),
 resolved to the deepest module named, in `use` items and in expressions.
-Declaring a child (`mod x;`) is not a dependency, so a parent that only
-declares and re-exports its children is below them; a child that needs
-an item of its parent's file makes a cycle with it if the parent names the
-child too. Test modules (`mod tests;`, `#[cfg(test)]` modules, `*_tests.rs`
+A `use` tree is read whole: each leaf of a group (`use a::{b, c::{d, e}}`,
+`pub use child::{A, B}`) and a glob (`use x::*`) name their own path.
+Declaring a child (`mod x;`) is not a dependency, nor is a visibility
+`pub(in crate::a)` (it names an ancestor as a scope, not an item), so a
+parent that only declares and re-exports its children is below them; a
+child that needs an item of its parent's file makes a cycle with it if
+the parent names the child too. Test modules (`mod tests;`, `#[cfg(test)]` modules, `*_tests.rs`
 files and inline `#[cfg(test)] mod … { }` blocks) are left out: they may
 use anything. `#[path]` attributes are followed.
 
@@ -31,7 +34,8 @@ MOD_DECL = re.compile(
 PATH_IN_ATTRS = re.compile(r'#\[path\s*=\s*"([^"]+)"\]')
 REF = re.compile(r'\b(crate|super|self)((?:::\w+)+)')
 REL = re.compile(r'(?<![:\w])([a-z_]\w*)((?:::\w+)+)')
-USE_GROUP = re.compile(r'\buse\s+((?:crate|super|self)(?:::\w+)*)::\{([^;]*)\};', re.S)
+USE_ITEM = re.compile(r'\buse\s+([^;]*);')
+VISIBILITY_IN = re.compile(r'\bpub\s*\(\s*in\s+[\w:]+\s*\)')
 JS_IMPORT = re.compile(
     r'''(?:\bimport\s+(?:[\w*{}\s,]+\s+from\s+)?|\bexport\s+[\w*{}\s,]+\s+from\s+|\bimport\s*\(\s*)['"](\.{1,2}/[^'"]+)['"]''')
 
@@ -47,8 +51,11 @@ KNOWN = {
 
 
 def strip_comments(text):
+    """Comments out, string literals emptied, except a `#[path = "…"]`
+    attribute's, which names a module's file."""
     text = re.sub(r'/\*.*?\*/', '', text, flags=re.S)
-    text = re.sub(r'"(?:\\.|[^"\\])*"', '""', text)
+    text = re.sub(r'(#\[path\s*=\s*)?"(?:\\.|[^"\\])*"',
+                  lambda m: m.group(0) if m.group(1) else '""', text)
     return re.sub(r'//[^\n]*', '', text)
 
 
@@ -123,20 +130,73 @@ def resolve(current, kind, segs, modules):
     return path
 
 
+def use_paths(tree):
+    """The full paths a `use` tree names, one tuple of segments per leaf:
+    `a::{b, c::{self, d as e}, f::*}` gives `a::b`, `a::c`, `a::c::d` and
+    `a::f` (a glob names its module; a leading `::` is dropped)."""
+    tokens = re.findall(r'::|\{|\}|,|\*|\w+', tree)
+    pos = [0]
+
+    def peek():
+        return tokens[pos[0]] if pos[0] < len(tokens) else None
+
+    def take():
+        pos[0] += 1
+        return tokens[pos[0] - 1]
+
+    def subtree(prefix):
+        segs = list(prefix)
+        while True:
+            t = peek()
+            if t is None or t in (',', '}'):
+                return [tuple(segs)]
+            if t == '::':
+                take()
+            elif t == '*':
+                take()
+                return [tuple(segs)]
+            elif t == '{':
+                take()
+                out = []
+                while peek() not in (None, '}'):
+                    if peek() == ',':
+                        take()
+                        continue
+                    out.extend(subtree(segs))
+                if peek() == '}':
+                    take()
+                return out
+            elif t == 'as':
+                take()
+                if peek() not in (None, ',', '}'):
+                    take()
+            elif t == 'self' and segs:
+                take()
+            else:
+                segs.append(take())
+
+    return subtree(())
+
+
 def rust_edges(modules):
     out = {}
     for path, file in modules.items():
         text = strip_inline_tests(strip_comments(open(file, encoding='utf-8').read()))
+        # `pub(in crate::a)` names a scope the item is visible in, always an
+        # ancestor: not a dependency
+        text = VISIBILITY_IN.sub('pub', text)
         refs = set()
         for m in REF.finditer(text):
             segs = tuple(s for s in m.group(2).split('::') if s)
             refs.add(resolve(path, m.group(1), segs, modules))
-        for m in USE_GROUP.finditer(text):
-            head = m.group(1).split('::')
-            for item in re.split(r'[,{}\s]+', m.group(2)):
-                if item and item not in ('self', 'super', 'crate'):
-                    segs = tuple(head[1:]) + tuple(item.split('::'))
-                    refs.add(resolve(path, head[0], segs, modules))
+        for m in USE_ITEM.finditer(text):
+            for segs in use_paths(m.group(1)):
+                if not segs:
+                    continue
+                if segs[0] in ('crate', 'super', 'self'):
+                    refs.add(resolve(path, segs[0], segs[1:], modules))
+                elif path + (segs[0],) in modules:
+                    refs.add(resolve(path, 'self', segs, modules))
         for m in REL.finditer(text):
             if m.group(1) in ('crate', 'super', 'self'):
                 continue

@@ -15,7 +15,7 @@ use axum::extract::FromRequestParts;
 use axum::http::StatusCode;
 use axum::response::{IntoResponse, Response};
 
-use crate::session::SessionError;
+use crate::session::error::SessionError;
 use crate::store::StoreError;
 use dend::deform::DeformError;
 

@@ -12,10 +12,10 @@
 use nalgebra::{Matrix3, Vector3};
 use serde::{Deserialize, Serialize};
 
+use super::error::RigError;
 use super::fit::{FitOptions, Residual};
 use super::pose::{fit, RigPose};
 use super::skeleton::Skeleton;
-use super::RigError;
 use crate::mesh::asset::Asset;
 use crate::mesh::io::gltf::{Container, MorphTarget, NodeTrs, Shading, SkeletonPose};
 use crate::mesh::io::Format;

@@ -25,10 +25,10 @@
 use nalgebra::{Matrix3, Matrix4, Quaternion, Rotation3, UnitQuaternion, Vector3};
 use serde::{Deserialize, Serialize};
 
+use super::error::RigError;
 use super::fit::{fit_motions, FitOptions, Motions, Residual};
 use super::procrustes;
 use super::skeleton::Skeleton;
-use super::RigError;
 use crate::mesh::asset::Asset;
 use crate::mesh::io::gltf::Trs;
 use crate::mesh::Point;

@@ -21,7 +21,7 @@
 
 use serde_json::json;
 
-use super::RigError;
+use super::error::RigError;
 use crate::mesh::asset::groups::NameOrIndex;
 use crate::mesh::asset::Asset;
 use crate::mesh::io::gltf::{assemble, Container};

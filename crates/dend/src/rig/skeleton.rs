@@ -5,7 +5,7 @@
 use nalgebra::{Matrix4, Vector3};
 use serde::{Deserialize, Serialize};
 
-use super::RigError;
+use super::error::RigError;
 use crate::mesh::asset::groups::NameOrIndex;
 use crate::mesh::asset::Asset;
 use crate::mesh::io::gltf::{SkinData, SkinError};

@@ -6,10 +6,14 @@ use std::time::Instant;
 
 use tokio::sync::mpsc;
 
+use super::error::SessionError;
 use super::shared::{off_worker, Cmd, Internal, QueuedDrag, Reply, Restore};
-use super::{Delta, Event, FrameHeader, PeerEvent, PoseSnapshot, SessionError, SessionState};
+use super::timing::{sleep_until_or_never, CORRECTION_QUIET};
+use super::types::{Delta, Event, PoseSnapshot};
 use crate::store::JournalEntry;
 use dend::deform::{ConstraintsSpec, RigidTransform};
+use dend_protocol::ws::{HandleRef, PeerEvent, SessionState};
+use dend_protocol::FrameHeader;
 
 pub(in crate::session) use parts::Actor;
 use parts::{InstalledSet, Snapshot, HISTORY_LIMIT};
@@ -47,7 +51,7 @@ impl Actor {
                 () = tokio::time::sleep_until(deadline), if !self.flow.queued.is_empty() => {
                     self.expire_queued();
                 }
-                () = super::sleep_until_or_never(self.solve.wake_at.map(tokio::time::Instant::from_std)),
+                () = sleep_until_or_never(self.solve.wake_at.map(tokio::time::Instant::from_std)),
                     if self.solve.wake_at.is_some() => {
                     // the loop's `maybe_start_solve` starts the full mesh's solve
                     self.solve.wake_at = None;
@@ -235,7 +239,7 @@ impl Actor {
             return fail(
                 reply,
                 SessionError::UnknownHandle {
-                    handle: super::HandleRef::Index(handle),
+                    handle: HandleRef::Index(handle),
                 },
             );
         };
@@ -267,7 +271,7 @@ impl Actor {
                     .solve
                     .last_stream_drag
                     .map(|t| now.saturating_duration_since(t))
-                    .filter(|&g| g < crate::session::CORRECTION_QUIET);
+                    .filter(|&g| g < CORRECTION_QUIET);
                 self.solve.last_stream_drag = Some(now);
             }
         }

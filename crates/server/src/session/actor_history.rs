@@ -6,11 +6,13 @@ use std::sync::atomic::Ordering;
 use std::sync::Arc;
 
 use super::{Actor, AfterBuild, InstalledSet, Snapshot, Step, HISTORY_LIMIT};
-use crate::session::frame::FrameBody;
+use crate::session::error::SessionError;
 use crate::session::shared::off_worker;
-use crate::session::{Event, Frame, PoseSnapshot, SessionError, SessionState};
+use crate::session::types::{Event, Frame, PoseSnapshot};
 use crate::store::{Checkpoint, StoreError, StoredTransform};
 use dend::deform::RigidTransform;
+use dend_protocol::ws::SessionState;
+use dend_protocol::FrameBody;
 
 impl Actor {
     /// [`commit`](Self::commit) unless a client holds a handle: one user

@@ -12,7 +12,7 @@ use tokio::sync::{mpsc, watch};
 
 use super::phase::Phase;
 use crate::session::shared::{Cmd, Inner, Internal, PoseCmd, QueuedDrag, Reply, SessionOptions};
-use crate::session::{Frame, PoseSnapshot};
+use crate::session::types::{Frame, PoseSnapshot};
 use crate::store::{JournalEntry, NamedPose};
 use dend::deform::{Constraints, ConstraintsSpec, Deformer, Factor, RigidTransform};
 

@@ -19,7 +19,7 @@
 //! whether the pose has settled are the solve's own state
 //! (`actor_solve.rs`): a solve runs only in `Ready` or `Reviving`.
 
-use crate::session::SessionState;
+use dend_protocol::ws::SessionState;
 
 /// What the session does once a constraint set's factor is ready.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -183,7 +183,7 @@ impl Phase {
 #[cfg(test)]
 mod tests {
     use super::{AfterBuild, IllegalStep, Phase, Read, Step};
-    use crate::session::SessionState;
+    use dend_protocol::ws::SessionState;
 
     const SOLVE: Step = Step::Install(AfterBuild::Solve);
     const KEEP: Step = Step::Install(AfterBuild::Keep);

@@ -5,13 +5,15 @@
 use std::sync::Arc;
 
 use super::{Actor, AfterBuild, InstalledSet};
+use crate::session::error::SessionError;
 use crate::session::poses::{pose_list, PoseInfo, MAX_NAMED_POSES};
 use crate::session::recovery::transform;
 use crate::session::shared::off_worker;
 use crate::session::shared::PoseCmd;
-use crate::session::{Event, PoseSnapshot, SessionError, SessionState};
+use crate::session::types::{Event, PoseSnapshot};
 use crate::store::{NamedPose, StoreError, StoredTransform};
 use dend::deform::{ConstraintsSpec, RigidTransform};
+use dend_protocol::ws::SessionState;
 
 impl Actor {
     /// Whether a queued pose command may run now: the pose is settled, no

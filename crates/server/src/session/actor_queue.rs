@@ -8,7 +8,9 @@ use std::sync::Arc;
 use std::time::Instant;
 
 use super::{Actor, Phase, Step};
-use crate::session::{Event, FrameHeader, SessionError};
+use crate::session::error::SessionError;
+use crate::session::types::Event;
+use dend_protocol::FrameHeader;
 
 impl Actor {
     /// The factor is ready: applies the queued drags in their order.

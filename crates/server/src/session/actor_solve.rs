@@ -7,9 +7,11 @@ use std::sync::Arc;
 use std::time::Instant;
 
 use super::{Actor, AfterBuild, Step};
-use crate::session::frame::{FrameBody, FrameHeader};
+use crate::session::error::SessionError;
 use crate::session::shared::Internal;
-use crate::session::{Event, Frame, PoseSnapshot, SessionError, SessionState};
+use crate::session::types::{Event, Frame, PoseSnapshot};
+use dend_protocol::ws::SessionState;
+use dend_protocol::{FrameBody, FrameHeader};
 
 impl Actor {
     /// Starts a solve on the solver scheduler when the session is ready and

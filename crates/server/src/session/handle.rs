@@ -8,13 +8,13 @@ use parking_lot::Mutex;
 use tokio::sync::{broadcast, mpsc, oneshot, watch};
 
 use super::actor::Actor;
+use super::error::SessionError;
+use super::recovery::Recovered;
 pub use super::shared::SessionOptions;
 use super::shared::{Cmd, Grabs, Inner, Ownership, Presence, Restore, Shared};
-use super::{
-    wire_stage, ClientId, Delta, Event, Frame, HandleRef, PeerEvent, PoseSnapshot, Recovered,
-    SessionError, SessionInfo, SessionState,
-};
+use super::types::{wire_stage, Delta, Event, Frame, PoseSnapshot};
 use dend::deform::{ConstraintsSpec, Params, Rest};
+use dend_protocol::ws::{ClientId, HandleRef, PeerEvent, SessionInfo, SessionState};
 
 /// A cloneable handle to a running session actor.
 #[derive(Clone)]

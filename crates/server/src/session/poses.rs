@@ -6,8 +6,10 @@
 
 use std::sync::Arc;
 
+use super::error::SessionError;
+use super::handle::SessionHandle;
 use super::shared::{Cmd, PoseCmd, Reply};
-use super::{PoseSnapshot, SessionError, SessionHandle};
+use super::types::PoseSnapshot;
 use crate::store::NamedPose;
 
 /// Most named poses a session keeps.

@@ -12,14 +12,14 @@ use tokio::sync::{broadcast, mpsc, watch};
 
 use tokio::sync::oneshot;
 
-use super::{
-    ClientId, Delta, Event, Frame, Observer, PoseInfo, PoseSnapshot, SessionError, SessionState,
-};
+use super::error::SessionError;
+use super::types::{Delta, Event, Frame, Observer, PoseSnapshot};
 use crate::store::{NamedPose, Store};
 use dend::deform::{BuildStage, Constraints, ConstraintsSpec, Deformer, StepReport};
+use dend_protocol::ws::{ClientId, PoseInfo, SessionState};
 
-use super::frame::FrameBody;
 use dend::deform::{FactorCache, Params, Rest};
+use dend_protocol::FrameBody;
 
 /// What a session needs besides its rest mesh and parameters.
 #[derive(Clone)]
@@ -74,7 +74,7 @@ pub(super) struct Shared {
     /// The factor build's stage under way (`SessionInfo::build_stage`).
     pub build_stage: Option<BuildStage>,
     /// The named poses, listed (`SessionInfo::poses`).
-    pub poses: Arc<Vec<super::PoseInfo>>,
+    pub poses: Arc<Vec<PoseInfo>>,
 }
 
 pub(super) struct Inner {
