@@ -72,6 +72,25 @@ pub fn factorise(
     symbolic: &SymbolicCholesky<usize>,
     m: &sprs::CsMat<Real>,
 ) -> Result<Vec<Real>, LinalgError> {
+    factorise_with(symbolic, m, true)
+}
+
+/// [`factorise`] without the shifted retry: fails with
+/// [`LinalgError::NotPositiveDefinite`] unless `m` is numerically positive
+/// definite as it is. For a matrix that may be indefinite (a Newton
+/// step's Hessian), whose caller then takes another step.
+pub fn factorise_definite(
+    symbolic: &SymbolicCholesky<usize>,
+    m: &sprs::CsMat<Real>,
+) -> Result<Vec<Real>, LinalgError> {
+    factorise_with(symbolic, m, false)
+}
+
+fn factorise_with(
+    symbolic: &SymbolicCholesky<usize>,
+    m: &sprs::CsMat<Real>,
+    retry_shifted: bool,
+) -> Result<Vec<Real>, LinalgError> {
     let n = m.rows();
     let (col_ptr, row_idx) = csr_arrays(m);
     let base = m.indptr().index(0);
@@ -130,7 +149,7 @@ pub fn factorise(
         };
         match r {
             Ok(()) => return Ok(values),
-            Err(index) if shifted.is_some() => {
+            Err(index) if shifted.is_some() || !retry_shifted => {
                 return Err(LinalgError::NotPositiveDefinite { pivot: index })
             }
             Err(index) => {
@@ -261,6 +280,11 @@ mod tests {
             .zip(&want)
             .fold(0.0f64, |a, (x, y)| a.max((x - y).abs()));
         assert!(d <= 1e-9 * scale, "{d:e} of {scale:e}");
+        // without the retry, the failure is reported
+        assert!(matches!(
+            factorise_definite(&sym, &m),
+            Err(LinalgError::NotPositiveDefinite { .. })
+        ));
     }
 
     /// faer's own factor of `m + shift I`.

@@ -159,11 +159,12 @@ fn the_levels_go_down_to_a_small_coarsest_level() {
 /// The converged pose is the minimum's: on a limb-like tube (fixed at one
 /// end, the other end moved sideways and turned 40°) at two resolutions,
 /// the objective reached at the default tolerance with two levels and
-/// with the hierarchy is within 0.5 % of a solve to tolerance 1e-7
-/// (measured: the 960-vertex tube, which has no coarse level, 0.17 %
-/// above with either; the 3840-vertex tube 0.018 % with two levels and
-/// 0.032 % with the hierarchy). The update test stops the one-level
-/// iteration on the smaller tube while it still crawls down a slow mode.
+/// with the hierarchy is within 0.1 % of a solve to tolerance 1e-7
+/// (measured: the 960-vertex tube, which has no coarse level, 0.039 %
+/// above with either; the 3840-vertex tube 0.014 % with two levels and
+/// 0.030 % with the hierarchy). The smaller tube's sequence crawls down a
+/// slow mode until it switches to Newton steps (`solver/newton.rs`);
+/// without them the update test stopped it 0.17 % above.
 #[test]
 fn a_limb_converges_to_the_minimum_at_two_resolutions() {
     let mut rows = Vec::new();
@@ -203,7 +204,7 @@ fn a_limb_converges_to_the_minimum_at_two_resolutions() {
             r.objective
         };
         let tight = solve(Levels::One, 1e-7);
-        for (levels, bound) in [(Levels::Two, 5e-3), (Levels::Many, 5e-3)] {
+        for (levels, bound) in [(Levels::Two, 1e-3), (Levels::Many, 1e-3)] {
             let e = solve(levels, params.tol);
             let rel = (e - tight) / tight;
             let row = format!("{nu}x{nv} {levels:?}: objective {e} against {tight} ({rel:.2e})");

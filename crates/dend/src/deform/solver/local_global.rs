@@ -93,6 +93,12 @@ pub(super) struct State {
     grew: usize,
     /// The coarsest level's Newton iteration (`solver/newton.rs`).
     pub(super) newton: super::newton::NewtonState,
+    /// Iterations of the current sequence so far (over its calls), the
+    /// updates of its last iterations, and whether it has switched to
+    /// Newton steps (`Deformer::takes_newton_step`).
+    pub(super) sequence_iterations: usize,
+    pub(super) recent_updates: std::collections::VecDeque<Real>,
+    pub(super) newton_now: bool,
 }
 
 /// How far (mean edge lengths) a target may be from its vertex's rest
@@ -199,7 +205,13 @@ impl Deformer {
             .filter(|&(id, _)| id == factor.id() && !moved && !self.shows_preview());
         let (mut e, coarse) = match chain {
             Some((_, e)) => (e, None),
-            None => self.start_sequence(factor, (el, set), constraints, moved && !at_rest),
+            None => {
+                let st = &mut self.elastic;
+                st.sequence_iterations = 0;
+                st.recent_updates.clear();
+                st.newton_now = false;
+                self.start_sequence(factor, (el, set), constraints, moved && !at_rest)
+            }
         };
         let st = &mut self.elastic;
         st.handle_rot.clear();
@@ -231,7 +243,7 @@ impl Deformer {
             }
             // 1. global step: Δ = Q_UU⁻¹ (g(R) − Q Y)_U
             self.global_rhs(factor, (el, set));
-            let newton = self.newton && fit;
+            let newton = fit && self.takes_newton_step();
             if newton {
                 self.keep_newton_rhs(nu);
             }
@@ -302,6 +314,7 @@ impl Deformer {
                 e = self.local_step(factor, (el, set), fit, false);
             }
             report.iterations += 1;
+            self.note_update(max_dx);
             report.last_update = max_dx;
             if !fit || max_dx < self.params.tol {
                 report.converged = true;

@@ -56,6 +56,26 @@ const STEPS: [Real; 4] = [1.0, 0.5, 0.25, 0.125];
 /// (docs/performance.md, "The Newton matrix assembled in place").
 pub(super) const NEWTON_COST: Real = 8.0;
 
+/// The fewest local/global iterations a sequence runs before it may
+/// switch to Newton steps ([`Deformer::takes_newton_step`]): an edit that
+/// converges in fewer never pays a Newton iteration's cost.
+pub(super) const NEWTON_AFTER: usize = 20;
+
+/// The iterations over which a sequence's rate of convergence is measured
+/// ([`Deformer::takes_newton_step`]).
+const RATE_WINDOW: usize = 5;
+
+/// A sequence switches to Newton steps when the local/global iterations it
+/// still needs at its measured rate exceed this many: about the cost of
+/// the 4–6 Newton iterations that converge it ([`NEWTON_COST`] each).
+const NEWTON_SWITCH: Real = 5.0 * NEWTON_COST;
+
+/// The most vertices of a mesh whose slow sequences switch to Newton
+/// steps: a Newton iteration costs about [`NEWTON_COST`] local/global
+/// iterations on meshes of 800–1100 vertices, and more above (its factor
+/// fills faster than the global step's).
+pub(super) const NEWTON_MAX_VERTICES: usize = 2000;
+
 /// The Newton iteration's memory: the pattern of `H` for one factor, and
 /// the right-hand side.
 #[derive(Default)]
@@ -190,6 +210,45 @@ impl NewtonPattern {
 }
 
 impl Deformer {
+    /// Whether this iteration takes a Newton step: on the coarsest level of
+    /// a hierarchy always, and on a small mesh once its sequence has run
+    /// [`NEWTON_AFTER`] iterations and its rate of convergence predicts
+    /// more than [`NEWTON_SWITCH`] more (it then takes them to the end of
+    /// the sequence: Newton's method converges fast only over consecutive
+    /// steps).
+    pub(super) fn takes_newton_step(&self) -> bool {
+        self.newton || self.elastic.newton_now
+    }
+
+    /// Records an iteration's update `max_dx` (the plain step's largest
+    /// move) for [`Deformer::takes_newton_step`].
+    pub(super) fn note_update(&mut self, max_dx: Real) {
+        let small = self.rest.mesh.num_vertices() <= NEWTON_MAX_VERTICES;
+        let tol = self.params.tol;
+        let st = &mut self.elastic;
+        st.sequence_iterations += 1;
+        if st.recent_updates.len() > RATE_WINDOW {
+            st.recent_updates.pop_front();
+        }
+        st.recent_updates.push_back(max_dx);
+        if st.newton_now || !small || st.sequence_iterations < NEWTON_AFTER {
+            return;
+        }
+        if let (Some(&first), true) = (
+            st.recent_updates.front(),
+            st.recent_updates.len() > RATE_WINDOW,
+        ) {
+            // the update's mean rate of decrease over the window
+            let rate = (max_dx / first).powf(1.0 / RATE_WINDOW as Real);
+            let remaining = if rate < 1.0 {
+                (tol / max_dx).ln() / rate.ln()
+            } else {
+                Real::INFINITY
+            };
+            st.newton_now = remaining > NEWTON_SWITCH;
+        }
+    }
+
     /// Keeps `r_U` (the global step's right-hand side, column-major in
     /// `rhs`) for the Newton step of this iteration.
     pub(super) fn keep_newton_rhs(&mut self, nu: usize) {
@@ -255,7 +314,8 @@ impl Deformer {
         for curvature in [Curvature::Full, Curvature::Projected] {
             self.assemble_newton(factor, (el, set), curvature)?;
             let pattern = self.elastic.newton.pattern.as_ref()?;
-            if let Ok(v) = dend_linalg::cholesky::factorise(&pattern.symbolic, &pattern.h) {
+            if let Ok(v) = dend_linalg::cholesky::factorise_definite(&pattern.symbolic, &pattern.h)
+            {
                 values = Some(v);
                 break;
             }

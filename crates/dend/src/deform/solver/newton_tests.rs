@@ -214,3 +214,34 @@ fn the_matrix_is_the_reduced_energys_hessian() {
         assert!(projected > 1e-3, "{name}: {projected:e}");
     }
 }
+
+/// The generated bar bent 180° in three steps (the posing suite's
+/// `bar-bend-180`): the local/global iteration crawls down a slow mode
+/// and reached the 100-iteration cap at every step; a sequence that
+/// predicts a long crawl switches to Newton steps (at least one step
+/// does), and every step converges within the cap, each from the last
+/// one's pose.
+#[test]
+fn a_crawling_bend_switches_to_newton_steps_and_converges() {
+    use crate::deform::ConstraintsSpec;
+    use crate::mesh::gen::{generate, Shape, ShapeSpec};
+    let mesh = generate(&ShapeSpec::default_for(Shape::Bar)).unwrap();
+    assert!(mesh.num_vertices() <= super::newton::NEWTON_MAX_VERTICES);
+    let spec: ConstraintsSpec =
+        serde_json::from_str(include_str!("../../../../../examples/bar-bend-180.json")).unwrap();
+    let c = spec.resolve(&mesh).unwrap();
+    let full = c.handles[0].target;
+    let params = Params::default();
+    let rest = Arc::new(Rest::new(mesh).unwrap());
+    let f = Factor::build(&rest, &params, &c).unwrap();
+    let mut d = Deformer::new(rest, params);
+    let mut switched = 0;
+    for k in 1..=3 {
+        let mut step = c.clone();
+        step.handles[0].target = full.fraction(k as Real / 3.0);
+        let r = d.step(&f, &step, 100).unwrap();
+        assert!(r.converged, "step {k}: {r:?}");
+        switched += d.elastic.newton_now as usize;
+    }
+    assert!(switched > 0, "no step switched to Newton steps");
+}
