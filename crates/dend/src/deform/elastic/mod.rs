@@ -65,14 +65,13 @@ use super::system::{add_soft_diagonal, partition, System};
 use crate::mesh::{Mesh, Point, Real};
 
 mod area;
-mod hessian;
+pub(crate) mod hessian;
 mod residual;
 
 use crate::operators::Operators;
 pub use area::project_area;
 use area::{area_element, gradient, AreaElement, AreaForces};
 use dend_linalg::sparse::matmul;
-pub(crate) use hessian::Curvature;
 
 /// Element count from which the local step runs on the rayon pool.
 const PARALLEL_MIN: usize = 2048;

@@ -40,7 +40,8 @@ use faer::{Conj, MatMut, Par, Side};
 use nalgebra::Matrix3;
 
 use super::Deformer;
-use crate::deform::elastic::{Curvature, ElasticOps, ElasticSet};
+use crate::deform::elastic::hessian::Curvature;
+use crate::deform::elastic::{ElasticOps, ElasticSet};
 use crate::deform::factor::Factor;
 use crate::mesh::Real;
 
@@ -316,11 +317,11 @@ impl Deformer {
             let pattern = self.elastic.newton.pattern.as_ref()?;
             if let Ok(v) = dend_linalg::cholesky::factorise_definite(&pattern.symbolic, &pattern.h)
             {
-                values = Some(v);
+                values = Some((v, curvature));
                 break;
             }
         }
-        let values = values?;
+        let (values, curvature) = values?;
         let n = &mut self.elastic.newton;
         let pattern = n.pattern.as_ref()?;
         let llt = LltRef::new(&pattern.symbolic, &values);
@@ -346,12 +347,18 @@ impl Deformer {
             self.set_unknowns(factor, super::local_global::Flat::Candidate);
             let e_try = self.local_step(factor, (el, set), true, true);
             if e_try.is_finite() && e_try < e {
+                tracing::debug!(?curvature, alpha, e, e_try, "newton step");
                 let st = &mut self.elastic;
                 std::mem::swap(&mut st.rot, &mut st.rot_try);
                 std::mem::swap(&mut st.proj, &mut st.proj_try);
                 return Some(e_try);
             }
         }
+        tracing::debug!(
+            ?curvature,
+            e,
+            "newton step: no step length lowers the energy"
+        );
         None
     }
 }

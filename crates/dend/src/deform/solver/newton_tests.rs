@@ -8,7 +8,7 @@ use std::sync::Arc;
 use nalgebra::{DMatrix, UnitQuaternion, Vector3};
 
 use super::test_util::{max_dist, patch_edit};
-use crate::deform::elastic::Curvature;
+use crate::deform::elastic::hessian::Curvature;
 use crate::deform::{Deformer, Factor, Params, Rest};
 use crate::mesh::gen::{irregular_patch, PatchSurface};
 use crate::mesh::Real;
