@@ -107,6 +107,21 @@ pub const CORRECTION_CHUNK: usize = 5;
 /// correction changes. A ratio of updates: no unit.
 pub const CORRECTION_DRIFT: usize = 8;
 
+/// The iterations of a correction's coarse solve on a level of a
+/// hierarchy that has a level below it ([`Levels::Many`]): a cycle
+/// (Brandt's FAS V-cycle), not a converged solve. Its own corrections
+/// (every `correction_period` iterations) go down a level the same way,
+/// and only the coarsest level (Newton steps) converges its problem. So a
+/// correction costs a bounded share of a fine iteration on every level but
+/// the coarsest, where a Newton step removes the slow mode (a far part
+/// turning as a whole) that the local/global iteration crawls along at
+/// every resolution. Measured (`drag_sim --path arc --levels 3`, work in
+/// fine iterations): converged solves on every level, feline one-shot
+/// 57.8 and settle 240.7, armadillo 186.2 and 243.7; cycles of 5
+/// iterations 42.2 and 76.7, 130.6 and 145.5; of 10, 50.9 and 53.8,
+/// 152.4 and 137.3 (docs/performance.md).
+pub const CYCLE_ITERS: usize = 10;
+
 /// How many levels an elastic sequence uses.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
 pub enum Levels {
@@ -122,10 +137,12 @@ pub enum Levels {
     /// A hierarchy: as `Two`, and the coarse problem is solved the same way
     /// on a level of its own, down to a level under
     /// [`coarse::MIN_VERTICES`](crate::deform::coarse::MIN_VERTICES),
-    /// whose iteration takes Newton steps (`solver/newton.rs`).
+    /// whose iteration takes Newton steps (`solver/newton.rs`); a
+    /// correction's solve on a level above that one runs
+    /// [`CYCLE_ITERS`] iterations (a cycle), not to convergence.
     /// Not the default: measured against `Two` in docs/performance.md
-    /// (fewer fine-iteration equivalents for some one-shot solves, more for
-    /// the settles after a gesture).
+    /// (less work on the camel and the feline, one-shot and settle; more
+    /// on the armadillo).
     Many,
 }
 
@@ -144,6 +161,8 @@ pub(super) struct CoarseProblem {
     pub(super) level: Arc<CoarseLevel>,
     pub(super) factor: Arc<Factor>,
     pub(super) deformer: Box<Deformer>,
+    /// The levels the coarse problem's own solve uses.
+    levels_below: Levels,
     /// Constrained vertices of the fine and of the coarse mesh.
     fine_fixed: Vec<bool>,
     coarse_fixed: Vec<bool>,
@@ -204,6 +223,7 @@ pub(super) fn coarse_problem(
     // the coarsest level of a hierarchy takes Newton steps
     deformer.newton = levels == Levels::Many && level.rest.coarse_at_most(ratio).is_none();
     Some(CoarseProblem {
+        levels_below: levels.below(),
         level,
         factor,
         deformer,
@@ -478,7 +498,12 @@ impl Deformer {
             coarse.set_linear_term(s);
             coarse.interrupt = fine.interrupt.clone();
             coarse.drift_limit = Some(CORRECTION_DRIFT);
-            let report = if p.slow {
+            // a level of a hierarchy with a level below it smooths; the
+            // coarsest converges
+            let cycle = p.levels_below == Levels::Many && !coarse.newton;
+            let report = if cycle {
+                coarse.step(&p.factor, cc, CYCLE_ITERS).ok()
+            } else if p.slow {
                 solve_until_stalled(coarse, &p.factor, cc)
             } else {
                 coarse.step(&p.factor, cc, CORRECTION_MAX_ITERS).ok()
