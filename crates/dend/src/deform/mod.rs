@@ -54,8 +54,9 @@ pub use params::{
 };
 pub use rest::{Rest, VertexOrdering};
 pub use rotation::{best_rotation, fit_rotation, fit_rotation_quat, rotation_from_covariance};
-pub use solver::{
-    Deformer, Levels, PreviewReport, StepReport, COARSE_MAX_ITERS, CORRECTION_MAX_ITERS,
-    PREVIEW_ITERATIONS, PREVIEW_MIN_VERTICES, PREVIEW_PASSES, PREVIEW_VERTICES,
+pub use solver::multilevel::{COARSE_MAX_ITERS, CORRECTION_MAX_ITERS};
+pub use solver::preview::{
+    PreviewReport, PREVIEW_ITERATIONS, PREVIEW_MIN_VERTICES, PREVIEW_PASSES, PREVIEW_VERTICES,
 };
+pub use solver::{Deformer, Levels, StepReport};
 pub use warnings::{ConstraintWarning, STRAY_LISTED};

@@ -9,6 +9,7 @@ use faer::MatMut;
 use nalgebra::{UnitQuaternion, Vector3};
 use rayon::prelude::*;
 
+use super::scratch::Chain;
 use super::{Deformer, StepReport};
 use crate::deform::anderson::Anderson;
 use crate::deform::constraints::Constraints;
@@ -44,61 +45,6 @@ const MAX_AA_BACKOFF: u32 = 8;
 /// rayon pool, in chunks of [`ROW_CHUNK`] rows.
 const PARALLEL_MIN_ROWS: usize = 4096;
 const ROW_CHUNK: usize = 2048;
-
-#[derive(Default)]
-pub(super) struct Scratch {
-    rot: Vec<UnitQuaternion<Real>>,
-    tdelta: Vec<Point>,
-    lv: Vec<Point>,
-    dhat: Vec<Point>,
-    /// `#V` buffers of the products with `L` (stacked.rs): `e` for the
-    /// residual; `u`, `v`, `Lᵀ u` and the inner vector of `J_Uᵀ r`.
-    e: Vec<Point>,
-    gu: Vec<Point>,
-    gv: Vec<Point>,
-    glu: Vec<Point>,
-    gx: Vec<Point>,
-    /// Residual `b - J Y`, column-major `2|R| × 3`.
-    r: Vec<Real>,
-    /// Right-hand side / solution, column-major `|U| × 3`.
-    rhs: Vec<Real>,
-    y_prev: Vec<Point>,
-    best: Vec<Point>,
-    /// The constrained vertices and their normalised targets, and the
-    /// same targets in mesh units as given (`load_targets`).
-    pub(super) targets: Vec<(u32, Point)>,
-    pub(super) targets_given: Vec<Point>,
-    /// Anderson history and flat `3|U|` buffers (current iterate, candidate).
-    anderson: Anderson,
-    x_flat: Vec<Real>,
-    cand: Vec<Real>,
-    pub(super) mem: Option<MemBuffer>,
-    sized_for: (usize, usize),
-    /// Set when `r` (and `rot`, `dhat`) hold the evaluation of the current
-    /// pose `y`: the next step on unchanged targets continues this chain.
-    pub(super) evaluated: Option<Chain>,
-}
-
-/// The state a step leaves for the next one on unchanged targets: the next
-/// step starts without re-evaluating (a one-iteration settle frame costs one
-/// evaluation, not two) and is safeguarded like the continuation of one long
-/// step (`Scratch::best` still holds the chain's best pose).
-#[derive(Clone, Copy)]
-pub(super) struct Chain {
-    /// The factor the evaluation was made with.
-    factor: u64,
-    /// The objective at the current pose.
-    f: Real,
-    /// Consecutive growing steps so far.
-    growing: usize,
-    /// The best objective of the chain.
-    best_f: Real,
-    /// The objective at the start of the chain.
-    f_start: Real,
-    /// Anderson back-off: candidates still to skip, and the current skip length.
-    aa_skip: u32,
-    aa_backoff: u32,
-}
 
 impl Deformer {
     /// [`Deformer::step`] for eq. (24) and eq. (23): up to `max_iters`

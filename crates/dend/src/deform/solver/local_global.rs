@@ -31,7 +31,8 @@ use faer::dyn_stack::{MemBuffer, MemStack};
 use faer::MatMut;
 use nalgebra::UnitQuaternion;
 
-use super::multilevel::{CoarseRun, Levels};
+use super::levels::{CoarseRun, Levels};
+use super::state::{Start, State};
 use super::{Deformer, StepReport};
 use crate::deform::anderson::Anderson;
 use crate::deform::constraints::Constraints;
@@ -40,66 +41,7 @@ use crate::deform::error::DeformError;
 use crate::deform::factor::Factor;
 use crate::deform::params::DetailTerm;
 use crate::deform::stacked::mul_l;
-use crate::mesh::{Point, Real};
-
-/// The elastic iteration's memory, sized once per constraint set.
-#[derive(Default)]
-pub(super) struct State {
-    /// `R(Y)` of the current pose (and the candidate's, while tried).
-    pub(super) rot: Vec<UnitQuaternion<Real>>,
-    pub(super) rot_try: Vec<UnitQuaternion<Real>>,
-    /// The area projections `P_t` (and the candidate's).
-    pub(super) proj: Vec<[Real; 6]>,
-    pub(super) proj_try: Vec<[Real; 6]>,
-    /// `L Y`.
-    pub(super) ly: Vec<Point>,
-    /// `R_i δ_i` and `R_i` as matrices (scratch), and the residual
-    /// `g(R) − Q Y`, `#V`.
-    pub(super) t: Vec<Point>,
-    pub(super) rm: Vec<[Real; 4]>,
-    pub(super) res: Vec<Point>,
-    /// Right-hand side / update, column-major `|U| × 3`.
-    pub(super) rhs: Vec<Real>,
-    /// Flat `3|U|` current iterate, Anderson candidate and `Q_UU Δ`.
-    pub(super) x_flat: Vec<Real>,
-    pub(super) cand: Vec<Real>,
-    mf: Vec<Real>,
-    /// How the next sequence starts.
-    start: Start,
-    anderson: Anderson,
-    pub(super) mem: Option<MemBuffer>,
-    sized_for: (u64, usize),
-    /// The energy of the current pose and the factor it was computed with,
-    /// when the next call may continue the sequence.
-    pub(super) chain: Option<(u64, Real)>,
-    /// The handles' target rotations the current pose was solved for
-    /// (empty from the rest pose): a new target turns the rotations by
-    /// the change ([`Deformer::propagate_rotation_change`]).
-    pub(super) handle_rot: Vec<UnitQuaternion<Real>>,
-    /// Each handle's harmonic weight `φ_h` over the vertices (`#V` per
-    /// handle, 0 off the free vertices), for the factor with this id.
-    pub(super) harmonic: Option<(u64, Vec<Vec<Real>>)>,
-    /// A linear term `−2⟨s, Y⟩` added to the objective (`#V`, empty for
-    /// none): the coarse problem of a correction (`solver/multilevel.rs`).
-    pub(super) linear: Vec<Point>,
-    /// Whether this sequence still tries coarse corrections, the fine
-    /// iterations since the last one, and the energy after it.
-    pub(super) corrections: bool,
-    pub(super) since_correction: usize,
-    pub(super) e_mark: Real,
-    /// The sequence's last update (largest vertex move) and how many
-    /// iterations in a row it has grown ([`Deformer::drift_limit`]).
-    last_update: Real,
-    grew: usize,
-    /// The coarsest level's Newton iteration (`solver/newton.rs`).
-    pub(super) newton: super::newton::NewtonState,
-    /// Iterations of the current sequence so far (over its calls), the
-    /// updates of its last iterations, and whether it has switched to
-    /// Newton steps (`Deformer::takes_newton_step`).
-    pub(super) sequence_iterations: usize,
-    pub(super) recent_updates: std::collections::VecDeque<Real>,
-    pub(super) newton_now: bool,
-}
+use crate::mesh::Real;
 
 /// How far (mean edge lengths) a target may be from its vertex's rest
 /// position and still count as the rest position
@@ -110,20 +52,6 @@ const REST_TARGET_TOLERANCE: Real = 1e-9;
 /// counts towards [`Deformer::drift_limit`]: above rounding, far below the
 /// 1–4 % a drifting solve grows by per iteration.
 const DRIFT_MARGIN: Real = 1e-6;
-
-/// How a new iteration sequence gets its first rotations.
-#[derive(Default, Clone, Copy, PartialEq, Eq)]
-enum Start {
-    /// The pose is the rest pose: rotations from a coarse solve
-    /// ([`Deformer::coarse_start`]) or, without one, propagated from the
-    /// handles' rotations ([`Deformer::propagate_rotations`]).
-    #[default]
-    Rest,
-    /// The pose or the weights were replaced: fit the rotations to it.
-    Refit,
-    /// The rotations are the current pose's: keep them.
-    Warm,
-}
 
 impl State {
     /// Whether the next sequence starts from the rest pose.
@@ -288,7 +216,7 @@ impl Deformer {
                     e = e_n;
                     accepted = true;
                 }
-                report.coarse_work += super::newton::NEWTON_COST - 1.0;
+                report.coarse_work += super::newton_state::NEWTON_COST - 1.0;
             }
             let st = &mut self.elastic;
             if accelerate {

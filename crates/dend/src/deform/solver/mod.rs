@@ -3,20 +3,36 @@
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
 
-use super::constraints::Constraints;
+use nalgebra::{Matrix3, UnitQuaternion, Vector3};
+
+use super::coarse::CoarseLevel;
+use super::constraints::{Constraints, RigidTransform};
 use super::error::DeformError;
 use super::factor::{Factor, FactorKey};
 use super::params::Params;
 use super::rest::Rest;
 use crate::mesh::{Point, Real};
+use levels::CoarseRun;
+pub use levels::Levels;
+use scratch::Scratch;
+use state::State;
 
+// The iteration's steps (`impl Deformer` blocks) name this file's types;
+// the state a `Deformer` holds is in the leaves (`state.rs`,
+// `newton_state.rs`, `scratch.rs`, `levels.rs`), so this file names none
+// of the steps (docs/architecture.md, "Layering"). deform/mod.rs
+// re-exports the public items of `multilevel.rs` and `preview.rs`.
 mod correct;
 mod least_squares;
+mod levels;
 mod local_global;
-mod multilevel;
+pub(super) mod multilevel;
 mod newton;
-mod preview;
+mod newton_state;
+pub(super) mod preview;
 mod propagate;
+mod scratch;
+mod state;
 
 #[cfg(test)]
 mod hierarchy_tests;
@@ -32,13 +48,6 @@ mod order_tests;
 mod rest_start_tests;
 #[cfg(test)]
 mod test_util;
-
-pub use multilevel::{Levels, COARSE_MAX_ITERS, CORRECTION_MAX_ITERS};
-pub use preview::{
-    PreviewReport, PREVIEW_ITERATIONS, PREVIEW_MIN_VERTICES, PREVIEW_PASSES, PREVIEW_VERTICES,
-};
-
-use least_squares::Scratch;
 
 /// What one [`Deformer::step`] did.
 #[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
@@ -94,12 +103,12 @@ pub struct Deformer {
     pose_user: Vec<Point>,
     scratch: Scratch,
     /// The elastic formulation's state (rotations, projections, Anderson).
-    elastic: local_global::State,
+    elastic: State,
     /// Whether sequences from rest start on the coarse level.
     levels: Levels,
     /// The coarse problem of the last fine factor a coarse start or
     /// correction used.
-    coarse: Option<multilevel::CoarseSlot>,
+    coarse: Option<CoarseSlot>,
     /// Whether coarse corrections wait (a gesture is under way; see
     /// [`Deformer::hold_corrections`]).
     corrections_held: bool,
@@ -113,11 +122,72 @@ pub struct Deformer {
     /// iteration takes Newton steps (`solver/newton.rs`).
     newton: bool,
     /// The coarse previews' problem and last pose ([`Deformer::preview`]).
-    preview: Option<Box<preview::Preview>>,
+    preview: Option<Box<Preview>>,
     /// Raised by another thread to stop a step at its next safe point
     /// ([`Deformer::set_interrupt`]).
     interrupt: Option<Arc<AtomicBool>>,
 }
+
+/// The coarse problem of one fine constraint set.
+struct CoarseProblem {
+    level: Arc<CoarseLevel>,
+    factor: Arc<Factor>,
+    deformer: Box<Deformer>,
+    /// The levels the coarse problem's own solve uses.
+    levels_below: Levels,
+    /// Constrained vertices of the fine and of the coarse mesh.
+    fine_fixed: Vec<bool>,
+    coarse_fixed: Vec<bool>,
+    /// A coarse start solved ahead, beside the fine factorisation
+    /// ([`Deformer::build_factor`]), for the next sequence from rest.
+    solved_start: Option<SolvedStart>,
+    /// A correction's coarse solve reached [`CORRECTION_MAX_ITERS`]
+    /// without converging: the coarse problem has a slow mode of its own,
+    /// and later corrections stop their coarse solves once they gain
+    /// little ([`CORRECTION_STALL`]).
+    ///
+    /// [`CORRECTION_MAX_ITERS`]: multilevel::CORRECTION_MAX_ITERS
+    /// [`CORRECTION_STALL`]: multilevel::CORRECTION_STALL
+    slow: bool,
+}
+
+/// The coarse start of one set of targets, solved ahead.
+struct SolvedStart {
+    /// The handles' targets it was solved for.
+    targets: Vec<RigidTransform>,
+    /// The coarse rotations it reached.
+    rotations: Vec<UnitQuaternion<Real>>,
+    run: CoarseRun,
+}
+
+/// The coarse problem of the fine factor with id `.0 .0` at the coarse
+/// ratio `.0 .1`, `None` when the set does not survive restriction or the
+/// coarse factorisation failed.
+type CoarseSlot = ((u64, usize), Option<Box<CoarseProblem>>);
+
+/// The preview state of a deformer.
+struct Preview {
+    /// The fine factor id and the level's ratio the problem was built for.
+    key: (u64, usize),
+    problem: Option<Box<CoarseProblem>>,
+    /// Whether the coarse pose follows the current gesture (else the next
+    /// preview injects the fine pose first).
+    following: bool,
+    /// Whether `pose` is newer than the fine pose: the next
+    /// [`Deformer::step`] starts from it.
+    pending: bool,
+    /// The prolongated pose (mesh units, `#V`).
+    pose: Vec<Point>,
+    /// `pose` in the mesh's vertex order when the solver renumbered it
+    /// (`Rest::vertex_order`; empty otherwise).
+    pose_user: Vec<Point>,
+    /// The blended rigid motions `(M_i, t_i)` and their next pass.
+    blend: Vec<Motion>,
+    next: Vec<Motion>,
+}
+
+/// An affine motion `x ↦ M x + t` (a blend of rigid ones).
+type Motion = (Matrix3<Real>, Vector3<Real>);
 
 impl Deformer {
     /// A deformer at the rest pose.
@@ -135,7 +205,7 @@ impl Deformer {
             pose,
             pose_user,
             scratch: Scratch::default(),
-            elastic: local_global::State::default(),
+            elastic: State::default(),
             levels: Levels::default(),
             coarse: None,
             corrections_held: false,

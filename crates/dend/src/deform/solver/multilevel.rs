@@ -46,7 +46,8 @@ use std::time::Instant;
 
 use nalgebra::{UnitQuaternion, Vector3};
 
-use super::Deformer;
+use super::levels::{CoarseRun, Levels};
+use super::{CoarseProblem, Deformer, SolvedStart};
 use crate::deform::coarse::{CoarseLevel, PROLONGATION_PASSES, RESTRICTION_PASSES};
 use crate::deform::constraints::{Constraints, RigidTransform};
 use crate::deform::elastic::{ElasticOps, ElasticSet};
@@ -122,30 +123,6 @@ pub const CORRECTION_DRIFT: usize = 8;
 /// 152.4 and 137.3 (docs/performance.md).
 pub const CYCLE_ITERS: usize = 10;
 
-/// How many levels an elastic sequence uses.
-#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
-pub enum Levels {
-    /// The fine mesh only: first rotations from the handles' rotations
-    /// spread by harmonic weights, no corrections.
-    One,
-    /// The coarse level where the mesh has one and the constraint set
-    /// survives on it (`deform::coarse`): a coarse start from the rest pose
-    /// and coarse corrections (module docs); else as `One`. The coarse
-    /// problem is solved on its own level only.
-    #[default]
-    Two,
-    /// A hierarchy: as `Two`, and the coarse problem is solved the same way
-    /// on a level of its own, down to a level under
-    /// [`coarse::MIN_VERTICES`](crate::deform::coarse::MIN_VERTICES),
-    /// whose iteration takes Newton steps (`solver/newton.rs`); a
-    /// correction's solve on a level above that one runs
-    /// [`CYCLE_ITERS`] iterations (a cycle), not to convergence.
-    /// Not the default: measured against `Two` in docs/performance.md
-    /// (less work on the camel and the feline, one-shot and settle; more
-    /// on the armadillo).
-    Many,
-}
-
 impl Levels {
     /// The levels the coarse problem's own solve uses.
     fn below(self) -> Levels {
@@ -155,40 +132,6 @@ impl Levels {
         }
     }
 }
-
-/// The coarse problem of one fine constraint set.
-pub(super) struct CoarseProblem {
-    pub(super) level: Arc<CoarseLevel>,
-    pub(super) factor: Arc<Factor>,
-    pub(super) deformer: Box<Deformer>,
-    /// The levels the coarse problem's own solve uses.
-    levels_below: Levels,
-    /// Constrained vertices of the fine and of the coarse mesh.
-    fine_fixed: Vec<bool>,
-    coarse_fixed: Vec<bool>,
-    /// A coarse start solved ahead, beside the fine factorisation
-    /// ([`Deformer::build_factor`]), for the next sequence from rest.
-    solved_start: Option<SolvedStart>,
-    /// A correction's coarse solve reached [`CORRECTION_MAX_ITERS`]
-    /// without converging: the coarse problem has a slow mode of its own,
-    /// and later corrections stop their coarse solves once they gain
-    /// little ([`CORRECTION_STALL`]).
-    slow: bool,
-}
-
-/// The coarse start of one set of targets, solved ahead.
-struct SolvedStart {
-    /// The handles' targets it was solved for.
-    targets: Vec<RigidTransform>,
-    /// The coarse rotations it reached.
-    rotations: Vec<UnitQuaternion<Real>>,
-    run: CoarseRun,
-}
-
-/// The coarse problem of the fine factor with id `.0 .0` at the coarse
-/// ratio `.0 .1`, `None` when the set does not survive restriction or the
-/// coarse factorisation failed.
-pub(super) type CoarseSlot = ((u64, usize), Option<Box<CoarseProblem>>);
 
 /// The coarse parameters of a fine problem: the fine ones, with the fine
 /// tolerance in the coarse level's mean edge lengths.
@@ -308,20 +251,6 @@ pub(super) fn solve_until_stalled(
 /// The handles' targets of a constraint set, in order.
 fn targets_of(constraints: &Constraints) -> Vec<RigidTransform> {
     constraints.handles.iter().map(|h| h.target).collect()
-}
-
-/// What a coarse start or correction did.
-#[derive(Debug, Clone, Copy, Default)]
-pub(super) struct CoarseRun {
-    /// Coarse iterations.
-    pub iterations: usize,
-    /// Wall time (level and coarse factor when first needed, coarse solve,
-    /// transfers and the fine steps of a correction), ms.
-    pub ms: Real,
-    /// The work in fine iterations ([`StepReport::coarse_work`]).
-    ///
-    /// [`StepReport::coarse_work`]: crate::deform::StepReport::coarse_work
-    pub work: Real,
 }
 
 /// The outcome of a coarse correction.

@@ -32,13 +32,12 @@
 //! of `Q_UU`).
 
 use faer::dyn_stack::{MemBuffer, MemStack};
-use faer::sparse::linalg::cholesky::{
-    factorize_symbolic_cholesky, LltRef, SymbolicCholesky, SymmetricOrdering,
-};
+use faer::sparse::linalg::cholesky::{factorize_symbolic_cholesky, LltRef, SymmetricOrdering};
 use faer::sparse::SymbolicSparseColMatRef;
 use faer::{Conj, MatMut, Par, Side};
 use nalgebra::Matrix3;
 
+use super::newton_state::{NewtonPattern, NEWTON_COST};
 use super::Deformer;
 use crate::deform::elastic::hessian::Curvature;
 use crate::deform::elastic::{ElasticOps, ElasticSet};
@@ -47,15 +46,6 @@ use crate::mesh::Real;
 
 /// The line search's step lengths, tried in order.
 const STEPS: [Real; 4] = [1.0, 0.5, 0.25, 0.125];
-
-/// What a Newton iteration costs in iterations of the same level's
-/// local/global step (assembly and numeric factorisation of the `3|U|`
-/// matrix, the solve and the line search's local steps), for the work
-/// measure [`StepReport::coarse_work`](crate::deform::StepReport::coarse_work).
-/// Timed on the camel's coarsest level (1087 vertices, 857 unknowns): a
-/// Newton iteration took about 8 of its local/global iterations
-/// (docs/performance.md, "The Newton matrix assembled in place").
-pub(super) const NEWTON_COST: Real = 8.0;
 
 /// The fewest local/global iterations a sequence runs before it may
 /// switch to Newton steps ([`Deformer::takes_newton_step`]): an edit that
@@ -76,31 +66,6 @@ const NEWTON_SWITCH: Real = 5.0 * NEWTON_COST;
 /// iterations on meshes of 800–1100 vertices, and more above (its factor
 /// fills faster than the global step's).
 pub(super) const NEWTON_MAX_VERTICES: usize = 2000;
-
-/// The Newton iteration's memory: the pattern of `H` for one factor, and
-/// the right-hand side.
-#[derive(Default)]
-pub(super) struct NewtonState {
-    pub(super) pattern: Option<NewtonPattern>,
-    /// `r_U`, then `Δ`, interleaved (`3u + k`).
-    pub(super) rhs: Vec<Real>,
-}
-
-/// The structure of `H` for one constraint set: its 3×3 block pattern,
-/// the scalar matrix whose values each iteration overwrites, and its
-/// symbolic Cholesky factorisation.
-pub(super) struct NewtonPattern {
-    /// The factor it belongs to.
-    factor_id: u64,
-    /// Block rows (CSR; symmetric, so also the block columns): the sorted
-    /// block columns of block row `k` are `cols[ptr[k]..ptr[k + 1]]`.
-    ptr: Vec<usize>,
-    cols: Vec<u32>,
-    /// `H`, `3|U| × 3|U|`, CSR; row `3k + r` holds block row `k`'s blocks'
-    /// row `r`, three entries per block.
-    pub(super) h: sprs::CsMat<Real>,
-    symbolic: SymbolicCholesky<usize>,
-}
 
 impl NewtonPattern {
     /// The pattern of `H` for `factor`'s constraint set: `Q_UU`'s entries

@@ -28,8 +28,8 @@ use std::time::Instant;
 use nalgebra::{Matrix3, Vector3};
 use rayon::prelude::*;
 
-use super::multilevel::{coarse_params, coarse_problem, CoarseProblem};
-use super::Deformer;
+use super::multilevel::{coarse_params, coarse_problem};
+use super::{Deformer, Motion, Preview};
 use crate::deform::constraints::Constraints;
 use crate::deform::elastic::{ElasticOps, ElasticSet};
 use crate::deform::error::DeformError;
@@ -68,30 +68,6 @@ pub struct PreviewReport {
     /// That work in fine iterations (`StepReport::coarse_work`).
     pub work: Real,
 }
-
-/// The preview state of a deformer.
-pub(super) struct Preview {
-    /// The fine factor id and the level's ratio the problem was built for.
-    key: (u64, usize),
-    problem: Option<Box<CoarseProblem>>,
-    /// Whether the coarse pose follows the current gesture (else the next
-    /// preview injects the fine pose first).
-    following: bool,
-    /// Whether `pose` is newer than the fine pose: the next
-    /// [`Deformer::step`] starts from it.
-    pub(super) pending: bool,
-    /// The prolongated pose (mesh units, `#V`).
-    pub(super) pose: Vec<Point>,
-    /// `pose` in the mesh's vertex order when the solver renumbered it
-    /// (`Rest::vertex_order`; empty otherwise).
-    pose_user: Vec<Point>,
-    /// The blended rigid motions `(M_i, t_i)` and their next pass.
-    blend: Vec<Motion>,
-    next: Vec<Motion>,
-}
-
-/// An affine motion `x ↦ M x + t` (a blend of rigid ones).
-type Motion = (Matrix3<Real>, Vector3<Real>);
 
 /// The ratio of the preview level of a mesh of `n` vertices solved with
 /// `params` (at least the corrections' ratio), `None` without previews

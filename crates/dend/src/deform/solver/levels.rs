@@ -1,0 +1,46 @@
+//! How many levels an elastic sequence uses ([`Levels`]) and what a coarse
+//! run did ([`CoarseRun`]): pure data a [`Deformer`] holds and
+//! `multilevel.rs` works with, in a leaf below both.
+//!
+//! [`Deformer`]: super::Deformer
+
+use crate::mesh::Real;
+
+/// How many levels an elastic sequence uses.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub enum Levels {
+    /// The fine mesh only: first rotations from the handles' rotations
+    /// spread by harmonic weights, no corrections.
+    One,
+    /// The coarse level where the mesh has one and the constraint set
+    /// survives on it (`deform::coarse`): a coarse start from the rest pose
+    /// and coarse corrections (module docs); else as `One`. The coarse
+    /// problem is solved on its own level only.
+    #[default]
+    Two,
+    /// A hierarchy: as `Two`, and the coarse problem is solved the same way
+    /// on a level of its own, down to a level under
+    /// [`coarse::MIN_VERTICES`](crate::deform::coarse::MIN_VERTICES),
+    /// whose iteration takes Newton steps (`solver/newton.rs`); a
+    /// correction's solve on a level above that one runs
+    /// [`CYCLE_ITERS`](super::multilevel::CYCLE_ITERS) iterations (a
+    /// cycle), not to convergence.
+    /// Not the default: measured against `Two` in docs/performance.md
+    /// (less work on the camel and the feline, one-shot and settle; more
+    /// on the armadillo).
+    Many,
+}
+
+/// What a coarse start or correction did.
+#[derive(Debug, Clone, Copy, Default)]
+pub(super) struct CoarseRun {
+    /// Coarse iterations.
+    pub iterations: usize,
+    /// Wall time (level and coarse factor when first needed, coarse solve,
+    /// transfers and the fine steps of a correction), ms.
+    pub ms: Real,
+    /// The work in fine iterations ([`StepReport::coarse_work`]).
+    ///
+    /// [`StepReport::coarse_work`]: crate::deform::StepReport::coarse_work
+    pub work: Real,
+}
