@@ -47,6 +47,10 @@ use crate::mesh::Real;
 /// The line search's step lengths, tried in order.
 const STEPS: [Real; 4] = [1.0, 0.5, 0.25, 0.125];
 
+/// How many Newton iterations after the exact Hessian failed to factor
+/// take the convex model directly.
+const CONVEX_AFTER_FAILURE: usize = 2;
+
 /// The fewest local/global iterations a sequence runs before it may
 /// switch to Newton steps ([`Deformer::takes_newton_step`]): an edit that
 /// converges in fewer never pays a Newton iteration's cost.
@@ -276,14 +280,27 @@ impl Deformer {
         let nu = factor.sys.unknowns.len();
         // the reduced energy's Hessian where it is positive definite (near
         // a minimum: quadratic convergence), else its convex model
+        // (where the exact Hessian did not factor, it is not tried again
+        // for the next `CONVEX_AFTER_FAILURE` iterations: a failed
+        // factorisation costs about as much as one that succeeds)
         let mut values = None;
-        for curvature in [Curvature::Full, Curvature::Projected] {
+        let skip = self.elastic.newton.convex_for > 0;
+        self.elastic.newton.convex_for = self.elastic.newton.convex_for.saturating_sub(1);
+        let tries: &[Curvature] = if skip {
+            &[Curvature::Projected]
+        } else {
+            &[Curvature::Full, Curvature::Projected]
+        };
+        for &curvature in tries {
             self.assemble_newton(factor, (el, set), curvature)?;
             let pattern = self.elastic.newton.pattern.as_ref()?;
             if let Ok(v) = dend_linalg::cholesky::factorise_definite(&pattern.symbolic, &pattern.h)
             {
                 values = Some((v, curvature));
                 break;
+            }
+            if curvature == Curvature::Full {
+                self.elastic.newton.convex_for = CONVEX_AFTER_FAILURE;
             }
         }
         let (values, curvature) = values?;

@@ -1,4 +1,4 @@
-//! The coarsest level's Newton memory ([`NewtonState`], [`NewtonPattern`])
+//! The Newton iteration's memory ([`NewtonState`], [`NewtonPattern`])
 //! and its cost, which the elastic state holds and counts and
 //! `newton.rs` works on: a leaf below both.
 
@@ -22,6 +22,9 @@ pub(super) struct NewtonState {
     pub(super) pattern: Option<NewtonPattern>,
     /// `r_U`, then `Δ`, interleaved (`3u + k`).
     pub(super) rhs: Vec<Real>,
+    /// Newton iterations left that take the convex model without trying
+    /// the exact Hessian first (it did not factor lately).
+    pub(super) convex_for: usize,
 }
 
 /// The structure of `H` for one constraint set: its 3×3 block pattern,
