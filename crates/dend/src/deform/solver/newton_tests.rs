@@ -9,7 +9,7 @@ use nalgebra::{DMatrix, UnitQuaternion, Vector3};
 
 use super::test_util::{max_dist, patch_edit};
 use crate::deform::elastic::hessian::Curvature;
-use crate::deform::{Deformer, Factor, Params, Rest};
+use crate::deform::{Constraints, Deformer, Factor, Params, Rest, RigidTransform};
 use crate::mesh::gen::{irregular_patch, PatchSurface};
 use crate::mesh::Real;
 
@@ -220,7 +220,10 @@ fn the_matrix_is_the_reduced_energys_hessian() {
 /// and reached the 100-iteration cap at every step; a sequence that
 /// predicts a long crawl switches to Newton steps (at least one step
 /// does), and every step converges within the cap, each from the last
-/// one's pose.
+/// one's pose. The switch reads only ratios of updates and the tolerance
+/// in mean edge lengths, so the bar scaled by 37 or 1/37 takes the same
+/// iterations at every step and reaches the same pose to 1e-9 of the
+/// diagonal.
 #[test]
 fn a_crawling_bend_switches_to_newton_steps_and_converges() {
     use crate::deform::ConstraintsSpec;
@@ -230,18 +233,43 @@ fn a_crawling_bend_switches_to_newton_steps_and_converges() {
     let spec: ConstraintsSpec =
         serde_json::from_str(include_str!("../../../../../examples/bar-bend-180.json")).unwrap();
     let c = spec.resolve(&mesh).unwrap();
-    let full = c.handles[0].target;
-    let params = Params::default();
-    let rest = Arc::new(Rest::new(mesh).unwrap());
-    let f = Factor::build(&rest, &params, &c).unwrap();
-    let mut d = Deformer::new(rest, params);
-    let mut switched = 0;
-    for k in 1..=3 {
-        let mut step = c.clone();
-        step.handles[0].target = full.fraction(k as Real / 3.0);
-        let r = d.step(&f, &step, 100).unwrap();
-        assert!(r.converged, "step {k}: {r:?}");
-        switched += d.elastic.newton_now as usize;
+    let bend = |s: Real| {
+        let mesh = super::test_util::scaled(&mesh, s);
+        let handles = c
+            .handles
+            .iter()
+            .map(|h| (h.name.clone(), h.vertices.clone(), None))
+            .collect();
+        let mut cs = Constraints::new(&mesh, c.fixed.clone(), handles).unwrap();
+        let full = c.handles[0].target;
+        let params = Params::default();
+        let rest = Arc::new(Rest::new(mesh).unwrap());
+        let f = Factor::build(&rest, &params, &cs).unwrap();
+        let mut d = Deformer::new(rest, params);
+        let (mut its, mut switched) = (Vec::new(), 0);
+        for k in 1..=3 {
+            let t = full.fraction(k as Real / 3.0);
+            cs.handles[0].target = RigidTransform {
+                rotation: t.rotation,
+                translation: t.translation.map(|v| v * s),
+                pivot: t.pivot.map(|v| v * s),
+            };
+            let r = d.step(&f, &cs, 100).unwrap();
+            assert!(r.converged, "scale {s}, step {k}: {r:?}");
+            its.push(r.iterations);
+            switched += d.elastic.newton_now as usize;
+        }
+        let pose: Vec<_> = d.pose().iter().map(|p| p.map(|v| v / s)).collect();
+        (its, switched, pose)
+    };
+    let (its, switched, pose) = bend(1.0);
+    assert!(switched > 0, "no step switched to Newton steps: {its:?}");
+    for s in [37.0, 1.0 / 37.0] {
+        let (its_s, switched_s, pose_s) = bend(s);
+        let gap = max_dist(&pose, &pose_s) / mesh.diagonal();
+        assert!(
+            its_s == its && switched_s == switched && gap <= 1e-9,
+            "scale {s}: iterations {its_s:?} against {its:?}, switched {switched_s} against {switched}, pose gap {gap:.2e}"
+        );
     }
-    assert!(switched > 0, "no step switched to Newton steps");
 }
