@@ -17,6 +17,20 @@ pub(super) struct AreaElement {
     pub(super) weight: Real,
 }
 
+impl AreaElement {
+    /// Each corner's coefficients `(k0, k1)` in the columns of
+    /// `F = [y1 − y0, y2 − y0] B`: column `c` is `Σ_v k_vc y_v`, so
+    /// `k_1 = B_0·`, `k_2 = B_1·` and `k_0 = −(B_0· + B_1·)`.
+    pub(super) fn corners(&self) -> [[Real; 2]; 3] {
+        let b = &self.b;
+        [
+            [-(b[(0, 0)] + b[(1, 0)]), -(b[(0, 1)] + b[(1, 1)])],
+            [b[(0, 0)], b[(0, 1)]],
+            [b[(1, 0)], b[(1, 1)]],
+        ]
+    }
+}
+
 /// The area element of triangle `t` on positions `x`, or `None` when it
 /// is degenerate.
 pub(super) fn area_element(x: &[Point], t: [u32; 3], ka: Real) -> Option<AreaElement> {
@@ -69,15 +83,13 @@ impl AreaForces {
         let total = ptr[n];
         let (mut els, mut k) = (vec![0u32; total], vec![[0.0; 2]; total]);
         for (t, el) in area.iter().enumerate() {
-            let (b, w) = (el.b, el.weight);
-            // column c of a_t P Bᵀ is a_t (P[:, 0] B[c, 0] + P[:, 1] B[c, 1])
-            let col = |c: usize| [w * b[(c, 0)], w * b[(c, 1)]];
-            let (h0, h1) = (col(0), col(1));
-            let coefficients = [[-(h0[0] + h1[0]), -(h0[1] + h1[1])], h0, h1];
-            for (&v, kc) in el.v.iter().zip(coefficients) {
+            // column c of a_t P Bᵀ is a_t (P[:, 0] B[c, 0] + P[:, 1] B[c, 1]):
+            // the corners' coefficients of F, weighted
+            let w = el.weight;
+            for (&v, kc) in el.v.iter().zip(el.corners()) {
                 let slot = &mut next[v as usize];
                 els[*slot] = t as u32;
-                k[*slot] = kc;
+                k[*slot] = [w * kc[0], w * kc[1]];
                 *slot += 1;
             }
         }

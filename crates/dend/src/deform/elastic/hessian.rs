@@ -328,14 +328,7 @@ impl ElasticOps {
             add_schur(&c, &blocks, col_of, &mut add);
         }
         for (el, p) in self.area.iter().zip(proj) {
-            // column c of F = [e1 e2] B is Σ_v k_vc y_v: k_v1 = B_0·,
-            // k_v2 = B_1·, k_v0 = −(B_0· + B_1·)
-            let b = &el.b;
-            let k = [
-                [-(b[(0, 0)] + b[(1, 0)]), -(b[(0, 1)] + b[(1, 1)])],
-                [b[(0, 0)], b[(0, 1)]],
-                [b[(1, 0)], b[(1, 1)]],
-            ];
+            let k = el.corners();
             let cols: [u32; 3] = el.v.map(|v| col_of[v as usize]);
             let w = el.weight;
             // `Q` holds w AᵀA: take it out, then add w Aᵀ (½ ∇²_F) A
