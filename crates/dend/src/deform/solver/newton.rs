@@ -1,13 +1,16 @@
-//! The coarsest level's iteration: Newton steps on the energy reduced
-//! over the rotations and area targets, with a line search on the energy.
+//! Newton steps on the energy reduced over the rotations and area
+//! targets, with a line search on the energy: every iteration of a
+//! hierarchy's coarsest level, and the rest of a slow sequence on a small
+//! mesh ([`Deformer::takes_newton_step`]).
 //!
 //! The local/global iteration converges slowly where a far part must turn
 //! as a whole: at fixed rotations the global step resists the turn, so
 //! each iteration takes a share of it, at every resolution (the coarsest
-//! level of a 10k-vertex camel took 120 iterations from rest). On the
-//! coarsest level of a hierarchy (under
+//! level of a 10k-vertex camel took 120 iterations from rest). On a small
+//! mesh or level (the coarsest level of a hierarchy, under
 //! [`coarse::MIN_VERTICES`](crate::deform::coarse::MIN_VERTICES)
-//! vertices) a step of Newton's method is affordable: the matrix
+//! vertices, or any of at most [`NEWTON_MAX_VERTICES`]) a step of
+//! Newton's method is affordable: the matrix
 //! `H = Q ⊗ I₃ − Σ_e J_eᵀ C_e⁻¹ J_e` (`elastic/hessian.rs`), assembled
 //! and factored at every iteration: the reduced energy's Hessian where it
 //! is positive definite (it factors), else its convex model, each
