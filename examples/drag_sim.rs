@@ -88,6 +88,15 @@ fn main() {
 }
 
 fn run() -> Result<(), String> {
+    // the solver's debug events (its corrections and Newton steps) with
+    // RUST_LOG=dend=debug, on stderr beside the JSON report
+    tracing_subscriber::fmt()
+        .with_env_filter(
+            tracing_subscriber::EnvFilter::try_from_default_env()
+                .unwrap_or_else(|_| tracing_subscriber::EnvFilter::new("warn")),
+        )
+        .with_writer(std::io::stderr)
+        .init();
     let args: Vec<String> = std::env::args().skip(1).collect();
     let spec = args.first().ok_or("usage: drag_sim MESH [options]")?;
     let mesh = load(spec)?;
