@@ -12,7 +12,7 @@
 //!
 //! ```text
 //! cargo run --release --example drag_sim -- MESH [--drags 60] [--per-drag 1]
-//!     [--path line|arc] [--preset characters|elastica] [--previews] [--levels 1|2|3]
+//!     [--path line|arc] [--preset characters|elastica] [--previews] [--levels 1|2|3 (default 3)]
 //!     [--correction-period K] [--coarse-ratio R] [--tol T] [--anderson W]
 //!     [--area KA] [--stretch KS]
 //! ```
@@ -135,9 +135,9 @@ fn run() -> Result<(), String> {
         params.anderson = w;
     }
     let levels = match arg::<String>(&args, "--levels").as_deref() {
-        Some("many") | Some("3") => Levels::Many,
+        None | Some("many") | Some("3") => Levels::Many,
         Some("1") => Levels::One,
-        None | Some("2") => Levels::Two,
+        Some("2") => Levels::Two,
         Some(l) => return Err(format!("--levels {l}: 1, 2 or many")),
     };
     let (lo, hi) = bbox(&mesh);

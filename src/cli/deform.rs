@@ -54,7 +54,7 @@ pub struct Args {
     /// Bending weight k_b of the combined energy (least_squares, square).
     #[arg(long, default_value_t = 1.0)]
     kb: f64,
-    /// Elastic formulation: parameter preset, characters (the default: stretch 3, Laplacian share 0.1, coarse ratio 3, corrections while-gaining every 5 iterations; ARAP-like edge lengths on characters) or elastica (stretch 1, Laplacian share 1, coarse ratio 8, corrections while-faster every 10: the paper's even bend and twist, the same pose at any resolution; docs/posing.md). --stretch, --laplacian, --coarse-ratio, --corrections and --correction-period override it.
+    /// Elastic formulation: parameter preset, characters (the default: stretch 3, Laplacian share 0.1, coarse ratio 4, corrections while-gaining every 5 iterations; ARAP-like edge lengths on characters) or elastica (stretch 1, Laplacian share 1, coarse ratio 8, corrections while-faster every 10: the paper's even bend and twist, the same pose at any resolution; docs/posing.md). --stretch, --laplacian, --coarse-ratio, --corrections and --correction-period override it.
     #[arg(long, visible_alias = "weights", value_enum, default_value_t = PresetArg::Characters)]
     preset: PresetArg,
     /// Elastic formulation: stretch weight k_s (ARAP's spokes), dimensionless [default: 3, or 1 with --preset elastica].
@@ -111,16 +111,16 @@ pub struct Args {
     #[arg(long)]
     formulation: Option<String>,
     /// Levels of the elastic iteration: 2 uses a coarse mesh of about
-    /// 1/coarse-ratio of the vertices (1/3 by default, 1/8 with --preset
+    /// 1/coarse-ratio of the vertices (1/4 by default, 1/8 with --preset
     /// elastica), at least 500 (meshes of 1000 vertices or more whose
     /// constraint groups survive), to start an edit from the rest pose and
     /// to correct the pose every correction-period iterations (5, or 10
     /// with elastica); 1 starts from the handles' rotations spread by
-    /// harmonic weights, without corrections; 3 solves the coarse problem
-    /// the same way on a coarser level of its own, down to a level under
-    /// 1000 vertices whose iteration takes Gauss–Newton steps (a
+    /// harmonic weights, without corrections; 3 (the default) solves the
+    /// coarse problem the same way on a coarser level of its own, down to
+    /// a level under 1000 vertices whose iteration takes Newton steps (a
     /// hierarchy; docs/performance.md measures it).
-    #[arg(long, default_value_t = 2, value_parser = clap::value_parser!(u8).range(1..=3))]
+    #[arg(long, default_value_t = 3, value_parser = clap::value_parser!(u8).range(1..=3))]
     levels: u8,
     /// Print the objective after every iteration.
     #[arg(short, long)]

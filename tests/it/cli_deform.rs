@@ -218,7 +218,7 @@ fn formulation_flag_selects_the_square_system_and_rejects_unknown_names() {
     assert!(stderr.contains("unknown formulation"), "{stderr}");
 }
 
-/// `--weights characters` is `--stretch 3 --laplacian 0.1 --coarse-ratio 3
+/// `--weights characters` is `--stretch 3 --laplacian 0.1 --coarse-ratio 4
 /// --corrections while-gaining --correction-period 5` (the same pose to the
 /// last written digit), differs from the defaults, and yields to an
 /// explicit `--stretch`; a coarse ratio under 2 and a correction period of
@@ -238,7 +238,7 @@ fn characters_weights_are_the_documented_stretch_and_laplacian() {
         "--laplacian",
         "0.1",
         "--coarse-ratio",
-        "3",
+        "4",
         "--corrections",
         "while-gaining",
         "--correction-period",

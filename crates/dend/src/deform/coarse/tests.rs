@@ -535,7 +535,8 @@ fn the_coarse_start_solved_beside_the_factor_gives_the_same_sequence() {
     let rest = Arc::new(Rest::new(mesh.clone()).unwrap());
     let c = patch_pull(&mesh, [0.0, 0.1 * mesh.diagonal(), 0.0]);
     let params = Params::elastica();
-    let (plain, rp) = solve(&rest, params, &c, Levels::Two);
+    // (the default levels, which the deformers below keep)
+    let (plain, rp) = solve(&rest, params, &c, Levels::default());
     let mut ahead = Deformer::new(rest.clone(), params);
     let factor = ahead.build_factor(&c).unwrap();
     let ra = ahead.step(&factor, &c, 2000).unwrap();
@@ -548,7 +549,7 @@ fn the_coarse_start_solved_beside_the_factor_gives_the_same_sequence() {
     // a start solved for one target is not taken for another: the second
     // deformer is asked for twice the pull after building for the first
     let far = patch_pull(&mesh, [0.0, 0.2 * mesh.diagonal(), 0.0]);
-    let (plain_far, rf) = solve(&rest, params, &far, Levels::Two);
+    let (plain_far, rf) = solve(&rest, params, &far, Levels::default());
     let mut stale = Deformer::new(rest.clone(), params);
     let factor = stale.build_factor(&c).unwrap();
     let rs = stale.step(&factor, &far, 2000).unwrap();

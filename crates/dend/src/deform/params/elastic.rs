@@ -141,7 +141,13 @@ pub const MAX_CORRECTION_PERIOD: usize = 1000;
 
 /// The default coarse ratio (see [`ElasticParams::coarse_ratio`]): a finer coarse
 /// mesh keeps thin parts (the camel's neck) and captures a body's swing.
-pub const DEFAULT_COARSE_RATIO: usize = 3;
+/// With the hierarchy ([`Levels::Many`](crate::deform::Levels::Many)),
+/// each level has about a quarter of the vertices of the one above:
+/// ratio 3 made levels whose cycles cost more than they gained
+/// (armadillo one-shot 152 fine iterations of work against 104), ratio 5
+/// left the survey bar's coarse levels too coarse for its twist (capped
+/// at 100 iterations, against 43) (docs/performance.md).
+pub const DEFAULT_COARSE_RATIO: usize = 4;
 
 /// The [`Preset::Elastica`](super::Preset::Elastica) coarse ratio.
 pub const ELASTICA_COARSE_RATIO: usize = 8;

@@ -15,7 +15,7 @@ use crate::deform::energy::Energy;
 #[serde(rename_all = "kebab-case")]
 pub enum Preset {
     /// The default: ARAP-like edge lengths on characters (`k_s` 3, `k_L`
-    /// 0.1, coarse ratio 3, corrections while gaining every 5 fine
+    /// 0.1, coarse ratio 4, corrections while gaining every 5 fine
     /// iterations). On the posing suite (stop 29, docs/posing.md) 11 of
     /// the 12 character edits meet every rule against 7 with
     /// [`Preset::Elastica`]; twisted square tubes keep their sections (135°:

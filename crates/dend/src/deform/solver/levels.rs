@@ -16,7 +16,6 @@ pub enum Levels {
     /// survives on it (`deform::coarse`): a coarse start from the rest pose
     /// and coarse corrections (module docs); else as `One`. The coarse
     /// problem is solved on its own level only.
-    #[default]
     Two,
     /// A hierarchy: as `Two`, and the coarse problem is solved the same way
     /// on a level of its own, down to a level under
@@ -25,9 +24,14 @@ pub enum Levels {
     /// correction's solve on a level above that one runs
     /// [`CYCLE_ITERS`](super::multilevel::CYCLE_ITERS) iterations (a
     /// cycle), not to convergence.
-    /// Not the default: measured against `Two` in docs/performance.md
-    /// (less work on the camel and the feline, one-shot and settle; more
-    /// on the armadillo).
+    ///
+    /// The default: with the characters' coarse ratio 4 it does less work
+    /// than `Two` at ratio 3 on every character, one-shot and settle
+    /// (`drag_sim --path arc`, in fine iterations: camel 47.0 and 45.7
+    /// against 77.4 and 83.0, feline 39.3 and 43.2 against 118.7 and
+    /// 105.7, armadillo 104.0 and 112.6 against 150.0 and 127.0;
+    /// docs/performance.md).
+    #[default]
     Many,
 }
 

@@ -194,12 +194,16 @@ impl Deformer {
                 report.diverged = true;
                 break;
             }
-            let max_dx = (0..nu)
+            let (max_dx, max_at) = (0..nu)
                 .map(|k| {
                     let r = &st.rhs;
                     (r[k] * r[k] + r[nu + k] * r[nu + k] + r[2 * nu + k] * r[2 * nu + k]).sqrt()
                 })
-                .fold(0.0, Real::max);
+                .enumerate()
+                .fold(
+                    (0.0, 0),
+                    |(m, at), (k, d)| if d > m { (d, k) } else { (m, at) },
+                );
             for (k, &u) in factor.sys.unknowns.iter().enumerate() {
                 let p = self.y[u as usize];
                 st.x_flat[k] = p[0];
@@ -242,6 +246,18 @@ impl Deformer {
                 e = self.local_step(factor, (el, set), fit, false);
             }
             report.iterations += 1;
+            tracing::trace!(
+                vertices = self.y.len(),
+                iteration = report.iterations,
+                update = max_dx / self.params.tol,
+                at = ?self
+                    .rest
+                    .ops
+                    .denormalise(self.rest.ops.positions[factor.sys.unknowns[max_at] as usize]),
+                energy = e,
+                accepted,
+                "iteration"
+            );
             self.note_update(max_dx);
             report.last_update = max_dx;
             if !fit || max_dx < self.params.tol {

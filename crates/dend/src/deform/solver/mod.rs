@@ -68,7 +68,7 @@ pub struct StepReport {
     /// objective it saw, so then `objective <= 1.05 · initial_objective`.
     pub initial_objective: Real,
     /// Coarse iterations this step ran (elastic sequences with
-    /// [`Levels::Two`]: the coarse start of a sequence from the rest pose
+    /// [`Levels::Two`] or [`Levels::Many`]: the coarse start of a sequence from the rest pose
     /// and the coarse corrections, `solver/multilevel.rs`; each costs about
     /// `#Vc / #V` of a fine iteration), not counted in `iterations`.
     pub coarse_iterations: usize,
@@ -149,6 +149,13 @@ struct CoarseProblem {
     /// [`CORRECTION_MAX_ITERS`]: multilevel::CORRECTION_MAX_ITERS
     /// [`CORRECTION_STALL`]: multilevel::CORRECTION_STALL
     slow: bool,
+    /// A correction's Newton solve on this level (a hierarchy's coarsest)
+    /// reached [`NEWTON_CORRECTION_MAX_ITERS`] without converging: the
+    /// level does not stand for the fine problem under this constraint
+    /// set, and it gives no more corrections (its start still serves).
+    ///
+    /// [`NEWTON_CORRECTION_MAX_ITERS`]: multilevel::NEWTON_CORRECTION_MAX_ITERS
+    unfit: bool,
 }
 
 /// The coarse start of one set of targets, solved ahead.
@@ -217,8 +224,8 @@ impl Deformer {
         }
     }
 
-    /// Chooses how sequences from the rest pose start ([`Levels`]; default
-    /// two levels where the mesh has a coarse level).
+    /// Chooses the levels of the elastic iteration ([`Levels`]; default a
+    /// hierarchy where the mesh has coarse levels).
     pub fn set_levels(&mut self, levels: Levels) {
         self.levels = levels;
     }

@@ -133,6 +133,18 @@ pub const CORRECTION_DRIFT: usize = 8;
 /// 152.4 and 137.3 (docs/performance.md).
 pub const CYCLE_ITERS: usize = 10;
 
+/// Iteration cap of a correction's solve on a hierarchy's coarsest level
+/// (Newton steps). From the injected fine pose, Newton's method converges
+/// in 1–4 iterations on the characters (camel, armadillo, feline) and in
+/// up to 11 on a generated saddle patch's first correction; a solve
+/// still moving after this many is following a soft mode the restricted
+/// constraints leave on that level (the dino's limb edit: a 502-vertex
+/// level whose corrections ran 32–38 Newton iterations, their coarse
+/// objective falling steadily, and gained nothing on the fine mesh), and
+/// the level gives no more corrections under that constraint set
+/// ([`CoarseProblem::unfit`]).
+pub const NEWTON_CORRECTION_MAX_ITERS: usize = 20;
+
 impl Levels {
     /// The levels the coarse problem's own solve uses.
     fn below(self) -> Levels {
@@ -184,6 +196,7 @@ pub(super) fn coarse_problem(
         coarse_fixed,
         solved_start: None,
         slow: false,
+        unfit: false,
     })
 }
 
@@ -205,7 +218,15 @@ fn solve_start(
     if alone {
         coarse.set_levels(Levels::One);
     }
+    // the coarsest level's start takes local/global iterations, and Newton
+    // steps only once they crawl (a small mesh's switch): Newton steps from
+    // the rest pose, on the convex model far from a minimum, can end in
+    // another basin (the survey cylinder at coarse ratio 5: objective 453
+    // against 232, capped at 100 iterations, where this start converges)
+    let newton = std::mem::replace(&mut coarse.newton, false);
     let report = coarse.step(&p.factor, cc, COARSE_MAX_ITERS).ok();
+    let coarse = &mut p.deformer;
+    coarse.newton = newton;
     if alone {
         coarse.set_levels(p.levels_below);
     }
@@ -412,6 +433,9 @@ impl Deformer {
             work: work + fine,
         };
         let field = self.with_coarse(factor, constraints, |fine, p, cc| {
+            if p.unfit {
+                return None;
+            }
             // r_f = g_f − Q_f Y at the current rotations
             let r_f = fine.residual_now(el, set).to_vec();
             // the fine pose injected, its rotations and residual there
@@ -449,7 +473,9 @@ impl Deformer {
             // a level of a hierarchy with a level below it smooths; the
             // coarsest converges
             let cycle = p.levels_below == Levels::Many && !coarse.newton;
-            let report = if cycle {
+            let report = if coarse.newton {
+                coarse.step(&p.factor, cc, NEWTON_CORRECTION_MAX_ITERS).ok()
+            } else if cycle {
                 coarse.step(&p.factor, cc, CYCLE_ITERS).ok()
             } else if p.slow {
                 solve_until_stalled(coarse, &p.factor, cc)
@@ -469,6 +495,10 @@ impl Deformer {
             }
             if report.iterations >= CORRECTION_MAX_ITERS && !report.converged {
                 p.slow = true;
+            }
+            let coarse = &p.deformer;
+            if coarse.newton && !report.converged && !report.diverged {
+                p.unfit = true;
             }
             if report.diverged {
                 return Some((its, Ok(None)));
