@@ -67,13 +67,22 @@
 //! `M`, [`Curvature::Projected`] keeps the eigenvalues' positive parts.
 //! A nearly flat triangle, whose eigensystem is ill-conditioned, gets the
 //! normal alone.
+//!
+//! **Assembly.** Each element's blocks are computed on their own
+//! ([`blocks`]: `−Jᵀ C⁻¹ J` over the pairs of a vertex's support, the
+//! area term's over a triangle's corners), each pair once (the matrix is
+//! symmetric), in parallel; the Newton iteration then sums them into its
+//! pattern by a plan made once per constraint set (`solver/newton_pattern.rs`).
+//! Only the elements whose curvature is indefinite differ between
+//! [`Curvature::Full`] and [`Curvature::Projected`], so where the exact
+//! Hessian does not factor only theirs are computed again.
 
-use nalgebra::{Matrix2, Matrix3, UnitQuaternion, Vector2, Vector3};
+use nalgebra::{Matrix2, Matrix3, Vector2, Vector3};
 
-use super::area::{area_root, curvature as area_curvature, gradient};
-use super::{ElasticOps, ElasticSet};
-use crate::mesh::{Point, Real};
-use crate::operators::Operators;
+use super::area::{area_root, curvature as area_curvature};
+use crate::mesh::Real;
+
+pub(crate) mod blocks;
 
 /// `[t]×`, the cross-product matrix: `[t]× v = t × v`.
 fn cross_matrix(t: &Vector3<Real>) -> Matrix3<Real> {
@@ -83,35 +92,6 @@ fn cross_matrix(t: &Vector3<Real>) -> Matrix3<Real> {
 /// `|t|² I − t tᵀ = [t]×ᵀ [t]×`.
 fn gram(t: &Vector3<Real>) -> Matrix3<Real> {
     Matrix3::identity() * t.norm_squared() - t * t.transpose()
-}
-
-/// Adds `−Σ_k,l J_kᵀ C⁻¹ J_l` through `add` for the blocks `J` of one
-/// element (vertex, 3×3 block), in unknown numbering `col_of` (`add(k, l,
-/// B)` adds the 3×3 block `B` at unknowns `(k, l)`); blocks of vertices
-/// that are not unknowns are skipped. Nothing when `C` is singular.
-fn add_schur(
-    c: &Matrix3<Real>,
-    blocks: &[(u32, Matrix3<Real>)],
-    col_of: &[u32],
-    add: &mut impl FnMut(u32, u32, &Matrix3<Real>),
-) {
-    let Some(c_inv) = c.try_inverse() else {
-        return;
-    };
-    for &(k, jk) in blocks {
-        let ck = col_of[k as usize];
-        if ck == u32::MAX {
-            continue;
-        }
-        let left = jk.transpose() * c_inv;
-        for &(l, jl) in blocks {
-            let cl = col_of[l as usize];
-            if cl == u32::MAX {
-                continue;
-            }
-            add(ck, cl, &-(left * jl));
-        }
-    }
 }
 
 /// The positive semi-definite part of the symmetric `m` (its negative
@@ -167,13 +147,40 @@ pub(crate) enum Curvature {
 }
 
 impl Curvature {
-    /// The least eigenvalue an element's curvature keeps.
-    fn floor(self) -> Real {
+    /// What the area term keeps of its eigenvalue `lambda`: all of it, or
+    /// its positive part (`NaN` as before: `−∞` or 0).
+    fn keep(self, lambda: Real) -> Real {
         match self {
-            Curvature::Full => Real::NEG_INFINITY,
-            Curvature::Projected => 0.0,
+            Curvature::Full => lambda.max(Real::NEG_INFINITY),
+            Curvature::Projected => lambda.max(0.0),
         }
     }
+}
+
+/// Whether the eigenvalue `lambda` is cut by [`Curvature::Projected`]
+/// (negative or `NaN`): where an element has none, its blocks are the same
+/// for both curvatures.
+fn cut(lambda: Real) -> bool {
+    lambda
+        .partial_cmp(&0.0)
+        .is_none_or(|o| o == std::cmp::Ordering::Less)
+}
+
+/// Whether the symmetric `m` is positive semi-definite by its principal
+/// minors (`false` for `NaN`). Rounding may class a matrix with a
+/// vanishing eigenvalue either way, so [`Curvature::Projected`] keeps what
+/// this test passes as it is and takes [`positive_part`] of the rest:
+/// either way within rounding of the exact part, and the same blocks as
+/// [`Curvature::Full`] for every element the test passes.
+fn semi_definite(m: &Matrix3<Real>) -> bool {
+    let minor = |a: usize, b: usize| m[(a, a)] * m[(b, b)] - m[(a, b)] * m[(b, a)];
+    m[(0, 0)] >= 0.0
+        && m[(1, 1)] >= 0.0
+        && m[(2, 2)] >= 0.0
+        && minor(0, 1) >= 0.0
+        && minor(0, 2) >= 0.0
+        && minor(1, 2) >= 0.0
+        && m.determinant() >= 0.0
 }
 
 /// One eigenpair of [`area_eigensystem`]: the eigenvalue and its unit
@@ -181,9 +188,9 @@ impl Curvature {
 type AreaMode = (Real, [Vector3<Real>; 2]);
 
 /// Half the Hessian in `F` of the area term's `‖F − P(F)‖²` (3×2, `P` the
-/// nearest matrix with singular values `d, 1/d`), as six eigenpairs with
-/// the negative eigenvalues set to zero (module docs); `None` where `F`
-/// is nearly flat (`σ2 ≤ 10⁻⁴ σ1`) or its `d` is not a strict minimum.
+/// nearest matrix with singular values `d, 1/d`), as six eigenpairs (module
+/// docs; [`Curvature::keep`] cuts the eigenvalues); `None` where `F` is
+/// nearly flat (`σ2 ≤ 10⁻⁴ σ1`) or its `d` is not a strict minimum.
 ///
 /// The term is a function `ψ(σ1, σ2) = min_d (σ1 − d)² + (σ2 − 1/d)²` of
 /// `F`'s singular values, so its Hessian has the eigensystem of any such
@@ -197,8 +204,7 @@ type AreaMode = (Real, [Vector3<Real>; 2]);
 /// 1 − (p₀ − p₁)/(σ₀ − σ₁)      on (u₀v₁ᵀ + u₁v₀ᵀ)/√2   (a shear)
 /// 1 − p_k/σ_k                  on u₂v_kᵀ               (out of the plane)
 /// ```
-fn area_eigensystem(f: &[Real; 6], curvature: Curvature) -> Option<[AreaMode; 6]> {
-    let floor = curvature.floor();
+fn area_eigensystem(f: &[Real; 6]) -> Option<[AreaMode; 6]> {
     let c0 = Vector3::new(f[0], f[1], f[2]);
     let c1 = Vector3::new(f[3], f[4], f[5]);
     let ftf = Matrix2::new(c0.dot(&c0), c0.dot(&c1), c0.dot(&c1), c1.dot(&c1));
@@ -238,7 +244,7 @@ fn area_eigensystem(f: &[Real; 6], curvature: Curvature) -> Option<[AreaMode; 6]
         let w = se.eigenvectors.column(k);
         let [a0, a1] = outer(u[0], v[0] * w[0]);
         let [b0, b1] = outer(u[1], v[1] * w[1]);
-        (se.eigenvalues[k].max(floor), [a0 + b0, a1 + b1])
+        (se.eigenvalues[k], [a0 + b0, a1 + b1])
     };
     let shear = if s[0] - s[1] > 1e-8 * s[0] {
         1.0 - (p[0] - p[1]) / (s[0] - s[1])
@@ -253,151 +259,9 @@ fn area_eigensystem(f: &[Real; 6], curvature: Curvature) -> Option<[AreaMode; 6]
     Some([
         mode(0),
         mode(1),
-        (turn.max(floor), [h * (x0 - y0), h * (x1 - y1)]),
-        (shear.max(floor), [h * (x0 + y0), h * (x1 + y1)]),
-        ((1.0 - p[0] / s[0]).max(floor), outer(u2, v[0])),
-        ((1.0 - p[1] / s[1]).max(floor), outer(u2, v[1])),
+        (turn, [h * (x0 - y0), h * (x1 - y1)]),
+        (shear, [h * (x0 + y0), h * (x1 + y1)]),
+        (1.0 - p[0] / s[0], outer(u2, v[0])),
+        (1.0 - p[1] / s[1], outer(u2, v[1])),
     ])
-}
-
-impl ElasticOps {
-    /// Adds what eliminating each element's rotation or area target (with
-    /// the elements' `curvature`)
-    /// changes in `Q ⊗ I₃` (module docs) at the normalised pose `y`, the
-    /// rotations `rot` and area targets `proj`, through `add(k, l, B)`,
-    /// the 3×3 block `B` of unknowns `(k, l)` in `col_of`'s numbering
-    /// (vertex → unknown, `u32::MAX` for none): `−Jᵀ C⁻¹ J` per free
-    /// vertex, `w ((Aᵀn)(Aᵀn)ᵀ − AᵀA)` per triangle. Both triangles of the
-    /// symmetric matrix are added, duplicates to be summed. The blocks
-    /// added are among [`ElasticOps::coupling_supports`]' pairs.
-    #[allow(clippy::too_many_arguments)]
-    pub(crate) fn rotation_coupling(
-        &self,
-        set: &ElasticSet,
-        ops: &Operators,
-        y: &[Point],
-        rot: &[UnitQuaternion<Real>],
-        proj: &[[Real; 6]],
-        col_of: &[u32],
-        curvature: Curvature,
-        mut add: impl FnMut(u32, u32, &Matrix3<Real>),
-    ) {
-        let mut blocks: Vec<(u32, Matrix3<Real>)> = Vec::new();
-        for (i, q) in rot.iter().enumerate().take(set.free.len()) {
-            if !(set.free[i] && set.fit[i]) {
-                continue;
-            }
-            let r = q.to_rotation_matrix();
-            let yi = Vector3::from(y[i]);
-            let mut c = Matrix3::zeros();
-            let mut bend = Matrix3::zeros();
-            blocks.clear();
-            blocks.push((i as u32, Matrix3::zeros()));
-            for s in self.ptr[i]..self.ptr[i + 1] {
-                let t = r * Vector3::from(self.e[s]);
-                let j = self.nbr[s] as usize;
-                let rho = Vector3::from(y[j]) - yi - t;
-                c += self.c[s] * gram(&t);
-                bend += self.c[s] * rotation_curvature(&rho, &t);
-                // ρ = (y_j − y_i) − R_i e_ij: A dY = dy_j − dy_i
-                let k = self.c[s] * cross_matrix(&t).transpose();
-                blocks.push((self.nbr[s], k));
-                blocks[0].1 -= k;
-            }
-            if self.b[i] > 0.0 {
-                // ρ = (L Y)_i − R_i δ_i: A dY = Σ_k L_ik dy_k, L = D⁻¹ Lbar
-                let t = r * Vector3::from(ops.delta[i]);
-                let kt = self.b[i] * cross_matrix(&t).transpose();
-                let row = ops.lbar.outer_view(i).expect("row of a vertex");
-                let mut ly = Vector3::zeros();
-                for (k, &w) in row.iter() {
-                    let l = w / ops.area[i];
-                    ly += l * Vector3::from(y[k]);
-                    match blocks.iter_mut().find(|(v, _)| *v as usize == k) {
-                        Some(b) => b.1 += l * kt,
-                        None => blocks.push((k as u32, l * kt)),
-                    }
-                }
-                c += self.b[i] * gram(&t);
-                bend += self.b[i] * rotation_curvature(&(ly - t), &t);
-            }
-            c += match curvature {
-                Curvature::Projected => positive_part(&bend),
-                Curvature::Full => bend,
-            };
-            add_schur(&c, &blocks, col_of, &mut add);
-        }
-        for (el, p) in self.area.iter().zip(proj) {
-            let k = el.corners();
-            let cols: [u32; 3] = el.v.map(|v| col_of[v as usize]);
-            let w = el.weight;
-            // `Q` holds w AᵀA: take it out, then add w Aᵀ (½ ∇²_F) A
-            for (a, &ca) in cols.iter().enumerate() {
-                for (bi, &cb) in cols.iter().enumerate() {
-                    if ca != u32::MAX && cb != u32::MAX {
-                        let kk = k[a][0] * k[bi][0] + k[a][1] * k[bi][1];
-                        add(ca, cb, &(Matrix3::identity() * (-w * kk)));
-                    }
-                }
-            }
-            let modes = area_eigensystem(&gradient(y, el), curvature);
-            let gauss_newton;
-            let modes: &[AreaMode] = match &modes {
-                Some(m) => m,
-                None => match area_normal(p) {
-                    Some(n) => {
-                        gauss_newton = [(1.0, n)];
-                        &gauss_newton
-                    }
-                    None => &[],
-                },
-            };
-            for &(lambda, [m0, m1]) in modes {
-                if lambda == 0.0 {
-                    continue;
-                }
-                // (Aᵀ m)_v = k_v0 m_0 + k_v1 m_1
-                let am = k.map(|kv| kv[0] * m0 + kv[1] * m1);
-                for (a, &ca) in cols.iter().enumerate() {
-                    for (bi, &cb) in cols.iter().enumerate() {
-                        if ca != u32::MAX && cb != u32::MAX {
-                            add(ca, cb, &(w * lambda * am[a] * am[bi].transpose()));
-                        }
-                    }
-                }
-            }
-        }
-    }
-
-    /// Calls `f` with the vertices of each element that
-    /// [`ElasticOps::rotation_coupling`] visits (a fitted free vertex with
-    /// its spokes' ends and its Laplacian row, a triangle with an area
-    /// term): every pair of unknowns among one element's vertices may get
-    /// a block, whatever the rotations. The pattern of the Newton matrix.
-    pub(crate) fn coupling_supports(
-        &self,
-        set: &ElasticSet,
-        ops: &Operators,
-        mut f: impl FnMut(&[u32]),
-    ) {
-        let mut support: Vec<u32> = Vec::new();
-        for i in 0..set.free.len() {
-            if !(set.free[i] && set.fit[i]) {
-                continue;
-            }
-            support.clear();
-            support.push(i as u32);
-            support.extend(&self.nbr[self.ptr[i]..self.ptr[i + 1]]);
-            if self.b[i] > 0.0 {
-                let row = ops.lbar.outer_view(i).expect("row of a vertex");
-                support.extend(row.indices().iter().map(|&k| k as u32));
-            }
-            support.sort_unstable();
-            support.dedup();
-            f(&support);
-        }
-        for el in &self.area {
-            f(&el.v);
-        }
-    }
 }

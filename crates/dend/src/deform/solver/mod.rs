@@ -28,6 +28,7 @@ mod levels;
 mod local_global;
 pub(super) mod multilevel;
 mod newton;
+mod newton_pattern;
 mod newton_state;
 pub(super) mod preview;
 mod propagate;

@@ -14,13 +14,16 @@
 //! `H = Q ⊗ I₃ − Σ_e J_eᵀ C_e⁻¹ J_e` (`elastic/hessian.rs`), assembled
 //! and factored at every iteration: the reduced energy's Hessian where it
 //! is positive definite (it factors), else its convex model, each
-//! element's curvature cut to its positive semi-definite part. Its pattern does not depend on the
-//! rotations, so it is analysed once per constraint set
-//! ([`NewtonPattern`]): the blocks of `Q`'s pattern and of the elements'
-//! supports, ordered by AMD on the block graph (each vertex's three
-//! coordinates stay together, as one supernode column block), and each
-//! iteration writes its values in place and runs the numeric
-//! factorisation only. With `r = g(R, P) − Q Y` the
+//! element's curvature cut to its positive semi-definite part (only the
+//! elements whose curvature is indefinite are computed again for it).
+//! Its pattern does not depend on the rotations, so it is analysed once
+//! per constraint set ([`NewtonPattern`], `solver/newton_pattern.rs`):
+//! the blocks of `Q`'s pattern and of the elements' supports, ordered by
+//! AMD on the block graph (each vertex's three coordinates stay together,
+//! as one supernode column block), with the plan that sums the elements'
+//! blocks into it; each iteration computes the elements' blocks and sums
+//! them in place (both in parallel), and runs the numeric factorisation
+//! only. With `r = g(R, P) − Q Y` the
 //! residual at the pose's best rotations (`−½` the reduced energy's
 //! gradient, by the envelope theorem),
 //!
@@ -35,10 +38,8 @@
 //! of `Q_UU`).
 
 use faer::dyn_stack::{MemBuffer, MemStack};
-use faer::sparse::linalg::cholesky::{factorize_symbolic_cholesky, LltRef, SymmetricOrdering};
-use faer::sparse::SymbolicSparseColMatRef;
-use faer::{Conj, MatMut, Par, Side};
-use nalgebra::Matrix3;
+use faer::sparse::linalg::cholesky::LltRef;
+use faer::{Conj, MatMut, Par};
 
 use super::newton_state::{NewtonPattern, NEWTON_COST};
 use super::Deformer;
@@ -73,114 +74,6 @@ const NEWTON_SWITCH: Real = 5.0 * NEWTON_COST;
 /// iterations on meshes of 800–1100 vertices, and more above (its factor
 /// fills faster than the global step's).
 pub(super) const NEWTON_MAX_VERTICES: usize = 2000;
-
-impl NewtonPattern {
-    /// The pattern of `H` for `factor`'s constraint set: `Q_UU`'s entries
-    /// and every pair of unknowns in one element's support
-    /// ([`ElasticOps::coupling_supports`]); `None` when the symbolic
-    /// analysis fails.
-    pub(super) fn new(
-        factor: &Factor,
-        el: &ElasticOps,
-        set: &ElasticSet,
-        ops: &crate::operators::Operators,
-    ) -> Option<Self> {
-        let sys = &factor.sys;
-        let nu = sys.unknowns.len();
-        let mut rows: Vec<Vec<u32>> = vec![Vec::new(); nu];
-        for (r, row) in sys.m.outer_iterator().enumerate() {
-            rows[r].extend(row.indices().iter().map(|&c| c as u32));
-        }
-        let mut unknowns = Vec::new();
-        el.coupling_supports(set, ops, |support| {
-            unknowns.clear();
-            unknowns.extend(
-                support
-                    .iter()
-                    .map(|&v| sys.col_of[v as usize])
-                    .filter(|&c| c != u32::MAX),
-            );
-            for &k in &unknowns {
-                rows[k as usize].extend(&unknowns);
-            }
-        });
-        let mut ptr = Vec::with_capacity(nu + 1);
-        let mut cols = Vec::new();
-        ptr.push(0);
-        for row in &mut rows {
-            row.sort_unstable();
-            row.dedup();
-            cols.extend_from_slice(row);
-            ptr.push(cols.len());
-        }
-        drop(rows);
-        // AMD on the block graph, expanded to the coordinates
-        let bidx: Vec<usize> = cols.iter().map(|&c| c as usize).collect();
-        let block = SymbolicSparseColMatRef::new_checked(nu, nu, &ptr, None, &bidx);
-        let (bfwd, _) = dend_linalg::ordering::amd(block)?;
-        let fwd: Vec<usize> = bfwd
-            .iter()
-            .flat_map(|&b| [3 * b, 3 * b + 1, 3 * b + 2])
-            .collect();
-        let mut inv = vec![0; 3 * nu];
-        for (new, &old) in fwd.iter().enumerate() {
-            inv[old] = new;
-        }
-        // the scalar pattern
-        let n = 3 * nu;
-        let mut indptr = Vec::with_capacity(n + 1);
-        let mut indices = Vec::with_capacity(9 * cols.len());
-        indptr.push(0);
-        for k in 0..nu {
-            let row = &cols[ptr[k]..ptr[k + 1]];
-            for _ in 0..3 {
-                for &c in row {
-                    indices.extend([3 * c as usize, 3 * c as usize + 1, 3 * c as usize + 2]);
-                }
-                indptr.push(indices.len());
-            }
-        }
-        let data = vec![0.0; indices.len()];
-        let h = sprs::CsMat::new((n, n), indptr, indices, data);
-        let symbolic = {
-            let indptr = h.indptr();
-            let pattern =
-                SymbolicSparseColMatRef::new_checked(n, n, indptr.raw_storage(), None, h.indices());
-            let perm = faer::perm::PermRef::new_checked(&fwd, &inv, n);
-            factorize_symbolic_cholesky(
-                pattern,
-                Side::Lower,
-                SymmetricOrdering::Custom(perm),
-                Default::default(),
-            )
-            .ok()?
-        };
-        Some(NewtonPattern {
-            factor_id: factor.id(),
-            ptr,
-            cols,
-            h,
-            symbolic,
-        })
-    }
-
-    /// Adds the 3×3 block `b` at unknowns `(k, l)` (a pair of the pattern).
-    fn add(&mut self, k: u32, l: u32, b: &Matrix3<Real>) {
-        let (k, l) = (k as usize, l as usize);
-        let row = &self.cols[self.ptr[k]..self.ptr[k + 1]];
-        let p = row
-            .binary_search(&(l as u32))
-            .expect("a block of the pattern");
-        let width = 3 * row.len();
-        let base = 9 * self.ptr[k] + 3 * p;
-        let data = self.h.data_mut();
-        for r in 0..3 {
-            for s in 0..3 {
-                data[base + r * width + s] += b[(r, s)];
-            }
-        }
-    }
-}
 
 impl Deformer {
     /// Whether this iteration takes a Newton step: on the coarsest level of
@@ -237,36 +130,38 @@ impl Deformer {
 
     /// `H`'s values at the current rotations and area targets, written
     /// into the pattern of `factor` (built on first use); `None` when the
-    /// pattern could not be analysed.
+    /// pattern could not be analysed. With `patch` (the last assembly was
+    /// this iteration's [`Curvature::Full`] one, and `curvature` is
+    /// [`Curvature::Projected`]) only the elements whose curvature was
+    /// indefinite are computed again, and `Some(false)` says there were
+    /// none (`H` is unchanged).
     pub(super) fn assemble_newton(
         &mut self,
         factor: &Factor,
         (el, set): (&ElasticOps, &ElasticSet),
         curvature: Curvature,
-    ) -> Option<()> {
+        patch: bool,
+    ) -> Option<bool> {
         let st = &mut self.elastic;
         let n = &mut st.newton;
         if n.pattern.as_ref().map(|p| p.factor_id) != Some(factor.id()) {
             n.pattern = NewtonPattern::new(factor, el, set, &self.rest.ops);
         }
         let pattern = n.pattern.as_mut()?;
-        pattern.h.data_mut().fill(0.0);
-        for (r, row) in factor.sys.m.outer_iterator().enumerate() {
-            for (c, &v) in row.iter() {
-                pattern.add(r as u32, c as u32, &(Matrix3::identity() * v));
-            }
+        if patch && !pattern.indefinite.contains(&true) {
+            return Some(false);
         }
-        el.rotation_coupling(
-            set,
+        el.coupling_blocks(
+            &pattern.elements,
             &self.rest.ops,
-            &self.y,
-            &st.rot,
-            &st.proj,
-            &factor.sys.col_of,
+            (&self.y, &st.rot, &st.proj),
             curvature,
-            |k, l, b| pattern.add(k, l, b),
+            &mut pattern.blocks,
+            &mut pattern.indefinite,
+            patch,
         );
-        Some(())
+        pattern.gather(&factor.sys.m);
+        Some(true)
     }
 
     /// The Newton candidate of this iteration (module docs): sets the pose
@@ -295,7 +190,11 @@ impl Deformer {
             &[Curvature::Full, Curvature::Projected]
         };
         for &curvature in tries {
-            self.assemble_newton(factor, (el, set), curvature)?;
+            // after the exact Hessian, only its indefinite elements change
+            let patch = curvature == Curvature::Projected && !skip;
+            if !self.assemble_newton(factor, (el, set), curvature, patch)? {
+                break;
+            }
             let pattern = self.elastic.newton.pattern.as_ref()?;
             if let Ok(v) = dend_linalg::cholesky::factorise_definite(&pattern.symbolic, &pattern.h)
             {
@@ -322,6 +221,7 @@ impl Deformer {
         if n.rhs.iter().any(|v| !v.is_finite()) {
             return None;
         }
+
         for alpha in STEPS {
             let st = &mut self.elastic;
             for k in 0..nu {

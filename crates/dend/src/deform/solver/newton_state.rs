@@ -3,7 +3,9 @@
 //! `newton.rs` works on: a leaf below both.
 
 use faer::sparse::linalg::cholesky::SymbolicCholesky;
+use nalgebra::Matrix3;
 
+use crate::deform::elastic::hessian::blocks::Elements;
 use crate::mesh::Real;
 
 /// What a Newton iteration costs in iterations of the same level's
@@ -28,17 +30,42 @@ pub(super) struct NewtonState {
 }
 
 /// The structure of `H` for one constraint set: its 3×3 block pattern,
-/// the scalar matrix whose values each iteration overwrites, and its
-/// symbolic Cholesky factorisation.
+/// the scalar matrix whose values each iteration overwrites, its symbolic
+/// Cholesky factorisation, and its elements' blocks with the plan that
+/// sums them into it (`solver/newton_pattern.rs`).
 pub(super) struct NewtonPattern {
     /// The factor it belongs to.
     pub(super) factor_id: u64,
-    /// Block rows (CSR; symmetric, so also the block columns): the sorted
-    /// block columns of block row `k` are `cols[ptr[k]..ptr[k + 1]]`.
+    /// Block row `k`'s first block: its blocks (CSR over block rows,
+    /// symmetric) are `ptr[k]..ptr[k + 1]`, their block columns every
+    /// third column of `h`'s row `3k`.
     pub(super) ptr: Vec<usize>,
-    pub(super) cols: Vec<u32>,
     /// `H`, `3|U| × 3|U|`, CSR; row `3k + r` holds block row `k`'s blocks'
     /// row `r`, three entries per block.
     pub(super) h: sprs::CsMat<Real>,
     pub(super) symbolic: SymbolicCholesky<usize>,
+    /// The elements whose blocks make `H` beside `Q`.
+    pub(super) elements: Elements,
+    /// Their blocks at the last assembly.
+    pub(super) blocks: Vec<Matrix3<Real>>,
+    /// Whether each element's curvature was indefinite at the last
+    /// assembly.
+    pub(super) indefinite: Vec<bool>,
+    /// How the blocks and `Q` sum into `h`.
+    pub(super) gather: Gather,
+}
+
+/// Where each block of `H` gathers its values from.
+#[derive(Debug)]
+pub(super) struct Gather {
+    /// The element blocks of each block of `H` (indexed as `cols`), CSR;
+    /// an index into the elements' buffer, with its highest bit set for a
+    /// block added transposed.
+    pub(super) src_ptr: Vec<usize>,
+    pub(super) src: Vec<u32>,
+    /// The index in `Q_UU`'s values of each block's diagonal entry, or
+    /// `u32::MAX`.
+    pub(super) q: Vec<u32>,
+    /// Block rows where a task of the gather starts (and `|U|` last).
+    pub(super) tasks: Vec<usize>,
 }

@@ -7,51 +7,56 @@ use std::sync::Arc;
 
 use nalgebra::{DMatrix, UnitQuaternion, Vector3};
 
+use super::newton_state::NewtonPattern;
 use super::test_util::{max_dist, patch_edit};
+use crate::deform::elastic::hessian::blocks::each_block;
 use crate::deform::elastic::hessian::Curvature;
 use crate::deform::{Constraints, Deformer, Factor, Params, Rest, RigidTransform};
 use crate::mesh::gen::{irregular_patch, PatchSurface};
 use crate::mesh::Real;
 
 /// `H` as the pattern holds it (dense), and `H` summed from its terms
-/// directly: `Q ⊗ I₃` plus every block `rotation_coupling` gives.
+/// directly: `Q ⊗ I₃` plus every element block (and its transpose for a
+/// pair), elements in order.
 fn assembled_and_summed(
     d: &mut Deformer,
     f: &Factor,
     curvature: Curvature,
 ) -> (DMatrix<Real>, DMatrix<Real>) {
     let (el, set) = f.elastic.as_ref().unwrap();
-    d.assemble_newton(f, (el, set), curvature).unwrap();
-    let h = &d.elastic.newton.pattern.as_ref().unwrap().h;
+    d.assemble_newton(f, (el, set), curvature, false).unwrap();
+    let pattern = d.elastic.newton.pattern.as_ref().unwrap();
+    (dense(&pattern.h), summed(f, pattern))
+}
+
+/// `h` as a dense matrix.
+fn dense(h: &sprs::CsMat<Real>) -> DMatrix<Real> {
     let n = h.rows();
     let mut held = DMatrix::zeros(n, n);
     for (v, (r, c)) in h.iter() {
         held[(r, c)] += *v;
     }
+    held
+}
+
+/// `Q ⊗ I₃` plus the pattern's element blocks, scattered one by one in
+/// the elements' order.
+fn summed(f: &Factor, pattern: &NewtonPattern) -> DMatrix<Real> {
+    let n = pattern.h.rows();
     let mut summed = DMatrix::zeros(n, n);
     for (v, (r, c)) in f.sys.m.iter() {
         for a in 0..3 {
             summed[(3 * r + a, 3 * c + a)] += *v;
         }
     }
-    let st = &d.elastic;
-    el.rotation_coupling(
-        set,
-        &d.rest.ops,
-        &d.y,
-        &st.rot,
-        &st.proj,
-        &f.sys.col_of,
-        curvature,
-        |k, l, b| {
-            for r in 0..3 {
-                for s in 0..3 {
-                    summed[(3 * k as usize + r, 3 * l as usize + s)] += b[(r, s)];
-                }
+    each_block(&pattern.elements, &pattern.blocks, |k, l, b| {
+        for r in 0..3 {
+            for s in 0..3 {
+                summed[(3 * k as usize + r, 3 * l as usize + s)] += b[(r, s)];
             }
-        },
-    );
-    (held, summed)
+        }
+    });
+    summed
 }
 
 #[test]
@@ -271,5 +276,70 @@ fn a_crawling_bend_switches_to_newton_steps_and_converges() {
             its_s == its && switched_s == switched && gap <= 1e-9,
             "scale {s}: iterations {its_s:?} against {its:?}, switched {switched_s} against {switched}, pose gap {gap:.2e}"
         );
+    }
+}
+
+/// The assembly's mechanisms: the planned gather gives the matrix the
+/// elements' blocks make when scattered one by one (to the bit: the same
+/// sums in the same order), on any number of threads; where the exact
+/// Hessian does not factor, computing again only the elements whose
+/// curvature is indefinite gives the convex model computed afresh; and a
+/// pose whose elements degenerate (a vertex's whole ring collapsed to a
+/// point: its `C` vanishes to rounding and its triangles are flat) is assembled
+/// through the same plan.
+#[test]
+fn the_planned_assembly_is_the_scattered_sum_on_any_thread_count() {
+    let mesh = irregular_patch(PatchSurface::Wavy, 12, 0.4, 7);
+    let c = patch_edit(&mesh, 1.0);
+    let params = Params::default();
+    let rest = Arc::new(Rest::new(mesh).unwrap());
+    let f = Factor::build(&rest, &params, &c).unwrap();
+    let (el, set) = f.elastic.as_ref().unwrap();
+    let mut d = Deformer::new(rest.clone(), params);
+    d.set_levels(super::Levels::One);
+    d.step(&f, &c, 4).unwrap();
+    let assemble = |d: &mut Deformer, threads: usize, curvature: Curvature, patch: bool| {
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .unwrap();
+        pool.install(|| d.assemble_newton(&f, (el, set), curvature, patch))
+            .unwrap();
+        let p = d.elastic.newton.pattern.as_ref().unwrap();
+        (
+            p.h.data().to_vec(),
+            p.blocks.clone(),
+            dense(&p.h),
+            summed(&f, p),
+        )
+    };
+    // a free vertex away from the constraints, its ring collapsed
+    let centre = (0..rest.mesh.num_vertices())
+        .filter(|&v| f.sys.col_of[v] != u32::MAX)
+        .min_by(|&a, &b| {
+            let n = |v: usize| Vector3::from(rest.mesh.positions()[v]).norm();
+            n(a).total_cmp(&n(b))
+        })
+        .unwrap();
+    for collapse in [false, true] {
+        if collapse {
+            let ring = rest.ops.lbar.outer_view(centre).unwrap();
+            for &v in ring.indices() {
+                d.y[v] = [0.0; 3];
+            }
+        }
+        for curvature in [Curvature::Full, Curvature::Projected] {
+            let (one, blocks_one, held, sum) = assemble(&mut d, 1, curvature, false);
+            assert!(held == sum, "{curvature:?}, collapsed {collapse}");
+            assert!(sum.amax() > 0.0);
+            let (three, blocks_three, ..) = assemble(&mut d, 3, curvature, false);
+            assert!(one == three && blocks_one == blocks_three);
+        }
+        assemble(&mut d, 2, Curvature::Full, false);
+        let p = d.elastic.newton.pattern.as_ref().unwrap();
+        assert!(p.indefinite.contains(&true), "collapsed {collapse}");
+        let patched = assemble(&mut d, 2, Curvature::Projected, true);
+        let fresh = assemble(&mut d, 2, Curvature::Projected, false);
+        assert!(patched.0 == fresh.0 && patched.1 == fresh.1);
     }
 }
