@@ -28,6 +28,7 @@ use std::time::Instant;
 use nalgebra::{Matrix3, Vector3};
 use rayon::prelude::*;
 
+use super::levels::Levels;
 use super::multilevel::{coarse_params, coarse_problem};
 use super::{Deformer, Motion, Preview};
 use crate::deform::constraints::Constraints;
@@ -129,7 +130,12 @@ impl Deformer {
             Some(p) if p.key == key => p,
             _ => Box::new(Preview {
                 key,
-                problem: coarse_problem(&self.rest, &self.params, key.1, constraints, self.levels)
+                // the preview level's own iteration is a single level's
+                // (as with two levels): a drag's preview answers in a few of
+                // its iterations, which a correction or a Newton step would
+                // make several times longer (feline drag→frame p50 34 → 65
+                // ms with the hierarchy's)
+                problem: coarse_problem(&self.rest, &self.params, key.1, constraints, Levels::Two)
                     .map(Box::new),
                 following: false,
                 pending: false,
