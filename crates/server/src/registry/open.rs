@@ -293,12 +293,11 @@ impl SessionRegistry {
 }
 
 /// Builds the coarse levels a new session's first drags use, off their
-/// path: the elastic solver's level for a non-default coarse ratio (the
-/// default one is built with the mesh's rest state) and the coarse
-/// previews' level.
+/// path: the elastic solver's levels for its coarse ratio (the first and
+/// every level of the hierarchy below it; levels already built are
+/// reused) and the coarse previews' level.
 fn prefetch_levels(rest: &Arc<Rest>, params: Params) {
-    let ratio = params.elastic().map(|e| e.coarse_ratio);
-    if ratio.is_some_and(|r| r != dend::deform::ELASTICA_COARSE_RATIO) {
+    if params.elastic().is_some() {
         let rest = rest.clone();
         tokio::task::spawn_blocking(move || rest.prepare_coarse_level_for(&params));
     }

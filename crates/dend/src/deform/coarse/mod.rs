@@ -106,12 +106,22 @@ impl Rest {
 
     /// [`Rest::prepare_coarse_level`] for `params`' coarse ratio
     /// ([`ElasticParams::coarse_ratio`]; a server calls it when a session
-    /// with a non-default ratio opens); `false` for the paper formulations,
-    /// which have no coarse level.
+    /// opens), and the levels of the hierarchy below it (each level's own
+    /// coarse level, as [`Levels::Many`](crate::deform::Levels::Many)
+    /// solves on them); `false` for the paper formulations, which have no
+    /// coarse level.
     pub fn prepare_coarse_level_for(&self, params: &crate::deform::params::Params) -> bool {
-        params
-            .elastic()
-            .is_some_and(|e| self.coarse_at_most(e.coarse_ratio).is_some())
+        let Some(ratio) = params.elastic().map(|e| e.coarse_ratio) else {
+            return false;
+        };
+        let Some(first) = self.coarse_at_most(ratio) else {
+            return false;
+        };
+        let mut level = first;
+        while let Some(below) = level.rest.coarse_at_most(ratio) {
+            level = below;
+        }
+        true
     }
 }
 
