@@ -35,7 +35,9 @@ use faer::{MatMut, MatRef, Par};
 
 use crate::Real;
 
+mod gather;
 mod update;
+use gather::Gather;
 use update::update_portable;
 #[cfg(target_arch = "x86_64")]
 use update::update_x86;
@@ -82,6 +84,9 @@ pub struct NumericPlan {
     /// Widest supernode and longest off-diagonal pattern.
     max_width: usize,
     max_pattern: usize,
+    /// The gather of one matrix pattern's entries, for
+    /// [`NumericPlan::for_matrix`]'s plans.
+    gather: Option<Gather>,
 }
 
 impl NumericPlan {
@@ -204,7 +209,20 @@ impl NumericPlan {
             total_work,
             max_width,
             max_pattern,
+            gather: None,
         }
+    }
+
+    /// The plan of `sym` for a sequence of matrices with `a`'s pattern
+    /// (its values are not read): each factorisation then gathers `M`'s
+    /// entries by a precomputed list (`numeric/gather.rs`) instead of
+    /// permuting and searching each entry's row. [`factorize`] must then be
+    /// given matrices of that pattern (it checks their order and number of
+    /// entries).
+    pub fn for_matrix(sym: &SymbolicSupernodalCholesky<usize>, a: Permuted<'_>) -> NumericPlan {
+        let mut plan = NumericPlan::new(sym);
+        plan.gather = Gather::new(sym, a);
+        plan
     }
 
     fn children(&self, s: usize) -> &[usize] {
@@ -329,6 +347,10 @@ pub(crate) fn factorize_impl(
 ) -> Result<(), NonPositivePivot> {
     assert_eq!(values.len(), sym.len_val());
     assert_eq!(a.col_ptr.len(), sym.nrows() + 1);
+    assert!(
+        plan.gather.as_ref().is_none_or(|g| g.fits(&a)),
+        "a matrix of another pattern than the plan's"
+    );
     let ctx = Ctx {
         sym,
         plan,
@@ -434,16 +456,21 @@ impl Ctx<'_> {
         }
         // gather the lower triangle of M's permuted columns s_start..s_end
         let a = self.a;
-        for j in s_start..s_end {
-            let old_j = a.perm.map_or(j, |(fwd, _)| fwd[j]);
-            let col = &mut ls[(j - s_start) * s_nrows..][..s_nrows];
-            for p in a.col_ptr[old_j]..a.col_ptr[old_j + 1] {
-                let i = a.perm.map_or(a.row_idx[p], |(_, inv)| inv[a.row_idx[p]]);
-                if i < j {
-                    continue;
+        match self.plan.gather.as_ref() {
+            Some(g) => g.add(s, a.values, ls),
+            None => {
+                for j in s_start..s_end {
+                    let old_j = a.perm.map_or(j, |(fwd, _)| fwd[j]);
+                    let col = &mut ls[(j - s_start) * s_nrows..][..s_nrows];
+                    for p in a.col_ptr[old_j]..a.col_ptr[old_j + 1] {
+                        let i = a.perm.map_or(a.row_idx[p], |(_, inv)| inv[a.row_idx[p]]);
+                        if i < j {
+                            continue;
+                        }
+                        let local = if i < s_end { i - s_start } else { g2l[i] };
+                        col[local] += a.values[p];
+                    }
                 }
-                let local = if i < s_end { i - s_start } else { g2l[i] };
-                col[local] += a.values[p];
             }
         }
         // descendants' updates

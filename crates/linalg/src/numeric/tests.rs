@@ -238,3 +238,50 @@ proptest::proptest! {
         }
     }
 }
+
+/// A plan made for one matrix pattern ([`NumericPlan::for_matrix`])
+/// gathers `M`'s entries by its precomputed list: the values are those of
+/// the plain plan to the bit, sequential and parallel, for matrices of
+/// that pattern with other values.
+#[test]
+fn a_plan_for_a_pattern_gives_the_plain_plans_values() {
+    let m = spd(35, 3);
+    let sym = symbolic(&m);
+    let SymbolicCholeskyRaw::Supernodal(sn) = sym.raw() else {
+        panic!("not supernodal")
+    };
+    let perm = sym.perm().map(|p| p.arrays());
+    fn permuted<'a>(
+        m: &'a SparseColMat<usize, f64>,
+        values: &'a [f64],
+        perm: Option<(&'a [usize], &'a [usize])>,
+    ) -> Permuted<'a> {
+        Permuted {
+            col_ptr: m.symbolic().col_ptr(),
+            row_idx: m.symbolic().row_idx(),
+            values,
+            perm,
+        }
+    }
+    let for_matrix = NumericPlan::for_matrix(sn, permuted(&m, m.val(), perm));
+    let plain = NumericPlan::new(sn);
+    for scale in [1.0, 0.5, 3.0] {
+        let vals: Vec<f64> = m
+            .val()
+            .iter()
+            .enumerate()
+            .map(|(p, v)| v * (scale + (p % 7) as f64 * 1e-3 * (scale - 1.0)))
+            .collect();
+        for parallel in [false, true] {
+            let run = |plan: &NumericPlan| {
+                let mut values = vec![f64::NAN; sn.len_val()];
+                two_threads(|| {
+                    factorize(sn, plan, permuted(&m, &vals, perm), &mut values, parallel)
+                        .map(|_| values)
+                })
+            };
+            let (a, b) = (run(&for_matrix), run(&plain));
+            assert!(a == b, "scale {scale} parallel {parallel}");
+        }
+    }
+}

@@ -181,7 +181,7 @@ impl Deformer {
         // (where the exact Hessian did not factor, it is not tried again
         // for the next `CONVEX_AFTER_FAILURE` iterations: a failed
         // factorisation costs about as much as one that succeeds)
-        let mut values = None;
+        let mut factored = None;
         let skip = self.elastic.newton.convex_for > 0;
         self.elastic.newton.convex_for = self.elastic.newton.convex_for.saturating_sub(1);
         let tries: &[Curvature] = if skip {
@@ -195,20 +195,23 @@ impl Deformer {
             if !self.assemble_newton(factor, (el, set), curvature, patch)? {
                 break;
             }
-            let pattern = self.elastic.newton.pattern.as_ref()?;
-            if let Ok(v) = dend_linalg::cholesky::factorise_definite(&pattern.symbolic, &pattern.h)
+            let pattern = self.elastic.newton.pattern.as_mut()?;
+            if pattern
+                .refactor
+                .factorise_definite(&pattern.symbolic, &pattern.h)
+                .is_ok()
             {
-                values = Some((v, curvature));
+                factored = Some(curvature);
                 break;
             }
             if curvature == Curvature::Full {
                 self.elastic.newton.convex_for = CONVEX_AFTER_FAILURE;
             }
         }
-        let (values, curvature) = values?;
+        let curvature = factored?;
         let n = &mut self.elastic.newton;
         let pattern = n.pattern.as_ref()?;
-        let llt = LltRef::new(&pattern.symbolic, &values);
+        let llt = LltRef::new(&pattern.symbolic, pattern.refactor.values());
         let mut mem =
             MemBuffer::try_new(pattern.symbolic.solve_in_place_scratch::<Real>(1, Par::Seq))
                 .ok()?;

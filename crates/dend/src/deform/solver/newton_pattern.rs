@@ -12,6 +12,7 @@
 //! camel's 3258-vertex level (466 k nonzeros) the searched scatter took
 //! 11–12 ms of a 28–30 ms Newton iteration.
 
+use dend_linalg::cholesky::Refactor;
 use faer::sparse::linalg::cholesky::{factorize_symbolic_cholesky, SymmetricOrdering};
 use faer::sparse::SymbolicSparseColMatRef;
 use faer::Side;
@@ -34,8 +35,8 @@ impl NewtonPattern {
     /// The pattern of `H` for `factor`'s constraint set: `Q_UU`'s entries
     /// and every pair of unknowns in one element's support
     /// ([`ElasticOps::coupling_elements`]), with its assembly plan;
-    /// `None` when the symbolic analysis fails or the elements' blocks
-    /// outnumber the plan's indices.
+    /// `None` when the symbolic analysis fails (or its buffer cannot be
+    /// allocated) or the elements' blocks outnumber the plan's indices.
     pub(super) fn new(
         factor: &Factor,
         el: &ElasticOps,
@@ -112,11 +113,13 @@ impl NewtonPattern {
             )
             .ok()?
         };
+        let refactor = Refactor::new(&symbolic, &h).ok()?;
         Some(NewtonPattern {
             factor_id: factor.id(),
             ptr,
             h,
             symbolic,
+            refactor,
             blocks: vec![Matrix3::zeros(); elements.num_blocks()],
             indefinite: vec![false; elements.len()],
             elements,

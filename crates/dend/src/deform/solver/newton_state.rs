@@ -2,6 +2,7 @@
 //! and its cost, which the elastic state holds and counts and
 //! `newton.rs` works on: a leaf below both.
 
+use dend_linalg::cholesky::Refactor;
 use faer::sparse::linalg::cholesky::SymbolicCholesky;
 use nalgebra::Matrix3;
 
@@ -44,6 +45,8 @@ pub(super) struct NewtonPattern {
     /// row `r`, three entries per block.
     pub(super) h: sprs::CsMat<Real>,
     pub(super) symbolic: SymbolicCholesky<usize>,
+    /// The numeric factorisation's plan and buffer for `h`'s pattern.
+    pub(super) refactor: Refactor,
     /// The elements whose blocks make `H` beside `Q`.
     pub(super) elements: Elements,
     /// Their blocks at the last assembly.
