@@ -53,6 +53,16 @@ const REST_TARGET_TOLERANCE: Real = 1e-9;
 /// 1–4 % a drifting solve grows by per iteration.
 const DRIFT_MARGIN: Real = 1e-6;
 
+/// Newton candidates in a row that lower nothing (the plain step is taken
+/// each time) after which a sequence takes no more Newton steps. Near a
+/// pose where the energy buckles (the survey bar twisted 135°, its
+/// 1521-vertex level's start), the Hessian factors but its step raises
+/// the energy at every length tried: 250 such iterations, each paying for
+/// a factorisation, ran to the 300-iteration cap of the coarse start
+/// (1.46 s of the edit's precomputation against 0.22 s); the local/global
+/// iterations alone go on lowering it.
+pub(super) const NEWTON_GIVE_UP: usize = 3;
+
 impl State {
     /// Whether the next sequence starts from the rest pose.
     pub(super) fn starts_from_rest(&self) -> bool {
@@ -138,6 +148,7 @@ impl Deformer {
                 st.sequence_iterations = 0;
                 st.recent_updates.clear();
                 st.newton_now = false;
+                st.newton_failures = 0;
                 self.start_sequence(factor, (el, set), constraints, moved && !at_rest)
             }
         };
@@ -171,7 +182,8 @@ impl Deformer {
             }
             // 1. global step: Δ = Q_UU⁻¹ (g(R) − Q Y)_U
             self.global_rhs(factor, (el, set));
-            let newton = fit && self.takes_newton_step();
+            let newton =
+                fit && self.takes_newton_step() && self.elastic.newton_failures < NEWTON_GIVE_UP;
             if newton {
                 self.keep_newton_rhs(nu);
             }
@@ -219,6 +231,9 @@ impl Deformer {
                 if let Some(e_n) = self.newton_candidate(factor, (el, set), e) {
                     e = e_n;
                     accepted = true;
+                    self.elastic.newton_failures = 0;
+                } else {
+                    self.elastic.newton_failures += 1;
                 }
                 report.coarse_work += super::newton_state::NEWTON_COST - 1.0;
             }

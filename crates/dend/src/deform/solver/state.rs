@@ -72,6 +72,12 @@ pub(super) struct State {
     pub(super) sequence_iterations: usize,
     pub(super) recent_updates: std::collections::VecDeque<Real>,
     pub(super) newton_now: bool,
+    /// Newton candidates of the current sequence that lowered nothing in
+    /// a row; at [`NEWTON_GIVE_UP`] the sequence takes no more Newton
+    /// steps.
+    ///
+    /// [`NEWTON_GIVE_UP`]: super::local_global::NEWTON_GIVE_UP
+    pub(super) newton_failures: usize,
 }
 
 /// How a new iteration sequence gets its first rotations.
