@@ -6,8 +6,8 @@
 //! The shape is `dend_testkit::tube_of_size` at about 8k, 32k and 128k
 //! vertices, the edit `dend_testkit::standard_edit` (the lowest 10 % in z
 //! fixed, the highest 10 % moved by 0.15 of the diagonal and turned 30°).
-//! For each resolution and each of [`Levels::Two`] (the default) and
-//! [`Levels::Many`], criterion times one fine iteration (from a deformed
+//! For each resolution and each of [`Levels::Two`] and [`Levels::Many`]
+//! (the default), criterion times one fine iteration (from a deformed
 //! pose, one level) and the solve from rest to convergence; stderr gets
 //! the medians of both and their ratio, the fine-iteration equivalents,
 //! which should stay flat across the three resolutions (the largest within
