@@ -6,7 +6,7 @@
 
 use faer::sparse::linalg::cholesky::supernodal::SymbolicSupernodalCholesky;
 
-use super::Permuted;
+use super::permuted::Permuted;
 
 /// The entries of `M` each supernode gathers: `(p, offset)`, `M`'s value
 /// `p` added at `offset` in the supernode's block (column-major, its

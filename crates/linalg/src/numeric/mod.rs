@@ -36,8 +36,10 @@ use faer::{MatMut, MatRef, Par};
 use crate::Real;
 
 mod gather;
+mod permuted;
 mod update;
 use gather::Gather;
+pub use permuted::Permuted;
 use update::update_portable;
 #[cfg(target_arch = "x86_64")]
 use update::update_x86;
@@ -232,21 +234,6 @@ impl NumericPlan {
     fn subtree(&self, s: usize) -> &[usize] {
         &self.post[self.first[s]..=self.pos[s]]
     }
-}
-
-/// A symmetric matrix stored with both triangles in compressed columns
-/// (the normal matrix `M` as assembled), and the fill-reducing permutation
-/// (`fwd[new] = old`, `inv[old] = new`) the factor's columns follow.
-#[derive(Clone, Copy)]
-pub struct Permuted<'a> {
-    /// Column pointers of `M` (both triangles).
-    pub col_ptr: &'a [usize],
-    /// Row indices of `M`, sorted within each column.
-    pub row_idx: &'a [usize],
-    /// `M`'s values, in the order of `row_idx`.
-    pub values: &'a [Real],
-    /// The fill-reducing permutation `(fwd, inv)`, if any.
-    pub perm: Option<(&'a [usize], &'a [usize])>,
 }
 
 /// Why [`factorize`] stopped: the first non-positive pivot met (a column of
