@@ -114,10 +114,9 @@ impl Rest {
         let Some(ratio) = params.elastic().map(|e| e.coarse_ratio) else {
             return false;
         };
-        let Some(first) = self.coarse_at_most(ratio) else {
+        let Some(mut level) = self.coarse_at_most(ratio) else {
             return false;
         };
-        let mut level = first;
         while let Some(below) = level.rest.coarse_at_most(ratio) {
             level = below;
         }

@@ -225,7 +225,6 @@ fn solve_start(
     // against 232, capped at 100 iterations, where this start converges)
     let newton = std::mem::replace(&mut coarse.newton, false);
     let report = coarse.step(&p.factor, cc, COARSE_MAX_ITERS).ok();
-    let coarse = &mut p.deformer;
     coarse.newton = newton;
     if alone {
         coarse.set_levels(p.levels_below);
@@ -470,12 +469,11 @@ impl Deformer {
             coarse.set_linear_term(s);
             coarse.interrupt = fine.interrupt.clone();
             coarse.drift_limit = Some(CORRECTION_DRIFT);
-            // a level of a hierarchy with a level below it smooths; the
-            // coarsest converges
-            let cycle = p.levels_below == Levels::Many && !coarse.newton;
+            // the coarsest level of a hierarchy converges (Newton steps, up
+            // to a cap); a level with a level below it smooths
             let report = if coarse.newton {
                 coarse.step(&p.factor, cc, NEWTON_CORRECTION_MAX_ITERS).ok()
-            } else if cycle {
+            } else if p.levels_below == Levels::Many {
                 coarse.step(&p.factor, cc, CYCLE_ITERS).ok()
             } else if p.slow {
                 solve_until_stalled(coarse, &p.factor, cc)
@@ -496,7 +494,6 @@ impl Deformer {
             if report.iterations >= CORRECTION_MAX_ITERS && !report.converged {
                 p.slow = true;
             }
-            let coarse = &p.deformer;
             if coarse.newton && !report.converged && !report.diverged {
                 p.unfit = true;
             }
