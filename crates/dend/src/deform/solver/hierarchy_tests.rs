@@ -217,3 +217,62 @@ fn a_limb_converges_to_the_minimum_at_two_resolutions() {
     eprintln!("{rows:#?}");
     assert!(failures.is_empty(), "{failures:#?}");
 }
+
+/// [`Deformer::prepare_levels`] builds every level's coarse problem and
+/// the coarsest level's Newton pattern, and changes nothing but when they
+/// are built: the solve after it takes the same iterations to the same
+/// pose, bit for bit, as the solve that builds them on first use. A
+/// factor built with [`Deformer::build_factor`] away from the rest pose
+/// comes with the levels prepared too.
+#[test]
+fn preparing_the_levels_builds_them_and_changes_no_iterate() {
+    let mesh = jittered_creature();
+    let c = creature_edit(&mesh, 1.0);
+    let params = Params::default();
+    let rest = Arc::new(Rest::new(mesh).unwrap());
+    let f = Factor::build(&rest, &params, &c).unwrap();
+    // the problems down to the coarsest level, and whether its Newton
+    // pattern is analysed
+    let built = |d: &Deformer| {
+        let (mut depth, mut at, mut newton) = (0, d, false);
+        while let Some((_, Some(p))) = &at.coarse {
+            depth += 1;
+            newton = p.deformer.newton && p.deformer.elastic.newton.pattern.is_some();
+            at = &p.deformer;
+        }
+        (depth, newton)
+    };
+    let solve = |prepare: bool| {
+        let mut d = Deformer::new(rest.clone(), params);
+        d.set_levels(Levels::Many);
+        if prepare {
+            d.prepare_levels(&f, &c);
+        }
+        let prepared = built(&d);
+        let r = d.step(&f, &c, 300).unwrap();
+        assert!(r.converged, "{r:?}");
+        (
+            prepared,
+            (r.iterations, r.coarse_iterations),
+            d.pose().to_vec(),
+        )
+    };
+    let (none, its, pose) = solve(false);
+    let (prepared, its_p, pose_p) = solve(true);
+    let depth = levels_of(&rest).0.len() - 1;
+    assert!(depth >= 1, "no coarse level");
+    assert_eq!(none, (0, false));
+    assert_eq!(prepared, (depth, true));
+    assert_eq!(its_p, its);
+    assert_eq!(pose_p, pose);
+
+    // away from the rest pose, `build_factor` prepares the levels too
+    let mut d = Deformer::new(rest.clone(), params);
+    d.set_levels(Levels::Many);
+    d.step(&f, &c, 3).unwrap();
+    let mut moved = c.clone();
+    moved.handles[0].target.translation[0] += 0.05;
+    let f2 = d.build_factor(&moved).unwrap();
+    assert_eq!(built(&d), (depth, true));
+    assert!(d.step(&f2, &moved, 300).unwrap().converged);
+}

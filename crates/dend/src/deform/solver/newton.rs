@@ -128,6 +128,20 @@ impl Deformer {
         }
     }
 
+    /// Analyses `H`'s pattern for `factor`'s constraint set
+    /// ([`NewtonPattern`]) unless it is already analysed: once per set,
+    /// on the first Newton step or before any ([`Deformer::prepare_levels`]).
+    pub(super) fn prepare_newton(
+        &mut self,
+        factor: &Factor,
+        (el, set): (&ElasticOps, &ElasticSet),
+    ) {
+        let n = &mut self.elastic.newton;
+        if n.pattern.as_ref().map(|p| p.factor_id) != Some(factor.id()) {
+            n.pattern = NewtonPattern::new(factor, el, set, &self.rest.ops);
+        }
+    }
+
     /// `H`'s values at the current rotations and area targets, written
     /// into the pattern of `factor` (built on first use); `None` when the
     /// pattern could not be analysed. With `patch` (the last assembly was
@@ -142,12 +156,9 @@ impl Deformer {
         curvature: Curvature,
         patch: bool,
     ) -> Option<bool> {
+        self.prepare_newton(factor, (el, set));
         let st = &mut self.elastic;
-        let n = &mut st.newton;
-        if n.pattern.as_ref().map(|p| p.factor_id) != Some(factor.id()) {
-            n.pattern = NewtonPattern::new(factor, el, set, &self.rest.ops);
-        }
-        let pattern = n.pattern.as_mut()?;
+        let pattern = st.newton.pattern.as_mut()?;
         if patch && !pattern.indefinite.contains(&true) {
             return Some(false);
         }
