@@ -65,12 +65,14 @@ use super::system::{add_soft_diagonal, partition, System};
 use crate::mesh::{Mesh, Point, Real};
 
 mod area;
+mod area_lanes;
 pub(crate) mod hessian;
 mod residual;
 
 use crate::operators::Operators;
 pub use area::project_area;
 use area::{area_element, gradient, AreaElement, AreaForces};
+use area_lanes::{project_area4, LANES as AREA_LANES};
 use dend_linalg::sparse::matmul;
 
 /// Element count from which the local step runs on the rayon pool.
@@ -453,8 +455,33 @@ impl ElasticOps {
                 .map(|(c, o)| vertices((first + c, o)))
                 .sum()
         };
+        // four triangles' projections side by side (`area_lanes`): the
+        // same projections, energies and sum, bit for bit
         let triangle_block = |(els, ps): (&[AreaElement], &mut [[Real; 6]])| -> Real {
-            els.iter().zip(ps.iter_mut()).map(triangles).sum()
+            els.chunks(AREA_LANES)
+                .zip(ps.chunks_mut(AREA_LANES))
+                .flat_map(|(els, ps)| {
+                    let mut energy = [0.0; AREA_LANES];
+                    if let (Ok(els), Ok(ps), true) = (
+                        <&[AreaElement; AREA_LANES]>::try_from(els),
+                        <&mut [[Real; 6]; AREA_LANES]>::try_from(&mut *ps),
+                        fit,
+                    ) {
+                        let f: [[Real; 6]; AREA_LANES] =
+                            std::array::from_fn(|k| gradient(y, &els[k]));
+                        *ps = project_area4(&f);
+                        for k in 0..AREA_LANES {
+                            energy[k] = els[k].weight
+                                * (0..6).map(|c| (f[k][c] - ps[k][c]).powi(2)).sum::<Real>();
+                        }
+                    } else {
+                        for (k, pair) in els.iter().zip(ps.iter_mut()).enumerate() {
+                            energy[k] = triangles(pair);
+                        }
+                    }
+                    energy.into_iter().take(els.len())
+                })
+                .sum()
         };
         let (ev, et): (Vec<Real>, Vec<Real>) = if rot.len() >= PARALLEL_MIN {
             (
