@@ -68,12 +68,14 @@ mod area;
 mod area_lanes;
 pub(crate) mod hessian;
 mod residual;
+mod residual_rows;
 
 use crate::operators::Operators;
 pub use area::project_area;
 use area::{area_element, gradient, AreaElement, AreaForces};
 use area_lanes::{project_area4, LANES as AREA_LANES};
 use dend_linalg::sparse::matmul;
+use residual_rows::ResidualRows;
 
 /// Element count from which the local step runs on the rayon pool.
 const PARALLEL_MIN: usize = 2048;
@@ -115,9 +117,8 @@ pub struct ElasticOps {
     area: Vec<AreaElement>,
     /// The area term's forces gathered per vertex (the residual's).
     area_forces: AreaForces,
-    /// `Σ_j c_ij e_ij`: the spokes' rest edges at `i`, weighted (the
-    /// residual's `R_i` part of the spokes).
-    ce: Vec<Point>,
+    /// The residual's rows in factored form.
+    rows: ResidualRows,
 }
 
 /// The elastic system of one constrained set: which vertices keep their
@@ -131,6 +132,8 @@ pub struct ElasticSet {
     pub(crate) fit: Vec<bool>,
     /// `Q`.
     pub(crate) q: CsMat<Real>,
+    /// [`ResidualRows::rest_turn`] of this set.
+    rest_turn: Vec<Point>,
 }
 
 impl ElasticOps {
@@ -186,17 +189,7 @@ impl ElasticOps {
             Vec::new()
         };
         let area_forces = AreaForces::new(n, &area);
-        let ce = (0..n)
-            .map(|i| {
-                let mut acc = [0.0; 3];
-                for s in ptr[i]..ptr[i + 1] {
-                    for a in 0..3 {
-                        acc[a] += c[s] * e[s][a];
-                    }
-                }
-                acc
-            })
-            .collect();
+        let rows = ResidualRows::new(ops, (&ptr, &nbr), (&c, &e), &b, kbl, ka);
         let mut ops_ = ElasticOps {
             ptr,
             nbr,
@@ -208,7 +201,7 @@ impl ElasticOps {
             ka,
             area,
             area_forces,
-            ce,
+            rows,
             q_all: CsMat::zero((n, n)),
         };
         ops_.q_all = ops_.assemble_q(ops, &vec![true; n]);
@@ -224,7 +217,7 @@ impl ElasticOps {
             + self.b.len() * 8
             + self.area.len() * std::mem::size_of::<AreaElement>()
             + self.area_forces.memory_bytes()
-            + self.ce.len() * 24
+            + self.rows.memory_bytes()
             + self.q_all.nnz() * 16
     }
 
@@ -253,7 +246,13 @@ impl ElasticOps {
         let q = self
             .drop_rows(ops, &free)
             .unwrap_or_else(|| self.assemble_q(ops, &free));
-        ElasticSet { free, fit, q }
+        let rest_turn = self.rows.rest_turn(&free);
+        ElasticSet {
+            free,
+            fit,
+            q,
+            rest_turn,
+        }
     }
 
     /// `Q` with the rows centred at the vertices where `free` is false
@@ -455,8 +454,7 @@ impl ElasticOps {
                 .map(|(c, o)| vertices((first + c, o)))
                 .sum()
         };
-        // four triangles' projections side by side (`area_lanes`): the
-        // same projections, energies and sum, bit for bit
+        // four projections side by side (`area_lanes`), bit for bit
         let triangle_block = |(els, ps): (&[AreaElement], &mut [[Real; 6]])| -> Real {
             els.chunks(AREA_LANES)
                 .zip(ps.chunks_mut(AREA_LANES))
