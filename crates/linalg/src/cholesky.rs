@@ -31,6 +31,24 @@ pub fn csr_arrays(m: &sprs::CsMat<Real>) -> (Cow<'_, [usize]>, &[usize]) {
     (indptr, &m.indices()[base..end])
 }
 
+/// Runs `f` on `m` (both triangles, as assembled) with `symbolic`'s
+/// fill-reducing permutation: the matrix a supernodal numeric
+/// factorisation and its plan read.
+fn with_permuted<R>(
+    symbolic: &SymbolicCholesky<usize>,
+    m: &sprs::CsMat<Real>,
+    f: impl FnOnce(numeric::Permuted<'_>) -> R,
+) -> R {
+    let (col_ptr, row_idx) = csr_arrays(m);
+    let base = m.indptr().index(0);
+    f(numeric::Permuted {
+        col_ptr: &col_ptr,
+        row_idx,
+        values: &m.data()[base..base + m.nnz()],
+        perm: symbolic.perm().map(|p| p.arrays()),
+    })
+}
+
 /// Fill-reducing ordering and symbolic Cholesky factorisation of the
 /// symmetric pattern `(col_ptr, row_idx)` (both triangles, sorted rows).
 pub fn analyse(
@@ -106,17 +124,9 @@ impl Refactor {
         m: &sprs::CsMat<Real>,
     ) -> Result<Self, LinalgError> {
         let plan = match symbolic.raw() {
-            SymbolicCholeskyRaw::Supernodal(sn) => {
-                let (col_ptr, row_idx) = csr_arrays(m);
-                let base = m.indptr().index(0);
-                let a = numeric::Permuted {
-                    col_ptr: &col_ptr,
-                    row_idx,
-                    values: &m.data()[base..base + m.nnz()],
-                    perm: symbolic.perm().map(|p| p.arrays()),
-                };
-                Some(numeric::NumericPlan::for_matrix(sn, a))
-            }
+            SymbolicCholeskyRaw::Supernodal(sn) => Some(with_permuted(symbolic, m, |a| {
+                numeric::NumericPlan::for_matrix(sn, a)
+            })),
             SymbolicCholeskyRaw::Simplicial(_) => None,
         };
         let mut values = zeroed(symbolic.len_val())?;
@@ -136,16 +146,11 @@ impl Refactor {
             self.values = factorise_definite(symbolic, m)?;
             return Ok(&self.values);
         };
-        let (col_ptr, row_idx) = csr_arrays(m);
-        let base = m.indptr().index(0);
-        let a = numeric::Permuted {
-            col_ptr: &col_ptr,
-            row_idx,
-            values: &m.data()[base..base + m.nnz()],
-            perm: symbolic.perm().map(|p| p.arrays()),
-        };
-        numeric::factorize(sn, plan, a, &mut self.values, true)
-            .map_err(|e| LinalgError::NotPositiveDefinite { pivot: e.0 })?;
+        let values = &mut self.values;
+        with_permuted(symbolic, m, |a| {
+            numeric::factorize(sn, plan, a, values, true)
+        })
+        .map_err(|e| LinalgError::NotPositiveDefinite { pivot: e.0 })?;
         Ok(&self.values)
     }
 
