@@ -96,24 +96,7 @@ fn residual_is_minus_half_the_gradient(params: Params) {
     let el = ElasticOps::new(&mesh, ops, &params, params.elastic().unwrap());
     let constrained: Vec<u32> = (0..7).chain(42..49).collect();
     let set = el.system(ops, &constrained);
-    let mut state = 12345u64;
-    let mut rnd = || {
-        state = state
-            .wrapping_mul(6364136223846793005)
-            .wrapping_add(1442695040888963407);
-        ((state >> 11) as f64 / (1u64 << 53) as f64) - 0.5
-    };
-    let rot: Vec<UnitQuaternion<Real>> = (0..n)
-        .map(|_| UnitQuaternion::from_scaled_axis(Vector3::new(rnd(), rnd(), rnd())))
-        .collect();
-    let proj: Vec<[Real; 6]> = (0..el.num_area_elements())
-        .map(|_| std::array::from_fn(|_| 1.0 + rnd()))
-        .collect();
-    let y: Vec<Point> = ops
-        .positions
-        .iter()
-        .map(|p| [p[0] + 0.2 * rnd(), p[1] + 0.2 * rnd(), p[2] + 0.2 * rnd()])
-        .collect();
+    let (rot, proj, y) = random_state(&el, &ops.positions, 12345, 1.0, 0.2);
     let energy = |y: &[Point]| {
         let mut ly = vec![[0.0; 3]; n];
         crate::deform::stacked::mul_l(ops, y, &mut ly);
@@ -271,24 +254,7 @@ fn factored_equals_assembled(mesh: &Mesh, params: &Params) {
     let el = ElasticOps::new(mesh, ops, params, params.elastic().unwrap());
     let constrained: Vec<u32> = (0..n as u32).filter(|v| v % 5 == 0 || *v < 6).collect();
     let set = el.system(ops, &constrained);
-    let mut state = 777u64;
-    let mut rnd = || {
-        state = state
-            .wrapping_mul(6364136223846793005)
-            .wrapping_add(1442695040888963407);
-        ((state >> 11) as f64 / (1u64 << 53) as f64) - 0.5
-    };
-    let rot: Vec<UnitQuaternion<Real>> = (0..n)
-        .map(|_| UnitQuaternion::from_scaled_axis(Vector3::new(rnd(), rnd(), rnd()) * 4.0))
-        .collect();
-    let proj: Vec<[Real; 6]> = (0..el.num_area_elements())
-        .map(|_| std::array::from_fn(|_| 1.0 + rnd()))
-        .collect();
-    let y: Vec<Point> = ops
-        .positions
-        .iter()
-        .map(|p| [p[0] + 0.3 * rnd(), p[1] + 0.3 * rnd(), p[2] + 0.3 * rnd()])
-        .collect();
+    let (rot, proj, y) = random_state(&el, &ops.positions, 777, 4.0, 0.3);
     let mut got = vec![[0.0; 3]; n];
     let (mut t, mut rm) = (vec![[0.0; 3]; n], vec![[0.0; 4]; n]);
     el.residual(&set, ops, &y, &rot, &proj, (&mut t, &mut rm), &mut got);
@@ -339,4 +305,41 @@ fn factored_equals_assembled(mesh: &Mesh, params: &Params) {
         "{} vertices: difference {worst} (scale {scale})",
         n
     );
+}
+
+/// A reproducible random state of `el`'s energy: per-vertex rotations of
+/// angles up to `turn`·√3/2, area targets with entries in [0.5, 1.5), and
+/// the rest positions moved by up to `shift`/2 per coordinate (`seed` the
+/// generator's start).
+fn random_state(
+    el: &ElasticOps,
+    positions: &[Point],
+    seed: u64,
+    turn: Real,
+    shift: Real,
+) -> (Vec<UnitQuaternion<Real>>, Vec<[Real; 6]>, Vec<Point>) {
+    let mut state = seed;
+    let mut rnd = || {
+        state = state
+            .wrapping_mul(6364136223846793005)
+            .wrapping_add(1442695040888963407);
+        ((state >> 11) as f64 / (1u64 << 53) as f64) - 0.5
+    };
+    let rot = (0..positions.len())
+        .map(|_| UnitQuaternion::from_scaled_axis(Vector3::new(rnd(), rnd(), rnd()) * turn))
+        .collect();
+    let proj = (0..el.num_area_elements())
+        .map(|_| std::array::from_fn(|_| 1.0 + rnd()))
+        .collect();
+    let y = positions
+        .iter()
+        .map(|p| {
+            [
+                p[0] + shift * rnd(),
+                p[1] + shift * rnd(),
+                p[2] + shift * rnd(),
+            ]
+        })
+        .collect();
+    (rot, proj, y)
 }
