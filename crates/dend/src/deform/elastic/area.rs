@@ -338,23 +338,28 @@ fn convex_root(s1: Real, s2: Real, start: Real) -> Real {
     d
 }
 
+/// A deformation gradient (σ 20.46, 0.2345) on which Halley's method on
+/// the quartic reaches `p' = 0` (found by a random search): a case every
+/// projection must handle.
+#[cfg(test)]
+pub(super) const HALLEY_STALL: [Real; 6] = [
+    13.815142394995833,
+    -7.084317433370278,
+    8.774436662673722,
+    7.925781520741228,
+    -3.7823380224559817,
+    4.8495640365943995,
+];
+
 #[cfg(test)]
 mod tests {
     use super::*;
 
     #[test]
     fn a_stretched_nearly_collapsed_triangle_projects_to_the_nearest() {
-        // the case that sent Halley's method on the quartic to p' = 0
-        // (found by a random search; σ 20.46, 0.2345): the projection's
-        // distance is the least over d, as the independent search says
-        let f = [
-            13.815142394995833,
-            -7.084317433370278,
-            8.774436662673722,
-            7.925781520741228,
-            -3.7823380224559817,
-            4.8495640365943995,
-        ];
+        // Halley's stalling case: the projection's distance is the least
+        // over d, as the independent search says
+        let f = HALLEY_STALL;
         let m: nalgebra::Matrix3x2<Real> =
             nalgebra::Matrix3x2::new(f[0], f[3], f[1], f[4], f[2], f[5]);
         let sv = m.singular_values();
