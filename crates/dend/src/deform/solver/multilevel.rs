@@ -200,6 +200,22 @@ pub(super) fn coarse_problem(
     })
 }
 
+impl CoarseProblem {
+    /// Builds what this problem's own solves need ([`Deformer::prepare_levels`]
+    /// for its restricted constraints `cc`): the Newton pattern where it is
+    /// the coarsest level, and the levels below it. `None` when its factor
+    /// has no elastic part to analyse.
+    fn prepare_below(&mut self, cc: &Constraints) -> Option<()> {
+        let factor = self.factor.clone();
+        if self.deformer.newton {
+            let (el, set) = factor.elastic.as_ref()?;
+            self.deformer.prepare_newton(&factor, (el, set));
+        }
+        self.deformer.prepare_levels(&factor, cc);
+        Some(())
+    }
+}
+
 /// Solves the coarse start of `p` from the coarse rest pose for the
 /// restricted constraints `cc` of the fine `constraints` (the deformer's
 /// parameters already set), its time counted from `t0`; `None` when the
@@ -356,15 +372,7 @@ impl Deformer {
     pub fn prepare_levels(&mut self, factor: &Factor, constraints: &Constraints) {
         let rest = self.rest.clone();
         let internal = rest.internal_constraints(constraints);
-        self.with_coarse(factor, &internal, |_, p, cc| {
-            let coarse_factor = p.factor.clone();
-            if p.deformer.newton {
-                let (el, set) = coarse_factor.elastic.as_ref()?;
-                p.deformer.prepare_newton(&coarse_factor, (el, set));
-            }
-            p.deformer.prepare_levels(&coarse_factor, cc);
-            Some(())
-        });
+        self.with_coarse(factor, &internal, |_, p, cc| p.prepare_below(cc));
     }
 
     /// Sets the rotations of the vertices with `set.fit` (and the area
@@ -429,12 +437,7 @@ impl Deformer {
                     p.solved_start = Some(solve_start(&mut p, &cc, &internal, t0)?);
                 }
                 // the levels below, for the corrections
-                let coarse_factor = p.factor.clone();
-                if p.deformer.newton {
-                    let (el, set) = coarse_factor.elastic.as_ref()?;
-                    p.deformer.prepare_newton(&coarse_factor, (el, set));
-                }
-                p.deformer.prepare_levels(&coarse_factor, &cc);
+                p.prepare_below(&cc)?;
                 Some(Box::new(p))
             },
         );
