@@ -22,6 +22,7 @@
 mod dense;
 mod kernels;
 mod parallel;
+pub mod simplicial;
 mod sweep;
 mod types;
 

@@ -29,7 +29,8 @@ pub(super) enum Backend {
     Cg(Cg),
     /// The sparse LU of eq. (23)'s exact `K_UU` ([`Formulation::SquareLu`]).
     Lu(Box<Lu<usize, Real>>),
-    /// A simplicial Cholesky factor (small systems), solved by faer.
+    /// A simplicial Cholesky factor (small systems), solved by
+    /// [`trisolve::simplicial`].
     Simplicial {
         /// Its structure.
         symbolic: SymbolicCholesky<usize>,

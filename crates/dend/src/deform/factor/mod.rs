@@ -223,7 +223,8 @@ impl Factor {
     }
 
     /// Whether the factor is supernodal (then its solves use
-    /// [`trisolve`]; small systems get faer's simplicial factor).
+    /// [`trisolve`]; small systems get faer's simplicial factor, solved by
+    /// [`trisolve::simplicial`]).
     pub fn is_supernodal(&self) -> bool {
         matches!(
             self.backend.symbolic().map(|s| s.raw()),
@@ -318,10 +319,12 @@ impl Factor {
                 SymbolicCholeskyRaw::Supernodal(sn) => trisolve::scratch(sn, plan.as_ref()),
                 SymbolicCholeskyRaw::Simplicial(_) => unreachable!("a supernodal backend"),
             },
-            // simplicial, or eq. (23)'s preconditioner: faer's solve
-            Backend::Simplicial { symbolic, .. } | Backend::Gmres { symbolic, .. } => {
-                symbolic.solve_in_place_scratch::<Real>(k, Par::Seq)
-            }
+            Backend::Simplicial { symbolic, .. } => match symbolic.raw() {
+                SymbolicCholeskyRaw::Simplicial(simp) => trisolve::simplicial::scratch(simp),
+                SymbolicCholeskyRaw::Supernodal(_) => unreachable!("a simplicial backend"),
+            },
+            // eq. (23)'s preconditioner: faer's solve
+            Backend::Gmres { symbolic, .. } => symbolic.solve_in_place_scratch::<Real>(k, Par::Seq),
             Backend::Cg(_) => Cg::scratch(self.sys.unknowns.len()),
             Backend::Empty | Backend::Lu(_) => StackReq::EMPTY, // LU allocates its own
         }
@@ -364,7 +367,10 @@ impl Factor {
                 }
             }
             Backend::Simplicial { symbolic, values } => {
-                LltRef::new(symbolic, values).solve_in_place_with_conj(Conj::No, b, Par::Seq, stack)
+                let SymbolicCholeskyRaw::Simplicial(simp) = symbolic.raw() else {
+                    unreachable!("a simplicial backend")
+                };
+                trisolve::simplicial::solve_in_place(simp, symbolic.perm(), values, b, stack)
             }
             Backend::Lu(lu) => {
                 use faer::linalg::solvers::SolveCore;
