@@ -447,7 +447,10 @@ impl Deformer {
         mul_l(ops, &self.y, &mut st.ly);
         let (rot, proj) = if trial {
             st.rot_try.copy_from_slice(&st.rot);
-            st.proj_try.copy_from_slice(&st.proj);
+            if !fit {
+                // (fitting writes every projection)
+                st.proj_try.copy_from_slice(&st.proj);
+            }
             (&mut st.rot_try, &mut st.proj_try)
         } else {
             (&mut st.rot, &mut st.proj)
