@@ -73,7 +73,7 @@ mod residual_rows;
 use crate::operators::Operators;
 pub use area::project_area;
 use area::{area_element, gradient, AreaElement, AreaForces};
-use area_lanes::{project_area4, LANES as AREA_LANES};
+use area_lanes::{project_area_lanes, LANES as AREA_LANES};
 use dend_linalg::sparse::matmul;
 use residual_rows::ResidualRows;
 
@@ -446,15 +446,19 @@ impl ElasticOps {
         // order: the same rounding on any thread count and on both paths
         // (a parallel `sum` reduces in the order work was stolen, which
         // changed the objective's last bits from run to run)
+        // (each block compiled with AVX2 where the CPU has it: wider
+        // vectors, the same arithmetic, `dend_linalg::cpu`)
         let vertex_block = |(b, block): (usize, &mut [UnitQuaternion<Real>])| -> Real {
             let first = b * SUM_BLOCK / LANES;
-            block
-                .chunks_mut(LANES)
-                .enumerate()
-                .map(|(c, o)| vertices((first + c, o)))
-                .sum()
+            dend_linalg::cpu::with_avx2_fma(|| {
+                block
+                    .chunks_mut(LANES)
+                    .enumerate()
+                    .map(|(c, o)| vertices((first + c, o)))
+                    .sum()
+            })
         };
-        // four projections side by side (`area_lanes`), bit for bit
+        // eight projections side by side (`area_lanes`), bit for bit
         let triangle_block = |(els, ps): (&[AreaElement], &mut [[Real; 6]])| -> Real {
             els.chunks(AREA_LANES)
                 .zip(ps.chunks_mut(AREA_LANES))
@@ -467,7 +471,7 @@ impl ElasticOps {
                     ) {
                         let f: [[Real; 6]; AREA_LANES] =
                             std::array::from_fn(|k| gradient(y, &els[k]));
-                        *ps = project_area4(&f);
+                        *ps = project_area_lanes(&f);
                         for k in 0..AREA_LANES {
                             energy[k] = els[k].weight
                                 * (0..6).map(|c| (f[k][c] - ps[k][c]).powi(2)).sum::<Real>();

@@ -29,6 +29,9 @@ use super::{ElasticOps, ElasticSet, PARALLEL_MIN};
 use crate::mesh::{Point, Real};
 use crate::operators::Operators;
 
+/// Rows per block of the residual's passes (one call into AVX2 code each).
+const ROW_BLOCK: usize = 256;
+
 impl ElasticOps {
     /// `out = g(R, P) − Q Y` (module docs), `#V`: the negative half-gradient
     /// of `E` in `Y` at fixed `R` and `P`. `t` (`#V`) and `rm` (`#V`, the
@@ -78,13 +81,27 @@ impl ElasticOps {
             }
             *ti = acc;
         };
+        // (blocks of rows, each compiled with AVX2 where the CPU has it:
+        // wider vectors, the same arithmetic, `dend_linalg::cpu`)
+        let first_block = |(b, (rm, t)): (usize, (&mut [[Real; 4]], &mut [Point]))| {
+            dend_linalg::cpu::with_avx2_fma(|| {
+                let i0 = b * ROW_BLOCK;
+                rm.iter_mut()
+                    .zip(t.iter_mut())
+                    .enumerate()
+                    .for_each(|(k, pair)| first((i0 + k, pair)));
+            })
+        };
         if n >= PARALLEL_MIN {
-            rm.par_iter_mut()
-                .zip(t.par_iter_mut())
+            rm.par_chunks_mut(ROW_BLOCK)
+                .zip(t.par_chunks_mut(ROW_BLOCK))
                 .enumerate()
-                .for_each(first);
+                .for_each(first_block);
         } else {
-            rm.iter_mut().zip(t.iter_mut()).enumerate().for_each(first);
+            rm.chunks_mut(ROW_BLOCK)
+                .zip(t.chunks_mut(ROW_BLOCK))
+                .enumerate()
+                .for_each(first_block);
         }
         let (t, rm): (&[Point], &[[Real; 4]]) = (t, rm);
         let row = |(v, o): (usize, &mut Point)| {
@@ -106,10 +123,20 @@ impl ElasticOps {
             self.area_forces.add(v, proj, &mut acc);
             *o = acc;
         };
+        let row_block = |(b, out): (usize, &mut [Point])| {
+            dend_linalg::cpu::with_avx2_fma(|| {
+                let v0 = b * ROW_BLOCK;
+                out.iter_mut()
+                    .enumerate()
+                    .for_each(|(k, o)| row((v0 + k, o)));
+            })
+        };
         if n >= PARALLEL_MIN {
-            out.par_iter_mut().enumerate().for_each(row);
+            out.par_chunks_mut(ROW_BLOCK)
+                .enumerate()
+                .for_each(row_block);
         } else {
-            out.iter_mut().enumerate().for_each(row);
+            out.chunks_mut(ROW_BLOCK).enumerate().for_each(row_block);
         }
     }
 }
