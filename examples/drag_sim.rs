@@ -14,8 +14,13 @@
 //! cargo run --release --example drag_sim -- MESH [--drags 60] [--per-drag 1]
 //!     [--path line|arc] [--preset characters|elastica] [--previews] [--levels 1|2|3 (default 3)]
 //!     [--correction-period K] [--coarse-ratio R] [--tol T] [--anderson W]
-//!     [--area KA] [--stretch KS] [--error-trace]
+//!     [--area KA] [--stretch KS] [--error-trace] [--galerkin DEPTH[,LAG[,PERIOD]]]
 //! ```
+//!
+//! `--galerkin` makes the coarse corrections Galerkin ones
+//! (`dend::deform::Galerkin`: aggregates spanning DEPTH levels, the coarse
+//! matrix reused for LAG corrections, one every PERIOD fine iterations;
+//! defaults 2, 6, 1).
 //!
 //! `fine_iteration_ms` is the median time of one fine iteration in the same
 //! run; the one-shot solve (timed after the constraint set's
@@ -38,7 +43,7 @@
 use std::sync::Arc;
 use std::time::Instant;
 
-use dend::deform::{Constraints, Deformer, Factor, Levels, Preset, Rest, RigidTransform};
+use dend::deform::{Constraints, Deformer, Factor, Galerkin, Levels, Preset, Rest, RigidTransform};
 use dend::mesh::{Mesh, Point};
 use nalgebra::{UnitQuaternion, Vector3};
 
@@ -141,6 +146,17 @@ fn run() -> Result<(), String> {
     if let Some(w) = arg(&args, "--anderson") {
         params.anderson = w;
     }
+    let galerkin = arg::<String>(&args, "--galerkin")
+        .map(|g| {
+            let mut v = g.split(',').map(|x| x.parse::<usize>());
+            let d = Galerkin::default();
+            let mut next = |dflt: usize| v.next().unwrap_or(Ok(dflt));
+            match (next(d.depth), next(d.lag), next(d.period)) {
+                (Ok(depth), Ok(lag), Ok(period)) => Ok(Galerkin { depth, lag, period }),
+                _ => Err(format!("--galerkin {g}: DEPTH[,LAG[,PERIOD]]")),
+            }
+        })
+        .transpose()?;
     let levels = match arg::<String>(&args, "--levels").as_deref() {
         None | Some("many") | Some("3") => Levels::Many,
         Some("1") => Levels::One,
@@ -171,6 +187,7 @@ fn run() -> Result<(), String> {
     let fine_ms = fine_iteration_ms(&rest, &factor, &c, params)?;
     let mut one = Deformer::new(rest.clone(), params);
     one.set_levels(levels);
+    one.set_galerkin(galerkin);
     // every level's factor is the constraint set's precomputation, as the
     // fine factor is (a session builds them before it is ready)
     one.prepare_levels(&factor, &c);
@@ -183,6 +200,7 @@ fn run() -> Result<(), String> {
     // the drag loop
     let mut d = Deformer::new(rest.clone(), params);
     d.set_levels(levels);
+    d.set_galerkin(galerkin);
     let t = Instant::now();
     let mut drag_iters = 0;
     let (mut preview_its, mut preview_ms) = (0, 0.0);
@@ -269,7 +287,7 @@ fn run() -> Result<(), String> {
             &rest,
             &factor,
             &c,
-            (params, levels),
+            (params, levels, galerkin),
             (reference.pose(), r_ref.objective),
         )?
     } else {
@@ -280,6 +298,7 @@ fn run() -> Result<(), String> {
         "vertices": mesh.num_vertices(),
         "preset": preset.name(),
         "path": if arc { "arc" } else { "line" },
+        "galerkin": galerkin.map(|g| [g.depth, g.lag, g.period]),
         "drags": drags,
         "per_drag": per_drag,
         "fine_iteration_ms": fine_ms,
@@ -319,12 +338,13 @@ fn one_shot_trace(
     rest: &Arc<Rest>,
     factor: &Factor,
     c: &Constraints,
-    (params, levels): (dend::deform::Params, Levels),
+    (params, levels, galerkin): (dend::deform::Params, Levels, Option<Galerkin>),
     (star, e_star): (&[Point], f64),
 ) -> Result<Vec<serde_json::Value>, String> {
     let h = rest.mesh().mean_edge_length();
     let mut d = Deformer::new(rest.clone(), params);
     d.set_levels(levels);
+    d.set_galerkin(galerkin);
     d.prepare_levels(factor, c);
     let mut rows = Vec::new();
     for k in 1..=params.max_iters {

@@ -58,5 +58,5 @@ pub use solver::multilevel::{COARSE_MAX_ITERS, CORRECTION_MAX_ITERS};
 pub use solver::preview::{
     PreviewReport, PREVIEW_ITERATIONS, PREVIEW_MIN_VERTICES, PREVIEW_PASSES, PREVIEW_VERTICES,
 };
-pub use solver::{Deformer, Levels, StepReport};
+pub use solver::{Deformer, Galerkin, Levels, StepReport};
 pub use warnings::{ConstraintWarning, STRAY_LISTED};

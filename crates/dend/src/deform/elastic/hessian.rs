@@ -83,6 +83,7 @@ use super::area::{area_root, curvature as area_curvature};
 use crate::mesh::Real;
 
 pub(crate) mod blocks;
+pub(crate) mod galerkin;
 
 /// `[t]×`, the cross-product matrix: `[t]× v = t × v`.
 fn cross_matrix(t: &Vector3<Real>) -> Matrix3<Real> {
@@ -144,6 +145,12 @@ pub(crate) enum Curvature {
     /// Its positive semi-definite part per element: a positive
     /// semi-definite matrix.
     Projected,
+    /// None of it (Gauss–Newton): the rotations' residuals held linear,
+    /// and of the area term its normal only, as where its eigensystem is
+    /// ill-conditioned. Positive semi-definite, and no element needs an
+    /// eigensystem: the cheap model of a coarse correction's matrix
+    /// (`galerkin.rs`).
+    GaussNewton,
 }
 
 impl Curvature {
@@ -152,7 +159,7 @@ impl Curvature {
     fn keep(self, lambda: Real) -> Real {
         match self {
             Curvature::Full => lambda.max(Real::NEG_INFINITY),
-            Curvature::Projected => lambda.max(0.0),
+            Curvature::Projected | Curvature::GaussNewton => lambda.max(0.0),
         }
     }
 }

@@ -31,7 +31,12 @@ impl Deformer {
         report: &mut StepReport,
     ) -> Real {
         let gain_before = self.elastic.e_mark - e;
-        let (gain, run) = match self.coarse_correction(factor, (el, set), constraints, e) {
+        let outcome = if let Some(g) = self.galerkin_mode {
+            self.galerkin_correction(factor, (el, set), e, g)
+        } else {
+            self.coarse_correction(factor, (el, set), constraints, e)
+        };
+        let (gain, run) = match outcome {
             Correction::Kept(e_new, run) => {
                 let gain = e - e_new;
                 e = e_new;

@@ -35,6 +35,39 @@ pub enum Levels {
     Many,
 }
 
+/// Coarse corrections in the Galerkin coarse space of the fine energy
+/// (`solver/galerkin.rs`) instead of the coarse problems of
+/// `solver/multilevel.rs`: each one Newton step of the fine reduced
+/// energy restricted to the rigid motions of aggregates of vertices. The
+/// coarse start of a sequence from rest is the hierarchy's as before.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Galerkin {
+    /// How many coarse levels the aggregates span: the fine vertices
+    /// nearest each vertex of the `depth`-th coarse level (about
+    /// `coarse_ratio^depth` vertices each), at least 1.
+    pub depth: usize,
+    /// Corrections that reuse one assembly and factorisation of the
+    /// coarse matrix (and its lever arms) before it is assembled again at
+    /// the current pose, at least 1. A correction whose reused matrix
+    /// gives no descent is tried again with a fresh one.
+    pub lag: usize,
+    /// Fine iterations between two corrections, at least 1.
+    pub period: usize,
+}
+
+impl Default for Galerkin {
+    /// Aggregates of two levels (about 16 vertices at coarse ratio 4), a
+    /// correction after every fine iteration, the matrix assembled every
+    /// sixth (camel_9770's arc gesture: docs/performance.md).
+    fn default() -> Self {
+        Galerkin {
+            depth: 2,
+            lag: 6,
+            period: 1,
+        }
+    }
+}
+
 /// What a coarse start or correction did.
 #[derive(Debug, Clone, Copy, Default)]
 pub(super) struct CoarseRun {

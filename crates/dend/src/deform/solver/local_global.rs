@@ -300,7 +300,10 @@ impl Deformer {
             }
             if st.corrections {
                 st.since_correction += 1;
-                if st.since_correction >= weights.correction_period && !self.corrections_held {
+                let period = self
+                    .galerkin_mode
+                    .map_or(weights.correction_period, |g| g.period);
+                if st.since_correction >= period && !self.corrections_held {
                     e = self.correct(factor, (el, set), constraints, e, &mut report);
                 }
             }

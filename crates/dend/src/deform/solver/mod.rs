@@ -13,7 +13,7 @@ use super::params::Params;
 use super::rest::Rest;
 use crate::mesh::{Point, Real};
 use levels::CoarseRun;
-pub use levels::Levels;
+pub use levels::{Galerkin, Levels};
 use scratch::Scratch;
 use state::State;
 
@@ -23,6 +23,8 @@ use state::State;
 // of the steps (docs/architecture.md, "Layering"). deform/mod.rs
 // re-exports the public items of `multilevel.rs` and `preview.rs`.
 mod correct;
+mod galerkin;
+mod galerkin_state;
 mod least_squares;
 mod levels;
 mod local_global;
@@ -35,6 +37,8 @@ mod propagate;
 mod scratch;
 mod state;
 
+#[cfg(test)]
+mod galerkin_tests;
 #[cfg(test)]
 mod hierarchy_tests;
 #[cfg(test)]
@@ -127,6 +131,11 @@ pub struct Deformer {
     /// Raised by another thread to stop a step at its next safe point
     /// ([`Deformer::set_interrupt`]).
     interrupt: Option<Arc<AtomicBool>>,
+    /// Corrections in the Galerkin coarse space instead of the coarse
+    /// problems' ([`Deformer::set_galerkin`]).
+    galerkin_mode: Option<Galerkin>,
+    /// Their per-set state.
+    galerkin: Option<Box<galerkin_state::GalerkinState>>,
 }
 
 /// The coarse problem of one fine constraint set.
@@ -222,7 +231,21 @@ impl Deformer {
             newton: false,
             preview: None,
             interrupt: None,
+            galerkin_mode: None,
+            galerkin: None,
         }
+    }
+
+    /// Makes the elastic iteration's coarse corrections Galerkin ones
+    /// ([`Galerkin`]), or the coarse problems' again (`None`, the
+    /// default). Values below 1 are taken as 1.
+    pub fn set_galerkin(&mut self, galerkin: Option<Galerkin>) {
+        self.galerkin_mode = galerkin.map(|g| Galerkin {
+            depth: g.depth.max(1),
+            lag: g.lag.max(1),
+            period: g.period.max(1),
+        });
+        self.galerkin = None;
     }
 
     /// Chooses the levels of the elastic iteration ([`Levels`]; default a

@@ -370,6 +370,10 @@ impl Deformer {
     /// factor's own is. Nothing happens with [`Levels::One`], on a mesh
     /// without a coarse level, or for a set that does not survive on it.
     pub fn prepare_levels(&mut self, factor: &Factor, constraints: &Constraints) {
+        if let (Some(g), Some((el, set))) = (self.galerkin_mode, factor.elastic.as_ref()) {
+            // the Galerkin corrections' aggregates and symbolic analysis
+            self.prepare_galerkin(factor, (el, set), g.depth);
+        }
         let rest = self.rest.clone();
         let internal = rest.internal_constraints(constraints);
         self.with_coarse(factor, &internal, |_, p, cc| p.prepare_below(cc));

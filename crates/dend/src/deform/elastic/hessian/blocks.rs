@@ -59,6 +59,24 @@ impl Elements {
         self.first[self.len()]
     }
 
+    /// Element `e`'s support and each entry's unknown (`u32::MAX` for a
+    /// constrained vertex).
+    pub(crate) fn support(&self, e: usize) -> (&[u32], &[u32]) {
+        let r = self.ptr[e]..self.ptr[e + 1];
+        (&self.support[r.clone()], &self.unknown[r])
+    }
+
+    /// The vertex of element `e`, `None` for an area triangle (element
+    /// `num_vertices() + t` is triangle `t`).
+    pub(crate) fn vertex(&self, e: usize) -> Option<usize> {
+        self.vertices.get(e).map(|&v| v as usize)
+    }
+
+    /// How many of the elements are vertices.
+    pub(crate) fn num_vertices(&self) -> usize {
+        self.vertices.len()
+    }
+
     /// The unknowns of element `e`'s support, in its blocks' order.
     pub(crate) fn unknowns(&self, e: usize) -> impl Iterator<Item = u32> + '_ {
         self.unknown[self.ptr[e]..self.ptr[e + 1]]
@@ -218,6 +236,40 @@ impl ElasticOps {
         j: &mut Vec<Matrix3<Real>>,
         out: &mut [Matrix3<Real>],
     ) -> bool {
+        let (c_inv, indefinite) = self.vertex_coupling(ops, i, support, (y, q), curvature, j);
+        let Some(c_inv) = c_inv else {
+            out.fill(Matrix3::zeros());
+            return indefinite;
+        };
+        let mut o = 0;
+        for a in 0..support.len() {
+            if unknown[a] == u32::MAX {
+                continue;
+            }
+            let left = j[a].transpose() * c_inv;
+            for b in a..support.len() {
+                if unknown[b] != u32::MAX {
+                    out[o] = -(left * j[b]);
+                    o += 1;
+                }
+            }
+        }
+        indefinite
+    }
+
+    /// Vertex `i`'s `J` (one 3×3 block per entry of its sorted `support`,
+    /// into `j`) and `C⁻¹` (`None` where `C` is singular), with the
+    /// `curvature` of its rotation (module docs of `hessian`); whether that
+    /// curvature is indefinite.
+    pub(crate) fn vertex_coupling(
+        &self,
+        ops: &Operators,
+        i: usize,
+        support: &[u32],
+        (y, q): (&[Point], &UnitQuaternion<Real>),
+        curvature: Curvature,
+        j: &mut Vec<Matrix3<Real>>,
+    ) -> (Option<Matrix3<Real>>, bool) {
         let at = |v: usize| {
             support
                 .binary_search(&(v as u32))
@@ -255,29 +307,15 @@ impl ElasticOps {
             c += self.b[i] * gram(&t);
             bend += self.b[i] * rotation_curvature(&(ly - t), &t);
         }
+        if curvature == Curvature::GaussNewton {
+            return (c.try_inverse(), false);
+        }
         let indefinite = !semi_definite(&bend);
         c += match curvature {
             Curvature::Projected if indefinite => positive_part(&bend),
             _ => bend,
         };
-        let Some(c_inv) = c.try_inverse() else {
-            out.fill(Matrix3::zeros());
-            return indefinite;
-        };
-        let mut o = 0;
-        for a in 0..support.len() {
-            if unknown[a] == u32::MAX {
-                continue;
-            }
-            let left = j[a].transpose() * c_inv;
-            for b in a..support.len() {
-                if unknown[b] != u32::MAX {
-                    out[o] = -(left * j[b]);
-                    o += 1;
-                }
-            }
-        }
-        indefinite
+        (c.try_inverse(), indefinite)
     }
 }
 
@@ -306,7 +344,32 @@ fn triangle_blocks(
         let kk = k[a][0] * k[b][0] + k[a][1] * k[b][1];
         *o = Matrix3::identity() * (-w * kk);
     }
-    let modes = area_eigensystem(&gradient(y, el));
+    triangle_modes(el, y, p, curvature, |wl, am| {
+        for ((a, b), o) in pairs().zip(out.iter_mut()) {
+            *o += wl * am[a] * am[b].transpose();
+        }
+    })
+}
+
+/// Triangle `el`'s curvature modes at the pose `y` (its area target `p`
+/// where the eigensystem is ill-conditioned), each as `f(w λ, Aᵀ m)`
+/// with its eigenvalue kept by `curvature` (zero ones skipped) and `Aᵀ m`
+/// per corner: the area term's part of the Newton matrix beyond `Q`'s
+/// `w AᵀA` is `Σ w λ (Aᵀm)(Aᵀm)ᵀ − w AᵀA`. Returns whether the curvature
+/// is indefinite.
+pub(super) fn triangle_modes(
+    el: &AreaElement,
+    y: &[Point],
+    p: &[Real; 6],
+    curvature: Curvature,
+    mut f: impl FnMut(Real, [Vector3<Real>; 3]),
+) -> bool {
+    let k = el.corners();
+    let w = el.weight;
+    let modes = match curvature {
+        Curvature::GaussNewton => None,
+        _ => area_eigensystem(&gradient(y, el)),
+    };
     let gauss_newton;
     let (modes, indefinite): (&[AreaMode], bool) = match &modes {
         Some(m) => (m, m.iter().any(|&(l, _)| cut(l))),
@@ -325,9 +388,7 @@ fn triangle_blocks(
         }
         // (Aᵀ m)_v = k_v0 m_0 + k_v1 m_1
         let am = k.map(|kv| kv[0] * m0 + kv[1] * m1);
-        for ((a, b), o) in pairs().zip(out.iter_mut()) {
-            *o += w * lambda * am[a] * am[b].transpose();
-        }
+        f(w * lambda, am);
     }
     indefinite
 }

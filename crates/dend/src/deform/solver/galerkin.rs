@@ -1,0 +1,294 @@
+//! A Galerkin coarse correction of the fine pose: one Newton step of the
+//! reduced energy restricted to the rigid motions of aggregates of
+//! vertices (`elastic/hessian/galerkin.rs` builds its matrix).
+//!
+//! The aggregates are the fine vertices nearest each vertex of a coarse
+//! level (`CoarseLevel::near`, composed down `depth` levels). The step
+//! solves `(Pᵀ H P) δ = Pᵀ r`, with `r = −½ ∇E` the residual the global
+//! step forms and `H` the Newton matrix of `solver/newton.rs` in its
+//! Gauss–Newton model ([`Curvature::GaussNewton`]: on camel_9770's arc
+//! gesture the same iterations as its convex projection, at less than
+//! half the assembly's time, which no eigensystem then dominates); `P`
+//! turns each aggregate about its centroid at the pose of the assembly.
+//! `D = P δ` is kept at the first `α` whose energy (rotations refitted)
+//! is below the current one. `G = Pᵀ H P` and its factor serve
+//! [`Galerkin::lag`] corrections: near a minimum `H` changes slowly, and
+//! the assembly costs several fine iterations. Unlike the coarse problem
+//! of `multilevel.rs`, a re-discretised energy on a coarse mesh whose
+//! correction removes a fixed share of the error (docs/performance.md),
+//! `Pᵀ H P` is the fine energy's own curvature in the coarse space.
+
+use std::time::Instant;
+
+use dend_linalg::cholesky::{self, Refactor};
+use dend_linalg::ordering::FillOrdering;
+use faer::dyn_stack::{MemBuffer, MemStack};
+use faer::sparse::linalg::cholesky::LltRef;
+use faer::{Conj, MatMut, Par};
+use nalgebra::Vector3;
+
+use super::galerkin_state::GalerkinState;
+use super::levels::CoarseRun;
+use super::local_global::Flat;
+use super::multilevel::Correction;
+use super::{Deformer, Galerkin};
+use crate::deform::elastic::hessian::galerkin::RigidSpace;
+use crate::deform::elastic::hessian::Curvature;
+use crate::deform::elastic::{ElasticOps, ElasticSet};
+use crate::deform::factor::Factor;
+use crate::mesh::Real;
+
+/// The steps tried along a correction.
+const STEPS: [Real; 3] = [1.0, 0.5, 0.25];
+
+impl Deformer {
+    /// Builds the Galerkin corrections' per-set state for `factor`
+    /// (aggregates, the coarse matrix's pattern and symbolic analysis)
+    /// unless it is built: a constraint set's precomputation
+    /// ([`Deformer::prepare_levels`]).
+    pub(super) fn prepare_galerkin(
+        &mut self,
+        factor: &Factor,
+        (el, set): (&ElasticOps, &ElasticSet),
+        depth: usize,
+    ) {
+        self.galerkin_state(factor, (el, set), depth);
+    }
+
+    fn galerkin_state(
+        &mut self,
+        factor: &Factor,
+        (el, set): (&ElasticOps, &ElasticSet),
+        depth: usize,
+    ) -> Option<()> {
+        if self.galerkin.as_ref().map(|g| g.factor_id) == Some(factor.id()) {
+            return Some(());
+        }
+        self.galerkin = None;
+        let ratio = self.params.elastic()?.coarse_ratio;
+        let n = self.y.len();
+        let mut of: Vec<u32> = (0..n as u32).collect();
+        let mut level = self.rest.coarse_at_most(ratio)?;
+        for d in 0..depth {
+            for v in of.iter_mut() {
+                *v = level.near[*v as usize];
+                if *v == u32::MAX {
+                    return None;
+                }
+            }
+            if d + 1 < depth {
+                level = level.rest.coarse_at_most(ratio)?;
+            }
+        }
+        let sys = &factor.sys;
+        let mut compact = vec![u32::MAX; n];
+        let mut n_agg = 0;
+        let agg: Vec<u32> = sys
+            .unknowns
+            .iter()
+            .map(|&u| {
+                let c = &mut compact[of[u as usize] as usize];
+                if *c == u32::MAX {
+                    *c = n_agg;
+                    n_agg += 1;
+                }
+                *c
+            })
+            .collect();
+        let elements = el.coupling_elements(set, &self.rest.ops, &sys.col_of);
+        let space = RigidSpace::new(agg, n_agg as usize, &elements, &sys.m);
+        let g = space.pattern();
+        let symbolic =
+            cholesky::analyse(&g.proper_indptr(), g.indices(), FillOrdering::default()).ok()?;
+        let refactor = Refactor::new(&symbolic, &g).ok()?;
+        let mem = MemBuffer::try_new(symbolic.solve_in_place_scratch::<Real>(1, Par::Seq)).ok()?;
+        let nu = sys.unknowns.len();
+        self.galerkin = Some(Box::new(GalerkinState {
+            factor_id: factor.id(),
+            lever: vec![Vector3::zeros(); nu],
+            centre: vec![Vector3::zeros(); space.len()],
+            rhs: vec![0.0; 6 * space.len()],
+            space,
+            elements,
+            g,
+            symbolic,
+            refactor,
+            mem,
+            age: None,
+        }));
+        Some(())
+    }
+
+    /// One Galerkin correction of the pose with energy `e` (module docs).
+    pub(super) fn galerkin_correction(
+        &mut self,
+        factor: &Factor,
+        (el, set): (&ElasticOps, &ElasticSet),
+        e: Real,
+        mode: Galerkin,
+    ) -> Correction {
+        let t0 = Instant::now();
+        let run = |t0: Instant| CoarseRun {
+            iterations: 1,
+            ms: t0.elapsed().as_secs_f64() * 1e3,
+            work: 0.0,
+        };
+        if self.galerkin_state(factor, (el, set), mode.depth).is_none() {
+            return Correction::Unavailable(run(t0));
+        }
+        self.global_rhs(factor, (el, set));
+        let t_rhs = t0.elapsed().as_secs_f64() * 1e3;
+        let lag = mode.lag;
+        let stale = self
+            .galerkin
+            .as_ref()
+            .is_some_and(|g| g.age.is_some_and(|a| a < lag));
+        if !stale && !self.assemble_galerkin(factor, el) {
+            return Correction::Dropped(run(t0));
+        }
+        let t_asm = t0.elapsed().as_secs_f64() * 1e3;
+        let out = self.galerkin_step(factor, (el, set), e);
+        let out = match out {
+            None if stale => {
+                // a lagged `G` failed: assemble it at this pose and retry
+                if !self.assemble_galerkin(factor, el) {
+                    return Correction::Dropped(run(t0));
+                }
+                self.global_rhs(factor, (el, set));
+                self.galerkin_step(factor, (el, set), e)
+            }
+            out => out,
+        };
+        let t_all = t0.elapsed().as_secs_f64() * 1e3;
+        tracing::debug!(stale, t_rhs, t_asm, t_all, ?out, e, "galerkin correction");
+        if let Some(g) = self.galerkin.as_mut() {
+            g.age = g.age.map(|a| a + 1);
+        }
+        match out {
+            Some(e_new) => Correction::Kept(e_new, run(t0)),
+            None => Correction::Dropped(run(t0)),
+        }
+    }
+
+    /// Assembles and factors `G` at the current pose (lever arms about the
+    /// aggregates' centroids now); whether it factored.
+    fn assemble_galerkin(&mut self, factor: &Factor, el: &ElasticOps) -> bool {
+        let gs = self.galerkin.as_mut().expect("built before");
+        let unknowns = &factor.sys.unknowns;
+        // each aggregate's centroid, each unknown's lever arm
+        let space = &gs.space;
+        for a in 0..space.len() {
+            let ks = &space.unknowns[space.uptr[a]..space.uptr[a + 1]];
+            let mut c = Vector3::zeros();
+            for &k in ks {
+                c += Vector3::from(self.y[unknowns[k as usize] as usize]);
+            }
+            gs.centre[a] = c / ks.len() as Real;
+        }
+        for (k, &u) in unknowns.iter().enumerate() {
+            gs.lever[k] = Vector3::from(self.y[u as usize]) - gs.centre[space.agg[k] as usize];
+        }
+        let st = &self.elastic;
+        el.galerkin_matrix(
+            space,
+            &gs.elements,
+            &self.rest.ops,
+            &factor.sys.m,
+            (&self.y, &st.rot, &st.proj),
+            &gs.lever,
+            Curvature::GaussNewton,
+            &mut gs.g,
+        );
+        regularise(&mut gs.g, space.len());
+        gs.age = Some(0);
+        gs.refactor.factorise_definite(&gs.symbolic, &gs.g).is_ok()
+    }
+
+    /// The step `D = P G⁻¹ Pᵀ r` (`r` in `rhs`, from [`Deformer::global_rhs`])
+    /// and its line search; the energy kept, `None` with the pose unchanged.
+    fn galerkin_step(
+        &mut self,
+        factor: &Factor,
+        (el, set): (&ElasticOps, &ElasticSet),
+        e: Real,
+    ) -> Option<Real> {
+        let nu = factor.sys.unknowns.len();
+        let unknowns = &factor.sys.unknowns;
+        let gs = self.galerkin.as_mut().expect("built before");
+        let space = &gs.space;
+        let st = &mut self.elastic;
+        // Pᵀ r
+        gs.rhs.fill(0.0);
+        for k in 0..nu {
+            let r = Vector3::new(st.rhs[k], st.rhs[nu + k], st.rhs[2 * nu + k]);
+            let a = space.agg[k] as usize;
+            let m = gs.lever[k].cross(&r);
+            for i in 0..3 {
+                gs.rhs[6 * a + i] += r[i];
+                gs.rhs[6 * a + 3 + i] += m[i];
+            }
+        }
+        let n = 6 * space.len();
+        let llt = LltRef::new(&gs.symbolic, gs.refactor.values());
+        llt.solve_in_place_with_conj(
+            Conj::No,
+            MatMut::from_column_major_slice_mut(&mut gs.rhs, n, 1),
+            Par::Seq,
+            MemStack::new(&mut gs.mem),
+        );
+        if gs.rhs.iter().any(|v| !v.is_finite()) {
+            return None;
+        }
+        for (k, &u) in unknowns.iter().enumerate() {
+            let y = self.y[u as usize];
+            let a = space.agg[k] as usize;
+            let t = Vector3::new(gs.rhs[6 * a], gs.rhs[6 * a + 1], gs.rhs[6 * a + 2]);
+            let w = Vector3::new(gs.rhs[6 * a + 3], gs.rhs[6 * a + 4], gs.rhs[6 * a + 5]);
+            let d = t + w.cross(&gs.lever[k]);
+            for i in 0..3 {
+                st.x_flat[i * nu + k] = y[i];
+                // (the step, kept in `rhs` beside the current unknowns)
+                st.rhs[i * nu + k] = d[i];
+            }
+        }
+        for alpha in STEPS {
+            let st = &mut self.elastic;
+            for (c, (x, d)) in st.cand.iter_mut().zip(st.x_flat.iter().zip(&st.rhs)) {
+                *c = x + alpha * d;
+            }
+            self.set_unknowns(factor, Flat::Candidate);
+            let e_try = self.local_step(factor, (el, set), true, true);
+            if e_try.is_finite() && e_try < e {
+                tracing::trace!(alpha, e, e_try, "galerkin step");
+                let st = &mut self.elastic;
+                std::mem::swap(&mut st.rot, &mut st.rot_try);
+                std::mem::swap(&mut st.proj, &mut st.proj_try);
+                return Some(e_try);
+            }
+        }
+        let st = &mut self.elastic;
+        st.cand.copy_from_slice(&st.x_flat);
+        self.set_unknowns(factor, Flat::Candidate);
+        None
+    }
+}
+
+/// Makes `G` definite where an aggregate's turns have no stiffness (one
+/// unknown, or all on a line): a relative shift of each turn's diagonal
+/// by its aggregate's translation stiffness (lengths in mean edges).
+fn regularise(g: &mut sprs::CsMat<Real>, n_agg: usize) {
+    let indptr = g.indptr().raw_storage().to_vec();
+    let indices = g.indices().to_vec();
+    let data = g.data_mut();
+    let diag = |r: usize| -> usize {
+        let (s, e) = (indptr[r], indptr[r + 1]);
+        s + indices[s..e].binary_search(&r).expect("a diagonal entry")
+    };
+    for a in 0..n_agg {
+        let t = (0..3).map(|i| data[diag(6 * a + i)]).fold(0.0, Real::max);
+        for i in 0..6 {
+            let d = diag(6 * a + i);
+            data[d] += 1e-8 * t;
+        }
+    }
+}
