@@ -382,6 +382,22 @@ impl ElasticOps {
         proj: &mut [[Real; 6]],
         fit: bool,
     ) -> Real {
+        self.local_step_from(set, ops, (y, ly), (None, rot), proj, fit)
+    }
+
+    /// [`Self::local_step`] warm-started from `warm` when given (copied
+    /// into `rot` block by block as the step reaches it, not in a pass of
+    /// its own: a trial step starts from the accepted rotations).
+    pub fn local_step_from(
+        &self,
+        set: &ElasticSet,
+        ops: &Operators,
+        (y, ly): (&[Point], &[Point]),
+        (warm, rot): (Option<&[UnitQuaternion<Real>]>, &mut [UnitQuaternion<Real>]),
+        proj: &mut [[Real; 6]],
+        fit: bool,
+    ) -> Real {
+        assert!(warm.is_none_or(|w| w.len() == rot.len()));
         // M_i and Σ_j c_ij |y_j − y_i|² + b_i |(LY)_i|² in one pass over the
         // spokes; then E_i = k_i + that − 2 tr(R_iᵀ M_i) with the rest
         // constant k_i = Σ_j c_ij |e_ij|² + b_i |δ_i|²
@@ -416,6 +432,9 @@ impl ElasticOps {
         };
         let vertices = |(c, o): (usize, &mut [UnitQuaternion<Real>])| -> Real {
             let i0 = c * LANES;
+            if let Some(w) = warm {
+                o.copy_from_slice(&w[i0..i0 + o.len()]);
+            }
             let mut cov = [(Matrix3::zeros(), 0.0); LANES];
             for (k, slot) in cov.iter_mut().take(o.len()).enumerate() {
                 *slot = covariance(i0 + k);
@@ -446,8 +465,7 @@ impl ElasticOps {
         // order: the same rounding on any thread count and on both paths
         // (a parallel `sum` reduces in the order work was stolen, which
         // changed the objective's last bits from run to run)
-        // (each block compiled with AVX2 where the CPU has it: wider
-        // vectors, the same arithmetic, `dend_linalg::cpu`)
+        // (AVX2 where the CPU has it: the same arithmetic, `dend_linalg::cpu`)
         let vertex_block = |(b, block): (usize, &mut [UnitQuaternion<Real>])| -> Real {
             let first = b * SUM_BLOCK / LANES;
             dend_linalg::cpu::with_avx2_fma(|| {

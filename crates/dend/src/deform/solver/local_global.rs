@@ -448,17 +448,16 @@ impl Deformer {
         let ops = &self.rest.ops;
         let st = &mut self.elastic;
         mul_l(ops, &self.y, &mut st.ly);
-        let (rot, proj) = if trial {
-            st.rot_try.copy_from_slice(&st.rot);
+        let (warm, rot, proj) = if trial {
             if !fit {
                 // (fitting writes every projection)
                 st.proj_try.copy_from_slice(&st.proj);
             }
-            (&mut st.rot_try, &mut st.proj_try)
+            (Some(&st.rot[..]), &mut st.rot_try, &mut st.proj_try)
         } else {
-            (&mut st.rot, &mut st.proj)
+            (None, &mut st.rot, &mut st.proj)
         };
-        let e = el.local_step(set, ops, &self.y, &st.ly, rot, proj, fit);
+        let e = el.local_step_from(set, ops, (&self.y, &st.ly), (warm, rot), proj, fit);
         let linear: Real = st
             .linear
             .iter()
