@@ -128,10 +128,14 @@ impl Deformer {
         mode: Galerkin,
     ) -> Correction {
         let t0 = Instant::now();
+        // (the work of a correction that reuses `G`: its residual and
+        // energy test cost about one fine iteration; an assembly of `G`
+        // costs several more, which this count leaves out: compare
+        // Galerkin runs by time, docs/performance.md)
         let run = |t0: Instant| CoarseRun {
             iterations: 1,
             ms: t0.elapsed().as_secs_f64() * 1e3,
-            work: 0.0,
+            work: 1.0,
         };
         if self.galerkin_state(factor, (el, set), mode.depth).is_none() {
             return Correction::Unavailable(run(t0));
