@@ -35,7 +35,7 @@ use faer::MatMut;
 
 use crate::Real;
 use sweep::{backward, forward};
-use types::{Lanes, Rows, Scatter};
+use types::{by_four_columns, Lanes, Rows, Scatter};
 
 /// Scratch for [`solve_in_place`] (the permuted right-hand sides and the
 /// gather/scatter buffers of one or two threads).
@@ -56,7 +56,7 @@ pub fn solve_in_place<V: FactorValue>(
     perm: Option<faer::perm::PermRef<'_, usize>>,
     values: &[V],
     plan: Option<&SolvePlan>,
-    mut b: MatMut<'_, Real>,
+    b: MatMut<'_, Real>,
     stack: &mut MemStack,
 ) {
     let n = sn.nrows();
@@ -66,38 +66,15 @@ pub fn solve_in_place<V: FactorValue>(
     let rows = scratch_rows(sn);
     let (mut x, stack) = stack.make_with::<Lanes>(n, |_| [0.0; 4]);
     let (mut tmp, stack) = stack.make_with::<Lanes>(rows, |_| [0.0; 4]);
-    let (fwd, inv) = match perm {
-        Some(p) => {
-            let (f, i) = p.arrays();
-            (Some(f), Some(i))
+    by_four_columns(b, perm, &mut x, |x| match plan {
+        Some(p) => p.solve(factor, x, &mut tmp, stack),
+        None => {
+            let shared = Rows::new(x);
+            let all = 0..sn.n_supernodes();
+            forward(factor, all.clone(), shared, &mut tmp, Scatter::Direct);
+            backward(factor, all.rev(), shared, &mut tmp);
         }
-        None => (None, None),
-    };
-    for c0 in (0..b.ncols()).step_by(4) {
-        let k = (b.ncols() - c0).min(4);
-        for (i, xi) in x.iter_mut().enumerate() {
-            let src = fwd.map_or(i, |f| f[i]);
-            *xi = [0.0; 4];
-            for l in 0..k {
-                xi[l] = b[(src, c0 + l)];
-            }
-        }
-        match plan {
-            Some(p) => p.solve(factor, &mut x, &mut tmp, stack),
-            None => {
-                let shared = Rows::new(&mut x);
-                let all = 0..sn.n_supernodes();
-                forward(factor, all.clone(), shared, &mut tmp, Scatter::Direct);
-                backward(factor, all.rev(), shared, &mut tmp);
-            }
-        }
-        for i in 0..n {
-            let xi = x[inv.map_or(i, |v| v[i])];
-            for l in 0..k {
-                b[(i, c0 + l)] = xi[l];
-            }
-        }
-    }
+    });
 }
 
 /// Length of the gather/scatter buffer of one thread: the longest

@@ -20,7 +20,7 @@ use faer::dyn_stack::{MemStack, StackReq};
 use faer::sparse::linalg::cholesky::simplicial::SymbolicSimplicialCholesky;
 use faer::MatMut;
 
-use super::types::Lanes;
+use super::types::{by_four_columns, Lanes};
 use crate::Real;
 
 /// Scratch for [`solve_in_place`]: the permuted right-hand sides.
@@ -36,7 +36,7 @@ pub fn solve_in_place(
     sym: &SymbolicSimplicialCholesky<usize>,
     perm: Option<faer::perm::PermRef<'_, usize>>,
     values: &[Real],
-    mut b: MatMut<'_, Real>,
+    b: MatMut<'_, Real>,
     stack: &mut MemStack,
 ) {
     let n = sym.nrows();
@@ -44,30 +44,9 @@ pub fn solve_in_place(
     assert_eq!(b.nrows(), n);
     let (col_ptr, row_idx) = (sym.col_ptr(), sym.row_idx());
     let (mut x, _) = stack.make_with::<Lanes>(n, |_| [0.0; 4]);
-    let (fwd, inv) = match perm {
-        Some(p) => {
-            let (f, i) = p.arrays();
-            (Some(f), Some(i))
-        }
-        None => (None, None),
-    };
-    for c0 in (0..b.ncols()).step_by(4) {
-        let k = (b.ncols() - c0).min(4);
-        for (i, xi) in x.iter_mut().enumerate() {
-            let src = fwd.map_or(i, |f| f[i]);
-            *xi = [0.0; 4];
-            for l in 0..k {
-                xi[l] = b[(src, c0 + l)];
-            }
-        }
-        crate::cpu::with_avx2_fma(|| sweeps(col_ptr, row_idx, values, &mut x));
-        for i in 0..n {
-            let xi = x[inv.map_or(i, |v| v[i])];
-            for l in 0..k {
-                b[(i, c0 + l)] = xi[l];
-            }
-        }
-    }
+    by_four_columns(b, perm, &mut x, |x| {
+        crate::cpu::with_avx2_fma(|| sweeps(col_ptr, row_idx, values, x))
+    });
 }
 
 /// `L y = x`, then `Lᵀ x = y`, in place.

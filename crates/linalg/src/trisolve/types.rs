@@ -133,3 +133,40 @@ pub(crate) enum Scatter<'a> {
         delta: &'a mut [Lanes],
     },
 }
+
+/// Solves `b` four columns at a time: each group gathered into `x` in the
+/// factor's row order (`perm`'s forward array), solved in place by
+/// `solve`, and scattered back through its inverse.
+#[inline(always)]
+pub(crate) fn by_four_columns(
+    mut b: faer::MatMut<'_, Real>,
+    perm: Option<faer::perm::PermRef<'_, usize>>,
+    x: &mut [Lanes],
+    mut solve: impl FnMut(&mut [Lanes]),
+) {
+    let n = x.len();
+    let (fwd, inv) = match perm {
+        Some(p) => {
+            let (f, i) = p.arrays();
+            (Some(f), Some(i))
+        }
+        None => (None, None),
+    };
+    for c0 in (0..b.ncols()).step_by(4) {
+        let k = (b.ncols() - c0).min(4);
+        for (i, xi) in x.iter_mut().enumerate() {
+            let src = fwd.map_or(i, |f| f[i]);
+            *xi = [0.0; 4];
+            for l in 0..k {
+                xi[l] = b[(src, c0 + l)];
+            }
+        }
+        solve(x);
+        for i in 0..n {
+            let xi = x[inv.map_or(i, |v| v[i])];
+            for l in 0..k {
+                b[(i, c0 + l)] = xi[l];
+            }
+        }
+    }
+}
