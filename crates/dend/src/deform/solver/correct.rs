@@ -148,6 +148,19 @@ impl Deformer {
             st.x_flat[nu + k] = p[1];
             st.x_flat[2 * nu + k] = p[2];
         }
+        self.line_search_rhs(factor, (el, set), e)
+    }
+
+    /// Keeps `x + αD` (the current unknowns in `x_flat`, the step `D` in
+    /// `rhs`) for the first `α ∈ {1, ½, ¼}` whose energy (rotations
+    /// refitted) is below `e` and returns that energy; `None`, with the
+    /// pose unchanged.
+    pub(super) fn line_search_rhs(
+        &mut self,
+        factor: &Factor,
+        (el, set): (&ElasticOps, &ElasticSet),
+        e: Real,
+    ) -> Option<Real> {
         for alpha in [1.0, 0.5, 0.25] {
             let st = &mut self.elastic;
             for (c, (x, d)) in st.cand.iter_mut().zip(st.x_flat.iter().zip(&st.rhs)) {

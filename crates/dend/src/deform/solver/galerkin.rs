@@ -29,7 +29,6 @@ use nalgebra::Vector3;
 
 use super::galerkin_state::GalerkinState;
 use super::levels::CoarseRun;
-use super::local_global::Flat;
 use super::multilevel::Correction;
 use super::{Deformer, Galerkin};
 use crate::deform::elastic::hessian::galerkin::RigidSpace;
@@ -37,9 +36,6 @@ use crate::deform::elastic::hessian::Curvature;
 use crate::deform::elastic::{ElasticOps, ElasticSet};
 use crate::deform::factor::Factor;
 use crate::mesh::Real;
-
-/// The steps tried along a correction.
-const STEPS: [Real; 3] = [1.0, 0.5, 0.25];
 
 impl Deformer {
     /// Builds the Galerkin corrections' per-set state for `factor`
@@ -255,25 +251,7 @@ impl Deformer {
                 st.rhs[i * nu + k] = d[i];
             }
         }
-        for alpha in STEPS {
-            let st = &mut self.elastic;
-            for (c, (x, d)) in st.cand.iter_mut().zip(st.x_flat.iter().zip(&st.rhs)) {
-                *c = x + alpha * d;
-            }
-            self.set_unknowns(factor, Flat::Candidate);
-            let e_try = self.local_step(factor, (el, set), true, true);
-            if e_try.is_finite() && e_try < e {
-                tracing::trace!(alpha, e, e_try, "galerkin step");
-                let st = &mut self.elastic;
-                std::mem::swap(&mut st.rot, &mut st.rot_try);
-                std::mem::swap(&mut st.proj, &mut st.proj_try);
-                return Some(e_try);
-            }
-        }
-        let st = &mut self.elastic;
-        st.cand.copy_from_slice(&st.x_flat);
-        self.set_unknowns(factor, Flat::Candidate);
-        None
+        self.line_search_rhs(factor, (el, set), e)
     }
 }
 

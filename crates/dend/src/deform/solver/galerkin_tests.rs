@@ -7,21 +7,12 @@ use std::sync::Arc;
 
 use nalgebra::{DMatrix, Matrix3, UnitQuaternion, Vector3};
 
-use super::test_util::patch_edit;
+use super::test_util::{dense, patch_edit};
 use crate::deform::elastic::hessian::galerkin::RigidSpace;
 use crate::deform::elastic::hessian::Curvature;
 use crate::deform::{Deformer, Factor, Galerkin, Levels, Params, Rest};
 use crate::mesh::gen::{irregular_patch, PatchSurface};
 use crate::mesh::Real;
-
-/// `m` as a dense matrix.
-fn dense(m: &sprs::CsMat<Real>) -> DMatrix<Real> {
-    let mut d = DMatrix::zeros(m.rows(), m.cols());
-    for (v, (r, c)) in m.iter() {
-        d[(r, c)] += *v;
-    }
-    d
-}
 
 #[test]
 fn the_coarse_matrix_is_the_newton_matrix_projected_on_the_rigid_motions() {

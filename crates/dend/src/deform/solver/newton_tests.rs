@@ -8,7 +8,7 @@ use std::sync::Arc;
 use nalgebra::{DMatrix, UnitQuaternion, Vector3};
 
 use super::newton_state::NewtonPattern;
-use super::test_util::{max_dist, patch_edit};
+use super::test_util::{dense, max_dist, patch_edit};
 use crate::deform::elastic::hessian::blocks::each_block;
 use crate::deform::elastic::hessian::Curvature;
 use crate::deform::{Constraints, Deformer, Factor, Params, Rest, RigidTransform};
@@ -27,16 +27,6 @@ fn assembled_and_summed(
     d.assemble_newton(f, (el, set), curvature, false).unwrap();
     let pattern = d.elastic.newton.pattern.as_ref().unwrap();
     (dense(&pattern.h), summed(f, pattern))
-}
-
-/// `h` as a dense matrix.
-fn dense(h: &sprs::CsMat<Real>) -> DMatrix<Real> {
-    let n = h.rows();
-    let mut held = DMatrix::zeros(n, n);
-    for (v, (r, c)) in h.iter() {
-        held[(r, c)] += *v;
-    }
-    held
 }
 
 /// `Q ⊗ I₃` plus the pattern's element blocks, scattered one by one in

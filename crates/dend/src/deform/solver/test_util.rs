@@ -67,3 +67,12 @@ pub(super) fn patch_edit(mesh: &Mesh, s: Real) -> Constraints {
     let r = UnitQuaternion::from_axis_angle(&Vector3::y_axis(), -0.9);
     x_edit(mesh, -0.8 * s, 0.8 * s, [-0.3 * s, 0.1 * s, 0.4 * s], r)
 }
+
+/// `m` as a dense matrix (duplicate entries summed).
+pub(super) fn dense(m: &sprs::CsMat<Real>) -> nalgebra::DMatrix<Real> {
+    let mut d = nalgebra::DMatrix::zeros(m.rows(), m.cols());
+    for (v, (r, c)) in m.iter() {
+        d[(r, c)] += *v;
+    }
+    d
+}
