@@ -5,7 +5,7 @@ libigl's ARAP in the same run, with a PASS/FAIL table.
 Usage (from the crate root; needs a release build, `cargo build --release`):
 
     python3 scripts/posing_suite.py [--only NAME ...] [--skip-large]
-        [--formulation NAME] [--max-iters 100] [--tol 1e-3]
+        [--formulation NAME] [--galerkin DEPTH[,LAG[,PERIOD]]] [--max-iters 100] [--tol 1e-3]
         [--json out.json] [--no-render] [--list] [--arap-cache DIR] [--no-arap]
 
 `--only` takes case names or shell patterns (`'camel-*'`, `'*-limb'`);
@@ -13,7 +13,7 @@ Usage (from the crate root; needs a release build, `cargo build --release`):
 its objective (never grows, no edit diverged): `tests/system/posing_suite_monotone.rs`
 runs it on every edit. `--skip-large` skips meshes of 40k+
 vertices (armadillo, feline, survey bumpy plane). `--formulation` is passed
-to `dend deform` (omitted: dend's default). The binary is `$DEND_BIN` or
+to `dend deform` (omitted: dend's default), as is `--galerkin`. The binary is `$DEND_BIN` or
 `target/release/dend`; meshes come from `$DEND_MESHES` (default
 `../shared/meshes`). numpy and libigl are needed: when `python3` lacks them
 the script re-runs itself with `$DEND_PYTHON`, `.venv/bin/python` or
@@ -343,6 +343,8 @@ def run_ours(dend, case, args, tmp):
         cmd += ["--formulation", args.formulation]
     if args.preset:
         cmd += ["--preset", args.preset]
+    if args.galerkin:
+        cmd += ["--galerkin", args.galerkin]
     cmd += args.dend_arg
     t0 = time.perf_counter()
     res = subprocess.run(cmd, capture_output=True, text=True, timeout=args.timeout)
@@ -373,6 +375,8 @@ def run_ours(dend, case, args, tmp):
         "iteration_ms": rep.get("iteration_ms_median", nan),
         "precompute_ms": rep.get("precompute_ms", nan),
         "solve_ms": rep.get("solve_ms", nan),
+        "fine_iteration_ms": rep.get("fine_iteration_ms_median", nan),
+        "fine_iteration_equivalents": rep.get("fine_iteration_equivalents", nan),
         "wall_ms": wall,
         "report": rep,
         "pose_path": out,
@@ -528,6 +532,9 @@ def main():
     ap.add_argument("--preset", choices=["characters", "elastica"],
                     help="passed to dend deform (default: dend's default, characters); "
                          "elastica adds the paper's figures to the rules")
+    ap.add_argument("--galerkin", metavar="DEPTH[,LAG[,PERIOD]]",
+                    help="passed to dend deform: Galerkin coarse corrections (default: "
+                         "dend's default, the coarse problems' corrections)")
     ap.add_argument("--dend-arg", action="append", default=[], metavar="ARG",
                     help="one more argument for every dend deform run (repeat: "
                          "--dend-arg=--lambda2 --dend-arg=0.5)")
@@ -576,7 +583,9 @@ def main():
             o = r.get("ours", {})
             print(f"{r['case']}: {r['verdict']} {'; '.join(r.get('failures', []))}"
                   f"{r.get('error', '')} (iterations {o.get('iterations')}, objective "
-                  f"{VERDICT.fmt(o.get('objective_first'))} -> {VERDICT.fmt(o.get('objective_last'))})")
+                  f"{VERDICT.fmt(o.get('objective_first'))} -> {VERDICT.fmt(o.get('objective_last'))}, "
+                  f"{VERDICT.fmt(o.get('solve_ms'))} ms, "
+                  f"{VERDICT.fmt(o.get('fine_iteration_equivalents'))} fine-iteration equivalents)")
     else:
         VERDICT.print_table(rows)
     ran = [r for r in rows if r["verdict"] != "SKIP"]
@@ -585,12 +594,14 @@ def main():
     reported = {r["ours"]["report"].get("formulation") for r in rows if "ours" in r} - {None}
     formulation = args.formulation or "/".join(sorted(reported)) or "dend's default"
     print(f"\nPASS {passed}/{len(ran)} ({errors} errors, {len(rows) - len(ran)} skipped; "
-          f"formulation {formulation}, preset {args.preset or 'default'}, tol {args.tol:g}, "
+          f"formulation {formulation}, preset {args.preset or 'default'}, "
+          f"galerkin {args.galerkin or 'off'}, tol {args.tol:g}, "
           f"{time.perf_counter() - t0:.0f} s)")
     if args.json:
         with open(args.json, "w") as fh:
             json.dump(nan_to_none({
-                "dend": dend, "formulation": formulation, "preset": args.preset, "tol": args.tol,
+                "dend": dend, "formulation": formulation, "preset": args.preset,
+                "galerkin": args.galerkin, "tol": args.tol,
                 "max_iters": args.max_iters, "arap_max_iters": ARAP.ARAP_MAX_ITERS,
                 "passed": passed, "total": len(ran), "cases": rows}), fh, indent=1)
     return 0 if passed == len(ran) else 1

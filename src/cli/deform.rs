@@ -8,7 +8,7 @@ use std::time::{Duration, Instant};
 use anyhow::{bail, Context};
 use dend::deform::{
     Constraints, ConstraintsSpec, Corrections, Deformer, DetailTerm, Energy, Factor, Formulation,
-    Levels, Mode, Params, ParamsSpec, Rest, RigidTransform, StepReport,
+    Galerkin, Levels, Mode, Params, ParamsSpec, Rest, RigidTransform, StepReport,
 };
 use dend::mesh::asset::Asset;
 use dend::mesh::io::{self, survey};
@@ -122,6 +122,18 @@ pub struct Args {
     /// hierarchy; docs/performance.md measures it).
     #[arg(long, default_value_t = 3, value_parser = clap::value_parser!(u8).range(1..=3))]
     levels: u8,
+    /// Galerkin coarse corrections instead of the coarse problems' (opt-in;
+    /// docs/performance.md): each correction is one Newton step of the
+    /// fine energy restricted to the rigid motions of aggregates of
+    /// vertices (those nearest each vertex of coarse level DEPTH), its
+    /// matrix reused for LAG corrections, one correction every PERIOD fine
+    /// iterations (replacing --correction-period). Omitted fields take the
+    /// defaults 2, 6, 1; every field is a whole number of at least 1. The
+    /// coarse start is the hierarchy's as without it. Needs the elastic
+    /// formulation and --levels 2 or 3; a mesh without that many coarse
+    /// levels gets no corrections.
+    #[arg(long, value_name = "DEPTH[,LAG[,PERIOD]]", value_parser = parse_galerkin)]
+    galerkin: Option<Galerkin>,
     /// Print the objective after every iteration.
     #[arg(short, long)]
     verbose: bool,
@@ -147,6 +159,14 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     if args.steps == 0 {
         bail!("--steps must be at least 1");
     }
+    if args.galerkin.is_some() {
+        if params.elastic().is_none() {
+            bail!("--galerkin applies to the elastic formulation only");
+        }
+        if args.levels == 1 {
+            bail!("--galerkin needs coarse levels (--levels 2 or 3)");
+        }
+    }
     let t0 = Instant::now();
     let rest = Arc::new(Rest::new(mesh.clone())?);
     let precompute = t0.elapsed();
@@ -156,6 +176,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         2 => Levels::Two,
         _ => Levels::Many,
     });
+    // before the factor: its precomputation prepares the corrections' state
+    deformer.set_galerkin(args.galerkin);
     // the factor, and beside it the coarse start of the first increment
     let mut first = constraints.clone();
     for h in &mut first.handles {
@@ -163,6 +185,11 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     }
     let t_factor = Instant::now();
     let factor = deformer.build_factor(&first)?;
+    if args.galerkin.is_some() {
+        // the corrections' aggregates and symbolic analysis are the
+        // constraint set's precomputation, as the levels' factors are
+        deformer.prepare_levels(&factor, &first);
+    }
     let prepare = t_factor.elapsed();
     let ft = factor.timings();
     eprintln!(
@@ -192,7 +219,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     );
     if let Some(path) = &args.report {
         let times = (ms(precompute), ms(prepare), ms(solve));
-        let report = solved.report(deformer.params(), &factor, mesh.num_vertices(), times);
+        let mut report = solved.report(deformer.params(), &factor, mesh.num_vertices(), times);
+        report["galerkin"] = serde_json::json!(args.galerkin.map(|g| [g.depth, g.lag, g.period]));
         std::fs::write(path, serde_json::to_string_pretty(&report)?)
             .with_context(|| format!("writing {}", path.display()))?;
     }
@@ -319,6 +347,8 @@ struct Solved {
     coarse_ms: f64,
     objectives: Vec<f64>,
     iteration_ms: Vec<f64>,
+    /// Each iteration's time less its coarse correction's.
+    fine_ms: Vec<f64>,
     steps: Vec<serde_json::Value>,
     converged: bool,
     diverged: bool,
@@ -387,7 +417,9 @@ impl Solved {
         while step_iterations < args.max_iters {
             let t = Instant::now();
             let r = deformer.step(factor, constraints, 1)?;
-            self.iteration_ms.push(ms(t.elapsed()));
+            let took = ms(t.elapsed());
+            self.iteration_ms.push(took);
+            self.fine_ms.push((took - r.coarse_ms).max(0.0));
             if self.objective_first.is_none() {
                 self.objective_first = Some(r.initial_objective);
             }
@@ -420,7 +452,10 @@ impl Solved {
     /// The `--report` JSON (wall times in ms: `operators` the rest
     /// operators, `prepare` the factor with the coarse start beside it,
     /// `solve` all increments; `precompute_ms + solve_ms` is the time to
-    /// settle).
+    /// settle; `fine_iteration_ms_median` the median iteration less its
+    /// coarse correction, `fine_iteration_equivalents` the solve in those
+    /// units: with a correction after every iteration the plain
+    /// iteration median includes one).
     fn report(
         &self,
         params: &Params,
@@ -429,9 +464,8 @@ impl Solved {
         (operators, prepare, solve): (f64, f64, f64),
     ) -> serde_json::Value {
         let ft = factor.timings();
-        let mut sorted = self.iteration_ms.clone();
-        sorted.sort_by(f64::total_cmp);
-        let median = sorted.get(sorted.len() / 2).copied().unwrap_or(0.0);
+        let iteration = median(&self.iteration_ms);
+        let fine = median(&self.fine_ms);
         let factor_ms = ms(ft.assembly) + ms(ft.symbolic) + ms(ft.numeric);
         serde_json::json!({
             "formulation": params.formulation.kind(),
@@ -453,11 +487,49 @@ impl Solved {
             "factor_symbolic_ms": ms(ft.symbolic),
             "factor_numeric_ms": ms(ft.numeric),
             "factor_nnz": factor.factor_nnz(),
-            "iteration_ms_median": median,
+            "iteration_ms_median": iteration,
+            "fine_iteration_ms_median": fine,
+            "fine_iteration_equivalents": if fine > 0.0 { Some(solve / fine) } else { None },
             "solve_ms": solve,
             "steps": self.steps,
         })
     }
+}
+
+/// The upper median of `xs` (0 when empty).
+fn median(xs: &[f64]) -> f64 {
+    let mut sorted = xs.to_vec();
+    sorted.sort_by(f64::total_cmp);
+    sorted.get(sorted.len() / 2).copied().unwrap_or(0.0)
+}
+
+/// `--galerkin DEPTH[,LAG[,PERIOD]]`: omitted fields take
+/// `Galerkin::default()`'s; every field a whole number of at least 1.
+fn parse_galerkin(s: &str) -> Result<Galerkin, String> {
+    let fields: Vec<&str> = s.split(',').map(str::trim).collect();
+    if fields.len() > 3 {
+        return Err(format!(
+            "{s:?} has {} fields: DEPTH[,LAG[,PERIOD]], e.g. 2,6,1",
+            fields.len()
+        ));
+    }
+    let d = Galerkin::default();
+    let mut values = [d.depth, d.lag, d.period];
+    for ((value, name), field) in values
+        .iter_mut()
+        .zip(["DEPTH", "LAG", "PERIOD"])
+        .zip(&fields)
+    {
+        *value = field
+            .parse::<usize>()
+            .ok()
+            .filter(|&v| v >= 1)
+            .ok_or_else(|| {
+                format!("{name} {field:?} is not a whole number of at least 1 (DEPTH[,LAG[,PERIOD]], e.g. 2,6,1)")
+            })?;
+    }
+    let [depth, lag, period] = values;
+    Ok(Galerkin { depth, lag, period })
 }
 
 fn ms(d: Duration) -> f64 {

@@ -286,3 +286,67 @@ fn characters_weights_are_the_documented_stretch_and_laplacian() {
         assert!(stderr.contains(name), "{flag} {value}: {stderr}");
     }
 }
+
+/// `--galerkin` on the generated cylinder (1,088 vertices: one coarse
+/// level) bent 120°: `1` fills LAG and PERIOD with the documented
+/// defaults (the same pose to the last written digit as `1,6,1`), the
+/// flag and its LAG reach the solver (other poses without it and with
+/// `1,1,1`), the report names the setting and counts the solve in fine
+/// iterations; malformed values (a zero, a word, an empty or a fourth
+/// field) and a setting without coarse levels are refused with exit code
+/// 2 and a message naming the flag.
+#[test]
+fn galerkin_flag_fills_defaults_reaches_the_solver_and_rejects_bad_values() {
+    let dir = tempfile::tempdir().unwrap();
+    let cylinder = dir.path().join("cylinder.obj");
+    assert!(dend(&["gen", "cylinder", "-o", cylinder.to_str().unwrap()])
+        .status
+        .success());
+    let example = Path::new(env!("CARGO_MANIFEST_DIR")).join("examples/cylinder-bend-120.json");
+    let run = |name: &str, extra: &[&str]| {
+        let out = dir.path().join(name);
+        let o = deform_bar(&cylinder, &example, &out, extra);
+        let stderr = String::from_utf8_lossy(&o.stderr).into_owned();
+        (o.status.code(), stderr, std::fs::read_to_string(&out).ok())
+    };
+    let report = dir.path().join("report.json");
+    let (code, stderr, short) = run(
+        "short.obj",
+        &["--galerkin", "1", "--report", report.to_str().unwrap()],
+    );
+    assert_eq!(code, Some(0), "{stderr}");
+    assert!(stderr.contains("converged"), "{stderr}");
+    let pose = |name: &str, extra: &[&str]| {
+        let (code, stderr, pose) = run(name, extra);
+        assert_eq!(code, Some(0), "{stderr}");
+        pose.unwrap()
+    };
+    let short = short.unwrap();
+    assert_eq!(short, pose("full.obj", &["--galerkin", "1,6,1"]));
+    assert_ne!(short, pose("fas.obj", &[]));
+    assert_ne!(short, pose("lag1.obj", &["--galerkin", "1,1,1"]));
+    let rep: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&report).unwrap()).unwrap();
+    assert_eq!(rep["galerkin"], serde_json::json!([1, 6, 1]), "{rep}");
+    let fie = rep["fine_iteration_equivalents"].as_f64().unwrap();
+    let iterations = rep["iterations"].as_f64().unwrap();
+    // the solve holds at least its fine iterations (less timer noise)
+    assert!(fie >= 0.5 * iterations, "{fie} for {iterations} iterations");
+    for (value, needle) in [
+        ("0", "DEPTH"),
+        ("1,x", "LAG"),
+        ("1,6,0", "PERIOD"),
+        ("", "DEPTH"),
+        ("1,6,1,4", "4 fields"),
+    ] {
+        let (code, stderr, _) = run("refused.obj", &["--galerkin", value]);
+        assert_eq!(code, Some(2), "{value:?}: {stderr}");
+        assert!(
+            stderr.contains("--galerkin") && stderr.contains(needle),
+            "{value:?}: {stderr}"
+        );
+    }
+    let (code, stderr, _) = run("one_level.obj", &["--galerkin", "1", "--levels", "1"]);
+    assert_eq!(code, Some(2), "{stderr}");
+    assert!(stderr.contains("--levels"), "{stderr}");
+}
