@@ -14,13 +14,14 @@
 //! cargo run --release --example drag_sim -- MESH [--drags 60] [--per-drag 1]
 //!     [--path line|arc] [--preset characters|elastica] [--previews] [--levels 1|2|3 (default 3)]
 //!     [--correction-period K] [--coarse-ratio R] [--tol T] [--anderson W]
-//!     [--area KA] [--stretch KS] [--error-trace] [--galerkin DEPTH[,LAG[,PERIOD]]]
+//!     [--area KA] [--stretch KS] [--error-trace] [--galerkin DEPTH[,LAG[,PERIOD[,SMOOTH]]]]
 //! ```
 //!
 //! `--galerkin` makes the coarse corrections Galerkin ones
 //! (`dend::deform::Galerkin`: aggregates spanning DEPTH levels, the coarse
 //! matrix reused for LAG corrections, one every PERIOD fine iterations;
-//! defaults 2, 6, 1).
+//! the aggregates' weights smoothed SMOOTH times across their borders;
+//! defaults 2, 6, 1, 0).
 //!
 //! `fine_iteration_ms` is the median time of one fine iteration in the same
 //! run; the one-shot solve (timed after the constraint set's
@@ -151,9 +152,14 @@ fn run() -> Result<(), String> {
             let mut v = g.split(',').map(|x| x.parse::<usize>());
             let d = Galerkin::default();
             let mut next = |dflt: usize| v.next().unwrap_or(Ok(dflt));
-            match (next(d.depth), next(d.lag), next(d.period)) {
-                (Ok(depth), Ok(lag), Ok(period)) => Ok(Galerkin { depth, lag, period }),
-                _ => Err(format!("--galerkin {g}: DEPTH[,LAG[,PERIOD]]")),
+            match (next(d.depth), next(d.lag), next(d.period), next(d.smooth)) {
+                (Ok(depth), Ok(lag), Ok(period), Ok(smooth)) => Ok(Galerkin {
+                    depth,
+                    lag,
+                    period,
+                    smooth,
+                }),
+                _ => Err(format!("--galerkin {g}: DEPTH[,LAG[,PERIOD[,SMOOTH]]]")),
             }
         })
         .transpose()?;
@@ -298,7 +304,7 @@ fn run() -> Result<(), String> {
         "vertices": mesh.num_vertices(),
         "preset": preset.name(),
         "path": if arc { "arc" } else { "line" },
-        "galerkin": galerkin.map(|g| [g.depth, g.lag, g.period]),
+        "galerkin": galerkin.map(|g| [g.depth, g.lag, g.period, g.smooth]),
         "drags": drags,
         "per_drag": per_drag,
         "fine_iteration_ms": fine_ms,

@@ -31,7 +31,7 @@ use super::galerkin_state::GalerkinState;
 use super::levels::CoarseRun;
 use super::multilevel::Correction;
 use super::{Deformer, Galerkin};
-use crate::deform::elastic::hessian::galerkin::RigidSpace;
+use crate::deform::elastic::hessian::galerkin::{RigidSpace, Weights};
 use crate::deform::elastic::hessian::Curvature;
 use crate::deform::elastic::{ElasticOps, ElasticSet};
 use crate::deform::factor::Factor;
@@ -46,16 +46,16 @@ impl Deformer {
         &mut self,
         factor: &Factor,
         (el, set): (&ElasticOps, &ElasticSet),
-        depth: usize,
+        mode: Galerkin,
     ) {
-        self.galerkin_state(factor, (el, set), depth);
+        self.galerkin_state(factor, (el, set), mode);
     }
 
     fn galerkin_state(
         &mut self,
         factor: &Factor,
         (el, set): (&ElasticOps, &ElasticSet),
-        depth: usize,
+        Galerkin { depth, smooth, .. }: Galerkin,
     ) -> Option<()> {
         if self.galerkin.as_ref().map(|g| g.factor_id) == Some(factor.id()) {
             return Some(());
@@ -91,21 +91,23 @@ impl Deformer {
                 *c
             })
             .collect();
+        let weights = smoothed_weights(agg, smooth, &self.rest.ops.l, &sys.unknowns, &sys.col_of);
         let elements = el.coupling_elements(set, &self.rest.ops, &sys.col_of);
-        let space = RigidSpace::new(agg, n_agg as usize, &elements, &sys.m);
+        let q = el.without_area(&elements, &sys.m);
+        let space = RigidSpace::new(weights, n_agg as usize, &elements, &q);
         let g = space.pattern();
         let symbolic =
             cholesky::analyse(&g.proper_indptr(), g.indices(), FillOrdering::default()).ok()?;
         let refactor = Refactor::new(&symbolic, &g).ok()?;
         let mem = MemBuffer::try_new(symbolic.solve_in_place_scratch::<Real>(1, Par::Seq)).ok()?;
-        let nu = sys.unknowns.len();
         self.galerkin = Some(Box::new(GalerkinState {
             factor_id: factor.id(),
-            lever: vec![Vector3::zeros(); nu],
+            lever: vec![Vector3::zeros(); space.weights.agg.len()],
             centre: vec![Vector3::zeros(); space.len()],
             rhs: vec![0.0; 6 * space.len()],
             space,
             elements,
+            q,
             g,
             symbolic,
             refactor,
@@ -133,7 +135,7 @@ impl Deformer {
             ms: t0.elapsed().as_secs_f64() * 1e3,
             work: 1.0,
         };
-        if self.galerkin_state(factor, (el, set), mode.depth).is_none() {
+        if self.galerkin_state(factor, (el, set), mode).is_none() {
             return Correction::Unavailable(run(t0));
         }
         self.global_rhs(factor, (el, set));
@@ -175,33 +177,48 @@ impl Deformer {
     fn assemble_galerkin(&mut self, factor: &Factor, el: &ElasticOps) -> bool {
         let gs = self.galerkin.as_mut().expect("built before");
         let unknowns = &factor.sys.unknowns;
-        // each aggregate's centroid, each unknown's lever arm
+        // each aggregate's weighted centroid, each entry's lever arm
         let space = &gs.space;
+        let wts = &space.weights;
+        let at =
+            |e: usize| Vector3::from(self.y[unknowns[space.entry_unknown[e] as usize] as usize]);
         for a in 0..space.len() {
-            let ks = &space.unknowns[space.uptr[a]..space.uptr[a + 1]];
-            let mut c = Vector3::zeros();
-            for &k in ks {
-                c += Vector3::from(self.y[unknowns[k as usize] as usize]);
+            let (mut c, mut sum) = (Vector3::zeros(), 0.0);
+            for &e in space.members(a) {
+                let e = e as usize;
+                c += wts.w[e] * at(e);
+                sum += wts.w[e];
             }
-            gs.centre[a] = c / ks.len() as Real;
+            gs.centre[a] = c / sum;
         }
-        for (k, &u) in unknowns.iter().enumerate() {
-            gs.lever[k] = Vector3::from(self.y[u as usize]) - gs.centre[space.agg[k] as usize];
+        for (e, r) in gs.lever.iter_mut().enumerate() {
+            *r = at(e) - gs.centre[wts.agg[e] as usize];
         }
         let st = &self.elastic;
+        let t0 = Instant::now();
         el.galerkin_matrix(
             space,
             &gs.elements,
             &self.rest.ops,
-            &factor.sys.m,
+            &gs.q,
             (&self.y, &st.rot, &st.proj),
             &gs.lever,
             Curvature::GaussNewton,
             &mut gs.g,
         );
+        let t_matrix = t0.elapsed().as_secs_f64() * 1e3;
         regularise(&mut gs.g, space.len());
         gs.age = Some(0);
-        gs.refactor.factorise_definite(&gs.symbolic, &gs.g).is_ok()
+        let ok = gs.refactor.factorise_definite(&gs.symbolic, &gs.g).is_ok();
+        let t_factor = t0.elapsed().as_secs_f64() * 1e3 - t_matrix;
+        tracing::debug!(
+            t_matrix,
+            t_factor,
+            ok,
+            nnz = gs.g.nnz(),
+            "galerkin assembly"
+        );
+        ok
     }
 
     /// The step `D = P G⁻¹ Pᵀ r` (`r` in `rhs`, from [`Deformer::global_rhs`])
@@ -218,14 +235,18 @@ impl Deformer {
         let space = &gs.space;
         let st = &mut self.elastic;
         // Pᵀ r
+        let wts = &space.weights;
         gs.rhs.fill(0.0);
         for k in 0..nu {
             let r = Vector3::new(st.rhs[k], st.rhs[nu + k], st.rhs[2 * nu + k]);
-            let a = space.agg[k] as usize;
-            let m = gs.lever[k].cross(&r);
-            for i in 0..3 {
-                gs.rhs[6 * a + i] += r[i];
-                gs.rhs[6 * a + 3 + i] += m[i];
+            for f in wts.entries(k) {
+                let a = wts.agg[f] as usize;
+                let t = wts.w[f] * r;
+                let m = gs.lever[f].cross(&t);
+                for i in 0..3 {
+                    gs.rhs[6 * a + i] += t[i];
+                    gs.rhs[6 * a + 3 + i] += m[i];
+                }
             }
         }
         let n = 6 * space.len();
@@ -241,10 +262,13 @@ impl Deformer {
         }
         for (k, &u) in unknowns.iter().enumerate() {
             let y = self.y[u as usize];
-            let a = space.agg[k] as usize;
-            let t = Vector3::new(gs.rhs[6 * a], gs.rhs[6 * a + 1], gs.rhs[6 * a + 2]);
-            let w = Vector3::new(gs.rhs[6 * a + 3], gs.rhs[6 * a + 4], gs.rhs[6 * a + 5]);
-            let d = t + w.cross(&gs.lever[k]);
+            let mut d = Vector3::zeros();
+            for f in wts.entries(k) {
+                let a = wts.agg[f] as usize;
+                let t = Vector3::new(gs.rhs[6 * a], gs.rhs[6 * a + 1], gs.rhs[6 * a + 2]);
+                let w = Vector3::new(gs.rhs[6 * a + 3], gs.rhs[6 * a + 4], gs.rhs[6 * a + 5]);
+                d += wts.w[f] * (t + w.cross(&gs.lever[f]));
+            }
             for i in 0..3 {
                 st.x_flat[i * nu + k] = y[i];
                 // (the step, kept in `rhs` beside the current unknowns)
@@ -272,5 +296,80 @@ fn regularise(g: &mut sprs::CsMat<Real>, n_agg: usize) {
             let d = diag(6 * a + i);
             data[d] += 1e-8 * t;
         }
+    }
+}
+
+/// Below this share an unknown's weight in an aggregate is dropped after
+/// smoothing (the rest renormalised): a long thin tail of small weights
+/// would widen `G`'s pattern for little gain.
+const MIN_WEIGHT: Real = 0.05;
+
+/// The weights of the partition `agg` (one aggregate per unknown)
+/// smoothed `passes` times across the mesh's edges between unknowns: each
+/// pass averages an unknown's weights half with the mean of its
+/// neighbours' (edges from the pattern of the Laplacian `l`; `unknowns`
+/// and `col_of` map unknowns to vertices and back). The weights stay a
+/// partition of unity and depend on the connectivity only, not on the
+/// unit of length.
+pub(super) fn smoothed_weights(
+    agg: Vec<u32>,
+    passes: usize,
+    l: &sprs::CsMat<Real>,
+    unknowns: &[u32],
+    col_of: &[u32],
+) -> Weights {
+    if passes == 0 {
+        return Weights::partition(agg);
+    }
+    let nu = agg.len();
+    let neighbours = |k: usize| {
+        let v = unknowns[k] as usize;
+        l.outer_view(v)
+            .into_iter()
+            .flat_map(|row| row.indices().to_vec())
+            .map(|j| col_of[j])
+            .filter(move |&c| c != u32::MAX && c as usize != k)
+    };
+    let mut cur: Vec<Vec<(u32, Real)>> = agg.iter().map(|&a| vec![(a, 1.0)]).collect();
+    for _ in 0..passes {
+        let next: Vec<Vec<(u32, Real)>> = (0..nu)
+            .map(|k| {
+                let mut out: Vec<(u32, Real)> = cur[k].iter().map(|&(a, w)| (a, 0.5 * w)).collect();
+                let ns: Vec<u32> = neighbours(k).collect();
+                if ns.is_empty() {
+                    return cur[k].clone();
+                }
+                let share = 0.5 / ns.len() as Real;
+                for &j in &ns {
+                    for &(a, w) in &cur[j as usize] {
+                        match out.iter_mut().find(|x| x.0 == a) {
+                            Some(x) => x.1 += share * w,
+                            None => out.push((a, share * w)),
+                        }
+                    }
+                }
+                out
+            })
+            .collect();
+        cur = next;
+    }
+    let mut ptr = Vec::with_capacity(nu + 1);
+    let (mut aggs, mut ws) = (Vec::new(), Vec::new());
+    ptr.push(0);
+    for mut entries in cur {
+        let top = entries.iter().map(|x| x.1).fold(0.0, Real::max);
+        entries.retain(|x| x.1 >= MIN_WEIGHT.min(top));
+        entries.sort_unstable_by_key(|x| x.0);
+        let sum: Real = entries.iter().map(|x| x.1).sum();
+        for (a, w) in entries {
+            aggs.push(a);
+            ws.push(w / sum);
+        }
+        ptr.push(aggs.len());
+    }
+    Weights {
+        ptr,
+        agg: aggs,
+        w: ws,
     }
 }

@@ -21,12 +21,16 @@ pub(super) struct GalerkinState {
     pub(super) space: RigidSpace,
     /// The Newton matrix's elements (supports, unknowns).
     pub(super) elements: Elements,
+    /// `Q' = Q − Σ_t w_t A_tᵀ A_t` on the unknowns (the part of `H` that
+    /// does not depend on the pose, `ElasticOps::without_area`).
+    pub(super) q: sprs::CsMat<Real>,
     /// `G = Pᵀ H P` at the last assembly (`6 × aggregates` square).
     pub(super) g: sprs::CsMat<Real>,
     /// `G`'s symbolic Cholesky factorisation and numeric factor.
     pub(super) symbolic: SymbolicCholesky<usize>,
     pub(super) refactor: Refactor,
-    /// Each unknown's lever arm `y_k − c_a` at the last assembly.
+    /// Each weight's lever arm `y_k − c_a` at the last assembly (indexed
+    /// like the space's weights).
     pub(super) lever: Vec<Vector3<Real>>,
     /// Each aggregate's centroid at the last assembly.
     pub(super) centre: Vec<Vector3<Real>>,

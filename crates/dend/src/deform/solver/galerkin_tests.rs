@@ -8,7 +8,7 @@ use std::sync::Arc;
 use nalgebra::{DMatrix, Matrix3, UnitQuaternion, Vector3};
 
 use super::test_util::{dense, patch_edit};
-use crate::deform::elastic::hessian::galerkin::RigidSpace;
+use crate::deform::elastic::hessian::galerkin::{RigidSpace, Weights};
 use crate::deform::elastic::hessian::Curvature;
 use crate::deform::{Deformer, Factor, Galerkin, Levels, Params, Rest};
 use crate::mesh::gen::{irregular_patch, PatchSurface};
@@ -51,59 +51,83 @@ fn the_coarse_matrix_is_the_newton_matrix_projected_on_the_rigid_motions() {
         .collect();
     assert!(n_agg >= 5, "{n_agg} aggregates");
     let elements = el.coupling_elements(set, &rest.ops, &f.sys.col_of);
-    let space = RigidSpace::new(agg.clone(), n_agg as usize, &elements, &f.sys.m);
-    // lever arms about points off the centroids (any centre spans the
-    // same space; these test the general formula)
-    let lever: Vec<Vector3<Real>> = (0..nu)
-        .map(|k| {
-            let y = Vector3::from(d.y[f.sys.unknowns[k] as usize]);
-            y - Vector3::new(0.1 * agg[k] as Real, -0.2, 0.3)
-        })
-        .collect();
-    // P, dense: 3 nu × 6 n_agg
-    let mut p = DMatrix::zeros(3 * nu, 6 * n_agg as usize);
+    // the strips' weights smoothed across their borders, so that unknowns
+    // blend the motions of up to three strips (the general case)
+    let unsmoothed = Weights::partition(agg);
+    let weights = super::galerkin::smoothed_weights(
+        unsmoothed.agg.clone(),
+        2,
+        &rest.ops.l,
+        &f.sys.unknowns,
+        &f.sys.col_of,
+    );
+    let q = el.without_area(&elements, &f.sys.m);
+    let blended = (0..nu).filter(|&k| weights.entries(k).len() > 1).count();
+    assert!(blended > nu / 10, "{blended} of {nu} unknowns blend strips");
     for k in 0..nu {
-        let a = agg[k] as usize;
-        let r = lever[k];
-        let cross = Matrix3::new(0.0, -r.z, r.y, r.z, 0.0, -r.x, -r.y, r.x, 0.0);
-        for i in 0..3 {
-            p[(3 * k + i, 6 * a + i)] = 1.0;
-            for j in 0..3 {
-                p[(3 * k + i, 6 * a + 3 + j)] = -cross[(i, j)];
+        let sum: Real = weights.w[weights.entries(k)].iter().sum();
+        assert!((sum - 1.0).abs() < 1e-12, "weights of {k} sum to {sum}");
+    }
+    // one aggregate per task, a few, all: the groups change the order
+    // of the sums only
+    for group in [1, 3, 64] {
+        let space = RigidSpace::with_groups(weights.clone(), n_agg as usize, &elements, &q, group);
+        let wts = &space.weights;
+        // lever arms about points off the centroids (any centre spans the
+        // same space; these test the general formula)
+        let lever: Vec<Vector3<Real>> = (0..wts.agg.len())
+            .map(|e| {
+                let k = space.entry_unknown[e] as usize;
+                let y = Vector3::from(d.y[f.sys.unknowns[k] as usize]);
+                y - Vector3::new(0.1 * wts.agg[e] as Real, -0.2, 0.3)
+            })
+            .collect();
+        // P, dense: 3 nu × 6 n_agg, P_ka = w_ka [I | −[r_ka]×]
+        let mut p = DMatrix::zeros(3 * nu, 6 * n_agg as usize);
+        for k in 0..nu {
+            for e in wts.entries(k) {
+                let (a, w, r) = (wts.agg[e] as usize, wts.w[e], lever[e]);
+                let cross = Matrix3::new(0.0, -r.z, r.y, r.z, 0.0, -r.x, -r.y, r.x, 0.0);
+                for i in 0..3 {
+                    p[(3 * k + i, 6 * a + i)] += w;
+                    for j in 0..3 {
+                        p[(3 * k + i, 6 * a + 3 + j)] -= w * cross[(i, j)];
+                    }
+                }
             }
         }
-    }
-    for curvature in [Curvature::Projected, Curvature::GaussNewton] {
-        let mut g = space.pattern();
-        el.galerkin_matrix(
-            &space,
-            &elements,
-            &rest.ops,
-            &f.sys.m,
-            (&d.y, &d.elastic.rot, &d.elastic.proj),
-            &lever,
-            curvature,
-            &mut g,
-        );
-        // H from the Newton iteration's own assembly, dense
-        d.assemble_newton(&f, (el, set), curvature, false).unwrap();
-        let h = dense(&d.elastic.newton.pattern.as_ref().unwrap().h);
-        let expected = p.transpose() * &h * &p;
-        let got = dense(&g);
-        let scale = expected.amax();
-        assert!(scale > 0.0);
-        let diff = (&got - &expected).amax();
-        assert!(
-            diff <= 1e-10 * scale,
-            "{curvature:?}: {diff} of {scale} ({n} vertices)"
-        );
-        let asym = (&got - got.transpose()).amax();
-        assert!(asym <= 1e-10 * scale, "{curvature:?}: asymmetry {asym}");
-        let smallest = got.symmetric_eigenvalues().min();
-        assert!(
-            smallest >= -1e-9 * scale,
-            "{curvature:?}: eigenvalue {smallest} of {scale}"
-        );
+        for curvature in [Curvature::Projected, Curvature::GaussNewton] {
+            let mut g = space.pattern();
+            el.galerkin_matrix(
+                &space,
+                &elements,
+                &rest.ops,
+                &q,
+                (&d.y, &d.elastic.rot, &d.elastic.proj),
+                &lever,
+                curvature,
+                &mut g,
+            );
+            // H from the Newton iteration's own assembly, dense
+            d.assemble_newton(&f, (el, set), curvature, false).unwrap();
+            let h = dense(&d.elastic.newton.pattern.as_ref().unwrap().h);
+            let expected = p.transpose() * &h * &p;
+            let got = dense(&g);
+            let scale = expected.amax();
+            assert!(scale > 0.0);
+            let diff = (&got - &expected).amax();
+            assert!(
+                diff <= 1e-10 * scale,
+                "{curvature:?}, groups of {group}: {diff} of {scale} ({n} vertices)"
+            );
+            let asym = (&got - got.transpose()).amax();
+            assert!(asym <= 1e-10 * scale, "{curvature:?}: asymmetry {asym}");
+            let smallest = got.symmetric_eigenvalues().min();
+            assert!(
+                smallest >= -1e-9 * scale,
+                "{curvature:?}: eigenvalue {smallest} of {scale}"
+            );
+        }
     }
 }
 
@@ -143,6 +167,7 @@ fn galerkin_corrections_reach_the_minimum_and_never_raise_the_objective() {
         depth: 1,
         lag: 3,
         period: 1,
+        smooth: 1,
     };
     let (r, objectives, corrections, _) = solve(Some(galerkin), params);
     assert!(r.converged, "{r:?}");

@@ -53,6 +53,11 @@ pub struct Galerkin {
     pub lag: usize,
     /// Fine iterations between two corrections, at least 1.
     pub period: usize,
+    /// Passes of smoothing of the aggregates' weights across their
+    /// borders (`solver/galerkin.rs`): 0 moves each aggregate rigidly,
+    /// each pass blends the motions of neighbouring aggregates over one
+    /// more ring of vertices.
+    pub smooth: usize,
 }
 
 impl Default for Galerkin {
@@ -64,6 +69,7 @@ impl Default for Galerkin {
             depth: 2,
             lag: 6,
             period: 1,
+            smooth: 0,
         }
     }
 }

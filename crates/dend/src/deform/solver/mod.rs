@@ -244,6 +244,7 @@ impl Deformer {
             depth: g.depth.max(1),
             lag: g.lag.max(1),
             period: g.period.max(1),
+            smooth: g.smooth,
         });
         self.galerkin = None;
     }

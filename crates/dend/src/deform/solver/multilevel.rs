@@ -372,7 +372,7 @@ impl Deformer {
     pub fn prepare_levels(&mut self, factor: &Factor, constraints: &Constraints) {
         if let (Some(g), Some((el, set))) = (self.galerkin_mode, factor.elastic.as_ref()) {
             // the Galerkin corrections' aggregates and symbolic analysis
-            self.prepare_galerkin(factor, (el, set), g.depth);
+            self.prepare_galerkin(factor, (el, set), g);
         }
         let rest = self.rest.clone();
         let internal = rest.internal_constraints(constraints);

@@ -1,32 +1,40 @@
-//! The Newton matrix projected onto the rigid motions of aggregates of
-//! vertices: the Galerkin coarse operator `G = Pᵀ H P` of a coarse
+//! The Newton matrix projected onto blended rigid motions of aggregates
+//! of vertices: the Galerkin coarse operator `G = Pᵀ H P` of a coarse
 //! correction (`solver/galerkin.rs`).
 //!
-//! Each unknown `k` belongs to one aggregate `a(k)`, and the coarse space
-//! moves each aggregate by a translation `t_a` and a small turn `ω_a`
-//! about a centre `c_a`:
+//! Each aggregate `a` moves by a translation `t_a` and a small turn `ω_a`
+//! about a centre `c_a`, and each unknown `k` blends the motions of the
+//! aggregates it has a weight in (`w_ka ≥ 0`, `Σ_a w_ka = 1`):
 //!
 //! ```text
-//! ΔY_k = t_a + ω_a × r_k = P_k [t_a; ω_a],   P_k = [I | −[r_k]×],   r_k = y_k − c_a
+//! ΔY_k = Σ_a w_ka (t_a + ω_a × r_ka) = P_k [t; ω],   P_ka = w_ka [I | −[r_ka]×],   r_ka = y_k − c_a
 //! ```
 //!
-//! (the rigid body modes of smoothed-aggregation multigrid for elasticity,
-//! Vaněk, Mandel & Brezina 1996; Xian, Tong & Liu 2019 build a Galerkin
-//! coarse operator from a skinning-like space the same way). `H = Q ⊗ I +
-//! Σ_e B_e` is the Newton matrix of `solver/newton.rs` ([`Curvature`]),
-//! and every element's `B_e` has a low rank, so `G` is assembled from
-//! the elements' factors without forming `H`:
+//! With one weight per unknown (a partition) these are the rigid body
+//! modes of aggregation multigrid for elasticity (Vaněk, Mandel & Brezina
+//! 1996); weights smoothed across the aggregates' borders blend them like
+//! a skinning, the prolongation of Xian, Tong & Liu 2019, so that a
+//! coarse motion does not kink where two aggregates meet. The weights sum
+//! to one, so the motions of the whole shape stay in the space.
+//! `H = Q ⊗ I + Σ_e B_e` is the Newton matrix of `solver/newton.rs`
+//! ([`Curvature`]), and every element's `B_e` has a low rank, so `G` is
+//! assembled from the elements' factors without forming `H`:
 //!
-//! - a row `k` of `Q`: `Σ_l q_kl P_kᵀ P_l`, per aggregate `b` of the
-//!   `l`s `[[s I, −[v]×], [s [r_k]×, −[r_k]×[v]×]]` with `s = Σ q_kl`,
-//!   `v = Σ q_kl r_l`;
-//! - a vertex `i`: `−(J P)ᵀ C⁻¹ (J P)`, `(J P)_b = Σ_{k ∈ b} J_k P_k`;
-//! - a triangle: `Σ w λ (Pᵀ Aᵀ m)(Pᵀ Aᵀ m)ᵀ − w Σ_d F_dᵀ F_d` with
-//!   `F_{d,b} = Σ_{k ∈ b} κ_{kd} P_k` (`Q`'s `w AᵀA` taken out).
+//! - a row `k` of `Q'`: `Σ_l q'_kl P_kᵀ P_l`, per aggregates `a` of `k` and
+//!   `b` of the `l`s `w_ka [[s I, −[v]×], [s [r_ka]×, −[r_ka]×[v]×]]` with
+//!   `s = Σ_l q'_kl w_lb`, `v = Σ_l q'_kl w_lb r_lb`;
+//! - a vertex `i`: `−(J P)ᵀ C⁻¹ (J P)`, `(J P)_b = Σ_k J_k P_kb`;
+//! - a triangle: `Σ w λ (Pᵀ Aᵀ m)(Pᵀ Aᵀ m)ᵀ`.
 //!
-//! Each block row (an aggregate) is summed by one task, elements in
-//! order, so `G` is the same to the bit for any number of threads; an
-//! element touching `m` aggregates is evaluated `m` times.
+//! `Q' = Q − Σ_t w_t A_tᵀ A_t` ([`ElasticOps::without_area`]): a
+//! triangle's curvature is `w (AᵀA − λ (Aᵀm)(Aᵀm)ᵀ)` minus what `Q`
+//! holds of it, `w AᵀA`, so the constant part cancels in `Q'`, once per
+//! constraint set, and each assembly sums the pose's modes only.
+//!
+//! Each group of neighbouring aggregates ([`GROUP`], renumbered to a
+//! range) is summed by one task, elements in order, so `G` is the same to
+//! the bit for any number of threads; an element is evaluated once per
+//! group it touches.
 
 use nalgebra::{Matrix3, SMatrix, UnitQuaternion, Vector3};
 use rayon::prelude::*;
@@ -37,79 +45,168 @@ use crate::deform::elastic::ElasticOps;
 use crate::mesh::{Point, Real};
 use crate::operators::Operators;
 
-/// `3 × 6`: one unknown's `P_k`, or a sum of them.
+/// `3 × 6`: one `P_ka`, or a sum of them.
 pub(crate) type M36 = SMatrix<Real, 3, 6>;
 /// `6 × 6`: one block of `G`.
 pub(crate) type M6 = SMatrix<Real, 6, 6>;
+/// `6 × 1`: one aggregate's part of `Pᵀ v`.
+type V6 = SMatrix<Real, 6, 1>;
 
-/// An element's sums per aggregate: `(aggregate, Σ_k X_k P_k)`.
-type Parts = Vec<(u32, M36)>;
+/// The scratch of one task of [`ElasticOps::galerkin_matrix`].
+type Scratch = (Vec<M6>, Vec<Matrix3<Real>>, Vec<(u32, M36)>, Vec<(u32, V6)>);
 
-/// The aggregates of one constraint set and the pattern of `G`.
+/// Each unknown's aggregates and weights (CSR over the unknowns): the
+/// prolongation's entries `(k, a, w_ka)`, `Σ_a w_ka = 1` for each `k`.
+#[derive(Debug, Clone)]
+pub(crate) struct Weights {
+    pub(crate) ptr: Vec<usize>,
+    pub(crate) agg: Vec<u32>,
+    pub(crate) w: Vec<Real>,
+}
+
+impl Weights {
+    /// One aggregate per unknown, weight one (`agg[k]` for unknown `k`).
+    pub(crate) fn partition(agg: Vec<u32>) -> Self {
+        Weights {
+            ptr: (0..=agg.len()).collect(),
+            w: vec![1.0; agg.len()],
+            agg,
+        }
+    }
+
+    /// How many unknowns there are.
+    pub(crate) fn num_unknowns(&self) -> usize {
+        self.ptr.len() - 1
+    }
+
+    /// Unknown `k`'s entries (indices into `agg` and `w`).
+    pub(crate) fn entries(&self, k: usize) -> std::ops::Range<usize> {
+        self.ptr[k]..self.ptr[k + 1]
+    }
+}
+
+/// The aggregates of one constraint set, their weights and the pattern of
+/// `G`.
 #[derive(Debug, Clone)]
 pub(crate) struct RigidSpace {
-    /// Each unknown's aggregate.
-    pub(crate) agg: Vec<u32>,
-    /// Each aggregate's unknowns (CSR).
-    pub(crate) uptr: Vec<usize>,
-    pub(crate) unknowns: Vec<u32>,
-    /// Each aggregate's elements, ascending (CSR): those with an unknown
-    /// of the aggregate in their support.
-    eptr: Vec<usize>,
-    elems: Vec<u32>,
+    /// The prolongation's weights (module docs); an entry's lever arm
+    /// `r_ka` is at the same index in the lever arms.
+    pub(crate) weights: Weights,
+    /// Each entry's unknown.
+    pub(crate) entry_unknown: Vec<u32>,
+    /// Each aggregate's entries (CSR), by unknown ascending.
+    pub(crate) aptr: Vec<usize>,
+    pub(crate) aentries: Vec<u32>,
+    /// The groups of aggregates one task of the assembly sums (each a
+    /// range of aggregates: group `g` is `gptr[g]..gptr[g + 1]`).
+    gptr: Vec<usize>,
+    /// Each group's elements, ascending (CSR): those with an unknown
+    /// weighted in one of its aggregates in their support.
+    geptr: Vec<usize>,
+    gelems: Vec<u32>,
     /// `G`'s block pattern (CSR over aggregates, both triangles, sorted).
     ptr: Vec<usize>,
     cols: Vec<u32>,
 }
 
-/// `P_k = [I | −[r]×]`.
-fn rigid(r: &Vector3<Real>) -> M36 {
-    let mut m = M36::zeros();
-    m.fixed_view_mut::<3, 3>(0, 0)
-        .copy_from(&Matrix3::identity());
-    m.fixed_view_mut::<3, 3>(0, 3)
-        .copy_from(&(-cross_matrix(r)));
-    m
+/// The slot of aggregate `b` in an element's sums, added if new.
+fn slot<T: Copy>(parts: &mut Vec<(u32, T)>, b: u32, zero: T) -> usize {
+    match parts.iter().position(|p| p.0 == b) {
+        Some(s) => s,
+        None => {
+            parts.push((b, zero));
+            parts.len() - 1
+        }
+    }
 }
 
 impl RigidSpace {
-    /// The space of the aggregates `agg` (one per unknown, `0..n_agg`)
-    /// for the elements `els` and `Q`'s pattern `q` (unknowns × unknowns).
-    pub(crate) fn new(agg: Vec<u32>, n_agg: usize, els: &Elements, q: &sprs::CsMat<Real>) -> Self {
-        let mut members: Vec<Vec<u32>> = vec![Vec::new(); n_agg];
-        for (k, &a) in agg.iter().enumerate() {
-            members[a as usize].push(k as u32);
+    /// The space of the weights `weights` over `n_agg` aggregates for the
+    /// elements `els` and `Q`'s pattern `q` (unknowns × unknowns). The
+    /// aggregates are renumbered so that each group of neighbours the
+    /// assembly sums in one task is a range ([`GROUP`]).
+    pub(crate) fn new(
+        weights: Weights,
+        n_agg: usize,
+        els: &Elements,
+        q: &sprs::CsMat<Real>,
+    ) -> Self {
+        Self::with_groups(weights, n_agg, els, q, GROUP)
+    }
+
+    /// [`RigidSpace::new`] with groups of at most `group` aggregates.
+    pub(crate) fn with_groups(
+        mut weights: Weights,
+        n_agg: usize,
+        els: &Elements,
+        q: &sprs::CsMat<Real>,
+        group: usize,
+    ) -> Self {
+        let rows = block_rows(&weights, n_agg, els, q);
+        // greedy groups of neighbouring aggregates, numbered in order
+        let mut new_id = vec![u32::MAX; n_agg];
+        let mut gptr = vec![0];
+        let mut next = 0u32;
+        for a in 0..n_agg {
+            if new_id[a] != u32::MAX {
+                continue;
+            }
+            new_id[a] = next;
+            next += 1;
+            for &b in &rows[a] {
+                if next as usize - gptr[gptr.len() - 1] >= group.max(1) {
+                    break;
+                }
+                if new_id[b as usize] == u32::MAX {
+                    new_id[b as usize] = next;
+                    next += 1;
+                }
+            }
+            gptr.push(next as usize);
         }
-        let (uptr, unknowns) = csr(members);
-        let mut of_elem: Vec<Vec<u32>> = vec![Vec::new(); n_agg];
-        let mut rows: Vec<Vec<u32>> = vec![Vec::new(); n_agg];
+        for a in weights.agg.iter_mut() {
+            *a = new_id[*a as usize];
+        }
+        let rows = block_rows(&weights, n_agg, els, q);
+        let nu = weights.num_unknowns();
+        let mut entry_unknown = vec![0u32; weights.agg.len()];
+        let mut members: Vec<Vec<u32>> = vec![Vec::new(); n_agg];
+        for k in 0..nu {
+            for e in weights.entries(k) {
+                entry_unknown[e] = k as u32;
+                members[weights.agg[e] as usize].push(e as u32);
+            }
+        }
+        let (aptr, aentries) = csr(members);
+        let mut group_of = vec![0u32; n_agg];
+        for g in 0..gptr.len() - 1 {
+            group_of[gptr[g]..gptr[g + 1]].fill(g as u32);
+        }
+        let mut of_group: Vec<Vec<u32>> = vec![Vec::new(); gptr.len() - 1];
         let mut touched = Vec::new();
         for e in 0..els.len() {
             touched.clear();
-            touched.extend(els.unknowns(e).map(|k| agg[k as usize]));
+            touched.extend(
+                els.unknowns(e)
+                    .flat_map(|k| weights.agg[weights.entries(k as usize)].iter())
+                    .map(|&a| group_of[a as usize]),
+            );
             touched.sort_unstable();
             touched.dedup();
-            for &a in &touched {
-                of_elem[a as usize].push(e as u32);
-                rows[a as usize].extend(&touched);
+            for &g in &touched {
+                of_group[g as usize].push(e as u32);
             }
         }
-        for (k, row) in q.outer_iterator().enumerate() {
-            let a = agg[k] as usize;
-            rows[a].extend(row.indices().iter().map(|&l| agg[l]));
-        }
-        for row in &mut rows {
-            row.sort_unstable();
-            row.dedup();
-        }
-        let (eptr, elems) = csr(of_elem);
+        let (geptr, gelems) = csr(of_group);
         let (ptr, cols) = csr(rows);
         RigidSpace {
-            agg,
-            uptr,
-            unknowns,
-            eptr,
-            elems,
+            weights,
+            entry_unknown,
+            aptr,
+            aentries,
+            gptr,
+            geptr,
+            gelems,
             ptr,
             cols,
         }
@@ -117,7 +214,12 @@ impl RigidSpace {
 
     /// How many aggregates there are.
     pub(crate) fn len(&self) -> usize {
-        self.uptr.len() - 1
+        self.aptr.len() - 1
+    }
+
+    /// Aggregate `a`'s entries.
+    pub(crate) fn members(&self, a: usize) -> &[u32] {
+        &self.aentries[self.aptr[a]..self.aptr[a + 1]]
     }
 
     /// `G`'s scalar pattern (`6 n_agg` square, both triangles, sorted
@@ -142,6 +244,79 @@ impl RigidSpace {
     }
 }
 
+/// Aggregates per task of [`ElasticOps::galerkin_matrix`]: an element is
+/// evaluated once per group it touches, so larger groups evaluate fewer
+/// elements twice, and smaller ones balance the threads better.
+const GROUP: usize = 16;
+
+/// `G`'s block pattern: each aggregate's neighbours (sorted), those
+/// sharing an element or an entry of `Q` with it.
+fn block_rows(
+    weights: &Weights,
+    n_agg: usize,
+    els: &Elements,
+    q: &sprs::CsMat<Real>,
+) -> Vec<Vec<u32>> {
+    let aggs_of = |k: u32| weights.agg[weights.entries(k as usize)].iter().copied();
+    let mut rows: Vec<Vec<u32>> = vec![Vec::new(); n_agg];
+    let mut touched = Vec::new();
+    for e in 0..els.len() {
+        touched.clear();
+        touched.extend(els.unknowns(e).flat_map(aggs_of));
+        touched.sort_unstable();
+        touched.dedup();
+        for &a in &touched {
+            rows[a as usize].extend(&touched);
+        }
+    }
+    for (k, row) in q.outer_iterator().enumerate() {
+        let mut bs: Vec<u32> = row
+            .indices()
+            .iter()
+            .flat_map(|&l| aggs_of(l as u32))
+            .collect();
+        bs.sort_unstable();
+        bs.dedup();
+        for a in aggs_of(k as u32) {
+            rows[a as usize].extend(&bs);
+        }
+    }
+    for row in &mut rows {
+        row.sort_unstable();
+        row.dedup();
+    }
+    rows
+}
+
+/// Fills each block `(a, b)`, `b < a`, of `G` with the transpose of the
+/// block `(b, a)`: the tasks sum the blocks on and above the diagonal
+/// only, `G` being symmetric.
+fn mirror_lower(space: &RigidSpace, g: &mut sprs::CsMat<Real>) {
+    let data = g.data_mut();
+    // block (a, c-th of row a) starts at 36 ptr[a] + 6 c, its rows 6 n apart
+    for a in 0..space.len() {
+        let cols = &space.cols[space.ptr[a]..space.ptr[a + 1]];
+        let n = cols.len();
+        for (c, &b) in cols.iter().enumerate() {
+            let b = b as usize;
+            if b >= a {
+                break;
+            }
+            let bcols = &space.cols[space.ptr[b]..space.ptr[b + 1]];
+            let nb = bcols.len();
+            let cb = bcols
+                .binary_search(&(a as u32))
+                .expect("a symmetric pattern");
+            for i in 0..6 {
+                for j in 0..6 {
+                    data[36 * space.ptr[a] + i * 6 * n + 6 * c + j] =
+                        data[36 * space.ptr[b] + j * 6 * nb + 6 * cb + i];
+                }
+            }
+        }
+    }
+}
+
 /// A CSR of lists.
 fn csr(lists: Vec<Vec<u32>>) -> (Vec<usize>, Vec<u32>) {
     let mut ptr = Vec::with_capacity(lists.len() + 1);
@@ -155,11 +330,35 @@ fn csr(lists: Vec<Vec<u32>>) -> (Vec<usize>, Vec<u32>) {
 }
 
 impl ElasticOps {
+    /// `Q' = Q − Σ_t w_t A_tᵀ A_t` on the unknowns (module docs): `q`
+    /// (`Q_UU`, whose pattern holds every triangle's pairs of unknown
+    /// corners) less each area triangle's `w Σ_d κ_d κ_dᵀ`.
+    pub(crate) fn without_area(&self, els: &Elements, q: &sprs::CsMat<Real>) -> sprs::CsMat<Real> {
+        let mut out = q.to_csr();
+        for t in 0..self.area.len() {
+            let (_, unknown) = els.support(els.num_vertices() + t);
+            let el = &self.area[t];
+            let k = el.corners();
+            for (c, &u) in unknown.iter().enumerate() {
+                for (c2, &u2) in unknown.iter().enumerate() {
+                    if u == u32::MAX || u2 == u32::MAX {
+                        continue;
+                    }
+                    let v = el.weight * (k[c][0] * k[c2][0] + k[c][1] * k[c2][1]);
+                    *out.get_mut(u as usize, u2 as usize)
+                        .expect("a triangle's corners in Q's pattern") -= v;
+                }
+            }
+        }
+        out
+    }
+
     /// Writes `G = Pᵀ H P` (module docs) into `g`'s values
     /// ([`RigidSpace::pattern`]), `H` with `curvature`, at the normalised
     /// pose `y`, rotations `rot` and area targets `proj`, with each
-    /// unknown's lever arm `r_k` in `lever` and `Q_UU` in `q`; on the rayon
-    /// pool.
+    /// entry's lever arm `r_ka` in `lever` and `Q'` in `q`
+    /// ([`ElasticOps::without_area`]); on the rayon pool, a group of
+    /// aggregates per task.
     #[allow(clippy::too_many_arguments)]
     pub(crate) fn galerkin_matrix(
         &self,
@@ -172,90 +371,153 @@ impl ElasticOps {
         curvature: Curvature,
         g: &mut sprs::CsMat<Real>,
     ) {
-        // the block rows' disjoint value slices
-        let mut tasks = Vec::with_capacity(space.len());
+        // the groups' disjoint value slices
+        let groups = space.gptr.len() - 1;
+        let mut tasks = Vec::with_capacity(groups);
         let mut rest = g.data_mut();
-        for a in 0..space.len() {
-            let len = 36 * (space.ptr[a + 1] - space.ptr[a]);
+        for gr in 0..groups {
+            let (a0, a1) = (space.gptr[gr], space.gptr[gr + 1]);
+            let len = 36 * (space.ptr[a1] - space.ptr[a0]);
             let (row, tail) = rest.split_at_mut(len);
-            tasks.push((a, row));
+            tasks.push((gr, row));
             rest = tail;
         }
         tasks.into_par_iter().for_each_init(
-            || (Vec::new(), Vec::new(), Vec::new()),
-            |(blocks, j, parts), (a, out)| {
-                let cols = &space.cols[space.ptr[a]..space.ptr[a + 1]];
+            || -> Scratch { Default::default() },
+            |(blocks, j, parts, modes), (gr, out)| {
+                let (a0, a1) = (space.gptr[gr], space.gptr[gr + 1]);
+                // the group's blocks, rows in order (row a's from
+                // `ptr[a] − ptr[a0]`)
+                let base = space.ptr[a0];
                 blocks.clear();
-                blocks.resize(cols.len(), M6::zeros());
-                let at = |b: u32| cols.binary_search(&b).expect("a block of the pattern");
-                self.q_rows(space, a, q, lever, &at, blocks);
-                for &e in &space.elems[space.eptr[a]..space.eptr[a + 1]] {
+                blocks.resize(space.ptr[a1] - base, M6::zeros());
+                let at = |a: u32, b: u32| {
+                    let cols = &space.cols[space.ptr[a as usize]..space.ptr[a as usize + 1]];
+                    space.ptr[a as usize] - base
+                        + cols.binary_search(&b).expect("a block of the pattern")
+                };
+                for a in a0..a1 {
+                    self.q_rows(space, a, q, lever, &at, blocks);
+                }
+                let rows = (a0 as u32)..(a1 as u32);
+                for &e in &space.gelems[space.geptr[gr]..space.geptr[gr + 1]] {
                     self.element_rows(
                         space,
                         els,
                         ops,
                         e as usize,
-                        a as u32,
+                        &rows,
                         (y, rot, proj),
                         lever,
                         curvature,
-                        (&at, j, parts),
+                        (&at, j, parts, modes),
                         blocks,
                     );
                 }
-                let n = cols.len();
-                for (c, blk) in blocks.iter().enumerate() {
-                    for i in 0..6 {
-                        for jj in 0..6 {
-                            out[i * 6 * n + 6 * c + jj] = blk[(i, jj)];
+                // rows of six scalar rows, each with six columns per block
+                for a in a0..a1 {
+                    let (s, e) = (space.ptr[a] - base, space.ptr[a + 1] - base);
+                    let n = e - s;
+                    let row_out = &mut out[36 * s..36 * e];
+                    for (c, blk) in blocks[s..e].iter().enumerate() {
+                        for i in 0..6 {
+                            for jj in 0..6 {
+                                row_out[i * 6 * n + 6 * c + jj] = blk[(i, jj)];
+                            }
                         }
                     }
                 }
             },
         );
+        mirror_lower(space, g);
     }
 
-    /// Adds the rows of `Q` of aggregate `a`'s unknowns (module docs).
+    /// Adds the rows of `Q'` of aggregate `a`'s entries (module docs), to
+    /// the blocks on and above the diagonal.
+    ///
+    /// Per block `(a, b)`, with `s`, `v` of each entry `k` of `a` weighted
+    /// by `w_ka`: `[[S I, −[V]×], [[R]×, −Σ w_ka [r_ka]×[v]×]]`, `S = Σ w s`,
+    /// `V = Σ w v`, `R = Σ w s r_ka`, and `[r]×[v]× = v rᵀ − (r·v) I`.
     fn q_rows(
         &self,
         space: &RigidSpace,
         a: usize,
         q: &sprs::CsMat<Real>,
         lever: &[Vector3<Real>],
-        at: &dyn Fn(u32) -> usize,
+        at: &dyn Fn(u32, u32) -> usize,
         blocks: &mut [M6],
     ) {
+        /// `(b, S, V, R, Σ w v rᵀ, Σ w r·v)`.
+        type Sums = (u32, Real, Vector3<Real>, Vector3<Real>, Matrix3<Real>, Real);
+        let wts = &space.weights;
         let mut acc: Vec<(u32, Real, Vector3<Real>)> = Vec::new();
-        for &k in &space.unknowns[space.uptr[a]..space.uptr[a + 1]] {
-            let k = k as usize;
+        let mut sums: Vec<Sums> = Vec::new();
+        for &ea in space.members(a) {
+            let ea = ea as usize;
+            let k = space.entry_unknown[ea] as usize;
+            let (wk, rk) = (wts.w[ea], lever[ea]);
             acc.clear();
-            let row = q.outer_view(k).expect("a row of Q");
+            let row = q.outer_view(k).expect("a row of Q'");
             for (l, &v) in row.iter() {
-                let b = space.agg[l];
-                match acc.iter_mut().find(|x| x.0 == b) {
-                    Some(x) => {
-                        x.1 += v;
-                        x.2 += v * lever[l];
+                for f in wts.entries(l) {
+                    let b = wts.agg[f];
+                    if (b as usize) < a {
+                        continue;
                     }
-                    None => acc.push((b, v, v * lever[l])),
+                    let s = v * wts.w[f];
+                    match acc.iter_mut().find(|x| x.0 == b) {
+                        Some(x) => {
+                            x.1 += s;
+                            x.2 += s * lever[f];
+                        }
+                        None => acc.push((b, s, s * lever[f])),
+                    }
                 }
             }
-            let rk = cross_matrix(&lever[k]);
             for &(b, s, v) in &acc {
-                let vx = cross_matrix(&v);
-                let blk = &mut blocks[at(b)];
-                let mut m = M6::zeros();
-                m.fixed_view_mut::<3, 3>(0, 0)
-                    .copy_from(&(Matrix3::identity() * s));
-                m.fixed_view_mut::<3, 3>(0, 3).copy_from(&(-vx));
-                m.fixed_view_mut::<3, 3>(3, 0).copy_from(&(rk * s));
-                m.fixed_view_mut::<3, 3>(3, 3).copy_from(&(-(rk * vx)));
-                *blk += m;
+                let (ws, wv) = (wk * s, wk * v);
+                let zero = (
+                    b,
+                    0.0,
+                    Vector3::zeros(),
+                    Vector3::zeros(),
+                    Matrix3::zeros(),
+                    0.0,
+                );
+                let i = match sums.iter().position(|x| x.0 == b) {
+                    Some(i) => i,
+                    None => {
+                        sums.push(zero);
+                        sums.len() - 1
+                    }
+                };
+                let x = &mut sums[i];
+                x.1 += ws;
+                x.2 += wv;
+                x.3 += ws * rk;
+                x.4 += wv * rk.transpose();
+                x.5 += rk.dot(&wv);
+            }
+        }
+        for &(b, s, v, r, vr, rv) in &sums {
+            let blk = &mut blocks[at(a as u32, b)];
+            for i in 0..3 {
+                blk[(i, i)] += s;
+            }
+            let mut tr = blk.fixed_view_mut::<3, 3>(0, 3);
+            tr -= cross_matrix(&v);
+            let mut bl = blk.fixed_view_mut::<3, 3>(3, 0);
+            bl += cross_matrix(&r);
+            // −Σ w [r]×[v]× = −Σ w v rᵀ + Σ w (r·v) I
+            let mut br = blk.fixed_view_mut::<3, 3>(3, 3);
+            br -= vr;
+            for i in 0..3 {
+                br[(i, i)] += rv;
             }
         }
     }
 
-    /// Adds element `e`'s blocks of block row `a` (module docs).
+    /// Adds element `e`'s blocks of the block rows in `rows` (module docs).
     #[allow(clippy::too_many_arguments)]
     fn element_rows(
         &self,
@@ -263,86 +525,83 @@ impl ElasticOps {
         els: &Elements,
         ops: &Operators,
         e: usize,
-        a: u32,
+        rows: &std::ops::Range<u32>,
         (y, rot, proj): (&[Point], &[UnitQuaternion<Real>], &[[Real; 6]]),
         lever: &[Vector3<Real>],
         curvature: Curvature,
-        (at, j, parts): (&dyn Fn(u32) -> usize, &mut Vec<Matrix3<Real>>, &mut Parts),
+        (at, j, parts, modes): (
+            &dyn Fn(u32, u32) -> usize,
+            &mut Vec<Matrix3<Real>>,
+            &mut Vec<(u32, M36)>,
+            &mut Vec<(u32, V6)>,
+        ),
         blocks: &mut [M6],
     ) {
+        let wts = &space.weights;
         let (support, unknown) = els.support(e);
-        // the element's aggregates, with a sum per aggregate
-        let slot = |b: u32, parts: &mut Parts| -> usize {
-            match parts.iter().position(|p| p.0 == b) {
-                Some(s) => s,
-                None => {
-                    parts.push((b, M36::zeros()));
-                    parts.len() - 1
+        // −Σ_{a in rows, b} (L_a)ᵀ U_b over the parts U
+        let minus_products = |parts: &[(u32, M36)],
+                              left: &dyn Fn(&M36) -> SMatrix<Real, 6, 3>,
+                              blocks: &mut [M6]| {
+            for (a, ua) in parts {
+                if !rows.contains(a) {
+                    continue;
+                }
+                let l = left(ua);
+                for (b, ub) in parts {
+                    if b >= a {
+                        blocks[at(*a, *b)] -= l * ub;
+                    }
                 }
             }
         };
-        parts.clear();
         if let Some(i) = els.vertex(e) {
             let (c_inv, _) = self.vertex_coupling(ops, i, support, (y, &rot[i]), curvature, j);
             let Some(c_inv) = c_inv else { return };
+            // (J P)_b = Σ_k J_k w_kb [I | −[r_kb]×]
+            parts.clear();
             for (s, &k) in unknown.iter().enumerate() {
                 if k == u32::MAX {
                     continue;
                 }
-                let p = slot(space.agg[k as usize], parts);
-                parts[p].1 += j[s] * rigid(&lever[k as usize]);
+                for f in wts.entries(k as usize) {
+                    let wj = j[s] * wts.w[f];
+                    let p = slot(parts, wts.agg[f], M36::zeros());
+                    let m = &mut parts[p].1;
+                    let mut left = m.fixed_view_mut::<3, 3>(0, 0);
+                    left += wj;
+                    let mut right = m.fixed_view_mut::<3, 3>(0, 3);
+                    right -= wj * cross_matrix(&lever[f]);
+                }
             }
-            let Some(me) = parts.iter().position(|p| p.0 == a) else {
-                return;
-            };
-            let left = (c_inv * parts[me].1).transpose();
-            for (b, u) in parts.iter() {
-                blocks[at(*b)] -= left * u;
-            }
+            minus_products(parts, &|u| (c_inv * u).transpose(), blocks);
         } else {
             let t = e - els.num_vertices();
             let el = &self.area[t];
-            let k = el.corners();
-            let w = el.weight;
-            // −w Σ_d F_dᵀ F_d
-            for d in [0, 1] {
-                parts.clear();
-                for (c, &u) in unknown.iter().enumerate() {
-                    if u == u32::MAX {
-                        continue;
-                    }
-                    let p = slot(space.agg[u as usize], parts);
-                    parts[p].1 += k[c][d] * rigid(&lever[u as usize]);
-                }
-                let Some(me) = parts.iter().position(|p| p.0 == a) else {
-                    return;
-                };
-                let left = w * parts[me].1.transpose();
-                for (b, f) in parts.iter() {
-                    blocks[at(*b)] -= left * f;
-                }
-            }
             triangle_modes(el, y, &proj[t], curvature, |wl, am| {
-                let mut g: [(u32, SMatrix<Real, 6, 1>); 3] = [(u32::MAX, SMatrix::zeros()); 3];
-                let mut ng = 0;
+                // Pᵀ Aᵀ m per aggregate: w_kb [a; r_kb × a], a = (Aᵀ m)_k
+                modes.clear();
                 for (c, &u) in unknown.iter().enumerate() {
                     if u == u32::MAX {
                         continue;
                     }
-                    let b = space.agg[u as usize];
-                    let v = rigid(&lever[u as usize]).transpose() * am[c];
-                    match g[..ng].iter_mut().find(|x| x.0 == b) {
-                        Some(x) => x.1 += v,
-                        None => {
-                            g[ng] = (b, v);
-                            ng += 1;
-                        }
+                    for f in wts.entries(u as usize) {
+                        let a = am[c] * wts.w[f];
+                        let m = lever[f].cross(&a);
+                        let v = V6::new(a.x, a.y, a.z, m.x, m.y, m.z);
+                        let p = slot(modes, wts.agg[f], V6::zeros());
+                        modes[p].1 += v;
                     }
                 }
-                if let Some(me) = g[..ng].iter().position(|x| x.0 == a) {
-                    let left = wl * g[me].1;
-                    for (b, v) in &g[..ng] {
-                        blocks[at(*b)] += left * v.transpose();
+                for (a, va) in modes.iter() {
+                    if !rows.contains(a) {
+                        continue;
+                    }
+                    let left = wl * va;
+                    for (b, vb) in modes.iter() {
+                        if b >= a {
+                            blocks[at(*a, *b)] += left * vb.transpose();
+                        }
                     }
                 }
             });
