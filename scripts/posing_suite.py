@@ -5,7 +5,7 @@ libigl's ARAP in the same run, with a PASS/FAIL table.
 Usage (from the crate root; needs a release build, `cargo build --release`):
 
     python3 scripts/posing_suite.py [--only NAME ...] [--skip-large]
-        [--formulation NAME] [--galerkin DEPTH[,LAG[,PERIOD]]] [--max-iters 100] [--tol 1e-3]
+        [--formulation NAME] [--galerkin DEPTH[,LAG[,PERIOD[,SMOOTH]]]] [--max-iters 100] [--tol 1e-3]
         [--json out.json] [--no-render] [--list] [--arap-cache DIR] [--no-arap]
 
 `--only` takes case names or shell patterns (`'camel-*'`, `'*-limb'`);
@@ -532,7 +532,7 @@ def main():
     ap.add_argument("--preset", choices=["characters", "elastica"],
                     help="passed to dend deform (default: dend's default, characters); "
                          "elastica adds the paper's figures to the rules")
-    ap.add_argument("--galerkin", metavar="DEPTH[,LAG[,PERIOD]]",
+    ap.add_argument("--galerkin", metavar="DEPTH[,LAG[,PERIOD[,SMOOTH]]]",
                     help="passed to dend deform: Galerkin coarse corrections (default: "
                          "dend's default, the coarse problems' corrections)")
     ap.add_argument("--dend-arg", action="append", default=[], metavar="ARG",

@@ -127,12 +127,14 @@ pub struct Args {
     /// fine energy restricted to the rigid motions of aggregates of
     /// vertices (those nearest each vertex of coarse level DEPTH), its
     /// matrix reused for LAG corrections, one correction every PERIOD fine
-    /// iterations (replacing --correction-period). Omitted fields take the
-    /// defaults 2, 6, 1; every field is a whole number of at least 1. The
+    /// iterations (replacing --correction-period), the aggregates' weights
+    /// smoothed SMOOTH times across their borders (0: each aggregate moves
+    /// rigidly). Omitted fields take the defaults 2, 6, 1, 0; DEPTH, LAG
+    /// and PERIOD are whole numbers of at least 1, SMOOTH of at least 0. The
     /// coarse start is the hierarchy's as without it. Needs the elastic
     /// formulation and --levels 2 or 3; a mesh without that many coarse
     /// levels gets no corrections.
-    #[arg(long, value_name = "DEPTH[,LAG[,PERIOD]]", value_parser = parse_galerkin)]
+    #[arg(long, value_name = "DEPTH[,LAG[,PERIOD[,SMOOTH]]]", value_parser = parse_galerkin)]
     galerkin: Option<Galerkin>,
     /// Print the objective after every iteration.
     #[arg(short, long)]
@@ -220,7 +222,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     if let Some(path) = &args.report {
         let times = (ms(precompute), ms(prepare), ms(solve));
         let mut report = solved.report(deformer.params(), &factor, mesh.num_vertices(), times);
-        report["galerkin"] = serde_json::json!(args.galerkin.map(|g| [g.depth, g.lag, g.period]));
+        report["galerkin"] =
+            serde_json::json!(args.galerkin.map(|g| [g.depth, g.lag, g.period, g.smooth]));
         std::fs::write(path, serde_json::to_string_pretty(&report)?)
             .with_context(|| format!("writing {}", path.display()))?;
     }
@@ -503,33 +506,34 @@ fn median(xs: &[f64]) -> f64 {
     sorted.get(sorted.len() / 2).copied().unwrap_or(0.0)
 }
 
-/// `--galerkin DEPTH[,LAG[,PERIOD]]`: omitted fields take
-/// `Galerkin::default()`'s; every field a whole number of at least 1.
+/// `--galerkin DEPTH[,LAG[,PERIOD[,SMOOTH]]]`: omitted fields take
+/// `Galerkin::default()`'s; DEPTH, LAG and PERIOD whole numbers of at
+/// least 1, SMOOTH of at least 0.
 fn parse_galerkin(s: &str) -> Result<Galerkin, String> {
+    const FORM: &str = "DEPTH[,LAG[,PERIOD[,SMOOTH]]], e.g. 2,6,1,0";
     let fields: Vec<&str> = s.split(',').map(str::trim).collect();
-    if fields.len() > 3 {
-        return Err(format!(
-            "{s:?} has {} fields: DEPTH[,LAG[,PERIOD]], e.g. 2,6,1",
-            fields.len()
-        ));
+    if fields.len() > 4 {
+        return Err(format!("{s:?} has {} fields: {FORM}", fields.len()));
     }
     let d = Galerkin::default();
-    let mut values = [d.depth, d.lag, d.period];
-    for ((value, name), field) in values
-        .iter_mut()
-        .zip(["DEPTH", "LAG", "PERIOD"])
-        .zip(&fields)
-    {
+    let mut values = [d.depth, d.lag, d.period, d.smooth];
+    let names = [("DEPTH", 1), ("LAG", 1), ("PERIOD", 1), ("SMOOTH", 0)];
+    for ((value, (name, least)), field) in values.iter_mut().zip(names).zip(&fields) {
         *value = field
             .parse::<usize>()
             .ok()
-            .filter(|&v| v >= 1)
+            .filter(|&v| v >= least)
             .ok_or_else(|| {
-                format!("{name} {field:?} is not a whole number of at least 1 (DEPTH[,LAG[,PERIOD]], e.g. 2,6,1)")
+                format!("{name} {field:?} is not a whole number of at least {least} ({FORM})")
             })?;
     }
-    let [depth, lag, period] = values;
-    Ok(Galerkin { depth, lag, period })
+    let [depth, lag, period, smooth] = values;
+    Ok(Galerkin {
+        depth,
+        lag,
+        period,
+        smooth,
+    })
 }
 
 fn ms(d: Duration) -> f64 {
