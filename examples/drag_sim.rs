@@ -14,14 +14,15 @@
 //! cargo run --release --example drag_sim -- MESH [--drags 60] [--per-drag 1]
 //!     [--path line|arc] [--preset characters|elastica] [--previews] [--levels 1|2|3 (default 3)]
 //!     [--correction-period K] [--coarse-ratio R] [--tol T] [--anderson W]
-//!     [--area KA] [--stretch KS] [--error-trace] [--galerkin DEPTH[,LAG[,PERIOD[,SMOOTH]]]]
+//!     [--area KA] [--stretch KS] [--error-trace] [--galerkin off|DEPTH[,LAG[,PERIOD[,SMOOTH]]]]
 //! ```
 //!
-//! `--galerkin` makes the coarse corrections Galerkin ones
+//! `--galerkin` sets the Galerkin coarse corrections
 //! (`dend::deform::Galerkin`: aggregates spanning DEPTH levels, the coarse
-//! matrix reused for LAG corrections, one every PERIOD fine iterations;
+//! matrix reused for LAG corrections, one every PERIOD fine iterations,
 //! the aggregates' weights smoothed SMOOTH times across their borders;
-//! defaults 2, 6, 1, 0).
+//! the library's defaults 2, 6, 1, 1); `off` gives the coarse problems'
+//! corrections of the hierarchy instead.
 //!
 //! `fine_iteration_ms` is the median time of one fine iteration in the same
 //! run; the one-shot solve (timed after the constraint set's
@@ -147,22 +148,28 @@ fn run() -> Result<(), String> {
     if let Some(w) = arg(&args, "--anderson") {
         params.anderson = w;
     }
-    let galerkin = arg::<String>(&args, "--galerkin")
-        .map(|g| {
+    let galerkin = match arg::<String>(&args, "--galerkin").as_deref() {
+        None => Some(Galerkin::default()),
+        Some("off") => None,
+        Some(g) => {
             let mut v = g.split(',').map(|x| x.parse::<usize>());
             let d = Galerkin::default();
             let mut next = |dflt: usize| v.next().unwrap_or(Ok(dflt));
             match (next(d.depth), next(d.lag), next(d.period), next(d.smooth)) {
-                (Ok(depth), Ok(lag), Ok(period), Ok(smooth)) => Ok(Galerkin {
+                (Ok(depth), Ok(lag), Ok(period), Ok(smooth)) => Some(Galerkin {
                     depth,
                     lag,
                     period,
                     smooth,
                 }),
-                _ => Err(format!("--galerkin {g}: DEPTH[,LAG[,PERIOD[,SMOOTH]]]")),
+                _ => {
+                    return Err(format!(
+                        "--galerkin {g}: off or DEPTH[,LAG[,PERIOD[,SMOOTH]]]"
+                    ))
+                }
             }
-        })
-        .transpose()?;
+        }
+    };
     let levels = match arg::<String>(&args, "--levels").as_deref() {
         None | Some("many") | Some("3") => Levels::Many,
         Some("1") => Levels::One,

@@ -5,7 +5,7 @@ libigl's ARAP in the same run, with a PASS/FAIL table.
 Usage (from the crate root; needs a release build, `cargo build --release`):
 
     python3 scripts/posing_suite.py [--only NAME ...] [--skip-large]
-        [--formulation NAME] [--galerkin DEPTH[,LAG[,PERIOD[,SMOOTH]]]] [--max-iters 100] [--tol 1e-3]
+        [--formulation NAME] [--galerkin off|DEPTH[,LAG[,PERIOD[,SMOOTH]]]] [--max-iters 100] [--tol 1e-3]
         [--json out.json] [--no-render] [--list] [--arap-cache DIR] [--no-arap]
 
 `--only` takes case names or shell patterns (`'camel-*'`, `'*-limb'`);
@@ -532,9 +532,9 @@ def main():
     ap.add_argument("--preset", choices=["characters", "elastica"],
                     help="passed to dend deform (default: dend's default, characters); "
                          "elastica adds the paper's figures to the rules")
-    ap.add_argument("--galerkin", metavar="DEPTH[,LAG[,PERIOD[,SMOOTH]]]",
-                    help="passed to dend deform: Galerkin coarse corrections (default: "
-                         "dend's default, the coarse problems' corrections)")
+    ap.add_argument("--galerkin", metavar="off|DEPTH[,LAG[,PERIOD[,SMOOTH]]]",
+                    help="passed to dend deform: the coarse corrections (default: "
+                         "dend's default, Galerkin ones; off: the coarse problems')")
     ap.add_argument("--dend-arg", action="append", default=[], metavar="ARG",
                     help="one more argument for every dend deform run (repeat: "
                          "--dend-arg=--lambda2 --dend-arg=0.5)")
@@ -595,7 +595,7 @@ def main():
     formulation = args.formulation or "/".join(sorted(reported)) or "dend's default"
     print(f"\nPASS {passed}/{len(ran)} ({errors} errors, {len(rows) - len(ran)} skipped; "
           f"formulation {formulation}, preset {args.preset or 'default'}, "
-          f"galerkin {args.galerkin or 'off'}, tol {args.tol:g}, "
+          f"galerkin {args.galerkin or 'default'}, tol {args.tol:g}, "
           f"{time.perf_counter() - t0:.0f} s)")
     if args.json:
         with open(args.json, "w") as fh:

@@ -122,20 +122,21 @@ pub struct Args {
     /// hierarchy; docs/performance.md measures it).
     #[arg(long, default_value_t = 3, value_parser = clap::value_parser!(u8).range(1..=3))]
     levels: u8,
-    /// Galerkin coarse corrections instead of the coarse problems' (opt-in;
-    /// docs/performance.md): each correction is one Newton step of the
-    /// fine energy restricted to the rigid motions of aggregates of
-    /// vertices (those nearest each vertex of coarse level DEPTH), its
-    /// matrix reused for LAG corrections, one correction every PERIOD fine
-    /// iterations (replacing --correction-period), the aggregates' weights
-    /// smoothed SMOOTH times across their borders (0: each aggregate moves
-    /// rigidly). Omitted fields take the defaults 2, 6, 1, 0; DEPTH, LAG
-    /// and PERIOD are whole numbers of at least 1, SMOOTH of at least 0. The
-    /// coarse start is the hierarchy's as without it. Needs the elastic
-    /// formulation and --levels 2 or 3; a mesh without that many coarse
-    /// levels gets no corrections.
-    #[arg(long, value_name = "DEPTH[,LAG[,PERIOD[,SMOOTH]]]", value_parser = parse_galerkin)]
-    galerkin: Option<Galerkin>,
+    /// The coarse corrections (docs/performance.md): Galerkin ones by
+    /// default, each one Newton step of the fine energy restricted to the
+    /// blended rigid motions of aggregates of vertices (those nearest each
+    /// vertex of coarse level DEPTH), its matrix reused for LAG
+    /// corrections, one correction every PERIOD fine iterations (replacing
+    /// --correction-period), the aggregates' weights smoothed SMOOTH times
+    /// across their borders (0: each aggregate moves rigidly); `off` gives
+    /// the coarse problems' corrections of the hierarchy instead. Omitted
+    /// fields take the defaults 2, 6, 1, 1; DEPTH, LAG and PERIOD are
+    /// whole numbers of at least 1, SMOOTH of at least 0. The coarse start
+    /// is the hierarchy's either way. A setting needs the elastic
+    /// formulation and --levels 2 or 3; a mesh with fewer coarse levels
+    /// than DEPTH aggregates over the levels it has.
+    #[arg(long, value_name = "off|DEPTH[,LAG[,PERIOD[,SMOOTH]]]", value_parser = parse_galerkin)]
+    galerkin: Option<GalerkinArg>,
     /// Print the objective after every iteration.
     #[arg(short, long)]
     verbose: bool,
@@ -161,7 +162,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     if args.steps == 0 {
         bail!("--steps must be at least 1");
     }
-    if args.galerkin.is_some() {
+    if let Some(GalerkinArg::On(_)) = args.galerkin {
         if params.elastic().is_none() {
             bail!("--galerkin applies to the elastic formulation only");
         }
@@ -179,7 +180,12 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         _ => Levels::Many,
     });
     // before the factor: its precomputation prepares the corrections' state
-    deformer.set_galerkin(args.galerkin);
+    match args.galerkin {
+        Some(GalerkinArg::On(g)) => deformer.set_galerkin(Some(g)),
+        Some(GalerkinArg::Off) => deformer.set_galerkin(None),
+        None => {}
+    }
+    let galerkin = deformer.galerkin();
     // the factor, and beside it the coarse start of the first increment
     let mut first = constraints.clone();
     for h in &mut first.handles {
@@ -187,7 +193,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     }
     let t_factor = Instant::now();
     let factor = deformer.build_factor(&first)?;
-    if args.galerkin.is_some() {
+    if galerkin.is_some() {
         // the corrections' aggregates and symbolic analysis are the
         // constraint set's precomputation, as the levels' factors are
         deformer.prepare_levels(&factor, &first);
@@ -223,7 +229,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         let times = (ms(precompute), ms(prepare), ms(solve));
         let mut report = solved.report(deformer.params(), &factor, mesh.num_vertices(), times);
         report["galerkin"] =
-            serde_json::json!(args.galerkin.map(|g| [g.depth, g.lag, g.period, g.smooth]));
+            serde_json::json!(galerkin.map(|g| [g.depth, g.lag, g.period, g.smooth]));
         std::fs::write(path, serde_json::to_string_pretty(&report)?)
             .with_context(|| format!("writing {}", path.display()))?;
     }
@@ -506,11 +512,23 @@ fn median(xs: &[f64]) -> f64 {
     sorted.get(sorted.len() / 2).copied().unwrap_or(0.0)
 }
 
-/// `--galerkin DEPTH[,LAG[,PERIOD[,SMOOTH]]]`: omitted fields take
+/// `--galerkin`: the coarse problems' corrections, or a Galerkin setting.
+#[derive(Debug, Clone, Copy)]
+pub enum GalerkinArg {
+    /// `off`.
+    Off,
+    /// `DEPTH[,LAG[,PERIOD[,SMOOTH]]]`.
+    On(Galerkin),
+}
+
+/// `--galerkin off|DEPTH[,LAG[,PERIOD[,SMOOTH]]]`: omitted fields take
 /// `Galerkin::default()`'s; DEPTH, LAG and PERIOD whole numbers of at
 /// least 1, SMOOTH of at least 0.
-fn parse_galerkin(s: &str) -> Result<Galerkin, String> {
-    const FORM: &str = "DEPTH[,LAG[,PERIOD[,SMOOTH]]], e.g. 2,6,1,0";
+fn parse_galerkin(s: &str) -> Result<GalerkinArg, String> {
+    const FORM: &str = "off or DEPTH[,LAG[,PERIOD[,SMOOTH]]], e.g. 2,6,1,1";
+    if s.trim() == "off" {
+        return Ok(GalerkinArg::Off);
+    }
     let fields: Vec<&str> = s.split(',').map(str::trim).collect();
     if fields.len() > 4 {
         return Err(format!("{s:?} has {} fields: {FORM}", fields.len()));
@@ -528,12 +546,12 @@ fn parse_galerkin(s: &str) -> Result<Galerkin, String> {
             })?;
     }
     let [depth, lag, period, smooth] = values;
-    Ok(Galerkin {
+    Ok(GalerkinArg::On(Galerkin {
         depth,
         lag,
         period,
         smooth,
-    })
+    }))
 }
 
 fn ms(d: Duration) -> f64 {

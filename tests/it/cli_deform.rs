@@ -289,12 +289,13 @@ fn characters_weights_are_the_documented_stretch_and_laplacian() {
 
 /// `--galerkin` on the generated cylinder (1,088 vertices: one coarse
 /// level) bent 120°: `1` fills LAG, PERIOD and SMOOTH with the documented
-/// defaults (the same pose to the last written digit as `1,6,1,0`), the
-/// flag and its LAG reach the solver (other poses without it and with
-/// `1,1,1`), the report names the setting and counts the solve in fine
-/// iterations; malformed values (a zero, a word, an empty or a fifth
-/// field) and a setting without coarse levels are refused with exit code
-/// 2 and a message naming the flag.
+/// defaults (the same pose to the last written digit as `1,6,1,1`, and as
+/// no flag: the default, whose DEPTH 2 falls back to the one level), the
+/// flag and its LAG and SMOOTH reach the solver (other poses with `off`,
+/// `1,1,1` and `1,6,1,0`), the report names the setting and counts the
+/// solve in fine iterations; malformed values (a zero, a word, an empty or
+/// a fifth field) and a setting without coarse levels are refused with
+/// exit code 2 and a message naming the flag.
 #[test]
 fn galerkin_flag_fills_defaults_reaches_the_solver_and_rejects_bad_values() {
     let dir = tempfile::tempdir().unwrap();
@@ -322,12 +323,14 @@ fn galerkin_flag_fills_defaults_reaches_the_solver_and_rejects_bad_values() {
         pose.unwrap()
     };
     let short = short.unwrap();
-    assert_eq!(short, pose("full.obj", &["--galerkin", "1,6,1,0"]));
-    assert_ne!(short, pose("fas.obj", &[]));
+    assert_eq!(short, pose("full.obj", &["--galerkin", "1,6,1,1"]));
+    assert_eq!(short, pose("default.obj", &[]));
+    assert_ne!(short, pose("fas.obj", &["--galerkin", "off"]));
     assert_ne!(short, pose("lag1.obj", &["--galerkin", "1,1,1"]));
+    assert_ne!(short, pose("rigid.obj", &["--galerkin", "1,6,1,0"]));
     let rep: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(&report).unwrap()).unwrap();
-    assert_eq!(rep["galerkin"], serde_json::json!([1, 6, 1, 0]), "{rep}");
+    assert_eq!(rep["galerkin"], serde_json::json!([1, 6, 1, 1]), "{rep}");
     let fie = rep["fine_iteration_equivalents"].as_f64().unwrap();
     let iterations = rep["iterations"].as_f64().unwrap();
     // the solve holds at least its fine iterations (less timer noise)

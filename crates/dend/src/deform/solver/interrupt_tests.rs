@@ -6,15 +6,22 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
 
 use super::test_util::creature_moved;
-use crate::deform::{Deformer, Factor, Params, Rest};
+use crate::deform::{Deformer, Factor, Galerkin, Params, Rest};
 use crate::mesh::gen::{generate, Shape, ShapeSpec};
 
-/// On the generated creature (two levels: corrections run every 5
-/// iterations), 7 iterations, a step with the flag raised, then 9 more
-/// give the same pose, bit for bit, as 7 and 9 without it; the
+/// On the generated creature, with the coarse problems' corrections (two
+/// levels: every 5 iterations) and with Galerkin ones (after every
+/// iteration), `first` iterations, a step with the flag raised, then 9
+/// more give the same pose, bit for bit, as `first` and 9 without it; the
 /// interrupted step reports no iteration and leaves the pose as it was.
 #[test]
 fn an_interrupted_step_changes_nothing() {
+    for (galerkin, first) in [(None, 7), (Some(Galerkin::default()), 2)] {
+        interrupted_step_changes_nothing(galerkin, first);
+    }
+}
+
+fn interrupted_step_changes_nothing(galerkin: Option<Galerkin>, first_its: usize) {
     let mesh = generate(&ShapeSpec::default_for(Shape::Creature)).unwrap();
     let c = creature_moved(&mesh);
     let params = Params::default();
@@ -23,10 +30,11 @@ fn an_interrupted_step_changes_nothing() {
     let flag = Arc::new(AtomicBool::new(false));
     let run = |interrupt: bool| {
         let mut d = Deformer::new(rest.clone(), params);
+        d.set_galerkin(galerkin);
         d.set_interrupt(Some(flag.clone()));
         flag.store(false, Ordering::Relaxed);
-        let first = d.step(&f, &c, 7).unwrap();
-        assert!(!first.interrupted && first.iterations == 7);
+        let first = d.step(&f, &c, first_its).unwrap();
+        assert!(!first.interrupted && first.iterations == first_its);
         if interrupt {
             let before = d.pose().to_vec();
             flag.store(true, Ordering::Relaxed);
@@ -44,7 +52,10 @@ fn an_interrupted_step_changes_nothing() {
     };
     let (plain, plain_pose) = run(false);
     let (stopped, stopped_pose) = run(true);
-    assert!(plain.coarse_iterations > 0, "corrections ran: {plain:?}");
+    assert!(
+        plain.coarse_iterations > 0,
+        "{galerkin:?}: corrections ran: {plain:?}"
+    );
     assert_eq!(plain, stopped);
     assert_eq!(plain_pose, stopped_pose);
 }

@@ -131,8 +131,8 @@ pub struct Deformer {
     /// Raised by another thread to stop a step at its next safe point
     /// ([`Deformer::set_interrupt`]).
     interrupt: Option<Arc<AtomicBool>>,
-    /// Corrections in the Galerkin coarse space instead of the coarse
-    /// problems' ([`Deformer::set_galerkin`]).
+    /// Corrections in the Galerkin coarse space (the default) or the
+    /// coarse problems' (`None`; [`Deformer::set_galerkin`]).
     galerkin_mode: Option<Galerkin>,
     /// Their per-set state.
     galerkin: Option<Box<galerkin_state::GalerkinState>>,
@@ -231,14 +231,21 @@ impl Deformer {
             newton: false,
             preview: None,
             interrupt: None,
-            galerkin_mode: None,
+            galerkin_mode: Some(Galerkin::default()),
             galerkin: None,
         }
     }
 
-    /// Makes the elastic iteration's coarse corrections Galerkin ones
-    /// ([`Galerkin`]), or the coarse problems' again (`None`, the
-    /// default). Values below 1 are taken as 1.
+    /// Sets the elastic iteration's Galerkin coarse corrections
+    /// ([`Galerkin`]; the default `Galerkin::default()`), or makes them
+    /// the coarse problems' of the hierarchy (`None`: `multilevel.rs`).
+    /// The coarse start from the rest pose is the hierarchy's either way.
+    /// Values below 1 (but `smooth`) are taken as 1.
+    ///
+    /// The default since, on the arc gesture of `drag_sim`, they settle in
+    /// fewer fine-iteration equivalents than the coarse problems' on every
+    /// character (camel_9770 24 against 55, feline_50k 30 against 66,
+    /// armadillo_43k 135 against 155; docs/performance.md).
     pub fn set_galerkin(&mut self, galerkin: Option<Galerkin>) {
         self.galerkin_mode = galerkin.map(|g| Galerkin {
             depth: g.depth.max(1),
@@ -247,6 +254,12 @@ impl Deformer {
             smooth: g.smooth,
         });
         self.galerkin = None;
+    }
+
+    /// The Galerkin corrections' setting ([`Deformer::set_galerkin`]),
+    /// `None` for the coarse problems'.
+    pub fn galerkin(&self) -> Option<Galerkin> {
+        self.galerkin_mode
     }
 
     /// Chooses the levels of the elastic iteration ([`Levels`]; default a
@@ -320,6 +333,8 @@ impl Deformer {
         self.scratch.evaluated = None;
         self.elastic.invalidate();
         self.scratch.mem = None; // re-size the scratch (Anderson window) on the next step
+                                 // (the Galerkin aggregates follow the coarse ratio)
+        self.galerkin = None;
         Ok(())
     }
 
@@ -365,6 +380,10 @@ impl Deformer {
         self.drop_preview();
         self.scratch.evaluated = None;
         self.elastic.reset();
+        if let Some(g) = self.galerkin.as_mut() {
+            // (assembled again at the first correction, as a new deformer's)
+            g.age = None;
+        }
         self.y = self.rest.ops.positions.clone();
         self.pose = self.rest.mesh.positions().to_vec();
         if self.rest.vertex_order().is_some() {

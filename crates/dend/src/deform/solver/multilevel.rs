@@ -185,6 +185,9 @@ pub(super) fn coarse_problem(
     }
     let mut deformer = Box::new(Deformer::new(level.rest.clone(), *params));
     deformer.set_levels(levels.below());
+    // a coarse problem's own corrections are its coarse problems' (the
+    // coarse start from rest converges each level's problem by them)
+    deformer.set_galerkin(None);
     // the coarsest level of a hierarchy takes Newton steps
     deformer.newton = levels == Levels::Many && level.rest.coarse_at_most(ratio).is_none();
     Some(CoarseProblem {

@@ -96,8 +96,10 @@ fn previews_meet_the_constraints_and_the_fine_solve_refines_from_them() {
         translation: [0.15 * diag * s, 0.1 * diag * s, 0.0],
         pivot,
     };
-    // the fine drag loop: one iteration per drag
+    // the fine drag loop: one iteration per drag, corrections held as a
+    // session holds them while a person drags
     let mut fine = Deformer::new(rest.clone(), params);
+    fine.hold_corrections(true);
     for k in 1..=10 {
         c.handles[0].target = target(k as f64 / 10.0);
         fine.step(&factor, &c, 1).unwrap();

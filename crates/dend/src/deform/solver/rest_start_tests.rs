@@ -65,7 +65,9 @@ fn a_held_coarse_start_propagates_and_settles_to_the_same_minimum() {
     let factor = Factor::build(&rest, &params, &moved).unwrap();
 
     let mut held = Deformer::new(rest.clone(), params);
+    // (a session holds the corrections too while it holds the start)
     held.hold_coarse_start(true);
+    held.hold_corrections(true);
     let first = held.step(&factor, &moved, 1).unwrap();
     assert_eq!(first.coarse_iterations, 0, "{first:?}");
     assert!(held.coarse.is_none(), "a coarse problem was built");
@@ -76,6 +78,7 @@ fn a_held_coarse_start_propagates_and_settles_to_the_same_minimum() {
     assert!((first.objective - one_first.objective).abs() <= 1e-12 * one_first.objective);
 
     held.hold_coarse_start(false);
+    held.hold_corrections(false);
     let settled = held.step(&factor, &moved, 1000).unwrap();
     let mut fresh = Deformer::new(rest, params);
     let direct = fresh.step(&factor, &moved, 1000).unwrap();

@@ -55,6 +55,15 @@ type V6 = SMatrix<Real, 6, 1>;
 /// The scratch of one task of [`ElasticOps::galerkin_matrix`].
 type Scratch = (Vec<M6>, Vec<Matrix3<Real>>, Vec<(u32, M36)>, Vec<(u32, V6)>);
 
+/// What [`ElasticOps::element_rows`] is given: where a block is, and its
+/// scratch (`J`, the parts and the modes per aggregate).
+type ElementScratch<'a> = (
+    &'a dyn Fn(u32, u32) -> usize,
+    &'a mut Vec<Matrix3<Real>>,
+    &'a mut Vec<(u32, M36)>,
+    &'a mut Vec<(u32, V6)>,
+);
+
 /// Each unknown's aggregates and weights (CSR over the unknowns): the
 /// prolongation's entries `(k, a, w_ka)`, `Σ_a w_ka = 1` for each `k`.
 #[derive(Debug, Clone)]
@@ -529,12 +538,7 @@ impl ElasticOps {
         (y, rot, proj): (&[Point], &[UnitQuaternion<Real>], &[[Real; 6]]),
         lever: &[Vector3<Real>],
         curvature: Curvature,
-        (at, j, parts, modes): (
-            &dyn Fn(u32, u32) -> usize,
-            &mut Vec<Matrix3<Real>>,
-            &mut Vec<(u32, M36)>,
-            &mut Vec<(u32, V6)>,
-        ),
+        (at, j, parts, modes): ElementScratch,
         blocks: &mut [M6],
     ) {
         let wts = &space.weights;
