@@ -17,12 +17,12 @@
 //!     [--area KA] [--stretch KS] [--error-trace] [--galerkin off|DEPTH[,LAG[,PERIOD[,SMOOTH]]]]
 //! ```
 //!
-//! `--galerkin` sets the Galerkin coarse corrections
+//! `--galerkin` makes the coarse corrections Galerkin ones
 //! (`dend::deform::Galerkin`: aggregates spanning DEPTH levels, the coarse
 //! matrix reused for LAG corrections, one every PERIOD fine iterations,
 //! the aggregates' weights smoothed SMOOTH times across their borders;
-//! the library's defaults 2, 6, 1, 1); `off` gives the coarse problems'
-//! corrections of the hierarchy instead.
+//! defaults 2, 6, 1, 1); without it, or with `off`, they are the
+//! hierarchy's coarse problems' (the library's default).
 //!
 //! `fine_iteration_ms` is the median time of one fine iteration in the same
 //! run; the one-shot solve (timed after the constraint set's
@@ -149,8 +149,7 @@ fn run() -> Result<(), String> {
         params.anderson = w;
     }
     let galerkin = match arg::<String>(&args, "--galerkin").as_deref() {
-        None => Some(Galerkin::default()),
-        Some("off") => None,
+        None | Some("off") => None,
         Some(g) => {
             let mut v = g.split(',').map(|x| x.parse::<usize>());
             let d = Galerkin::default();

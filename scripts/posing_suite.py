@@ -534,7 +534,7 @@ def main():
                          "elastica adds the paper's figures to the rules")
     ap.add_argument("--galerkin", metavar="off|DEPTH[,LAG[,PERIOD[,SMOOTH]]]",
                     help="passed to dend deform: the coarse corrections (default: "
-                         "dend's default, Galerkin ones; off: the coarse problems')")
+                         "dend's default, the coarse problems'; off: the same)")
     ap.add_argument("--dend-arg", action="append", default=[], metavar="ARG",
                     help="one more argument for every dend deform run (repeat: "
                          "--dend-arg=--lambda2 --dend-arg=0.5)")

@@ -122,19 +122,19 @@ pub struct Args {
     /// hierarchy; docs/performance.md measures it).
     #[arg(long, default_value_t = 3, value_parser = clap::value_parser!(u8).range(1..=3))]
     levels: u8,
-    /// The coarse corrections (docs/performance.md): Galerkin ones by
-    /// default, each one Newton step of the fine energy restricted to the
-    /// blended rigid motions of aggregates of vertices (those nearest each
-    /// vertex of coarse level DEPTH), its matrix reused for LAG
-    /// corrections, one correction every PERIOD fine iterations (replacing
-    /// --correction-period), the aggregates' weights smoothed SMOOTH times
-    /// across their borders (0: each aggregate moves rigidly); `off` gives
-    /// the coarse problems' corrections of the hierarchy instead. Omitted
-    /// fields take the defaults 2, 6, 1, 1; DEPTH, LAG and PERIOD are
-    /// whole numbers of at least 1, SMOOTH of at least 0. The coarse start
-    /// is the hierarchy's either way. A setting needs the elastic
-    /// formulation and --levels 2 or 3; a mesh with fewer coarse levels
-    /// than DEPTH aggregates over the levels it has.
+    /// The coarse corrections (docs/performance.md): the hierarchy's
+    /// coarse problems' by default or with `off`; a setting makes them
+    /// Galerkin ones, each one Newton step of the fine energy restricted
+    /// to the blended rigid motions of aggregates of vertices (those
+    /// nearest each vertex of coarse level DEPTH), its matrix reused for
+    /// LAG corrections, one correction every PERIOD fine iterations
+    /// (replacing --correction-period), the aggregates' weights smoothed
+    /// SMOOTH times across their borders (0: each aggregate moves
+    /// rigidly). Omitted fields take the defaults 2, 6, 1, 1; DEPTH, LAG
+    /// and PERIOD are whole numbers of at least 1, SMOOTH of at least 0.
+    /// The coarse start is the hierarchy's either way. A setting needs the
+    /// elastic formulation and --levels 2 or 3; a mesh with fewer coarse
+    /// levels than DEPTH aggregates over the levels it has.
     #[arg(long, value_name = "off|DEPTH[,LAG[,PERIOD[,SMOOTH]]]", value_parser = parse_galerkin)]
     galerkin: Option<GalerkinArg>,
     /// Print the objective after every iteration.

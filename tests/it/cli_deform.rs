@@ -290,9 +290,10 @@ fn characters_weights_are_the_documented_stretch_and_laplacian() {
 /// `--galerkin` on the generated cylinder (1,088 vertices: one coarse
 /// level) bent 120°: `1` fills LAG, PERIOD and SMOOTH with the documented
 /// defaults (the same pose to the last written digit as `1,6,1,1`, and as
-/// no flag: the default, whose DEPTH 2 falls back to the one level), the
-/// flag and its LAG and SMOOTH reach the solver (other poses with `off`,
-/// `1,1,1` and `1,6,1,0`), the report names the setting and counts the
+/// `2`: DEPTH 2 falls back to the one level), the flag and its LAG and
+/// SMOOTH reach the solver (other poses without it, with `off` (the same
+/// as without), `1,1,1` and `1,6,1,0`), the report names the setting and
+/// counts the
 /// solve in fine iterations; malformed values (a zero, a word, an empty or
 /// a fifth field) and a setting without coarse levels are refused with
 /// exit code 2 and a message naming the flag.
@@ -324,8 +325,10 @@ fn galerkin_flag_fills_defaults_reaches_the_solver_and_rejects_bad_values() {
     };
     let short = short.unwrap();
     assert_eq!(short, pose("full.obj", &["--galerkin", "1,6,1,1"]));
-    assert_eq!(short, pose("default.obj", &[]));
-    assert_ne!(short, pose("fas.obj", &["--galerkin", "off"]));
+    assert_eq!(short, pose("depth2.obj", &["--galerkin", "2"]));
+    let fas = pose("fas.obj", &[]);
+    assert_ne!(short, fas);
+    assert_eq!(fas, pose("off.obj", &["--galerkin", "off"]));
     assert_ne!(short, pose("lag1.obj", &["--galerkin", "1,1,1"]));
     assert_ne!(short, pose("rigid.obj", &["--galerkin", "1,6,1,0"]));
     let rep: serde_json::Value =

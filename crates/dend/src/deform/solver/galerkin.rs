@@ -67,6 +67,7 @@ impl Deformer {
             return Some(());
         }
         self.galerkin = None;
+        let t0 = Instant::now();
         let ratio = self.params.elastic()?.coarse_ratio;
         let n = self.y.len();
         let mut of: Vec<u32> = (0..n as u32).collect();
@@ -124,6 +125,8 @@ impl Deformer {
             mem,
             age: None,
         }));
+        let ms = t0.elapsed().as_secs_f64() * 1e3;
+        tracing::debug!(ms, aggregates = n_agg, "galerkin state built");
         Some(())
     }
 

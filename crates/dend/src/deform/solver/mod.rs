@@ -131,8 +131,8 @@ pub struct Deformer {
     /// Raised by another thread to stop a step at its next safe point
     /// ([`Deformer::set_interrupt`]).
     interrupt: Option<Arc<AtomicBool>>,
-    /// Corrections in the Galerkin coarse space (the default) or the
-    /// coarse problems' (`None`; [`Deformer::set_galerkin`]).
+    /// Corrections in the Galerkin coarse space, or the coarse problems'
+    /// (`None`, the default; [`Deformer::set_galerkin`]).
     galerkin_mode: Option<Galerkin>,
     /// Their per-set state.
     galerkin: Option<Box<galerkin_state::GalerkinState>>,
@@ -231,21 +231,25 @@ impl Deformer {
             newton: false,
             preview: None,
             interrupt: None,
-            galerkin_mode: Some(Galerkin::default()),
+            galerkin_mode: None,
             galerkin: None,
         }
     }
 
-    /// Sets the elastic iteration's Galerkin coarse corrections
-    /// ([`Galerkin`]; the default `Galerkin::default()`), or makes them
-    /// the coarse problems' of the hierarchy (`None`: `multilevel.rs`).
-    /// The coarse start from the rest pose is the hierarchy's either way.
-    /// Values below 1 (but `smooth`) are taken as 1.
+    /// Makes the elastic iteration's coarse corrections Galerkin ones
+    /// ([`Galerkin`]), or the coarse problems' of the hierarchy again
+    /// (`None`, the default: `multilevel.rs`). The coarse start from the
+    /// rest pose is the hierarchy's either way. Values below 1 (but
+    /// `smooth`) are taken as 1.
     ///
-    /// The default since, on the arc gesture of `drag_sim`, they settle in
-    /// fewer fine-iteration equivalents than the coarse problems' on every
-    /// character (camel_9770 24 against 55, feline_50k 30 against 66,
-    /// armadillo_43k 135 against 155; docs/performance.md).
+    /// Not the default: replaying a gesture without the server
+    /// (`drag_sim --path arc`, corrections running during the drags) they
+    /// settle in fewer fine-iteration equivalents than the coarse
+    /// problems' on every character, but a session holds its corrections
+    /// while a person drags, and from the pose a held drag leaves its
+    /// settle took as many iterations with them on camel_9770 (23) and
+    /// more time on camel_9770 and feline_50k (`dend loadtest --path
+    /// arc`; docs/performance.md).
     pub fn set_galerkin(&mut self, galerkin: Option<Galerkin>) {
         self.galerkin_mode = galerkin.map(|g| Galerkin {
             depth: g.depth.max(1),
