@@ -41,6 +41,11 @@
 //! 10 % of the vertices along the longest axis fixed, the highest 10 % the
 //! handle, moved by 0.3 of that extent across it; `arc` swings the handle
 //! out and back along an arc while it turns 60° about the longest axis.
+//! The drags hold the coarse corrections, as a session's do, and the
+//! settle runs them: a replay whose drags ran Galerkin corrections (one
+//! after every iteration) kept the pose near the minimum through the
+//! gesture, which a session does not, and overstated their settle against
+//! the server's (docs/performance.md).
 
 use std::sync::Arc;
 use std::time::Instant;
@@ -213,6 +218,10 @@ fn run() -> Result<(), String> {
     let mut d = Deformer::new(rest.clone(), params);
     d.set_levels(levels);
     d.set_galerkin(galerkin);
+    // a session holds the coarse corrections while a person drags (a
+    // correction behind a drag delays its frame) and runs them in the
+    // settle: so does the replay
+    d.hold_corrections(true);
     let t = Instant::now();
     let mut drag_iters = 0;
     let (mut preview_its, mut preview_ms) = (0, 0.0);
@@ -220,7 +229,6 @@ fn run() -> Result<(), String> {
         c.handles[0].target = target_at(k as f64 / drags as f64, arc, axis, extent, pivot);
         if previews {
             // what a session answers a WebSocket drag with on a large mesh
-            d.hold_corrections(true);
             let its = dend::deform::PREVIEW_ITERATIONS;
             if d.preview(&factor, &c, its)
                 .map_err(|e| e.to_string())?
@@ -250,8 +258,8 @@ fn run() -> Result<(), String> {
                 None => break,
             }
         }
-        d.hold_corrections(false);
     }
+    d.hold_corrections(false);
     let (mut settle_iters, mut last) = (0, None);
     let (mut coarse_its, mut coarse_ms, mut coarse_work) = (0, 0.0, 0.0);
     while settle_iters < params.max_iters {
