@@ -37,7 +37,7 @@ use super::galerkin_state::GalerkinState;
 use super::levels::CoarseRun;
 use super::multilevel::Correction;
 use super::{Deformer, Galerkin};
-use crate::deform::elastic::hessian::galerkin::{RigidSpace, Weights};
+use crate::deform::elastic::hessian::galerkin::{slot, RigidSpace, Weights};
 use crate::deform::elastic::hessian::Curvature;
 use crate::deform::elastic::{ElasticOps, ElasticSet};
 use crate::deform::factor::Factor;
@@ -335,30 +335,35 @@ pub(super) fn smoothed_weights(
         return Weights::partition(agg);
     }
     let nu = agg.len();
-    let neighbours = |k: usize| {
-        let v = unknowns[k] as usize;
-        l.outer_view(v)
-            .into_iter()
-            .flat_map(|row| row.indices().to_vec())
-            .map(|j| col_of[j])
-            .filter(move |&c| c != u32::MAX && c as usize != k)
-    };
+    // each unknown's neighbouring unknowns, once for all passes
+    let neighbours: Vec<Vec<u32>> = (0..nu)
+        .map(|k| {
+            let v = unknowns[k] as usize;
+            l.outer_view(v)
+                .map(|row| {
+                    row.indices()
+                        .iter()
+                        .map(|&j| col_of[j])
+                        .filter(|&c| c != u32::MAX && c as usize != k)
+                        .collect()
+                })
+                .unwrap_or_default()
+        })
+        .collect();
     let mut cur: Vec<Vec<(u32, Real)>> = agg.iter().map(|&a| vec![(a, 1.0)]).collect();
     for _ in 0..passes {
         let next: Vec<Vec<(u32, Real)>> = (0..nu)
             .map(|k| {
-                let mut out: Vec<(u32, Real)> = cur[k].iter().map(|&(a, w)| (a, 0.5 * w)).collect();
-                let ns: Vec<u32> = neighbours(k).collect();
+                let ns = &neighbours[k];
                 if ns.is_empty() {
                     return cur[k].clone();
                 }
+                let mut out: Vec<(u32, Real)> = cur[k].iter().map(|&(a, w)| (a, 0.5 * w)).collect();
                 let share = 0.5 / ns.len() as Real;
-                for &j in &ns {
+                for &j in ns {
                     for &(a, w) in &cur[j as usize] {
-                        match out.iter_mut().find(|x| x.0 == a) {
-                            Some(x) => x.1 += share * w,
-                            None => out.push((a, share * w)),
-                        }
+                        let i = slot(&mut out, a, 0.0);
+                        out[i].1 += share * w;
                     }
                 }
                 out

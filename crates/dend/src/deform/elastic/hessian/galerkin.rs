@@ -118,8 +118,9 @@ pub(crate) struct RigidSpace {
     cols: Vec<u32>,
 }
 
-/// The slot of aggregate `b` in an element's sums, added if new.
-fn slot<T: Copy>(parts: &mut Vec<(u32, T)>, b: u32, zero: T) -> usize {
+/// The slot of aggregate `b` in a short list of sums per aggregate,
+/// added (as `zero`) if new.
+pub(crate) fn slot<T: Copy>(parts: &mut Vec<(u32, T)>, b: u32, zero: T) -> usize {
     match parts.iter().position(|p| p.0 == b) {
         Some(s) => s,
         None => {
@@ -456,11 +457,11 @@ impl ElasticOps {
         at: &dyn Fn(u32, u32) -> usize,
         blocks: &mut [M6],
     ) {
-        /// `(b, S, V, R, Σ w v rᵀ, Σ w r·v)`.
-        type Sums = (u32, Real, Vector3<Real>, Vector3<Real>, Matrix3<Real>, Real);
+        /// `(S, V, R, Σ w v rᵀ, Σ w r·v)` of a block.
+        type Sums = (Real, Vector3<Real>, Vector3<Real>, Matrix3<Real>, Real);
         let wts = &space.weights;
-        let mut acc: Vec<(u32, Real, Vector3<Real>)> = Vec::new();
-        let mut sums: Vec<Sums> = Vec::new();
+        let mut acc: Vec<(u32, (Real, Vector3<Real>))> = Vec::new();
+        let mut sums: Vec<(u32, Sums)> = Vec::new();
         for &ea in space.members(a) {
             let ea = ea as usize;
             let k = space.entry_unknown[ea] as usize;
@@ -474,41 +475,31 @@ impl ElasticOps {
                         continue;
                     }
                     let s = v * wts.w[f];
-                    match acc.iter_mut().find(|x| x.0 == b) {
-                        Some(x) => {
-                            x.1 += s;
-                            x.2 += s * lever[f];
-                        }
-                        None => acc.push((b, s, s * lever[f])),
-                    }
+                    let i = slot(&mut acc, b, (0.0, Vector3::zeros()));
+                    let x = &mut acc[i].1;
+                    x.0 += s;
+                    x.1 += s * lever[f];
                 }
             }
-            for &(b, s, v) in &acc {
+            for &(b, (s, v)) in &acc {
                 let (ws, wv) = (wk * s, wk * v);
                 let zero = (
-                    b,
                     0.0,
                     Vector3::zeros(),
                     Vector3::zeros(),
                     Matrix3::zeros(),
                     0.0,
                 );
-                let i = match sums.iter().position(|x| x.0 == b) {
-                    Some(i) => i,
-                    None => {
-                        sums.push(zero);
-                        sums.len() - 1
-                    }
-                };
-                let x = &mut sums[i];
-                x.1 += ws;
-                x.2 += wv;
-                x.3 += ws * rk;
-                x.4 += wv * rk.transpose();
-                x.5 += rk.dot(&wv);
+                let i = slot(&mut sums, b, zero);
+                let x = &mut sums[i].1;
+                x.0 += ws;
+                x.1 += wv;
+                x.2 += ws * rk;
+                x.3 += wv * rk.transpose();
+                x.4 += rk.dot(&wv);
             }
         }
-        for &(b, s, v, r, vr, rv) in &sums {
+        for &(b, (s, v, r, vr, rv)) in &sums {
             let blk = &mut blocks[at(a as u32, b)];
             for i in 0..3 {
                 blk[(i, i)] += s;
@@ -543,22 +534,6 @@ impl ElasticOps {
     ) {
         let wts = &space.weights;
         let (support, unknown) = els.support(e);
-        // −Σ_{a in rows, b} (L_a)ᵀ U_b over the parts U
-        let minus_products = |parts: &[(u32, M36)],
-                              left: &dyn Fn(&M36) -> SMatrix<Real, 6, 3>,
-                              blocks: &mut [M6]| {
-            for (a, ua) in parts {
-                if !rows.contains(a) {
-                    continue;
-                }
-                let l = left(ua);
-                for (b, ub) in parts {
-                    if b >= a {
-                        blocks[at(*a, *b)] -= l * ub;
-                    }
-                }
-            }
-        };
         if let Some(i) = els.vertex(e) {
             let (c_inv, _) = self.vertex_coupling(ops, i, support, (y, &rot[i]), curvature, j);
             let Some(c_inv) = c_inv else { return };
@@ -578,7 +553,18 @@ impl ElasticOps {
                     right -= wj * cross_matrix(&lever[f]);
                 }
             }
-            minus_products(parts, &|u| (c_inv * u).transpose(), blocks);
+            // −(C⁻¹ (J P)_a)ᵀ (J P)_b for the rows a of this task, b ≥ a
+            for (a, ua) in parts.iter() {
+                if !rows.contains(a) {
+                    continue;
+                }
+                let l = (c_inv * ua).transpose();
+                for (b, ub) in parts.iter() {
+                    if b >= a {
+                        blocks[at(*a, *b)] -= l * ub;
+                    }
+                }
+            }
         } else {
             let t = e - els.num_vertices();
             let el = &self.area[t];
