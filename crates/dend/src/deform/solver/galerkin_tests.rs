@@ -7,7 +7,7 @@ use std::sync::Arc;
 
 use nalgebra::{DMatrix, Matrix3, UnitQuaternion, Vector3};
 
-use super::test_util::{dense, patch_edit};
+use super::test_util::{assert_same_symmetric_semidefinite, dense, patch_edit};
 use crate::deform::elastic::hessian::galerkin::{RigidSpace, Weights};
 use crate::deform::elastic::hessian::Curvature;
 use crate::deform::{Deformer, Factor, Galerkin, Levels, Params, Rest};
@@ -112,20 +112,11 @@ fn the_coarse_matrix_is_the_newton_matrix_projected_on_the_rigid_motions() {
             d.assemble_newton(&f, (el, set), curvature, false).unwrap();
             let h = dense(&d.elastic.newton.pattern.as_ref().unwrap().h);
             let expected = p.transpose() * &h * &p;
-            let got = dense(&g);
-            let scale = expected.amax();
-            assert!(scale > 0.0);
-            let diff = (&got - &expected).amax();
-            assert!(
-                diff <= 1e-10 * scale,
-                "{curvature:?}, groups of {group}: {diff} of {scale} ({n} vertices)"
-            );
-            let asym = (&got - got.transpose()).amax();
-            assert!(asym <= 1e-10 * scale, "{curvature:?}: asymmetry {asym}");
-            let smallest = got.symmetric_eigenvalues().min();
-            assert!(
-                smallest >= -1e-9 * scale,
-                "{curvature:?}: eigenvalue {smallest} of {scale}"
+            assert_same_symmetric_semidefinite(
+                &dense(&g),
+                &expected,
+                1e-10,
+                &format!("{curvature:?}, groups of {group} ({n} vertices)"),
             );
         }
     }

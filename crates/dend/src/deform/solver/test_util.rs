@@ -76,3 +76,25 @@ pub(super) fn dense(m: &sprs::CsMat<Real>) -> nalgebra::DMatrix<Real> {
     }
     d
 }
+
+/// Asserts that `got` is `expected` to `tol` of `expected`'s largest
+/// entry, symmetric to the same tolerance, and positive semi-definite (no
+/// eigenvalue below −1e-9 of that entry); `what` names the case.
+pub(super) fn assert_same_symmetric_semidefinite(
+    got: &nalgebra::DMatrix<Real>,
+    expected: &nalgebra::DMatrix<Real>,
+    tol: Real,
+    what: &str,
+) {
+    let scale = expected.amax();
+    assert!(scale > 0.0, "{what}: a zero matrix");
+    let diff = (got - expected).amax();
+    assert!(diff <= tol * scale, "{what}: {diff} of {scale}");
+    let asym = (got - got.transpose()).amax();
+    assert!(asym <= tol * scale, "{what}: asymmetry {asym}");
+    let smallest = got.clone().symmetric_eigenvalues().min();
+    assert!(
+        smallest >= -1e-9 * scale,
+        "{what}: eigenvalue {smallest} of {scale}"
+    );
+}
