@@ -27,6 +27,9 @@ pub mod ordering;
 pub mod sparse;
 pub mod trisolve;
 
+#[cfg(test)]
+mod test_util;
+
 /// The scalar of every matrix and vector.
 pub type Real = f64;
 

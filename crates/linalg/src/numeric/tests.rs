@@ -1,5 +1,5 @@
 use super::*;
-use faer::dyn_stack::MemBuffer;
+use crate::test_util::faer_values;
 use faer::sparse::linalg::cholesky::{
     factorize_symbolic_cholesky, CholeskySymbolicParams, SymbolicCholesky, SymbolicCholeskyRaw,
     SymmetricOrdering,
@@ -44,31 +44,6 @@ fn symbolic(m: &SparseColMat<usize, f64>) -> SymbolicCholesky<usize> {
         ..Default::default()
     };
     factorize_symbolic_cholesky(m.symbolic(), Side::Lower, SymmetricOrdering::Amd, params).unwrap()
-}
-
-/// faer's own numeric factorisation: the independent reference.
-fn faer_values(
-    sym: &SymbolicCholesky<usize>,
-    m: &SparseColMat<usize, f64>,
-) -> Result<Vec<f64>, usize> {
-    let mut values = vec![0.0; sym.len_val()];
-    let mut mem =
-        MemBuffer::new(sym.factorize_numeric_llt_scratch::<f64>(Par::Seq, Default::default()));
-    let r = sym
-        .factorize_numeric_llt::<f64>(
-            &mut values,
-            m.as_ref(),
-            Side::Lower,
-            Default::default(),
-            Par::Seq,
-            MemStack::new(&mut mem),
-            Default::default(),
-        )
-        .map(|_| ())
-        .map_err(|e| match e {
-            LltError::NonPositivePivot { index } => index,
-        });
-    r.map(|_| values)
 }
 
 fn ours(

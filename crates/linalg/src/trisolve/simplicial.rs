@@ -85,6 +85,7 @@ fn sweeps(col_ptr: &[usize], row_idx: &[usize], values: &[Real], x: &mut [Lanes]
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::test_util::faer_values;
     use faer::dyn_stack::MemBuffer;
     use faer::sparse::linalg::cholesky::simplicial::SimplicialLltRef;
     use faer::sparse::linalg::cholesky::{
@@ -142,20 +143,8 @@ mod tests {
             let SymbolicCholeskyRaw::Simplicial(simp) = sym.raw() else {
                 panic!("forced simplicial");
             };
-            let mut values = vec![0.0; sym.len_val()];
-            let mut mem = MemBuffer::new(
-                sym.factorize_numeric_llt_scratch::<f64>(Par::Seq, Default::default()),
-            );
-            sym.factorize_numeric_llt::<f64>(
-                &mut values,
-                m.as_ref(),
-                Side::Lower,
-                Default::default(),
-                Par::Seq,
-                MemStack::new(&mut mem),
-                Default::default(),
-            )
-            .unwrap_or_else(|e| panic!("n {n} seed {seed}: {e:?}"));
+            let values = faer_values(&sym, &m)
+                .unwrap_or_else(|pivot| panic!("n {n} seed {seed}: pivot {pivot}"));
             for k in 1..=6 {
                 let b = Mat::<f64>::from_fn(n, k, |i, j| {
                     ((i * 37 + j * 11 + seed) % 23) as f64 * 0.3 - 3.1 + j as f64

@@ -1,5 +1,6 @@
 use super::sweep::{backward_impl, forward_impl};
 use super::*;
+use crate::test_util::faer_values;
 use faer::dyn_stack::MemBuffer;
 use faer::sparse::linalg::cholesky::{
     factorize_symbolic_cholesky, CholeskySymbolicParams, LltRef, SymbolicCholesky,
@@ -44,19 +45,7 @@ fn factor(m: &SparseColMat<usize, f64>) -> (SymbolicCholesky<usize>, Vec<f64>) {
     let sym =
         factorize_symbolic_cholesky(m.symbolic(), Side::Lower, SymmetricOrdering::Amd, params)
             .unwrap();
-    let mut values = vec![0.0; sym.len_val()];
-    let mut mem =
-        MemBuffer::new(sym.factorize_numeric_llt_scratch::<f64>(Par::Seq, Default::default()));
-    sym.factorize_numeric_llt::<f64>(
-        &mut values,
-        m.as_ref(),
-        Side::Lower,
-        Default::default(),
-        Par::Seq,
-        MemStack::new(&mut mem),
-        Default::default(),
-    )
-    .unwrap();
+    let values = faer_values(&sym, m).unwrap();
     (sym, values)
 }
 
