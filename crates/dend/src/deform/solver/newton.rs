@@ -31,7 +31,11 @@
 //! H_UU Δ = r_U,    Y ← Y + α Δ,   α the first of 1, ½, ¼, ⅛ that lowers E
 //! ```
 //!
-//! and where none lowers it, or `H` does not factor, the plain
+//! where a trial `Y + αΔ` does not lower `E`, the local/global map applied
+//! to it (its rotations, then one global step from them) is tried before
+//! the next length ([`Deformer::global_step_from_trial`]); where no length
+//! lowers it with the exact Hessian, the convex model's step is tried the
+//! same way; and where none lowers it, or `H` does not factor, the plain
 //! local/global step is taken: so the energy never grows, as on every
 //! other level. The convergence test is every level's: the plain step's
 //! largest vertex move (computed at each iteration with the cached factor
@@ -41,6 +45,7 @@ use faer::dyn_stack::{MemBuffer, MemStack};
 use faer::sparse::linalg::cholesky::LltRef;
 use faer::{Conj, MatMut, Par};
 
+use super::local_global::Flat;
 use super::newton_state::{NewtonPattern, NEWTON_COST};
 use super::Deformer;
 use crate::deform::elastic::hessian::Curvature;
@@ -177,22 +182,29 @@ impl Deformer {
 
     /// The Newton candidate of this iteration (module docs): sets the pose
     /// (and rotations, area targets) to the first step along `Δ` whose
-    /// energy is below `e` and returns that energy; `None`, with the pose
-    /// unchanged, when `H` does not factor or no step lowers the energy.
-    /// `st.x_flat` holds the current unknowns.
+    /// energy is below `e` and returns that energy; `None`, with the plain
+    /// step in `rhs` for the caller to take, when `H` does not factor or no
+    /// step lowers the energy. `st.x_flat` holds the current unknowns.
+    ///
+    /// The convex model is tried where the exact Hessian's step lowers
+    /// nothing, not only where it does not factor: on the camel's
+    /// coarsest level, at the start of the settle after a 30 Hz gesture,
+    /// the exact Hessian factored but its step moved vertices 30
+    /// normalised units against the plain step's 0.0035 (a direction it
+    /// barely resists), no length lowered the energy, the level's
+    /// correction crawled to its cap on local/global iterations, and the
+    /// settle took 61 fine iterations instead of 22–24.
     pub(super) fn newton_candidate(
         &mut self,
         factor: &Factor,
         (el, set): (&ElasticOps, &ElasticSet),
         e: Real,
     ) -> Option<Real> {
-        let nu = factor.sys.unknowns.len();
         // the reduced energy's Hessian where it is positive definite (near
         // a minimum: quadratic convergence), else its convex model
         // (where the exact Hessian did not factor, it is not tried again
         // for the next `CONVEX_AFTER_FAILURE` iterations: a failed
         // factorisation costs about as much as one that succeeds)
-        let mut factored = None;
         let skip = self.elastic.newton.convex_for > 0;
         self.elastic.newton.convex_for = self.elastic.newton.convex_for.saturating_sub(1);
         let tries: &[Curvature] = if skip {
@@ -200,42 +212,82 @@ impl Deformer {
         } else {
             &[Curvature::Full, Curvature::Projected]
         };
+        // `r_U`, which each solve below overwrites with its `Δ`, and the
+        // plain step, which the caller takes where no Newton step lowers
+        // the energy (the line search's global steps use its buffer)
+        let st = &mut self.elastic;
+        st.newton.r.clone_from(&st.newton.rhs);
+        st.newton.plain.clone_from(&st.rhs);
+        let stepped = self.newton_tries(factor, (el, set), e, tries, skip);
+        if stepped.is_none() {
+            let st = &mut self.elastic;
+            st.rhs.copy_from_slice(&st.newton.plain);
+        }
+        stepped
+    }
+
+    /// The Newton steps of [`Deformer::newton_candidate`] with each
+    /// curvature of `tries` in turn (the next where `H` does not factor or
+    /// no step length lowers the energy), from `r_U` in `newton.r`.
+    fn newton_tries(
+        &mut self,
+        factor: &Factor,
+        (el, set): (&ElasticOps, &ElasticSet),
+        e: Real,
+        tries: &[Curvature],
+        skip: bool,
+    ) -> Option<Real> {
+        let nu = factor.sys.unknowns.len();
         for &curvature in tries {
             // after the exact Hessian, only its indefinite elements change
             let patch = curvature == Curvature::Projected && !skip;
             if !self.assemble_newton(factor, (el, set), curvature, patch)? {
                 break;
             }
-            let pattern = self.elastic.newton.pattern.as_mut()?;
+            let n = &mut self.elastic.newton;
+            let pattern = n.pattern.as_mut()?;
             if pattern
                 .refactor
                 .factorise_definite(&pattern.symbolic, &pattern.h)
-                .is_ok()
+                .is_err()
             {
-                factored = Some(curvature);
-                break;
+                if curvature == Curvature::Full {
+                    n.convex_for = CONVEX_AFTER_FAILURE;
+                }
+                continue;
             }
-            if curvature == Curvature::Full {
-                self.elastic.newton.convex_for = CONVEX_AFTER_FAILURE;
+            let llt = LltRef::new(&pattern.symbolic, pattern.refactor.values());
+            let mut mem =
+                MemBuffer::try_new(pattern.symbolic.solve_in_place_scratch::<Real>(1, Par::Seq))
+                    .ok()?;
+            n.rhs.copy_from_slice(&n.r);
+            llt.solve_in_place_with_conj(
+                Conj::No,
+                MatMut::from_column_major_slice_mut(&mut n.rhs, 3 * nu, 1),
+                Par::Seq,
+                MemStack::new(&mut mem),
+            );
+            if n.rhs.iter().any(|v| !v.is_finite()) {
+                continue;
+            }
+            if let Some(e_new) = self.newton_line_search(factor, (el, set), e, curvature) {
+                return Some(e_new);
             }
         }
-        let curvature = factored?;
-        let n = &mut self.elastic.newton;
-        let pattern = n.pattern.as_ref()?;
-        let llt = LltRef::new(&pattern.symbolic, pattern.refactor.values());
-        let mut mem =
-            MemBuffer::try_new(pattern.symbolic.solve_in_place_scratch::<Real>(1, Par::Seq))
-                .ok()?;
-        llt.solve_in_place_with_conj(
-            Conj::No,
-            MatMut::from_column_major_slice_mut(&mut n.rhs, 3 * nu, 1),
-            Par::Seq,
-            MemStack::new(&mut mem),
-        );
-        if n.rhs.iter().any(|v| !v.is_finite()) {
-            return None;
-        }
+        None
+    }
 
+    /// Keeps the first step along `Δ` (in `newton.rhs`) whose energy,
+    /// after [`Deformer::global_step_from_trial`], is below `e`, and
+    /// returns that energy; `None` where no step length lowers it.
+    fn newton_line_search(
+        &mut self,
+        factor: &Factor,
+        (el, set): (&ElasticOps, &ElasticSet),
+        e: Real,
+        curvature: Curvature,
+    ) -> Option<Real> {
+        let nu = factor.sys.unknowns.len();
         for alpha in STEPS {
             let st = &mut self.elastic;
             for k in 0..nu {
@@ -243,14 +295,23 @@ impl Deformer {
                     st.cand[a * nu + k] = st.x_flat[a * nu + k] + alpha * st.newton.rhs[3 * k + a];
                 }
             }
-            self.set_unknowns(factor, super::local_global::Flat::Candidate);
+            self.set_unknowns(factor, Flat::Candidate);
             let e_try = self.local_step(factor, (el, set), true, true);
-            if e_try.is_finite() && e_try < e {
+            if !e_try.is_finite() {
+                continue;
+            }
+            if e_try < e {
                 tracing::debug!(?curvature, alpha, e, e_try, "newton step");
                 let st = &mut self.elastic;
                 std::mem::swap(&mut st.rot, &mut st.rot_try);
                 std::mem::swap(&mut st.proj, &mut st.proj_try);
                 return Some(e_try);
+            }
+            if let Some(e_g) = self.global_step_from_trial(factor, (el, set)) {
+                if e_g < e {
+                    tracing::debug!(?curvature, alpha, e, e_try, e_g, "newton step");
+                    return Some(e_g);
+                }
             }
         }
         tracing::debug!(
@@ -259,5 +320,58 @@ impl Deformer {
             "newton step: no step length lowers the energy"
         );
         None
+    }
+
+    /// The local/global map applied to a Newton trial: from the trial pose
+    /// `Y'` (the unknowns in `cand`) and its best rotations and area
+    /// targets (`rot_try`, `proj_try`), one global step
+    /// `Y'' = Y' + Q_UU⁻¹ (g(R(Y')) − Q Y')_U`, then its own rotations.
+    /// Keeps `Y''` with its rotations and returns its energy; `None` where
+    /// the solve is not finite (the rotations are then those before the
+    /// trial, the pose the trial's).
+    ///
+    /// Why: a Newton step is linear in the positions, so where a part
+    /// turns as a whole (a dangling limb swinging, a twisted bar) a long
+    /// step stretches it along the tangent of the turn, and its energy
+    /// rises although the turn was right: the line search shortened the
+    /// steps of a camel gesture's coarsest level to ½–⅛, or found none.
+    /// The rotations of `Y'` carry the turn, and the global step from them
+    /// places the part without the stretch: `E(Y'') ≤ E(Y', R(Y'))` (the
+    /// global step minimises `E(·, R)` exactly, and the local step
+    /// refits), for one more solve with the cached factor of `Q_UU` and
+    /// one more local step. It is tried only where `Y'` itself does not
+    /// lower the energy: taken after every trial, it left the
+    /// characters' one-shots as they were but cost the survey cactus 6
+    /// iterations (31 → 37) and the camel's settle 2–4.
+    pub(super) fn global_step_from_trial(
+        &mut self,
+        factor: &Factor,
+        (el, set): (&ElasticOps, &ElasticSet),
+    ) -> Option<Real> {
+        let nu = factor.sys.unknowns.len();
+        let st = &mut self.elastic;
+        std::mem::swap(&mut st.rot, &mut st.rot_try);
+        std::mem::swap(&mut st.proj, &mut st.proj_try);
+        self.global_rhs(factor, (el, set));
+        let st = &mut self.elastic;
+        {
+            let b = MatMut::from_column_major_slice_mut(&mut st.rhs, nu, 3);
+            let mem = st.mem.as_mut().expect("sized before the step");
+            factor.solve_in_place(b, MemStack::new(mem));
+        }
+        if st.rhs.iter().any(|v| !v.is_finite()) {
+            std::mem::swap(&mut st.rot, &mut st.rot_try);
+            std::mem::swap(&mut st.proj, &mut st.proj_try);
+            return None;
+        }
+        for (c, d) in st.cand.iter_mut().zip(&st.rhs) {
+            *c += d;
+        }
+        self.set_unknowns(factor, Flat::Candidate);
+        let e_g = self.local_step(factor, (el, set), true, true);
+        let st = &mut self.elastic;
+        std::mem::swap(&mut st.rot, &mut st.rot_try);
+        std::mem::swap(&mut st.proj, &mut st.proj_try);
+        e_g.is_finite().then_some(e_g)
     }
 }

@@ -25,6 +25,11 @@ pub(super) struct NewtonState {
     pub(super) pattern: Option<NewtonPattern>,
     /// `r_U`, then `Δ`, interleaved (`3u + k`).
     pub(super) rhs: Vec<Real>,
+    /// `r_U`, kept for a second solve (with the convex model).
+    pub(super) r: Vec<Real>,
+    /// The iteration's plain step, column-major as the elastic state's
+    /// `rhs`, kept while the line search's global steps use that buffer.
+    pub(super) plain: Vec<Real>,
     /// Newton iterations left that take the convex model without trying
     /// the exact Hessian first (it did not factor lately).
     pub(super) convex_for: usize,

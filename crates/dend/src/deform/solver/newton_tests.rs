@@ -111,6 +111,55 @@ fn newton_steps_reach_the_local_global_minimum_in_fewer_iterations() {
     );
 }
 
+/// The local/global map after a Newton trial
+/// (`Deformer::global_step_from_trial`): from trial poses near and far
+/// from the current one, the pose it leaves has at most the trial's
+/// energy, and its energy is that of the pose and rotations it leaves (a
+/// local step from scratch there gives the same).
+#[test]
+fn the_global_step_after_a_trial_never_raises_its_energy() {
+    let mesh = irregular_patch(PatchSurface::Wavy, 9, 0.4, 3);
+    let r = UnitQuaternion::from_axis_angle(&Vector3::y_axis(), -0.8);
+    let c = super::test_util::x_edit(&mesh, -0.8, 0.8, [-0.5, 0.0, 0.6], r);
+    let params = Params::default();
+    let rest = Arc::new(Rest::new(mesh).unwrap());
+    let f = Factor::build(&rest, &params, &c).unwrap();
+    let (el, set) = f.elastic.as_ref().unwrap();
+    let mut d = Deformer::new(rest, params);
+    d.set_levels(super::Levels::One);
+    d.step(&f, &c, 3).unwrap();
+    let nu = f.sys.unknowns.len();
+    let base: Vec<_> = f.sys.unknowns.iter().map(|&u| d.y[u as usize]).collect();
+    for scale in [0.0, 0.01, 0.1, 0.5] {
+        // a smooth field that bends and stretches the free part
+        for (k, p) in base.iter().enumerate() {
+            let w = [(3.0 * p[0]).sin(), (2.0 * p[1]).cos(), p[0] * p[1]];
+            for a in 0..3 {
+                d.elastic.cand[a * nu + k] = p[a] + scale * w[a];
+            }
+        }
+        d.set_unknowns(&f, super::local_global::Flat::Candidate);
+        let e_try = d.local_step(&f, (el, set), true, true);
+        let e_g = d.global_step_from_trial(&f, (el, set)).unwrap();
+        let e_again = d.local_step(&f, (el, set), true, false);
+        let tol = 1e-9 * e_try.abs().max(1.0);
+        assert!(
+            e_g <= e_try + tol,
+            "scale {scale}: {e_g} after the global step, {e_try} at the trial"
+        );
+        assert!(
+            (e_again - e_g).abs() <= tol,
+            "scale {scale}: {e_g} returned, {e_again} at the pose left"
+        );
+        if scale > 0.0 {
+            assert!(
+                e_g < e_try,
+                "scale {scale}: nothing lowered ({e_g}, {e_try})"
+            );
+        }
+    }
+}
+
 /// `H v` and the change of the reduced gradient along `v`, by central
 /// differences (`r = −½ ∇E` at refitted rotations and area targets), at
 /// the pose of a few iterations of an edit: their largest relative
