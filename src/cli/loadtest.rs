@@ -20,7 +20,7 @@ use clap::ValueEnum;
 use dend_client::ws::StreamOptions;
 use dend_client::{Client, ConstraintsSpec, SessionParams};
 
-use drive::{median, Pace, Path, Summary};
+use drive::{median, Pace, Path, Summary, VISIBLE_SHARE};
 
 #[path = "loadtest_args.rs"]
 mod args;
@@ -63,6 +63,7 @@ async fn run_async(args: LoadtestArgs) -> anyhow::Result<()> {
         kind: args.path,
         axis: k,
         extent: ext[k],
+        diagonal: ext.iter().map(|e| e * e).sum::<f64>().sqrt(),
         drags: args.drags,
     };
     let pace = Pace {
@@ -242,6 +243,13 @@ async fn run_mode(
         sum.settle_iterations.last().copied().unwrap_or(0),
         sum.converged,
         sum.settles.len()
+    );
+    println!(
+        "[{m}] settled pose shown (last drag sent -> every later frame within {} of the \
+         diagonal of the settled pose): median {:.1} ms, max {:.1} ms",
+        VISIBLE_SHARE,
+        ms(percentile(&sum.settles_visible, 0.5)),
+        ms(percentile(&sum.settles_visible, 1.0)),
     );
     println!(
         "[{m}] {} frames in all; phase {:.2} s; errors: 0 (any error aborts the run)",

@@ -27,6 +27,9 @@ pub struct Path {
     pub axis: usize,
     /// Its extent.
     pub extent: f64,
+    /// The mesh's bounding-box diagonal (what "the pose has arrived" is
+    /// measured against, [`VISIBLE_SHARE`]).
+    pub diagonal: f64,
     /// Drags in the gesture.
     pub drags: u64,
 }
@@ -95,6 +98,12 @@ pub struct Seen {
     pub levels: [u64; 2],
     /// Last drag sent → the settled frame after it.
     pub settle: Duration,
+    /// Last drag sent → the first frame from which on every frame is
+    /// within [`VISIBLE_SHARE`] of the diagonal of the settled frame's
+    /// pose ([`visible_settle`]): when the pose a person is shown stops
+    /// moving, which can be well before the solver's convergence test
+    /// says settled.
+    pub settle_visible: Duration,
     /// Iterations since the last change in the settled frame.
     pub settle_iterations: u32,
     /// Whether the settled frame converged.
@@ -117,6 +126,9 @@ pub async fn drag(
     let (mut next_seq, mut acked) = (1u64, 0u64);
     let mut last_sent = start;
     let bytes0 = ws.frame_bytes();
+    // the frames after the last drag was sent: when each came, and every
+    // `stride`-th vertex of its pose
+    let mut track: Vec<(Duration, Vec<[f32; 3]>)> = Vec::new();
     loop {
         // send what is due: on the clock, or (closed loop) once acknowledged
         while next_seq <= path.drags {
@@ -164,8 +176,14 @@ pub async fn drag(
                     seen.drag_time = now - start;
                     seen.drag_bytes = ws.frame_bytes() - bytes0;
                 }
+                if next_seq > path.drags {
+                    let stride = f.positions.len().div_ceil(TRACKED_VERTICES).max(1);
+                    let sample = f.positions.iter().step_by(stride).copied().collect();
+                    track.push((now - last_sent, sample));
+                }
                 if acked >= path.drags && h.settled {
                     seen.settle = now - last_sent;
+                    seen.settle_visible = visible_settle(&track, VISIBLE_SHARE * path.diagonal);
                     seen.settle_iterations = h.iteration;
                     seen.settle_converged = h.converged;
                     return Ok(seen);
@@ -181,6 +199,39 @@ pub async fn drag(
     }
 }
 
+/// The share of the mesh's diagonal within which a pose counts as the
+/// settled one for [`Seen::settle_visible`]: the issue tracker's
+/// "pose still moving by more than 1e-3 of the diagonal".
+pub const VISIBLE_SHARE: f64 = 1e-3;
+
+/// The most vertices of a frame that [`Seen::settle_visible`] compares
+/// (every `⌈n / this⌉`-th vertex): a settle of igea_134k sends hundreds of
+/// frames, whose whole poses would take hundreds of MB per session.
+const TRACKED_VERTICES: usize = 4096;
+
+/// When a settle's frames arrived at the last one's pose: the time of the
+/// first frame of `track` (times and poses, the settled frame last) from
+/// which on every frame's largest vertex distance to the last frame's is
+/// at most `tolerance`; zero for an empty track.
+pub fn visible_settle(track: &[(Duration, Vec<[f32; 3]>)], tolerance: f64) -> Duration {
+    let Some((_, last)) = track.last() else {
+        return Duration::ZERO;
+    };
+    let far = |pose: &[[f32; 3]]| {
+        pose.iter().zip(last).any(|(p, q)| {
+            let d2: f64 = (0..3)
+                .map(|k| (f64::from(p[k]) - f64::from(q[k])).powi(2))
+                .sum();
+            d2 > tolerance * tolerance
+        })
+    };
+    let first_near = track
+        .iter()
+        .rposition(|(_, pose)| far(pose))
+        .map_or(0, |i| i + 1);
+    track[first_near].0
+}
+
 /// Summary statistics of the sessions' drags, as the report prints them.
 #[derive(Debug, Default)]
 pub struct Summary {
@@ -194,6 +245,9 @@ pub struct Summary {
     pub bytes_per_frame: Vec<f64>,
     /// Settle times, sorted.
     pub settles: Vec<Duration>,
+    /// When each session's shown pose arrived ([`Seen::settle_visible`]),
+    /// sorted.
+    pub settles_visible: Vec<Duration>,
     /// Settle iterations, sorted.
     pub settle_iterations: Vec<u32>,
     /// Sessions whose settled frame converged.
@@ -220,6 +274,7 @@ impl Summary {
             .push(own.get(own.len() / 2).copied().unwrap_or_default());
         self.latencies.extend(s.latencies);
         self.settles.push(s.settle);
+        self.settles_visible.push(s.settle_visible);
         self.settle_iterations.push(s.settle_iterations);
         self.converged += usize::from(s.settle_converged);
         self.levels[0] += s.levels[0];
@@ -232,6 +287,7 @@ impl Summary {
         self.latencies.sort();
         self.medians.sort();
         self.settles.sort();
+        self.settles_visible.sort();
         self.settle_iterations.sort();
         for v in [
             &mut self.fps,
@@ -246,4 +302,39 @@ impl Summary {
 /// The median of sorted values (0 when there are none).
 pub fn median(sorted: &[f64]) -> f64 {
     sorted.get(sorted.len() / 2).copied().unwrap_or(0.0)
+}
+
+#[cfg(test)]
+mod tests {
+    use std::time::Duration;
+
+    use super::visible_settle;
+
+    fn at(ms: u64, x: f32) -> (Duration, Vec<[f32; 3]>) {
+        (
+            Duration::from_millis(ms),
+            vec![[0.0, 0.0, 0.0], [x, 1.0, 0.0]],
+        )
+    }
+
+    #[test]
+    fn the_pose_arrives_at_the_first_frame_after_the_last_one_that_was_far() {
+        // a creep: 0.5, 0.1, then within 0.01 of the last from 30 ms on,
+        // though a frame between moved back out (at 40 ms)
+        let track = [
+            at(10, 0.5),
+            at(20, 0.1),
+            at(30, 0.005),
+            at(40, 0.02),
+            at(50, 0.003),
+            at(60, 0.0),
+        ];
+        assert_eq!(visible_settle(&track, 0.01), Duration::from_millis(50));
+        assert_eq!(visible_settle(&track, 0.05), Duration::from_millis(30));
+        // every frame near: the first frame's time; none far with a
+        // large tolerance either
+        assert_eq!(visible_settle(&track, 1.0), Duration::from_millis(10));
+        assert_eq!(visible_settle(&track[5..], 0.0), Duration::from_millis(60));
+        assert_eq!(visible_settle(&[], 0.01), Duration::ZERO);
+    }
 }
