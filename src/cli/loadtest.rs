@@ -1,7 +1,8 @@
 //! `dend loadtest`: drive N sessions with M WebSocket drags each and report
 //! per stream mode: frames/s while dragging, drag→frame latency (p50/p99),
-//! settle time and iterations, converged, the level of the frames and the
-//! bytes/s to each client.
+//! settle time and iterations, converged, when the settled pose is shown
+//! (every later frame within 1e-3 of the diagonal of it), the level of the
+//! frames and the bytes/s to each client.
 //!
 //! By default each session is closed-loop: send drag `seq`, wait for the
 //! first frame acknowledging it, send the next; `--drag-hz` sends drags on a
