@@ -159,13 +159,6 @@ struct CoarseProblem {
     /// [`CORRECTION_MAX_ITERS`]: multilevel::CORRECTION_MAX_ITERS
     /// [`CORRECTION_STALL`]: multilevel::CORRECTION_STALL
     slow: bool,
-    /// A correction's Newton solve on this level (a hierarchy's coarsest)
-    /// reached [`NEWTON_CORRECTION_MAX_ITERS`] without converging: the
-    /// level does not stand for the fine problem under this constraint
-    /// set, and it gives no more corrections (its start still serves).
-    ///
-    /// [`NEWTON_CORRECTION_MAX_ITERS`]: multilevel::NEWTON_CORRECTION_MAX_ITERS
-    unfit: bool,
 }
 
 /// The coarse start of one set of targets, solved ahead.

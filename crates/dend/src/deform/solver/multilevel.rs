@@ -122,28 +122,34 @@ pub const CORRECTION_DRIFT: usize = 8;
 /// hierarchy that has a level below it ([`Levels::Many`]): a cycle
 /// (Brandt's FAS V-cycle), not a converged solve. Its own corrections
 /// (every `correction_period` iterations) go down a level the same way,
-/// and only the coarsest level (Newton steps) converges its problem. So a
-/// correction costs a bounded share of a fine iteration on every level but
-/// the coarsest, where a Newton step removes the slow mode (a far part
-/// turning as a whole) that the local/global iteration crawls along at
-/// every resolution. Measured (`drag_sim --path arc --levels 3`, work in
+/// and the coarsest level takes one Newton step
+/// ([`NEWTON_CORRECTION_MAX_ITERS`]). So a correction costs a bounded
+/// share of a fine iteration on every level, and on the coarsest a Newton
+/// step removes the slow mode (a far part turning as a whole) that the
+/// local/global iteration crawls along at every resolution. Measured (`drag_sim --path arc --levels 3`, work in
 /// fine iterations): converged solves on every level, feline one-shot
 /// 57.8 and settle 240.7, armadillo 186.2 and 243.7; cycles of 5
 /// iterations 42.2 and 76.7, 130.6 and 145.5; of 10, 50.9 and 53.8,
 /// 152.4 and 137.3 (docs/performance.md).
 pub const CYCLE_ITERS: usize = 10;
 
-/// Iteration cap of a correction's solve on a hierarchy's coarsest level
-/// (Newton steps). From the injected fine pose, Newton's method converges
-/// in 1–4 iterations on the characters (camel, armadillo, feline) and in
-/// up to 11 on a generated saddle patch's first correction; a solve
-/// still moving after this many is following a soft mode the restricted
-/// constraints leave on that level (the dino's limb edit: a 502-vertex
-/// level whose corrections ran 32–38 Newton iterations, their coarse
-/// objective falling steadily, and gained nothing on the fine mesh), and
-/// the level gives no more corrections under that constraint set
-/// ([`CoarseProblem::unfit`]).
-pub const NEWTON_CORRECTION_MAX_ITERS: usize = 20;
+/// Newton iterations of a correction's solve on a hierarchy's coarsest
+/// level: one. The coarse model, not how far its problem is solved,
+/// limits what a correction gains (docs/performance.md), and a coarsest
+/// solve converged to the tolerance (1–4 Newton iterations on the
+/// characters, up to 11 on a generated saddle patch, 32–38 on the dino's
+/// limb edit, where a soft mode of the 502-vertex level kept its
+/// objective falling for no fine gain) gave no better fine corrections
+/// than its first step, at several times the cost. Before, solves were
+/// capped at 20 and a level whose solve reached the cap gave no more
+/// corrections; one step instead (`drag_sim --path arc`, work in fine
+/// iterations, one-shot / settle): camel_9770 46.0 / 45.7 → 44.0 / 40.5,
+/// feline_50k 38.9 / 43.0 → 37.9 / 41.8, armadillo_43k 104.0 / 112.6 →
+/// 101.6 / 112.6; the camel's settle after a 30 Hz gesture through the
+/// server 248–273 → 106–227 ms (its corrections, cheaper, more often end
+/// between a person's drags instead of being interrupted); the dino's
+/// limb edit 31 → 21 iterations.
+pub const NEWTON_CORRECTION_MAX_ITERS: usize = 1;
 
 impl Levels {
     /// The levels the coarse problem's own solve uses.
@@ -199,7 +205,6 @@ pub(super) fn coarse_problem(
         coarse_fixed,
         solved_start: None,
         slow: false,
-        unfit: false,
     })
 }
 
@@ -474,9 +479,6 @@ impl Deformer {
             work: work + fine,
         };
         let field = self.with_coarse(factor, constraints, |fine, p, cc| {
-            if p.unfit {
-                return None;
-            }
             // r_f = g_f − Q_f Y at the current rotations
             let r_f = fine.residual_now(el, set).to_vec();
             // the fine pose injected, its rotations and residual there
@@ -511,8 +513,8 @@ impl Deformer {
             coarse.set_linear_term(s);
             coarse.interrupt = fine.interrupt.clone();
             coarse.drift_limit = Some(CORRECTION_DRIFT);
-            // the coarsest level of a hierarchy converges (Newton steps, up
-            // to a cap); a level with a level below it smooths
+            // the coarsest level of a hierarchy takes a Newton step; a level
+            // with a level below it smooths
             let report = if coarse.newton {
                 coarse.step(&p.factor, cc, NEWTON_CORRECTION_MAX_ITERS).ok()
             } else if p.levels_below == Levels::Many {
@@ -535,9 +537,6 @@ impl Deformer {
             }
             if report.iterations >= CORRECTION_MAX_ITERS && !report.converged {
                 p.slow = true;
-            }
-            if coarse.newton && !report.converged && !report.diverged {
-                p.unfit = true;
             }
             if report.diverged {
                 return Some((its, Ok(None)));
