@@ -218,6 +218,8 @@ impl Deformer {
         let st = &mut self.elastic;
         st.newton.r.clone_from(&st.newton.rhs);
         st.newton.plain.clone_from(&st.rhs);
+        st.newton.rot0.clone_from(&st.rot);
+        st.newton.proj0.clone_from(&st.proj);
         let stepped = self.newton_tries(factor, (el, set), e, tries, skip);
         if stepped.is_none() {
             let st = &mut self.elastic;
@@ -238,7 +240,12 @@ impl Deformer {
         skip: bool,
     ) -> Option<Real> {
         let nu = factor.sys.unknowns.len();
-        for &curvature in tries {
+        for (k, &curvature) in tries.iter().enumerate() {
+            if k > 0 {
+                // (a line search may have moved the pose: the matrix is
+                // assembled where the step starts)
+                self.restore_newton_start(factor);
+            }
             // after the exact Hessian, only its indefinite elements change
             let patch = curvature == Curvature::Projected && !skip;
             if !self.assemble_newton(factor, (el, set), curvature, patch)? {
@@ -275,6 +282,16 @@ impl Deformer {
             }
         }
         None
+    }
+
+    /// Puts back the pose (its unknowns from `x_flat`), rotations and area
+    /// targets the Newton step started from.
+    fn restore_newton_start(&mut self, factor: &Factor) {
+        let st = &mut self.elastic;
+        st.cand.copy_from_slice(&st.x_flat);
+        st.rot.copy_from_slice(&st.newton.rot0);
+        st.proj.copy_from_slice(&st.newton.proj0);
+        self.set_unknowns(factor, Flat::Candidate);
     }
 
     /// Keeps the first step along `Δ` (in `newton.rhs`) whose energy,

@@ -4,7 +4,7 @@
 
 use dend_linalg::cholesky::Refactor;
 use faer::sparse::linalg::cholesky::SymbolicCholesky;
-use nalgebra::Matrix3;
+use nalgebra::{Matrix3, UnitQuaternion};
 
 use crate::deform::elastic::hessian::blocks::Elements;
 use crate::mesh::Real;
@@ -27,6 +27,11 @@ pub(super) struct NewtonState {
     pub(super) rhs: Vec<Real>,
     /// `r_U`, kept for a second solve (with the convex model).
     pub(super) r: Vec<Real>,
+    /// The rotations and area targets of the pose the step starts from,
+    /// restored (with the pose) before the convex model is assembled
+    /// there after the exact Hessian's line search moved them.
+    pub(super) rot0: Vec<UnitQuaternion<Real>>,
+    pub(super) proj0: Vec<[Real; 6]>,
     /// The iteration's plain step, column-major as the elastic state's
     /// `rhs`, kept while the line search's global steps use that buffer.
     pub(super) plain: Vec<Real>,
