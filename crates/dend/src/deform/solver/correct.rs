@@ -4,8 +4,6 @@
 //! problem is built from, and the rotation field applied to the fine pose
 //! with an energy test.
 
-use faer::dyn_stack::MemStack;
-use faer::MatMut;
 use nalgebra::Vector3;
 
 use super::local_global::Flat;
@@ -130,16 +128,10 @@ impl Deformer {
         st.rot_try.copy_from_slice(&st.rot);
         st.proj_try.copy_from_slice(&st.proj);
         self.turn_rotations((el, set), w);
-        self.global_rhs(factor, (el, set));
+        let finite = self.elastic_global_step(factor, (el, set));
         let st = &mut self.elastic;
-        {
-            let b = MatMut::from_column_major_slice_mut(&mut st.rhs, nu, 3);
-            let mem = st.mem.as_mut().expect("sized before");
-            factor.solve_in_place(b, MemStack::new(mem));
-        }
-        std::mem::swap(&mut st.rot, &mut st.rot_try);
-        std::mem::swap(&mut st.proj, &mut st.proj_try);
-        if st.rhs.iter().any(|v| !v.is_finite()) {
+        st.swap_trial();
+        if !finite {
             return None;
         }
         for (k, &u) in factor.sys.unknowns.iter().enumerate() {
@@ -169,9 +161,7 @@ impl Deformer {
             self.set_unknowns(factor, Flat::Candidate);
             let e_try = self.local_step(factor, (el, set), true, true);
             if e_try.is_finite() && e_try < e {
-                let st = &mut self.elastic;
-                std::mem::swap(&mut st.rot, &mut st.rot_try);
-                std::mem::swap(&mut st.proj, &mut st.proj_try);
+                self.elastic.swap_trial();
                 return Some(e_try);
             }
         }

@@ -94,6 +94,13 @@ impl State {
         self.proj.clear();
     }
 
+    /// Takes the trial rotations and area targets (`rot_try`, `proj_try`)
+    /// as the current ones, and the current ones as the trial's.
+    pub(super) fn swap_trial(&mut self) {
+        std::mem::swap(&mut self.rot, &mut self.rot_try);
+        std::mem::swap(&mut self.proj, &mut self.proj_try);
+    }
+
     /// Back to the rest pose: identity rotations, propagated again on the
     /// next step.
     pub(super) fn reset(&mut self) {
@@ -249,9 +256,7 @@ impl Deformer {
                 self.set_unknowns(factor, Flat::Candidate);
                 let e_aa = self.local_step(factor, (el, set), fit, true);
                 if e_aa.is_finite() && e_aa < e {
-                    let st = &mut self.elastic;
-                    std::mem::swap(&mut st.rot, &mut st.rot_try);
-                    std::mem::swap(&mut st.proj, &mut st.proj_try);
+                    self.elastic.swap_trial();
                     e = e_aa;
                     accepted = true;
                 }
@@ -496,6 +501,22 @@ impl Deformer {
             st.rhs[2 * nu + k] = r[2];
         }
         sys.add_soft_rhs(&self.scratch.targets, &self.y, &mut st.rhs);
+    }
+
+    /// The global step from the current rotations and area targets,
+    /// `rhs = Δ = Q_UU⁻¹ (g(R) − Q Y)_U`; whether it is finite.
+    pub(super) fn elastic_global_step(
+        &mut self,
+        factor: &Factor,
+        (el, set): (&ElasticOps, &ElasticSet),
+    ) -> bool {
+        self.global_rhs(factor, (el, set));
+        let nu = factor.sys.unknowns.len();
+        let st = &mut self.elastic;
+        let b = MatMut::from_column_major_slice_mut(&mut st.rhs, nu, 3);
+        let mem = st.mem.as_mut().expect("sized before the step");
+        factor.solve_in_place(b, MemStack::new(mem));
+        st.rhs.iter().all(|v| v.is_finite())
     }
 
     /// Writes the unknowns of `Y` from the Anderson candidate or from the

@@ -319,9 +319,7 @@ impl Deformer {
             }
             if e_try < e {
                 tracing::debug!(?curvature, alpha, e, e_try, "newton step");
-                let st = &mut self.elastic;
-                std::mem::swap(&mut st.rot, &mut st.rot_try);
-                std::mem::swap(&mut st.proj, &mut st.proj_try);
+                self.elastic.swap_trial();
                 return Some(e_try);
             }
             if let Some(e_g) = self.global_step_from_trial(factor, (el, set)) {
@@ -365,30 +363,18 @@ impl Deformer {
         factor: &Factor,
         (el, set): (&ElasticOps, &ElasticSet),
     ) -> Option<Real> {
-        let nu = factor.sys.unknowns.len();
-        let st = &mut self.elastic;
-        std::mem::swap(&mut st.rot, &mut st.rot_try);
-        std::mem::swap(&mut st.proj, &mut st.proj_try);
-        self.global_rhs(factor, (el, set));
-        let st = &mut self.elastic;
-        {
-            let b = MatMut::from_column_major_slice_mut(&mut st.rhs, nu, 3);
-            let mem = st.mem.as_mut().expect("sized before the step");
-            factor.solve_in_place(b, MemStack::new(mem));
-        }
-        if st.rhs.iter().any(|v| !v.is_finite()) {
-            std::mem::swap(&mut st.rot, &mut st.rot_try);
-            std::mem::swap(&mut st.proj, &mut st.proj_try);
+        self.elastic.swap_trial();
+        if !self.elastic_global_step(factor, (el, set)) {
+            self.elastic.swap_trial();
             return None;
         }
+        let st = &mut self.elastic;
         for (c, d) in st.cand.iter_mut().zip(&st.rhs) {
             *c += d;
         }
         self.set_unknowns(factor, Flat::Candidate);
         let e_g = self.local_step(factor, (el, set), true, true);
-        let st = &mut self.elastic;
-        std::mem::swap(&mut st.rot, &mut st.rot_try);
-        std::mem::swap(&mut st.proj, &mut st.proj_try);
+        self.elastic.swap_trial();
         e_g.is_finite().then_some(e_g)
     }
 }
