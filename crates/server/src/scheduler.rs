@@ -18,6 +18,17 @@
 //! liveness connection are not outnumbered by dozens of runnable solver
 //! threads when the solvers saturate the cores.
 //!
+//! Threads of one solve: a job that runs alone (no other job running, no
+//! session waiting) spreads its parallel loops over every core (rayon's
+//! shared pool); a job that runs beside others stays on its worker's own
+//! one-thread pool. With every core busy, splitting a solve's loops only
+//! adds the cost of splitting them (the two-thread sweeps' accumulators,
+//! waking threads, waiting for the slower half), and the sessions' solves
+//! already use the cores side by side. Eight camel_9770 sessions on two
+//! cores (`dend loadtest --sessions 8 --drags 100`, same run, 2 runs each):
+//! settle 1.34 → 1.03–1.09 s, drag→frame p50 39–41 → 29–32 ms, p99 67–71 →
+//! 44–45 ms, the same iterations (docs/performance.md).
+//!
 //! Admission: [`waiting`](Scheduler::waiting) is the number of sessions
 //! whose solve waits for a worker; the server refuses new sessions while it
 //! is at `Config::admission_waiting_sessions` (503 `overloaded`, with
@@ -48,6 +59,8 @@ struct State {
     ring: VecDeque<String>,
     /// Jobs waiting.
     depth: usize,
+    /// Jobs running.
+    running: usize,
     /// Set when the scheduler is dropped: workers finish what is queued
     /// and end.
     stop: bool,
@@ -89,6 +102,7 @@ impl Scheduler {
                 queues: HashMap::new(),
                 ring: VecDeque::new(),
                 depth: 0,
+                running: 0,
                 stop: false,
             }),
             work: Condvar::new(),
@@ -148,8 +162,15 @@ impl Drop for Scheduler {
 }
 
 fn worker(shared: &Shared) {
+    // this worker's pool for the jobs that run beside others (module docs)
+    let own = rayon::ThreadPoolBuilder::new()
+        .num_threads(1)
+        .thread_name(|_| "dend-solver-own".into())
+        .build()
+        .map_err(|e| tracing::warn!(error = %e, "a solver's own thread pool failed to start"))
+        .ok();
     loop {
-        let (job, at) = {
+        let ((job, at), beside_others) = {
             let mut st = shared.state.lock();
             loop {
                 if let Some(session) = st.ring.pop_front() {
@@ -170,7 +191,9 @@ fn worker(shared: &Shared) {
                     if let Some(m) = &shared.metrics {
                         m.depth.set(st.depth as i64);
                     }
-                    break job;
+                    st.running += 1;
+                    let beside_others = st.running > 1 || !st.ring.is_empty();
+                    break (job, beside_others);
                 }
                 if st.stop {
                     return;
@@ -183,7 +206,16 @@ fn worker(shared: &Shared) {
         }
         // a panicking solve loses its session's reply (as a panicking
         // blocking task did), not the worker
-        let _ = std::panic::catch_unwind(std::panic::AssertUnwindSafe(job));
+        let job = std::panic::AssertUnwindSafe(job);
+        match &own {
+            Some(pool) if beside_others => {
+                let _ = pool.install(|| std::panic::catch_unwind(job));
+            }
+            _ => {
+                let _ = std::panic::catch_unwind(job);
+            }
+        }
+        shared.state.lock().running -= 1;
     }
 }
 
@@ -268,5 +300,42 @@ mod tests {
             let _ = tx.send(1);
         });
         assert_eq!(rx.recv(), Ok(1));
+    }
+
+    /// The name of the thread a job submitted now runs on.
+    fn thread_of_next_job(s: &Scheduler, session: &str) -> String {
+        let (tx, rx) = mpsc::channel();
+        s.submit(session, move || {
+            let _ = tx.send(std::thread::current().name().map(str::to_owned));
+        });
+        rx.recv().expect("the job runs").unwrap_or_default()
+    }
+
+    /// A job that runs while another runs stays on its worker's own
+    /// one-thread pool; a job that runs alone runs on its worker, whose
+    /// parallel loops use rayon's shared pool (module docs). The thread's
+    /// name tells which.
+    #[test]
+    fn a_job_beside_another_runs_on_its_workers_own_thread() {
+        let s = Scheduler::new(2, None);
+        assert!(thread_of_next_job(&s, "alone").starts_with("dend-solver-"));
+        assert_ne!(thread_of_next_job(&s, "alone"), "dend-solver-own");
+        let (gate_tx, gate_rx) = mpsc::channel::<()>();
+        let (started_tx, started_rx) = mpsc::channel::<()>();
+        let (done_tx, done_rx) = mpsc::channel::<()>();
+        s.submit("blocker", move || {
+            let _ = started_tx.send(());
+            let _ = gate_rx.recv();
+            let _ = done_tx.send(());
+        });
+        started_rx.recv().expect("a worker runs the blocker");
+        assert_eq!(thread_of_next_job(&s, "beside"), "dend-solver-own");
+        gate_tx.send(()).expect("the blocker waits");
+        done_rx.recv().expect("the blocker ends");
+        // (the blocker's worker counts it as running until it returns)
+        while s.shared.state.lock().running > 0 {
+            std::thread::yield_now();
+        }
+        assert_ne!(thread_of_next_job(&s, "alone"), "dend-solver-own");
     }
 }

@@ -153,7 +153,7 @@ impl Backend {
         }
         let plan = match symbolic.raw() {
             SymbolicCholeskyRaw::Supernodal(sn) => {
-                Some((rayon::current_num_threads() > 1).then(|| trisolve::SolvePlan::new(sn)))
+                Some(two_threads_available().then(|| trisolve::SolvePlan::new(sn)))
             }
             SymbolicCholeskyRaw::Simplicial(_) => None,
         };
@@ -263,4 +263,14 @@ pub(super) fn symbolic_flops(symbolic: &SymbolicCholesky<usize>) -> f64 {
                 .sum::<f64>()
         })
         .sum()
+}
+
+/// Whether a supernodal factor is analysed for two-thread sweeps: where
+/// the machine has two cores, also when the factor is built inside a
+/// one-thread pool (a server's solve that runs beside others), so that
+/// the session's later solves, alone, use both. On one thread the plan's
+/// sweeps run one after the other, with the same result.
+fn two_threads_available() -> bool {
+    rayon::current_num_threads() > 1
+        || std::thread::available_parallelism().is_ok_and(|n| n.get() > 1)
 }
