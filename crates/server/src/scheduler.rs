@@ -302,6 +302,14 @@ mod tests {
         assert_eq!(rx.recv(), Ok(1));
     }
 
+    /// Waits until no job runs (a worker counts its job as running until
+    /// the job has returned, after the job's own last message).
+    fn wait_idle(s: &Scheduler) {
+        while s.shared.state.lock().running > 0 {
+            std::thread::yield_now();
+        }
+    }
+
     /// The name of the thread a job submitted now runs on.
     fn thread_of_next_job(s: &Scheduler, session: &str) -> String {
         let (tx, rx) = mpsc::channel();
@@ -318,8 +326,9 @@ mod tests {
     #[test]
     fn a_job_beside_another_runs_on_its_workers_own_thread() {
         let s = Scheduler::new(2, None);
-        assert!(thread_of_next_job(&s, "alone").starts_with("dend-solver-"));
-        assert_ne!(thread_of_next_job(&s, "alone"), "dend-solver-own");
+        let alone = thread_of_next_job(&s, "alone");
+        assert!(alone.starts_with("dend-solver-"), "{alone}");
+        assert_ne!(alone, "dend-solver-own");
         let (gate_tx, gate_rx) = mpsc::channel::<()>();
         let (started_tx, started_rx) = mpsc::channel::<()>();
         let (done_tx, done_rx) = mpsc::channel::<()>();
@@ -332,10 +341,7 @@ mod tests {
         assert_eq!(thread_of_next_job(&s, "beside"), "dend-solver-own");
         gate_tx.send(()).expect("the blocker waits");
         done_rx.recv().expect("the blocker ends");
-        // (the blocker's worker counts it as running until it returns)
-        while s.shared.state.lock().running > 0 {
-            std::thread::yield_now();
-        }
+        wait_idle(&s);
         assert_ne!(thread_of_next_job(&s, "alone"), "dend-solver-own");
     }
 }
