@@ -200,8 +200,9 @@ pub async fn drag(
 }
 
 /// The share of the mesh's diagonal within which a pose counts as the
-/// settled one for [`Seen::settle_visible`]: the issue tracker's
-/// "pose still moving by more than 1e-3 of the diagonal".
+/// settled one for [`Seen::settle_visible`]: about one pixel of a view a
+/// thousand pixels across that frames the whole mesh, so a smaller move
+/// is not seen.
 pub const VISIBLE_SHARE: f64 = 1e-3;
 
 /// The most vertices of a frame that [`Seen::settle_visible`] compares
