@@ -15,6 +15,7 @@
 //!     [--path line|arc] [--preset characters|elastica] [--previews] [--levels 1|2|3 (default 3)]
 //!     [--correction-period K] [--coarse-ratio R] [--tol T] [--anderson W]
 //!     [--area KA] [--stretch KS] [--error-trace] [--galerkin off|DEPTH[,LAG[,PERIOD[,SMOOTH]]]]
+//!     [--newton-level on|off]
 //! ```
 //!
 //! `--galerkin` makes the coarse corrections Galerkin ones
@@ -22,7 +23,9 @@
 //! matrix reused for LAG corrections, one every PERIOD fine iterations,
 //! the aggregates' weights smoothed SMOOTH times across their borders;
 //! defaults 2, 6, 1, 1); without it, or with `off`, they are the
-//! hierarchy's coarse problems' (the library's default).
+//! hierarchy's coarse problems' (the library's default). `--newton-level
+//! on` corrects the drags' and the settle's sequences on the mesh's Newton
+//! level where it has one (`Deformer::set_newton_level`; off by default).
 //!
 //! `fine_iteration_ms` is the median time of one fine iteration in the same
 //! run; the one-shot solve (timed after the constraint set's
@@ -174,6 +177,11 @@ fn run() -> Result<(), String> {
             }
         }
     };
+    let newton_level = match arg::<String>(&args, "--newton-level").as_deref() {
+        Some("on") => true,
+        None | Some("off") => false,
+        Some(v) => return Err(format!("--newton-level {v}: on or off")),
+    };
     let levels = match arg::<String>(&args, "--levels").as_deref() {
         None | Some("many") | Some("3") => Levels::Many,
         Some("1") => Levels::One,
@@ -205,6 +213,7 @@ fn run() -> Result<(), String> {
     let mut one = Deformer::new(rest.clone(), params);
     one.set_levels(levels);
     one.set_galerkin(galerkin);
+    one.set_newton_level(newton_level);
     // every level's factor is the constraint set's precomputation, as the
     // fine factor is (a session builds them before it is ready)
     one.prepare_levels(&factor, &c);
@@ -218,6 +227,7 @@ fn run() -> Result<(), String> {
     let mut d = Deformer::new(rest.clone(), params);
     d.set_levels(levels);
     d.set_galerkin(galerkin);
+    d.set_newton_level(newton_level);
     // a session holds the coarse corrections while a person drags (a
     // correction behind a drag delays its frame) and runs them in the
     // settle: so does the replay
@@ -307,7 +317,7 @@ fn run() -> Result<(), String> {
             &rest,
             &factor,
             &c,
-            (params, levels, galerkin),
+            (params, levels, galerkin, newton_level),
             (reference.pose(), r_ref.objective),
         )?
     } else {
@@ -358,13 +368,19 @@ fn one_shot_trace(
     rest: &Arc<Rest>,
     factor: &Factor,
     c: &Constraints,
-    (params, levels, galerkin): (dend::deform::Params, Levels, Option<Galerkin>),
+    (params, levels, galerkin, newton_level): (
+        dend::deform::Params,
+        Levels,
+        Option<Galerkin>,
+        bool,
+    ),
     (star, e_star): (&[Point], f64),
 ) -> Result<Vec<serde_json::Value>, String> {
     let h = rest.mesh().mean_edge_length();
     let mut d = Deformer::new(rest.clone(), params);
     d.set_levels(levels);
     d.set_galerkin(galerkin);
+    d.set_newton_level(newton_level);
     d.prepare_levels(factor, c);
     let mut rows = Vec::new();
     for k in 1..=params.max_iters {

@@ -114,6 +114,9 @@ pub struct Deformer {
     /// The coarse problem of the last fine factor a coarse start or
     /// correction used.
     coarse: Option<CoarseSlot>,
+    /// The coarse problem of the coarse start where it is not the
+    /// corrections' ([`Deformer::start_level`]).
+    start_coarse: Option<CoarseSlot>,
     /// Whether coarse corrections wait (a gesture is under way; see
     /// [`Deformer::hold_corrections`]).
     corrections_held: bool,
@@ -126,6 +129,11 @@ pub struct Deformer {
     /// Whether this deformer is the coarsest level of a hierarchy, whose
     /// iteration takes Newton steps (`solver/newton.rs`).
     newton: bool,
+    /// Whether this deformer solves a coarse level's problem (its first
+    /// level is then never a Newton level).
+    is_coarse: bool,
+    /// [`Deformer::set_newton_level`].
+    newton_level: bool,
     /// The coarse previews' problem and last pose ([`Deformer::preview`]).
     preview: Option<Box<Preview>>,
     /// Raised by another thread to stop a step at its next safe point
@@ -218,10 +226,13 @@ impl Deformer {
             elastic: State::default(),
             levels: Levels::default(),
             coarse: None,
+            start_coarse: None,
             corrections_held: false,
             coarse_start_held: false,
             drift_limit: None,
             newton: false,
+            is_coarse: false,
+            newton_level: false,
             preview: None,
             interrupt: None,
             galerkin_mode: None,
@@ -263,6 +274,27 @@ impl Deformer {
     /// hierarchy where the mesh has coarse levels).
     pub fn set_levels(&mut self, levels: Levels) {
         self.levels = levels;
+    }
+
+    /// Corrects the sequences that do not start from the rest pose (a
+    /// drag's, the settle after a gesture) on the fine mesh's *Newton
+    /// level* (`true`), or on the hierarchy as every other sequence
+    /// (`false`, the default). The Newton level is a coarse level of an
+    /// eighth of the vertices (at the default coarse ratio) with no levels
+    /// below it, whose correction is one Newton step
+    /// (`solver/newton.rs`), on meshes where that level has at most
+    /// [`NEWTON_LEVEL_MAX_VERTICES`](multilevel::NEWTON_LEVEL_MAX_VERTICES)
+    /// vertices; a sequence from the rest pose keeps the hierarchy's start
+    /// and corrections (`Deformer::start_level`).
+    ///
+    /// Not the default: replaying the arc gesture (`drag_sim --path arc
+    /// --newton-level on`) it shortens the characters' settles (camel_9770
+    /// 186 → 153 ms, armadillo_43k 2.45 → 1.86 s, in the same run) but
+    /// doubles the survey's bumpy plane's (629 → 1,309 ms: its 5,050-vertex
+    /// Newton level, simplified eight times, stands for the fine bumps less
+    /// well than the hierarchy's 10,100-vertex level); docs/performance.md.
+    pub fn set_newton_level(&mut self, on: bool) {
+        self.newton_level = on;
     }
 
     /// Holds the coarse corrections of the elastic iteration (`true`) or

@@ -36,6 +36,13 @@
 //!   coarse solve once it stalls ([`CORRECTION_STALL`]). A coarse solve
 //!   whose update grows [`CORRECTION_DRIFT`] iterations in a row is
 //!   drifting, not converging, and stops there too.
+//! - **A Newton level** (opt-in, [`Deformer::set_newton_level`]): the
+//!   corrections of a sequence that does not start from the rest pose run
+//!   on a second coarse problem, a level of about an eighth of the
+//!   vertices with no levels below it, as one Newton step each (the same
+//!   linear term `s`, the same rotation field back); the start from rest
+//!   and its sequence's corrections stay the hierarchy's
+//!   ([`NEWTON_LEVEL_MAX_VERTICES`], `Deformer::start_level`).
 //!
 //! [`ElasticParams::correction_period`]: crate::deform::ElasticParams::correction_period
 //! [`Corrections::WhileFaster`]: crate::deform::Corrections::WhileFaster
@@ -151,6 +158,31 @@ pub const CYCLE_ITERS: usize = 10;
 /// limb edit 31 → 21 iterations.
 pub const NEWTON_CORRECTION_MAX_ITERS: usize = 1;
 
+/// A fine mesh has a Newton level ([`Deformer::set_newton_level`]) when
+/// its level simplified [`NEWTON_LEVEL_RATIO`] times the coarse ratio has
+/// at most this many vertices: a Newton step there costs about two and a
+/// half of the fine mesh's iterations (the 5,400-vertex level under
+/// armadillo_43k). On larger levels (feline_50k's 6,200: the same settle
+/// either way; igea_134k's 16,800) a Newton step costs more than it saves.
+pub const NEWTON_LEVEL_MAX_VERTICES: usize = 6000;
+
+/// The Newton level's simplification, in multiples of the coarse ratio (at
+/// the default ratio 4 the level has an eighth of the vertices).
+pub const NEWTON_LEVEL_RATIO: usize = 2;
+
+/// The ratio of the Newton level of a fine mesh of `n` vertices under the
+/// coarse ratio `ratio` (see [`NEWTON_LEVEL_MAX_VERTICES`]), or `None`
+/// where the mesh keeps the hierarchy: a large mesh, or a small one whose
+/// level at that ratio is the hierarchy's first level anyway.
+pub fn newton_level_ratio(n: usize, ratio: usize) -> Option<usize> {
+    let wanted = NEWTON_LEVEL_RATIO * ratio;
+    let actual = crate::deform::coarse::ratio_at_most(n, wanted);
+    (n >= crate::deform::coarse::MIN_VERTICES
+        && actual > ratio.max(2)
+        && n / actual <= NEWTON_LEVEL_MAX_VERTICES)
+        .then_some(wanted)
+}
+
 impl Levels {
     /// The levels the coarse problem's own solve uses.
     fn below(self) -> Levels {
@@ -170,11 +202,12 @@ pub(super) fn coarse_params(rest: &Rest, params: &Params, level: &CoarseLevel) -
 }
 
 /// Builds the coarse problem of `constraints`' set on the level of at
-/// most `ratio` (module docs).
+/// most `ratio` (module docs); `newton_level`: the level takes Newton
+/// steps and has no levels below it ([`newton_level_ratio`]).
 pub(super) fn coarse_problem(
     rest: &Arc<Rest>,
     params: &Params,
-    ratio: usize,
+    (ratio, newton_level): (usize, bool),
     constraints: &Constraints,
     levels: Levels,
 ) -> Option<CoarseProblem> {
@@ -194,10 +227,19 @@ pub(super) fn coarse_problem(
     // a coarse problem's own corrections are its coarse problems' (the
     // coarse start from rest converges each level's problem by them)
     deformer.set_galerkin(None);
-    // the coarsest level of a hierarchy takes Newton steps
-    deformer.newton = levels == Levels::Many && level.rest.coarse_at_most(ratio).is_none();
+    // the coarsest level of a hierarchy takes Newton steps, and so does a
+    // fine mesh's Newton level, with no levels below it
+    deformer.newton =
+        levels == Levels::Many && (newton_level || level.rest.coarse_at_most(ratio).is_none());
+    deformer.is_coarse = true;
+    let levels_below = if newton_level {
+        Levels::One
+    } else {
+        levels.below()
+    };
+    deformer.set_levels(levels_below);
     Some(CoarseProblem {
-        levels_below: levels.below(),
+        levels_below,
         level,
         factor,
         deformer,
@@ -331,28 +373,76 @@ pub(super) enum Correction {
 }
 
 impl Deformer {
+    /// The level below this deformer's mesh: its coarse ratio, and whether
+    /// it is a Newton level ([`newton_level_ratio`], only below the fine
+    /// mesh of a hierarchy); `None` for a formulation without levels.
+    fn first_level(&self) -> Option<(usize, bool)> {
+        let ratio = self.params.elastic()?.coarse_ratio;
+        if self.is_coarse || !self.newton_level || self.levels != Levels::Many {
+            return Some((ratio, false));
+        }
+        Some(
+            match newton_level_ratio(self.rest.mesh.num_vertices(), ratio) {
+                Some(r) => (r, true),
+                None => (ratio, false),
+            },
+        )
+    }
+
     /// The rotations of the elastic iteration's current pose, `#V` (the
     /// identity before the first step).
     pub(crate) fn rotations(&self) -> &[UnitQuaternion<Real>] {
         &self.elastic.rot
     }
 
+    /// The level the coarse start from the rest pose and a sequence from
+    /// the rest pose's corrections solve on: the hierarchy's first level,
+    /// also on a mesh with a Newton level. From the rest pose the Newton
+    /// level's corrections fail their line search far from the minimum
+    /// and its start alone lands further from it (the posing suite's
+    /// armadillo_43k standard edit took 30 fine iterations instead of 19,
+    /// and the survey's bumpy plane stopped in another basin; both fixed
+    /// with the hierarchy's start and corrections from rest).
+    fn start_level(&self) -> Option<(usize, bool)> {
+        Some((self.params.elastic()?.coarse_ratio, false))
+    }
+
+    /// Whether the coarse start and the corrections use different coarse
+    /// problems (a Newton level).
+    fn separate_start(&self) -> bool {
+        self.first_level() != self.start_level()
+    }
+
     /// Runs `f` with the coarse problem of `constraints`' set (built on
-    /// first use for the fine `factor`), or returns `None` when there is
-    /// none ([`Levels::One`], a small mesh, a set that does not survive).
+    /// first use for the fine `factor`): the corrections' (`start`
+    /// false) or the coarse start's ([`Deformer::start_level`]), or
+    /// returns `None` when there is none ([`Levels::One`], a small mesh, a
+    /// set that does not survive).
     fn with_coarse<R>(
         &mut self,
         factor: &Factor,
         constraints: &Constraints,
+        start: bool,
         f: impl FnOnce(&mut Deformer, &mut CoarseProblem, &Constraints) -> Option<R>,
     ) -> Option<R> {
         if self.levels == Levels::One {
             return None;
         }
-        let key = (factor.id(), self.params.elastic()?.coarse_ratio);
-        let mut problem = match self.coarse.take() {
+        let separate = start && self.separate_start();
+        let first = if separate {
+            self.start_level()?
+        } else {
+            self.first_level()?
+        };
+        let key = (factor.id(), first.0);
+        let slot = if separate {
+            self.start_coarse.take()
+        } else {
+            self.coarse.take()
+        };
+        let mut problem = match slot {
             Some((k, p)) if k == key => p,
-            _ => coarse_problem(&self.rest, &self.params, key.1, constraints, self.levels)
+            _ => coarse_problem(&self.rest, &self.params, first, constraints, self.levels)
                 .map(Box::new),
         };
         let out = match problem.as_deref_mut() {
@@ -365,7 +455,11 @@ impl Deformer {
             },
             None => None,
         };
-        self.coarse = Some((key, problem));
+        if separate {
+            self.start_coarse = Some((key, problem));
+        } else {
+            self.coarse = Some((key, problem));
+        }
         out
     }
 
@@ -384,7 +478,10 @@ impl Deformer {
         }
         let rest = self.rest.clone();
         let internal = rest.internal_constraints(constraints);
-        self.with_coarse(factor, &internal, |_, p, cc| p.prepare_below(cc));
+        self.with_coarse(factor, &internal, false, |_, p, cc| p.prepare_below(cc));
+        if self.separate_start() {
+            self.with_coarse(factor, &internal, true, |_, p, cc| p.prepare_below(cc));
+        }
     }
 
     /// Sets the rotations of the vertices with `set.fit` (and the area
@@ -398,7 +495,7 @@ impl Deformer {
         constraints: &Constraints,
     ) -> Option<CoarseRun> {
         let t0 = Instant::now();
-        self.with_coarse(factor, constraints, |fine, p, cc| {
+        self.with_coarse(factor, constraints, true, |fine, p, cc| {
             let solved = p
                 .solved_start
                 .take()
@@ -431,31 +528,42 @@ impl Deformer {
             && self.params.detail == DetailTerm::Nonlinear;
         let ahead = levels_used && self.elastic.starts_from_rest();
         let (rest, params, levels) = (&self.rest, &self.params, self.levels);
+        let (first, start_first) = (self.first_level(), self.start_level());
+        let separate = self.separate_start();
         // (`Factor::build` takes the mesh's order, the coarse problem the
         // solver's)
         let internal = rest.internal_constraints(constraints);
-        let (factor, solved) = rayon::join(
+        let build = |first: (usize, bool), solve: bool| {
+            let t0 = Instant::now();
+            let mut p = coarse_problem(rest, params, first, &internal, levels)?;
+            let cc = p.level.restrict(&internal)?;
+            p.deformer.params = coarse_params(rest, params, &p.level);
+            if solve {
+                p.solved_start = Some(solve_start(&mut p, &cc, &internal, t0)?);
+            }
+            // the levels below, for the corrections
+            p.prepare_below(&cc)?;
+            Some(Box::new(p))
+        };
+        let (factor, (solved, start)) = rayon::join(
             || Factor::build(rest, params, constraints),
             || {
                 if !levels_used {
-                    return None;
+                    return (None, None);
                 }
-                let t0 = Instant::now();
-                let ratio = params.elastic()?.coarse_ratio;
-                let mut p = coarse_problem(rest, params, ratio, &internal, levels)?;
-                let cc = p.level.restrict(&internal)?;
-                p.deformer.params = coarse_params(rest, params, &p.level);
-                if ahead {
-                    p.solved_start = Some(solve_start(&mut p, &cc, &internal, t0)?);
-                }
-                // the levels below, for the corrections
-                p.prepare_below(&cc)?;
-                Some(Box::new(p))
+                let solved = first.and_then(|f| build(f, ahead && !separate));
+                let start = start_first
+                    .filter(|_| separate)
+                    .and_then(|f| build(f, ahead));
+                (solved, start)
             },
         );
         let factor = factor?;
-        if let (Some(p), Some(e)) = (solved, self.params.elastic()) {
-            self.coarse = Some(((factor.id(), e.coarse_ratio), Some(p)));
+        if let (Some(p), Some((ratio, _))) = (solved, first) {
+            self.coarse = Some(((factor.id(), ratio), Some(p)));
+        }
+        if let (Some(p), Some((ratio, _))) = (start, start_first) {
+            self.start_coarse = Some(((factor.id(), ratio), Some(p)));
         }
         Ok(factor)
     }
@@ -478,7 +586,11 @@ impl Deformer {
             ms: ms(t0),
             work: work + fine,
         };
-        let field = self.with_coarse(factor, constraints, |fine, p, cc| {
+        // a sequence from the rest pose corrects on the hierarchy, one
+        // from another pose (a drag's, a settle's) on the Newton level
+        // where there is one (`start_level`)
+        let from_rest = self.elastic.from_rest;
+        let field = self.with_coarse(factor, constraints, from_rest, |fine, p, cc| {
             // r_f = g_f − Q_f Y at the current rotations
             let r_f = fine.residual_now(el, set).to_vec();
             // the fine pose injected, its rotations and residual there

@@ -135,8 +135,14 @@ impl Deformer {
                 // its iterations, which a correction or a Newton step would
                 // make several times longer (feline drag→frame p50 34 → 65
                 // ms with the hierarchy's)
-                problem: coarse_problem(&self.rest, &self.params, key.1, constraints, Levels::Two)
-                    .map(Box::new),
+                problem: coarse_problem(
+                    &self.rest,
+                    &self.params,
+                    (key.1, false),
+                    constraints,
+                    Levels::Two,
+                )
+                .map(Box::new),
                 following: false,
                 pending: false,
                 pose: Vec::new(),

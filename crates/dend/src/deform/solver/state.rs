@@ -57,6 +57,10 @@ pub(super) struct State {
     /// iterations since the last one, and the energy after it.
     pub(super) corrections: bool,
     pub(super) since_correction: usize,
+    /// Whether this sequence started from the rest pose (its corrections
+    /// are then the hierarchy's, not a Newton level's:
+    /// `solver/multilevel.rs`).
+    pub(super) from_rest: bool,
     pub(super) e_mark: Real,
     /// The sequence's last update (largest vertex move) and how many
     /// iterations in a row it has grown ([`Deformer::drift_limit`]).
