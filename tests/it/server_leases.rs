@@ -119,6 +119,8 @@ async fn leased_elsewhere_is_refused_then_taken_over_and_the_old_owner_fenced(
         Some(ErrorCode::SessionOwnedElsewhere)
     );
     assert!(b.registry.get(&s.id).is_none_or(|h| h.is_fenced()));
+    // and no longer counts it as its own
+    assert_eq!(cb.metric("dend_sessions_owned").await?, Some(0.0));
     assert!(
         (handle_x(&sa).await? - 0.5).abs() < 1e-9,
         "the fenced drag is nowhere"

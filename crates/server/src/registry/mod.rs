@@ -137,11 +137,18 @@ impl SessionRegistry {
             .collect()
     }
 
-    /// Sets the live-session gauges (`sessions`, `sessions_owned`).
+    /// Sets the live-session gauges (`sessions`, `sessions_owned`). A
+    /// fenced session (a store write of its found the lease another
+    /// instance's) stays live here until its clients leave, but is no
+    /// longer owned: the lease renewal skips it, so counting it kept the
+    /// gauge at the sessions a resumed frozen instance had lost.
     pub fn update_gauges(&self) {
-        let n = self.len() as i64;
-        self.parts.metrics.sessions.set(n);
-        self.parts.metrics.sessions_owned.set(n);
+        let (n, owned) = {
+            let live = self.live.read();
+            (live.len(), live.values().filter(|s| !s.is_fenced()).count())
+        };
+        self.parts.metrics.sessions.set(n as i64);
+        self.parts.metrics.sessions_owned.set(owned as i64);
     }
 
     /// Starts a drain: from now on no session is created or opened here
