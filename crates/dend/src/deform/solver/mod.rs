@@ -289,10 +289,13 @@ impl Deformer {
     ///
     /// Not the default: replaying the arc gesture (`drag_sim --path arc
     /// --newton-level on`) it shortens the characters' settles (camel_9770
-    /// 186 → 153 ms, armadillo_43k 2.45 → 1.86 s, in the same run) but
-    /// doubles the survey's bumpy plane's (629 → 1,309 ms: its 5,050-vertex
+    /// 170 → 132 ms, armadillo_43k 2.47 → 1.83 s, in the same run) but
+    /// doubles the survey's bumpy plane's (587 → 1,267 ms: its 5,050-vertex
     /// Newton level, simplified eight times, stands for the fine bumps less
-    /// well than the hierarchy's 10,100-vertex level); docs/performance.md.
+    /// well than the hierarchy's 10,100-vertex level); through the server
+    /// the camel's settle after a person's 30 Hz gesture falls (201 → 138
+    /// ms) but after a closed-loop gesture rises (221 → 279 ms);
+    /// docs/performance.md.
     pub fn set_newton_level(&mut self, on: bool) {
         self.newton_level = on;
     }
