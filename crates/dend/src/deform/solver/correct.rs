@@ -29,6 +29,8 @@ impl Deformer {
         report: &mut StepReport,
     ) -> Real {
         let gain_before = self.elastic.e_mark - e;
+        let on_newton_level =
+            self.galerkin_mode.is_none() && !self.elastic.on_hierarchy && self.separate_start();
         let outcome = if let Some(g) = self.galerkin_mode {
             self.galerkin_correction(factor, (el, set), e, g)
         } else {
@@ -75,6 +77,15 @@ impl Deformer {
             Some(Corrections::WhileGaining) => gain > 0.0,
             None => false,
         };
+        if on_newton_level && gain == 0.0 {
+            // a Newton level's correction that gains nothing (its Newton
+            // step far from where the level's model holds) hands the
+            // sequence's corrections to the hierarchy, which go on: after a
+            // closed-loop gesture on camel_9770 the settle otherwise ended
+            // its corrections there and crawled to the 100-iteration cap
+            st.on_hierarchy = true;
+            st.corrections = true;
+        }
         st.e_mark = e;
         e
     }

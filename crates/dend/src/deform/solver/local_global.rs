@@ -387,7 +387,7 @@ impl Deformer {
         st.last_update = Real::INFINITY;
         st.grew = 0;
         let start = std::mem::replace(&mut st.start, Start::Warm);
-        st.from_rest = start == Start::Rest;
+        st.on_hierarchy = start == Start::Rest;
         // constrained vertices whose rotation is not fitted carry their
         // handle's rotation (the fixed ones the identity)
         for &v in &constraints.fixed {

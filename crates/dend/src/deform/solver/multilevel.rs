@@ -409,7 +409,7 @@ impl Deformer {
 
     /// Whether the coarse start and the corrections use different coarse
     /// problems (a Newton level).
-    fn separate_start(&self) -> bool {
+    pub(super) fn separate_start(&self) -> bool {
         self.first_level() != self.start_level()
     }
 
@@ -588,9 +588,10 @@ impl Deformer {
         };
         // a sequence from the rest pose corrects on the hierarchy, one
         // from another pose (a drag's, a settle's) on the Newton level
-        // where there is one (`start_level`)
-        let from_rest = self.elastic.from_rest;
-        let field = self.with_coarse(factor, constraints, from_rest, |fine, p, cc| {
+        // where there is one (`start_level`), until a correction there
+        // gains nothing (`correct`)
+        let on_hierarchy = self.elastic.on_hierarchy;
+        let field = self.with_coarse(factor, constraints, on_hierarchy, |fine, p, cc| {
             // r_f = g_f − Q_f Y at the current rotations
             let r_f = fine.residual_now(el, set).to_vec();
             // the fine pose injected, its rotations and residual there

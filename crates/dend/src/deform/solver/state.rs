@@ -57,10 +57,10 @@ pub(super) struct State {
     /// iterations since the last one, and the energy after it.
     pub(super) corrections: bool,
     pub(super) since_correction: usize,
-    /// Whether this sequence started from the rest pose (its corrections
-    /// are then the hierarchy's, not a Newton level's:
-    /// `solver/multilevel.rs`).
-    pub(super) from_rest: bool,
+    /// Whether this sequence corrects on the hierarchy where the mesh has
+    /// a Newton level (`solver/multilevel.rs`): it started from the rest
+    /// pose, or a correction on the Newton level gained nothing.
+    pub(super) on_hierarchy: bool,
     pub(super) e_mark: Real,
     /// The sequence's last update (largest vertex move) and how many
     /// iterations in a row it has grown ([`Deformer::drift_limit`]).
