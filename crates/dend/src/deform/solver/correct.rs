@@ -36,6 +36,7 @@ impl Deformer {
         } else {
             self.coarse_correction(factor, (el, set), constraints, e)
         };
+        let dropped = matches!(outcome, Correction::Dropped(_));
         let (gain, run) = match outcome {
             Correction::Kept(e_new, run) => {
                 let gain = e - e_new;
@@ -77,7 +78,7 @@ impl Deformer {
             Some(Corrections::WhileGaining) => gain > 0.0,
             None => false,
         };
-        if on_newton_level && gain == 0.0 {
+        if on_newton_level && dropped {
             // a Newton level's correction that gains nothing (its Newton
             // step far from where the level's model holds) hands the
             // sequence's corrections to the hierarchy, which go on: after a

@@ -102,12 +102,31 @@ fn run(
 /// The creature's edit: feet fixed, the head moved up and sideways and
 /// turned 40° about the vertical.
 fn creature_edit(mesh: &Mesh, s: Real) -> Constraints {
+    creature_edit_part(mesh, s, 1.0)
+}
+
+/// The fraction `k` of [`creature_edit`]: the head moved `k` of the way
+/// and turned `k` × 40°.
+fn creature_edit_part(mesh: &Mesh, s: Real, k: Real) -> Constraints {
     let mut spec = creature_constraints(mesh);
-    spec.handles[0].translate = Some([0.0, 0.3 * s, 0.4 * s]);
+    spec.handles[0].translate = Some([0.0, 0.3 * s * k, 0.4 * s * k]);
     let mut c = spec.resolve(mesh).unwrap();
     c.handles[0].target.rotation =
-        UnitQuaternion::from_axis_angle(&Vector3::y_axis(), 40f64.to_radians());
+        UnitQuaternion::from_axis_angle(&Vector3::y_axis(), (40.0 * k).to_radians());
     c
+}
+
+/// The objective of `c`'s minimum: a one-level solve from rest to
+/// tolerance 1e-7.
+fn tight_minimum(rest: &Arc<Rest>, f: &Factor, c: &Constraints) -> Real {
+    let mut tight = Params::default();
+    tight.tol = 1e-7;
+    tight.max_iters = 3000;
+    let mut reference = Deformer::new(rest.clone(), tight);
+    reference.set_levels(Levels::One);
+    let r = reference.step(f, c, tight.max_iters).unwrap();
+    assert!(r.converged, "tight reference: {r:?}");
+    r.objective
 }
 
 /// Scaling a mesh by 37 or 1/37 gives the same levels (the same coarse
@@ -288,12 +307,7 @@ fn a_warm_sequence_corrects_on_the_newton_level_and_reaches_the_minimum() {
     let newton_ratio = newton_level_ratio(n, ratio).expect("the tube has a Newton level");
     let rest = Arc::new(Rest::new(mesh).unwrap());
     let f = Factor::build(&rest, &params, &c).unwrap();
-    let mut tight = params;
-    tight.tol = 1e-7;
-    tight.max_iters = 3000;
-    let mut reference = Deformer::new(rest.clone(), tight);
-    reference.set_levels(Levels::One);
-    let e_min = reference.step(&f, &c, tight.max_iters).unwrap().objective;
+    let e_min = tight_minimum(&rest, &f, &c);
     for newton_level in [false, true] {
         let mut d = Deformer::new(rest.clone(), params);
         d.set_newton_level(newton_level);
@@ -305,16 +319,15 @@ fn a_warm_sequence_corrects_on_the_newton_level_and_reaches_the_minimum() {
         let (_, Some(p)) = d.coarse.as_ref().expect("the corrections' problem") else {
             panic!("no coarse problem");
         };
+        let shrink = n as Real / p.level.num_vertices() as Real;
         if newton_level {
             // the corrections' level is the Newton level: an eighth of
             // the vertices, Newton steps, nothing below
             assert!(p.deformer.newton && p.levels_below == Levels::One);
-            let shrink = n as Real / p.level.num_vertices() as Real;
             assert!(shrink > 0.75 * newton_ratio as Real, "{shrink}");
             assert!(d.start_coarse.is_some(), "no start on the hierarchy");
         } else {
             // the hierarchy's first level (its coarsest here)
-            let shrink = n as Real / p.level.num_vertices() as Real;
             assert!(shrink < 0.75 * newton_ratio as Real, "{shrink}");
             assert!(d.start_coarse.is_none());
         }
@@ -330,30 +343,18 @@ fn a_warm_sequence_corrects_on_the_newton_level_and_reaches_the_minimum() {
 #[test]
 fn a_settle_after_a_gesture_on_the_newton_level_converges() {
     let mesh = jittered_creature(3);
-    let at = |k: Real| {
-        let mut spec = creature_constraints(&mesh);
-        spec.handles[0].translate = Some([0.0, 0.3 * k, 0.4 * k]);
-        let mut c = spec.resolve(&mesh).unwrap();
-        c.handles[0].target.rotation =
-            UnitQuaternion::from_axis_angle(&Vector3::y_axis(), (40.0 * k).to_radians());
-        c
-    };
-    let c = at(1.0);
+    let c = creature_edit(&mesh, 1.0);
     let params = Params::default();
     let rest = Arc::new(Rest::new(mesh.clone()).unwrap());
     let f = Factor::build(&rest, &params, &c).unwrap();
-    let mut tight = params;
-    tight.tol = 1e-7;
-    tight.max_iters = 3000;
-    let mut reference = Deformer::new(rest.clone(), tight);
-    reference.set_levels(Levels::One);
-    let e_min = reference.step(&f, &c, tight.max_iters).unwrap().objective;
+    let e_min = tight_minimum(&rest, &f, &c);
     let mut d = Deformer::new(rest.clone(), params);
     d.set_newton_level(true);
     d.hold_corrections(true);
     let drags = 100;
     for k in 1..=drags {
-        d.step(&f, &at(k as Real / drags as Real), 1).unwrap();
+        let part = creature_edit_part(&mesh, 1.0, k as Real / drags as Real);
+        d.step(&f, &part, 1).unwrap();
     }
     d.hold_corrections(false);
     let (mut its, mut last) = (0, None);

@@ -129,9 +129,6 @@ pub struct Deformer {
     /// Whether this deformer is the coarsest level of a hierarchy, whose
     /// iteration takes Newton steps (`solver/newton.rs`).
     newton: bool,
-    /// Whether this deformer solves a coarse level's problem (its first
-    /// level is then never a Newton level).
-    is_coarse: bool,
     /// [`Deformer::set_newton_level`].
     newton_level: bool,
     /// The coarse previews' problem and last pose ([`Deformer::preview`]).
@@ -231,7 +228,6 @@ impl Deformer {
             coarse_start_held: false,
             drift_limit: None,
             newton: false,
-            is_coarse: false,
             newton_level: false,
             preview: None,
             interrupt: None,

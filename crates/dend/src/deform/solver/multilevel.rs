@@ -223,7 +223,6 @@ pub(super) fn coarse_problem(
         coarse_fixed[v as usize] = true;
     }
     let mut deformer = Box::new(Deformer::new(level.rest.clone(), *params));
-    deformer.set_levels(levels.below());
     // a coarse problem's own corrections are its coarse problems' (the
     // coarse start from rest converges each level's problem by them)
     deformer.set_galerkin(None);
@@ -231,7 +230,6 @@ pub(super) fn coarse_problem(
     // fine mesh's Newton level, with no levels below it
     deformer.newton =
         levels == Levels::Many && (newton_level || level.rest.coarse_at_most(ratio).is_none());
-    deformer.is_coarse = true;
     let levels_below = if newton_level {
         Levels::One
     } else {
@@ -375,10 +373,11 @@ pub(super) enum Correction {
 impl Deformer {
     /// The level below this deformer's mesh: its coarse ratio, and whether
     /// it is a Newton level ([`newton_level_ratio`], only below the fine
-    /// mesh of a hierarchy); `None` for a formulation without levels.
+    /// mesh of a hierarchy: a coarse problem's deformer never has the
+    /// option set); `None` for a formulation without levels.
     fn first_level(&self) -> Option<(usize, bool)> {
         let ratio = self.params.elastic()?.coarse_ratio;
-        if self.is_coarse || !self.newton_level || self.levels != Levels::Many {
+        if !self.newton_level || self.levels != Levels::Many {
             return Some((ratio, false));
         }
         Some(
@@ -408,9 +407,10 @@ impl Deformer {
     }
 
     /// Whether the coarse start and the corrections use different coarse
-    /// problems (a Newton level).
+    /// problems: the first level is a Newton level.
     pub(super) fn separate_start(&self) -> bool {
-        self.first_level() != self.start_level()
+        self.first_level()
+            .is_some_and(|(_, newton_level)| newton_level)
     }
 
     /// Runs `f` with the coarse problem of `constraints`' set (built on
