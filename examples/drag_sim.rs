@@ -210,10 +210,13 @@ fn run() -> Result<(), String> {
     // one shot: the final target from rest
     c.handles[0].target = target_at(1.0, arc, axis, extent, pivot);
     let fine_ms = fine_iteration_ms(&rest, &factor, &c, params)?;
-    let mut one = Deformer::new(rest.clone(), params);
-    one.set_levels(levels);
-    one.set_galerkin(galerkin);
-    one.set_newton_level(newton_level);
+    let setup = Setup {
+        params,
+        levels,
+        galerkin,
+        newton_level,
+    };
+    let mut one = setup.deformer(&rest);
     // every level's factor is the constraint set's precomputation, as the
     // fine factor is (a session builds them before it is ready)
     one.prepare_levels(&factor, &c);
@@ -224,10 +227,7 @@ fn run() -> Result<(), String> {
     let one_ms = t.elapsed().as_secs_f64() * 1e3;
 
     // the drag loop
-    let mut d = Deformer::new(rest.clone(), params);
-    d.set_levels(levels);
-    d.set_galerkin(galerkin);
-    d.set_newton_level(newton_level);
+    let mut d = setup.deformer(&rest);
     // a session holds the coarse corrections while a person drags (a
     // correction behind a drag delays its frame) and runs them in the
     // settle: so does the replay
@@ -317,7 +317,7 @@ fn run() -> Result<(), String> {
             &rest,
             &factor,
             &c,
-            (params, levels, galerkin, newton_level),
+            setup,
             (reference.pose(), r_ref.objective),
         )?
     } else {
@@ -355,6 +355,27 @@ fn run() -> Result<(), String> {
     Ok(())
 }
 
+/// The solver's settings a run compares: every deformer of the run is
+/// made with them.
+#[derive(Clone, Copy)]
+struct Setup {
+    params: dend::deform::Params,
+    levels: Levels,
+    galerkin: Option<Galerkin>,
+    newton_level: bool,
+}
+
+impl Setup {
+    /// A deformer at the rest pose with these settings.
+    fn deformer(&self, rest: &Arc<Rest>) -> Deformer {
+        let mut d = Deformer::new(rest.clone(), self.params);
+        d.set_levels(self.levels);
+        d.set_galerkin(self.galerkin);
+        d.set_newton_level(self.newton_level);
+        d
+    }
+}
+
 /// The one-shot solve again, one iteration per step (the same iterates as
 /// one call), with each iteration's distance to the minimum `star` (its
 /// pose and objective, solved to a tight tolerance): the objective's
@@ -368,22 +389,14 @@ fn one_shot_trace(
     rest: &Arc<Rest>,
     factor: &Factor,
     c: &Constraints,
-    (params, levels, galerkin, newton_level): (
-        dend::deform::Params,
-        Levels,
-        Option<Galerkin>,
-        bool,
-    ),
+    setup: Setup,
     (star, e_star): (&[Point], f64),
 ) -> Result<Vec<serde_json::Value>, String> {
     let h = rest.mesh().mean_edge_length();
-    let mut d = Deformer::new(rest.clone(), params);
-    d.set_levels(levels);
-    d.set_galerkin(galerkin);
-    d.set_newton_level(newton_level);
+    let mut d = setup.deformer(rest);
     d.prepare_levels(factor, c);
     let mut rows = Vec::new();
-    for k in 1..=params.max_iters {
+    for k in 1..=setup.params.max_iters {
         let r = d.step(factor, c, 1).map_err(|e| e.to_string())?;
         let d2: Vec<f64> = d
             .pose()
