@@ -119,9 +119,11 @@ fn creature_edit_part(mesh: &Mesh, s: Real, k: Real) -> Constraints {
 /// The objective of `c`'s minimum: a one-level solve from rest to
 /// tolerance 1e-7.
 fn tight_minimum(rest: &Arc<Rest>, f: &Factor, c: &Constraints) -> Real {
-    let mut tight = Params::default();
-    tight.tol = 1e-7;
-    tight.max_iters = 3000;
+    let tight = Params {
+        tol: 1e-7,
+        max_iters: 3000,
+        ..Params::default()
+    };
     let mut reference = Deformer::new(rest.clone(), tight);
     reference.set_levels(Levels::One);
     let r = reference.step(f, c, tight.max_iters).unwrap();
