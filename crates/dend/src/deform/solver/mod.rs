@@ -53,6 +53,8 @@ mod order_tests;
 mod rest_start_tests;
 #[cfg(test)]
 mod test_util;
+#[cfg(test)]
+mod turn_tests;
 
 /// What one [`Deformer::step`] did.
 #[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]

@@ -17,6 +17,9 @@ pub(super) struct State {
     /// `R(Y)` of the current pose (and the candidate's, while tried).
     pub(super) rot: Vec<UnitQuaternion<Real>>,
     pub(super) rot_try: Vec<UnitQuaternion<Real>>,
+    /// Each vertex's turn `exp(w_i)` while rotations turn by a field of
+    /// rotation vectors (scratch of `Deformer::turn_rotations`).
+    pub(super) turns: Vec<UnitQuaternion<Real>>,
     /// The area projections `P_t` (and the candidate's).
     pub(super) proj: Vec<[Real; 6]>,
     pub(super) proj_try: Vec<[Real; 6]>,
