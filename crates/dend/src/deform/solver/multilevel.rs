@@ -54,7 +54,7 @@ use std::time::Instant;
 use nalgebra::{UnitQuaternion, Vector3};
 
 use super::levels::{CoarseRun, Levels};
-use super::{CoarseProblem, Deformer, SolvedStart};
+use super::{CoarseProblem, CoarseSlot, Deformer, SolvedStart};
 use crate::deform::coarse::{CoarseLevel, PROLONGATION_PASSES, RESTRICTION_PASSES};
 use crate::deform::constraints::{Constraints, RigidTransform};
 use crate::deform::elastic::{ElasticOps, ElasticSet};
@@ -435,12 +435,7 @@ impl Deformer {
             self.first_level()?
         };
         let key = (factor.id(), first.0);
-        let slot = if separate {
-            self.start_coarse.take()
-        } else {
-            self.coarse.take()
-        };
-        let mut problem = match slot {
+        let mut problem = match self.coarse_slot(separate).take() {
             Some((k, p)) if k == key => p,
             _ => coarse_problem(&self.rest, &self.params, first, constraints, self.levels)
                 .map(Box::new),
@@ -455,12 +450,18 @@ impl Deformer {
             },
             None => None,
         };
-        if separate {
-            self.start_coarse = Some((key, problem));
-        } else {
-            self.coarse = Some((key, problem));
-        }
+        *self.coarse_slot(separate) = Some((key, problem));
         out
+    }
+
+    /// Where [`Deformer::with_coarse`] keeps its coarse problem: the coarse
+    /// start's own slot (`separate`) or the corrections'.
+    fn coarse_slot(&mut self, separate: bool) -> &mut Option<CoarseSlot> {
+        if separate {
+            &mut self.start_coarse
+        } else {
+            &mut self.coarse
+        }
     }
 
     /// Builds what solving `constraints`' set with `factor` needs on every
