@@ -15,7 +15,7 @@
 //!     [--path line|arc] [--preset characters|elastica] [--previews] [--levels 1|2|3 (default 3)]
 //!     [--correction-period K] [--coarse-ratio R] [--tol T] [--anderson W]
 //!     [--area KA] [--stretch KS] [--error-trace] [--galerkin off|DEPTH[,LAG[,PERIOD[,SMOOTH]]]]
-//!     [--newton-level on|off]
+//!     [--newton-level on|off] [--level-minima]
 //! ```
 //!
 //! `--galerkin` makes the coarse corrections Galerkin ones
@@ -34,6 +34,11 @@
 //! iterations plus `StepReport::coarse_work`, each level's iterations
 //! weighted by its vertex count: a count that does not depend on the host
 //! or on what else it runs).
+//!
+//! With `--level-minima`, `level_minima` holds each coarse level's own
+//! minimum of the final target against the fine minimum (solves to
+//! tolerance 1e-5, `dend::deform::level_minima`): how far the levels'
+//! models stand from the fine one, whatever the solver's schedule.
 //!
 //! With `--error-trace`, `one_shot_trace` has one row per iteration of the
 //! one-shot solve: its distance to the tight-tolerance minimum (objective
@@ -126,6 +131,7 @@ fn run() -> Result<(), String> {
     let arc = arg::<String>(&args, "--path").as_deref() == Some("arc");
     let previews = args.iter().any(|a| a == "--previews");
     let error_trace = args.iter().any(|a| a == "--error-trace");
+    let with_level_minima = args.iter().any(|a| a == "--level-minima");
     let preset = arg::<String>(&args, "--preset")
         .map(|p| Preset::from_name(&p).ok_or(format!("unknown preset {p}")))
         .transpose()?
@@ -323,6 +329,14 @@ fn run() -> Result<(), String> {
     } else {
         Vec::new()
     };
+    let minima = if with_level_minima {
+        let mut p = params;
+        p.tol = 1e-5;
+        p.max_iters = 3000;
+        Some(dend::deform::level_minima(&rest, &p, &c).map_err(|e| e.to_string())?)
+    } else {
+        None
+    };
     let out = serde_json::json!({
         "mesh": spec,
         "vertices": mesh.num_vertices(),
@@ -348,6 +362,7 @@ fn run() -> Result<(), String> {
                       "one_shot_gap": dist(one.pose(), reference.pose()) / diag,
                       "settled_gap": dist(d.pose(), reference.pose()) / diag},
         "one_shot_trace": trace,
+        "level_minima": minima,
         "objective_ratio": last.objective / r1.objective,
         "gap_over_diagonal": gap / diag,
     });

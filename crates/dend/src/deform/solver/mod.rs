@@ -26,6 +26,7 @@ mod correct;
 mod galerkin;
 mod galerkin_state;
 mod least_squares;
+pub(super) mod level_minima;
 mod levels;
 mod local_global;
 pub(super) mod multilevel;
@@ -43,6 +44,8 @@ mod galerkin_tests;
 mod hierarchy_tests;
 #[cfg(test)]
 mod interrupt_tests;
+#[cfg(test)]
+mod level_minima_tests;
 #[cfg(test)]
 mod newton_tests;
 #[cfg(test)]
