@@ -92,14 +92,16 @@ pub fn level_minima(
     // level's vertices are vertices of the level above in its solver order
     let mut at_fine: Vec<Point> = fine.y.iter().map(|&p| rest.ops.denormalise(p)).collect();
     let mut cc = rest.internal_constraints(constraints).into_owned();
-    let mut above = rest.clone();
+    let (mut above, mut params_above) = (rest.clone(), *params);
     while let Some(level) = above.coarse_at_most(ratio) {
         let Some(restricted) = level.restrict(&cc) else {
             break;
         };
         cc = restricted;
         at_fine = level.fine_of.iter().map(|&v| at_fine[v as usize]).collect();
-        let p = coarse_params(&above, params, &level);
+        // (each level's tolerance in its own mean edge lengths, from the
+        // level above's, as a correction's)
+        let p = coarse_params(&above, &params_above, &level);
         let r = &level.rest;
         let f = Factor::build(r, &p, &cc)?;
         let mut own = Deformer::new(r.clone(), p);
@@ -129,6 +131,7 @@ pub fn level_minima(
             objective_at_fine,
         });
         above = level.rest.clone();
+        params_above = p;
     }
     Ok(out)
 }
