@@ -62,15 +62,26 @@ impl Actor {
     }
 
     pub(super) fn checkpoint(&mut self) {
+        // the targets hold every drag received, also those the next solve
+        // has yet to journal (`last_seq`), and writing the checkpoint
+        // empties the stored journal: so its `ack_seq` is `last_seq`, and
+        // those drags, now in the checkpoint, are not journaled again. With
+        // the shown pose's `applied_seq` instead, a revival after a drag
+        // that arrived as the pose settled served that drag's target under
+        // the previous sequence number, and a client resending the drag
+        // would have had it applied twice.
         let cp = Checkpoint {
             revision: self.shown.revision,
-            ack_seq: self.shown.applied_seq,
+            ack_seq: self.shown.last_seq.max(self.shown.applied_seq),
             pose: self.shown.pose.to_vec(),
             targets: self.targets().iter().map(StoredTransform::from).collect(),
         };
         let (store, id, fence) = (&self.opts.store, &self.inner.id, self.opts.fence);
         match off_worker(|| store.checkpoint(id, fence, &cp)) {
-            Ok(()) => {}
+            Ok(()) => {
+                self.solve.journal.clear();
+                self.set.confirmed = self.set.constraints.clone();
+            }
             // the session was deleted while this checkpoint was on its way
             // (a settle frame racing a close): there is nothing to keep
             Err(StoreError::Missing(_)) => {
