@@ -107,11 +107,6 @@ pub fn level_minima(
         let mut own = Deformer::new(r.clone(), p);
         own.set_levels(Levels::One);
         let solved = own.step(&f, &cc, p.max_iters)?;
-        // (a coarse level keeps its own vertex order: its poses are in it)
-        let mut probe = Deformer::new(r.clone(), p);
-        probe.set_levels(Levels::One);
-        probe.set_pose(at_fine.clone())?;
-        let objective_at_fine = probe.step(&f, &cc, 0)?.objective * scale2(r);
         let (max, sum2) = own
             .pose()
             .iter()
@@ -121,6 +116,10 @@ pub fn level_minima(
                 d[0] * d[0] + d[1] * d[1] + d[2] * d[2]
             })
             .fold((0.0, 0.0), |(m, s): (Real, Real), d2| (m.max(d2), s + d2));
+        // the same deformer at the fine minimum's positions, no iteration
+        // (a coarse level keeps its own vertex order: its poses are in it)
+        own.set_pose(at_fine.clone())?;
+        let objective_at_fine = own.step(&f, &cc, 0)?.objective * scale2(r);
         out.levels.push(LevelMinimum {
             vertices: level.num_vertices(),
             iterations: solved.iterations,
