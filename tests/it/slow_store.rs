@@ -147,3 +147,103 @@ async fn concurrent_uploads_never_exceed_max_meshes() {
     let refused = statuses.iter().filter(|&&s| s == 503).count();
     assert_eq!((created, refused), (3, 9), "{statuses:?}");
 }
+
+/// An undo that arrives while the solve of the drag before it is still
+/// writing that drag to the journal: the store ends with the undone state,
+/// as a revival would rebuild it (the checkpoint's targets, then the
+/// journal after it). The append is held at a gate until the undo is in.
+/// The undo waits for the running solve, so its checkpoint (which
+/// truncates the journal) comes after the append; an undo served at once
+/// (measured by taking it off the commands that wait) checkpoints first,
+/// the drag lands in the journal after the checkpoint, and a revival
+/// replays the drag the user took back.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn an_undo_racing_a_journal_append_is_not_undone_by_a_revival() -> Result<(), ClientError> {
+    use std::sync::atomic::{AtomicBool, Ordering};
+    #[derive(Default)]
+    struct Gate {
+        session: Mutex<Option<String>>,
+        entered: AtomicBool,
+        open: AtomicBool,
+    }
+    let gate = Arc::new(Gate::default());
+    let memory: Arc<dyn Store> = Arc::new(MemoryStore::new());
+    let g = gate.clone();
+    let store = Arc::new(with_faults(memory.clone(), move |call| {
+        let held = call.op == "append" && g.session.lock().as_deref() == call.id;
+        if held && call.id.is_some() {
+            g.entered.store(true, Ordering::SeqCst);
+            let until = Instant::now() + Duration::from_secs(20);
+            while !g.open.load(Ordering::SeqCst) && Instant::now() < until {
+                std::thread::sleep(Duration::from_millis(1));
+            }
+        }
+        Ok(())
+    }));
+    let (base, _state) = start_with_store(Config::default(), store).await;
+    let c = Client::new(&base);
+    let (p, t) = grid(8);
+    let mesh = c.upload_json(&p, &t).await?;
+    let s = Arc::new(c.create_session(&mesh.id, SessionParams::default()).await?);
+    s.set_constraints(&grid_constraints(8)).await?;
+    s.wait_ready(Duration::from_secs(60)).await?;
+    // the set's first settle is the history entry the undo goes back to
+    let start = Instant::now();
+    while memory.get_checkpoint(&s.id).expect("store").is_none() {
+        assert!(
+            start.elapsed() < Duration::from_secs(30),
+            "no first checkpoint"
+        );
+        tokio::time::sleep(Duration::from_millis(10)).await;
+    }
+
+    *gate.session.lock() = Some(s.id.clone());
+    let dragged = {
+        let s = s.clone();
+        tokio::spawn(async move { s.drag(0, DeltaJson::translate([0.0, 0.0, 0.3]), None).await })
+    };
+    let start = Instant::now();
+    while !gate.entered.load(Ordering::SeqCst) {
+        assert!(
+            start.elapsed() < Duration::from_secs(30),
+            "the drag's append never started"
+        );
+        tokio::time::sleep(Duration::from_millis(1)).await;
+    }
+    // the append is held: the undo comes in now, and the gate opens a
+    // little later whether or not the undo waits for it
+    let opener = {
+        let g = gate.clone();
+        std::thread::spawn(move || {
+            std::thread::sleep(Duration::from_millis(300));
+            g.open.store(true, Ordering::SeqCst);
+        })
+    };
+    s.undo().await?;
+    let _ = dragged.await.expect("join");
+    opener.join().expect("opener");
+
+    let cp = memory
+        .get_checkpoint(&s.id)
+        .expect("store")
+        .expect("a checkpoint");
+    let journal = memory.journal(&s.id).expect("store");
+    // pure translations compose by adding
+    let mut z = cp.targets[0].translation[2];
+    for e in &journal {
+        let dend_server::store::JournalEntry::Drag {
+            handle,
+            translation,
+            ..
+        } = e;
+        if *handle == 0 {
+            z += translation[2];
+        }
+    }
+    assert!(
+        z.abs() < 1e-12,
+        "a revival rebuilds the handle 0.3 up, the undone drag (checkpoint {}, journal {journal:?})",
+        cp.targets[0].translation[2]
+    );
+    Ok(())
+}

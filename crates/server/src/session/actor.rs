@@ -122,7 +122,10 @@ impl Actor {
 
     /// Handles one command; false when the session must stop.
     fn on_cmd(&mut self, cmd: Cmd) -> bool {
-        // these read or replace the pose: they wait for a running solve
+        // these read or replace the pose, and write a checkpoint, which
+        // truncates the stored journal: they wait for a running solve, so
+        // the journal append it starts with lands before the checkpoint
+        // (else a revival replays drags the checkpoint holds or undid)
         let needs_deformer = matches!(
             cmd,
             Cmd::Undo(_) | Cmd::Redo(_) | Cmd::Reset(_) | Cmd::SetConstraints { .. }
