@@ -148,6 +148,88 @@ async fn concurrent_uploads_never_exceed_max_meshes() {
     assert_eq!((created, refused), (3, 9), "{statuses:?}");
 }
 
+/// A memory store whose journal appends for one session can be held: the
+/// append waits (at most 20 s) until `open` is set, after raising
+/// `entered`.
+#[derive(Default)]
+struct AppendGate {
+    session: Mutex<Option<String>>,
+    entered: std::sync::atomic::AtomicBool,
+    open: std::sync::atomic::AtomicBool,
+}
+
+impl AppendGate {
+    /// `memory` behind the gate.
+    fn store(self: &Arc<Self>, memory: Arc<dyn Store>) -> Arc<dyn Store> {
+        use std::sync::atomic::Ordering;
+        let g = self.clone();
+        Arc::new(with_faults(memory, move |call| {
+            let held =
+                call.op == "append" && call.id.is_some() && g.session.lock().as_deref() == call.id;
+            if held {
+                g.entered.store(true, Ordering::SeqCst);
+                let until = Instant::now() + Duration::from_secs(20);
+                while !g.open.load(Ordering::SeqCst) && Instant::now() < until {
+                    std::thread::sleep(Duration::from_millis(1));
+                }
+            }
+            Ok(())
+        }))
+    }
+
+    /// Holds `session`'s appends from now on.
+    fn hold(&self, session: &str) {
+        *self.session.lock() = Some(session.to_owned());
+    }
+
+    /// Waits until an append is held.
+    async fn entered(&self) {
+        let start = Instant::now();
+        while !self.entered.load(std::sync::atomic::Ordering::SeqCst) {
+            assert!(
+                start.elapsed() < Duration::from_secs(30),
+                "no append was held"
+            );
+            tokio::time::sleep(Duration::from_millis(1)).await;
+        }
+    }
+
+    /// Opens the gate `after` from now, on a thread of its own (whatever
+    /// the test's tasks wait for meanwhile).
+    fn open_after(self: &Arc<Self>, after: Duration) -> std::thread::JoinHandle<()> {
+        let g = self.clone();
+        std::thread::spawn(move || {
+            std::thread::sleep(after);
+            g.open.store(true, std::sync::atomic::Ordering::SeqCst);
+        })
+    }
+}
+
+/// A ready 8×8 grid session on a server over `store` (`memory` beneath
+/// it), whose constraint set's first settle is checkpointed (the history
+/// entry an undo goes back to); the server lives as long as its state.
+async fn gated_session(
+    store: Arc<dyn Store>,
+    memory: &Arc<dyn Store>,
+) -> Result<(Arc<dend_client::SessionClient>, dend_server::AppState), ClientError> {
+    let (base, state) = start_with_store(Config::default(), store).await;
+    let c = Client::new(&base);
+    let (p, t) = grid(8);
+    let mesh = c.upload_json(&p, &t).await?;
+    let s = Arc::new(c.create_session(&mesh.id, SessionParams::default()).await?);
+    s.set_constraints(&grid_constraints(8)).await?;
+    s.wait_ready(Duration::from_secs(60)).await?;
+    let start = Instant::now();
+    while memory.get_checkpoint(&s.id).expect("store").is_none() {
+        assert!(
+            start.elapsed() < Duration::from_secs(30),
+            "no first checkpoint"
+        );
+        tokio::time::sleep(Duration::from_millis(10)).await;
+    }
+    Ok((s, state))
+}
+
 /// An undo that arrives while the solve of the drag before it is still
 /// writing that drag to the journal: the store ends with the undone state,
 /// as a revival would rebuild it (the checkpoint's targets, then the
@@ -159,66 +241,19 @@ async fn concurrent_uploads_never_exceed_max_meshes() {
 /// replays the drag the user took back.
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn an_undo_racing_a_journal_append_is_not_undone_by_a_revival() -> Result<(), ClientError> {
-    use std::sync::atomic::{AtomicBool, Ordering};
-    #[derive(Default)]
-    struct Gate {
-        session: Mutex<Option<String>>,
-        entered: AtomicBool,
-        open: AtomicBool,
-    }
-    let gate = Arc::new(Gate::default());
+    let gate = Arc::new(AppendGate::default());
     let memory: Arc<dyn Store> = Arc::new(MemoryStore::new());
-    let g = gate.clone();
-    let store = Arc::new(with_faults(memory.clone(), move |call| {
-        let held = call.op == "append" && g.session.lock().as_deref() == call.id;
-        if held && call.id.is_some() {
-            g.entered.store(true, Ordering::SeqCst);
-            let until = Instant::now() + Duration::from_secs(20);
-            while !g.open.load(Ordering::SeqCst) && Instant::now() < until {
-                std::thread::sleep(Duration::from_millis(1));
-            }
-        }
-        Ok(())
-    }));
-    let (base, _state) = start_with_store(Config::default(), store).await;
-    let c = Client::new(&base);
-    let (p, t) = grid(8);
-    let mesh = c.upload_json(&p, &t).await?;
-    let s = Arc::new(c.create_session(&mesh.id, SessionParams::default()).await?);
-    s.set_constraints(&grid_constraints(8)).await?;
-    s.wait_ready(Duration::from_secs(60)).await?;
-    // the set's first settle is the history entry the undo goes back to
-    let start = Instant::now();
-    while memory.get_checkpoint(&s.id).expect("store").is_none() {
-        assert!(
-            start.elapsed() < Duration::from_secs(30),
-            "no first checkpoint"
-        );
-        tokio::time::sleep(Duration::from_millis(10)).await;
-    }
+    let (s, _state) = gated_session(gate.store(memory.clone()), &memory).await?;
 
-    *gate.session.lock() = Some(s.id.clone());
+    gate.hold(&s.id);
     let dragged = {
         let s = s.clone();
         tokio::spawn(async move { s.drag(0, DeltaJson::translate([0.0, 0.0, 0.3]), None).await })
     };
-    let start = Instant::now();
-    while !gate.entered.load(Ordering::SeqCst) {
-        assert!(
-            start.elapsed() < Duration::from_secs(30),
-            "the drag's append never started"
-        );
-        tokio::time::sleep(Duration::from_millis(1)).await;
-    }
+    gate.entered().await;
     // the append is held: the undo comes in now, and the gate opens a
     // little later whether or not the undo waits for it
-    let opener = {
-        let g = gate.clone();
-        std::thread::spawn(move || {
-            std::thread::sleep(Duration::from_millis(300));
-            g.open.store(true, Ordering::SeqCst);
-        })
-    };
+    let opener = gate.open_after(Duration::from_millis(300));
     s.undo().await?;
     let _ = dragged.await.expect("join");
     opener.join().expect("opener");
@@ -245,5 +280,37 @@ async fn an_undo_racing_a_journal_append_is_not_undone_by_a_revival() -> Result<
         "a revival rebuilds the handle 0.3 up, the undone drag (checkpoint {}, journal {journal:?})",
         cp.targets[0].translation[2]
     );
+    Ok(())
+}
+
+/// A drag that arrives while a solve runs, then an undo on the same
+/// socket: the undo takes the drag back before any solve applies it, and
+/// its frame acknowledges the drag. A frame that acknowledged only the
+/// solved drags left the taken-back one pending in the client, which
+/// resends pending drags after a reconnect: on top of the undone pose.
+/// The first drag's append is held at a gate so that the second one
+/// arrives while its solve runs.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn an_undo_acknowledges_the_drags_it_takes_back() -> Result<(), ClientError> {
+    let gate = Arc::new(AppendGate::default());
+    let memory: Arc<dyn Store> = Arc::new(MemoryStore::new());
+    let (s, _state) = gated_session(gate.store(memory.clone()), &memory).await?;
+    let mut ws = s.connect().await?;
+    let _ = ws.frame_acking(0, true).await?;
+    let before = s.pose().await?;
+
+    gate.hold(&s.id);
+    ws.drag(0, [0.0, 0.0, 0.1], None, 1).await?;
+    gate.entered().await;
+    ws.drag(0, [0.0, 0.0, 0.1], None, 2).await?;
+    ws.send(&dend_client::ws::ClientMsg::Undo).await?;
+    let opener = gate.open_after(Duration::from_millis(200));
+    let acked = tokio::time::timeout(Duration::from_secs(10), ws.frame_acking(2, true)).await;
+    opener.join().expect("opener");
+    let (h, _) = acked.unwrap_or_else(|_| panic!("no frame acknowledged drag 2 within 10 s"))?;
+    assert!(h.settled, "{h:?}");
+    // the pose is the undone one, the history entry's
+    let after = s.pose().await?;
+    assert_eq!(after.positions, before.positions);
     Ok(())
 }

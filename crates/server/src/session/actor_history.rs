@@ -126,6 +126,11 @@ impl Actor {
         }
         self.set.confirmed = self.set.constraints.clone();
         self.shown.pose = pose;
+        // every drag received so far is taken back with the targets (and
+        // covered by the checkpoint that follows): the frame acknowledges
+        // them, else a client keeps them pending and resends them after a
+        // reconnect, on top of this pose
+        self.shown.applied_seq = self.shown.last_seq;
         self.drags_taken();
         self.shown.settled = true;
         self.shown.converged = true;
