@@ -314,3 +314,128 @@ async fn an_undo_acknowledges_the_drags_it_takes_back() -> Result<(), ClientErro
     assert_eq!(after.positions, before.positions);
     Ok(())
 }
+
+/// A client that reconnects while its last drag is received but not yet
+/// solved, and follows the reconnect rule (resend the drags the first
+/// frame does not acknowledge), has the drag applied once. The drag's
+/// journal append is held at a gate while the second connection opens, so
+/// that the session has the drag in its targets and no frame for it yet.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_reconnect_during_a_drags_solve_does_not_apply_it_twice() -> Result<(), ClientError> {
+    let gate = Arc::new(AppendGate::default());
+    let memory: Arc<dyn Store> = Arc::new(MemoryStore::new());
+    let (s, _state) = gated_session(gate.store(memory.clone()), &memory).await?;
+    let mut first = s.connect().await?;
+    let _ = first.frame_acking(0, true).await?;
+    let before = s.pose().await?;
+
+    gate.hold(&s.id);
+    first.drag(0, [0.0, 0.0, 0.1], None, 1).await?;
+    gate.entered().await;
+    // the connection drops; the client opens another one
+    drop(first);
+    let opener = gate.open_after(Duration::from_millis(300));
+    let mut second = s.connect().await?;
+    let h0 = loop {
+        match tokio::time::timeout(Duration::from_secs(10), second.next()).await {
+            Ok(Ok(WsEvent::Frame(h, _))) => break h,
+            Ok(Ok(_)) => {}
+            Ok(Err(e)) => return Err(e),
+            Err(_) => panic!("no first frame within 10 s"),
+        }
+    };
+    if h0.ack_seq < 1 {
+        second.drag(0, [0.0, 0.0, 0.1], None, 1).await?;
+    }
+    if !(h0.ack_seq >= 1 && h0.converged) {
+        let acked =
+            tokio::time::timeout(Duration::from_secs(10), second.frame_acking(1, true)).await;
+        let _ = acked.unwrap_or_else(|_| panic!("no settled frame acknowledged drag 1"))?;
+    }
+    opener.join().expect("opener");
+    let after = s.pose().await?;
+    // the handle (the grid's top row) is rigid: moved by the one drag
+    for v in 56..64 {
+        let dz = after.positions[v][2] - before.positions[v][2];
+        assert!(
+            (dz - 0.1).abs() < 1e-9,
+            "vertex {v} moved {dz} (first frame of the new connection acknowledged {})",
+            h0.ack_seq
+        );
+    }
+    Ok(())
+}
+
+/// A pose read while a drag is being solved (a reconnecting client's
+/// fallback when no frame comes) acknowledges the drag: the read waits for
+/// it, as the first frame of a new connection does.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_pose_read_during_a_drags_solve_acknowledges_it() -> Result<(), ClientError> {
+    let gate = Arc::new(AppendGate::default());
+    let memory: Arc<dyn Store> = Arc::new(MemoryStore::new());
+    let (s, _state) = gated_session(gate.store(memory.clone()), &memory).await?;
+    let mut ws = s.connect().await?;
+    let _ = ws.frame_acking(0, true).await?;
+    gate.hold(&s.id);
+    ws.drag(0, [0.0, 0.0, 0.1], None, 1).await?;
+    gate.entered().await;
+    let opener = gate.open_after(Duration::from_millis(300));
+    let pose = s.pose().await?;
+    opener.join().expect("opener");
+    assert_eq!(pose.ack_seq, 1, "the pose read while drag 1 was solved");
+    Ok(())
+}
+
+/// A client that joins while another one drags without pause gets its
+/// first frame while the other still drags: the wait for the drags no
+/// frame shows yet ends with the solve that takes the ones received
+/// before the join, not with a pause in the stream. Each journal append
+/// takes 20 ms and a drag comes every 5 ms, so some drag always waits for
+/// a frame (measured: a wait for none left held the first frame until
+/// the stream ended).
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_client_joining_a_stream_of_drags_gets_its_first_frame() -> Result<(), ClientError> {
+    use std::sync::atomic::{AtomicBool, Ordering};
+    let memory: Arc<dyn Store> = Arc::new(MemoryStore::new());
+    let slow: Arc<dyn Store> = Arc::new(with_faults(memory.clone(), |call| {
+        if call.op == "append" {
+            std::thread::sleep(Duration::from_millis(20));
+        }
+        Ok(())
+    }));
+    let (s, _state) = gated_session(slow, &memory).await?;
+    let joined = Arc::new(AtomicBool::new(false));
+    let dragging = {
+        let (s, joined) = (s.clone(), joined.clone());
+        tokio::spawn(async move {
+            let mut ws = s.connect().await?;
+            let _ = ws.frame_acking(0, true).await?;
+            let start = Instant::now();
+            let mut seq = 0;
+            // a drag every 5 ms (under the message rate limit), until the
+            // other client has its first frame or 8 s have passed
+            while !joined.load(Ordering::SeqCst) && start.elapsed() < Duration::from_secs(8) {
+                seq += 1;
+                ws.drag(0, [0.0, 0.0, 0.001], None, seq).await?;
+                tokio::time::sleep(Duration::from_millis(5)).await;
+            }
+            Ok::<bool, ClientError>(joined.load(Ordering::SeqCst))
+        })
+    };
+    tokio::time::sleep(Duration::from_millis(300)).await;
+    let mut second = s.connect().await?;
+    loop {
+        match second.next().await? {
+            WsEvent::Frame(..) => break,
+            WsEvent::Closed(c) => panic!("closed ({c:?}) before a first frame"),
+            _ => {}
+        }
+    }
+    joined.store(true, Ordering::SeqCst);
+    let still_dragging = dragging.await.expect("join")?;
+    assert!(
+        still_dragging,
+        "the first frame came only after the other client's 8 s of drags"
+    );
+    Ok(())
+}

@@ -226,6 +226,9 @@ where
 {
     send(sink, ServerMsg::state(me, s.info()).text()).await?;
     let mut flow = Flow::new(cfg.stream);
+    // the first frame tells a reconnecting client which of its drags to
+    // send again: it waits for the drags the session holds to be shown
+    s.drags_shown(crate::session::DRAGS_SHOWN_WAIT).await;
     let current = frames.borrow_and_update().clone();
     if let Some(f) = current {
         send_frame(sink, &mut flow, &f).await?;

@@ -46,6 +46,7 @@ impl Actor {
                 || tokio::time::Instant::now() + std::time::Duration::from_secs(3600),
                 |q| tokio::time::Instant::from_std(q.at + self.opts.build_wait),
             );
+            self.sync_unshown_drags();
             tokio::select! {
                 Some(msg) = internal_rx.recv() => self.on_internal(msg),
                 () = tokio::time::sleep_until(deadline), if !self.flow.queued.is_empty() => {
@@ -108,6 +109,25 @@ impl Actor {
             vertex_count: self.shown.pose.len() as u32,
             level: self.shown.level,
         }
+    }
+
+    /// Publishes whether the session holds drags no frame shows yet
+    /// (`SessionHandle::drags_shown`): received since the last solve
+    /// started, taken by the solve that runs, or queued for the factor.
+    /// Called before the loop waits, after every change of the three.
+    fn sync_unshown_drags(&self) {
+        let now = super::shared::UnshownDrags {
+            unshown: self.solve.drag_pending
+                || self.solve.inflight_drags
+                || !self.flow.queued.is_empty(),
+            solves_started: self.solve.solves.0,
+            solves_done: self.solve.solves.1,
+        };
+        self.inner.unshown_drags.send_if_modified(|u| {
+            let changed = *u != now;
+            *u = now;
+            changed
+        });
     }
 
     fn sync_shared(&self) {

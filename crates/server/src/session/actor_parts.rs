@@ -113,6 +113,10 @@ pub(super) struct Solve {
     pub(super) drag_pending: bool,
     /// The drags applied since the last solve started, journaled by it.
     pub(super) journal: Vec<JournalEntry>,
+    /// The solve that runs took drags (no frame shows them yet).
+    pub(super) inflight_drags: bool,
+    /// Solves started and taken in so far (`Actor::sync_unshown_drags`).
+    pub(super) solves: (u64, u64),
     pub(super) iters_since_change: usize,
     /// When the last drag without a waiter (a WebSocket drag) was applied:
     /// the coarse corrections wait until drags pause
@@ -214,6 +218,8 @@ impl Actor {
                 dirty: false,
                 drag_pending: false,
                 journal: vec![],
+                inflight_drags: false,
+                solves: (0, 0),
                 iters_since_change: 0,
                 last_stream_drag: None,
                 drag_gap: None,

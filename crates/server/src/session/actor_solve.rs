@@ -89,6 +89,8 @@ impl Actor {
         // early when a drag arrives (`Actor::interrupt`)
         self.solve.refining = !self.solve.drag_pending && self.flow.waiters.is_empty();
         self.flow.inflight = self.flow.waiters.drain(..).map(|w| w.1).collect();
+        self.solve.inflight_drags = self.solve.drag_pending;
+        self.solve.solves.0 += 1;
         self.drags_taken();
         let Some(mut deformer) = self.solve.deformer.take() else {
             return;
@@ -256,6 +258,8 @@ impl Actor {
                 pose_epoch,
             } => {
                 self.solve.refining = false;
+                self.solve.inflight_drags = false;
+                self.solve.solves.1 += 1;
                 if pose_epoch != self.solve.pose_epoch {
                     // an undo, redo, reset or restore replaced the pose while
                     // this solve ran: its pose and frame are not the

@@ -29,7 +29,7 @@ pub use handle::{SessionHandle, SessionOptions};
 pub use poses::{check_pose_name, pose_list, PoseInfo, MAX_NAMED_POSES, MAX_POSE_NAME_BYTES};
 pub use recovery::{transform, Recovered};
 pub(crate) use timing::sleep_until_or_never;
-pub use timing::CORRECTION_QUIET;
+pub use timing::{CORRECTION_QUIET, DRAGS_SHOWN_WAIT};
 pub use types::{wire_stage, Delta, Event, Frame, NoObserver, Observer, PoseSnapshot};
 
 pub use dend::deform::BuildStage;

@@ -12,6 +12,13 @@
 /// 50 ms later (docs/performance.md).
 pub const CORRECTION_QUIET: std::time::Duration = std::time::Duration::from_millis(150);
 
+/// The longest a reconnecting client's first frame, or a pose read,
+/// waits for the drags the session holds and no frame shows yet
+/// (`SessionHandle::drags_shown`): a solve step takes milliseconds, a
+/// factor build with drags queued for it seconds. Past it the current
+/// frame goes out, as it did before the wait.
+pub const DRAGS_SHOWN_WAIT: std::time::Duration = std::time::Duration::from_secs(10);
+
 /// Sleeps until `at`; never when `None` (for a `select!` branch that is
 /// disabled then: the session's wake-up, a connection's rate interval).
 pub(crate) async fn sleep_until_or_never(at: Option<tokio::time::Instant>) {
