@@ -124,6 +124,10 @@ async function main() {
     await page2.goto(link);
     await waitFor(page2, () => window.dend.app.positions && window.dend.app.ws && window.dend.app.state === 'ready', null, 'second tab joined');
 
+    // the second tab opened in front: the first one drags, so it comes
+    // back to the front (a background tab's animation frames are held
+    // back, and with them its frame acks: about 1 s of latency each)
+    await page.bringToFront();
     await page.check('input[name=tool][value=navigate]');
     await page.waitForTimeout(200);
     const shotA = await page.locator('#view').screenshot({ path: join(artifacts, '1-before-drag.png') });
