@@ -16,7 +16,7 @@ pub const CORRECTION_QUIET: std::time::Duration = std::time::Duration::from_mill
 /// waits for the drags the session holds and no frame shows yet
 /// (`SessionHandle::drags_shown`): a solve step takes milliseconds, a
 /// factor build with drags queued for it seconds. Past it the current
-/// frame goes out, as it did before the wait.
+/// frame goes out, and a drag it does not show yet may be sent twice.
 pub const DRAGS_SHOWN_WAIT: std::time::Duration = std::time::Duration::from_secs(10);
 
 /// Sleeps until `at`; never when `None` (for a `select!` branch that is
