@@ -148,12 +148,13 @@ async fn concurrent_uploads_never_exceed_max_meshes() {
     assert_eq!((created, refused), (3, 9), "{statuses:?}");
 }
 
-/// A memory store whose journal appends for one session can be held: the
-/// append waits (at most 20 s) until `open` is set, after raising
-/// `entered`.
+/// A memory store whose journal appends (or another operation, `op`) for
+/// one session can be held: the call waits (at most 20 s) until `open` is
+/// set, after raising `entered`.
 #[derive(Default)]
 struct AppendGate {
     session: Mutex<Option<String>>,
+    op: Mutex<Option<&'static str>>,
     entered: std::sync::atomic::AtomicBool,
     open: std::sync::atomic::AtomicBool,
 }
@@ -164,8 +165,8 @@ impl AppendGate {
         use std::sync::atomic::Ordering;
         let g = self.clone();
         Arc::new(with_faults(memory, move |call| {
-            let held =
-                call.op == "append" && call.id.is_some() && g.session.lock().as_deref() == call.id;
+            let op = g.op.lock().unwrap_or("append");
+            let held = call.op == op && call.id.is_some() && g.session.lock().as_deref() == call.id;
             if held {
                 g.entered.store(true, Ordering::SeqCst);
                 let until = Instant::now() + Duration::from_secs(20);
@@ -436,6 +437,96 @@ async fn a_client_joining_a_stream_of_drags_gets_its_first_frame() -> Result<(),
     assert!(
         still_dragging,
         "the first frame came only after the other client's 8 s of drags"
+    );
+    Ok(())
+}
+
+/// A drag that waits in the session's command queue (the session busy
+/// with a store write, a named pose's save held at a gate) when its
+/// client reconnects: the first frame of the new connection acknowledges
+/// it, and the client following the reconnect rule does not send it
+/// twice (measured: asked of the session's state instead of through its
+/// queue, the first frame acknowledged 0 and the handle moved 0.2).
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_drag_queued_behind_a_store_write_is_not_applied_twice() -> Result<(), ClientError> {
+    let gate = Arc::new(AppendGate::default());
+    let memory: Arc<dyn Store> = Arc::new(MemoryStore::new());
+    let (s, _state) = gated_session(gate.store(memory.clone()), &memory).await?;
+    let mut first = s.connect().await?;
+    let _ = first.frame_acking(0, true).await?;
+    let before = s.pose().await?;
+    *gate.op.lock() = Some("put_named_pose");
+    gate.hold(&s.id);
+    let saving = {
+        let s = s.clone();
+        tokio::spawn(async move { s.save_pose("p", false).await })
+    };
+    gate.entered().await;
+    first.drag(0, [0.0, 0.0, 0.1], None, 1).await?;
+    // the drag reaches the session's queue, behind the held save
+    tokio::time::sleep(Duration::from_millis(100)).await;
+    drop(first);
+    let opener = gate.open_after(Duration::from_millis(300));
+    let mut second = s.connect().await?;
+    let h0 = loop {
+        match tokio::time::timeout(Duration::from_secs(10), second.next()).await {
+            Ok(Ok(WsEvent::Frame(h, _))) => break h,
+            Ok(Ok(_)) => {}
+            Ok(Err(e)) => return Err(e),
+            Err(_) => panic!("no first frame within 10 s"),
+        }
+    };
+    if h0.ack_seq < 1 {
+        second.drag(0, [0.0, 0.0, 0.1], None, 1).await?;
+    }
+    if !(h0.ack_seq >= 1 && h0.converged) {
+        let acked =
+            tokio::time::timeout(Duration::from_secs(10), second.frame_acking(1, true)).await;
+        let _ = acked.unwrap_or_else(|_| panic!("no settled frame acknowledged drag 1"))?;
+    }
+    opener.join().expect("opener");
+    let _ = saving.await.expect("join")?;
+    let after = s.pose().await?;
+    for v in 56..64 {
+        let dz = after.positions[v][2] - before.positions[v][2];
+        assert!(
+            (dz - 0.1).abs() < 1e-9,
+            "vertex {v} moved {dz} (first frame of the new connection acknowledged {})",
+            h0.ack_seq
+        );
+    }
+    Ok(())
+}
+
+/// A session closed while a drag's solve runs: a pose read on a handle
+/// taken before the close, and so a connection's first frame, return at
+/// once (measured with the wait on a flag the closed session no longer
+/// updated: the read took the whole safety bound).
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_closed_session_answers_a_pose_read_at_once() -> Result<(), ClientError> {
+    let gate = Arc::new(AppendGate::default());
+    let memory: Arc<dyn Store> = Arc::new(MemoryStore::new());
+    let (s, state) = gated_session(gate.store(memory.clone()), &memory).await?;
+    let h = state.registry.get(&s.id).expect("a live session");
+    let mut ws = s.connect().await?;
+    let _ = ws.frame_acking(0, true).await?;
+    gate.hold(&s.id);
+    ws.drag(0, [0.0, 0.0, 0.1], None, 1).await?;
+    gate.entered().await;
+    h.close().await;
+    let opener = gate.open_after(Duration::from_millis(300));
+    tokio::time::sleep(Duration::from_millis(600)).await;
+    let t0 = Instant::now();
+    let read = tokio::time::timeout(Duration::from_secs(90), h.pose()).await;
+    let took = t0.elapsed();
+    opener.join().expect("opener");
+    assert!(
+        read.is_ok(),
+        "a pose read of the closed session did not return"
+    );
+    assert!(
+        took < dend_server::session::DRAGS_SHOWN_WAIT,
+        "a pose read of the closed session took the wait's whole bound ({took:?})"
     );
     Ok(())
 }

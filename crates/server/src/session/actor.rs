@@ -46,7 +46,7 @@ impl Actor {
                 || tokio::time::Instant::now() + std::time::Duration::from_secs(3600),
                 |q| tokio::time::Instant::from_std(q.at + self.opts.build_wait),
             );
-            self.sync_unshown_drags();
+            self.answer_drags_shown();
             tokio::select! {
                 Some(msg) = internal_rx.recv() => self.on_internal(msg),
                 () = tokio::time::sleep_until(deadline), if !self.flow.queued.is_empty() => {
@@ -111,23 +111,29 @@ impl Actor {
         }
     }
 
-    /// Publishes whether the session holds drags no frame shows yet
-    /// (`SessionHandle::drags_shown`): received since the last solve
-    /// started, taken by the solve that runs, or queued for the factor.
-    /// Called before the loop waits, after every change of the three.
-    fn sync_unshown_drags(&self) {
-        let now = super::shared::UnshownDrags {
-            unshown: self.solve.drag_pending
-                || self.solve.inflight_drags
-                || !self.flow.queued.is_empty(),
-            solves_started: self.solve.solves.0,
-            solves_done: self.solve.solves.1,
-        };
-        self.inner.unshown_drags.send_if_modified(|u| {
-            let changed = *u != now;
-            *u = now;
-            changed
-        });
+    /// Whether the session holds drags no frame shows yet: received
+    /// since the last solve started, taken by the solve that runs, or
+    /// queued for the factor.
+    fn drags_unshown(&self) -> bool {
+        self.solve.drag_pending || self.solve.inflight_drags || !self.flow.queued.is_empty()
+    }
+
+    /// Answers the `Cmd::DragsShown` questions whose drags are in a frame:
+    /// none is unshown, or a solve started after the question has ended.
+    /// Called before the loop waits, after every change of either.
+    fn answer_drags_shown(&mut self) {
+        if self.flow.shown_waiters.is_empty() {
+            return;
+        }
+        let (unshown, done) = (self.drags_unshown(), self.solve.solves.1);
+        let waiting = std::mem::take(&mut self.flow.shown_waiters);
+        for (started, reply) in waiting {
+            if unshown && done <= started {
+                self.flow.shown_waiters.push((started, reply));
+            } else {
+                let _ = reply.send(());
+            }
+        }
     }
 
     fn sync_shared(&self) {
@@ -206,6 +212,13 @@ impl Actor {
                     self.poses.settle_queue.push_back(cmd);
                 } else {
                     self.on_pose_cmd(cmd);
+                }
+            }
+            Cmd::DragsShown(reply) => {
+                if self.drags_unshown() {
+                    self.flow.shown_waiters.push((self.solve.solves.0, reply));
+                } else {
+                    let _ = reply.send(());
                 }
             }
             Cmd::GestureEnded => {

@@ -115,7 +115,7 @@ pub(super) struct Solve {
     pub(super) journal: Vec<JournalEntry>,
     /// The solve that runs took drags (no frame shows them yet).
     pub(super) inflight_drags: bool,
-    /// Solves started and taken in so far (`Actor::sync_unshown_drags`).
+    /// Solves started and taken in so far (`Actor::answer_drags_shown`).
     pub(super) solves: (u64, u64),
     pub(super) iters_since_change: usize,
     /// When the last drag without a waiter (a WebSocket drag) was applied:
@@ -183,6 +183,9 @@ pub(super) struct Flow {
     pub(super) waiters: Vec<(usize, Reply<PoseSnapshot>)>,
     /// The HTTP drags the solve in flight answers.
     pub(super) inflight: Vec<Reply<PoseSnapshot>>,
+    /// Questions whether the drags received before them are in a frame
+    /// (`Cmd::DragsShown`), with the solves started when each came.
+    pub(super) shown_waiters: Vec<(u64, tokio::sync::oneshot::Sender<()>)>,
 }
 
 impl Actor {

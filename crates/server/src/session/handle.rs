@@ -11,7 +11,7 @@ use super::actor::Actor;
 use super::error::SessionError;
 use super::recovery::Recovered;
 pub use super::shared::SessionOptions;
-use super::shared::{Cmd, Grabs, Inner, Ownership, Presence, Restore, Shared, UnshownDrags};
+use super::shared::{Cmd, Grabs, Inner, Ownership, Presence, Restore, Shared};
 use super::timing::DRAGS_SHOWN_WAIT;
 use super::types::{wire_stage, Delta, Event, Frame, PoseSnapshot};
 use dend::deform::{ConstraintsSpec, Params, Rest};
@@ -69,7 +69,6 @@ impl SessionHandle {
                 fenced: std::sync::atomic::AtomicBool::new(false),
                 moving: std::sync::atomic::AtomicBool::new(false),
             },
-            unshown_drags: watch::channel(UnshownDrags::default()).0,
         });
         let actor = Actor::new(inner.clone(), frames_tx, opts);
         drop(tokio::spawn(actor.run(cmd_rx)));
@@ -336,19 +335,18 @@ impl SessionHandle {
     /// Waits (at most `within`) until the drags the session had received
     /// when called are in a frame: none is left, or a solve that started
     /// since has ended (it took every drag received before it; drags that
-    /// others send meanwhile do not prolong the wait). A client that
+    /// others send meanwhile do not prolong the wait). The question goes
+    /// through the session's command queue, so it also covers drags still
+    /// queued there (the session busy with a store write). A client that
     /// reconnects resends the drags its first frame (or the pose it reads)
     /// does not acknowledge; read while a drag it sent before is still
     /// being solved, that frame would not acknowledge it, and the drag
-    /// would be applied twice.
+    /// would be applied twice. Returns at once when the session has closed.
     pub async fn drags_shown(&self, within: std::time::Duration) {
-        let mut rx = self.inner.unshown_drags.subscribe();
-        let then = *rx.borrow_and_update();
-        if !then.unshown {
-            return;
+        let (tx, rx) = oneshot::channel();
+        if self.inner.cmd_tx.send(Cmd::DragsShown(tx)).await.is_ok() {
+            let _ = tokio::time::timeout(within, rx).await;
         }
-        let shown = |now: &UnshownDrags| !now.unshown || now.solves_done > then.solves_started;
-        let _ = tokio::time::timeout(within, rx.wait_for(shown)).await;
     }
 
     /// Stops the actor; clients get a `Closed` event.

@@ -91,24 +91,6 @@ pub(super) struct Inner {
     pub presence: Presence,
     /// Its lease and whether another instance owns it now.
     pub ownership: Ownership,
-    /// Whether the session holds drags that no frame shows yet, and its
-    /// solves so far: a reconnecting client's first frame and a pose read
-    /// wait for the drags received before them
-    /// ([`SessionHandle::drags_shown`](super::SessionHandle::drags_shown)).
-    pub unshown_drags: watch::Sender<UnshownDrags>,
-}
-
-/// What [`Inner::unshown_drags`] publishes.
-#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
-pub(super) struct UnshownDrags {
-    /// Drags received and in no frame yet: since the last solve started,
-    /// in the solve that runs, or queued for the factor.
-    pub unshown: bool,
-    /// Solves started so far (one runs at a time, and each takes every
-    /// drag received before it).
-    pub solves_started: u64,
-    /// Solves whose result the session has taken in.
-    pub solves_done: u64,
 }
 
 /// A session's clients and when it was last used (an idle session with
@@ -220,6 +202,9 @@ pub(super) enum Cmd {
     Redo(Reply<PoseSnapshot>),
     Reset(Reply<PoseSnapshot>),
     Pose(Reply<PoseSnapshot>),
+    /// Answered once the drags received before it are in a frame
+    /// ([`SessionHandle::drags_shown`](super::SessionHandle::drags_shown)).
+    DragsShown(oneshot::Sender<()>),
     /// A grab ended: the gesture's settled pose may become a history entry.
     GestureEnded,
     /// A named-pose command (`poses.rs`).

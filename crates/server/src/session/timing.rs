@@ -14,10 +14,13 @@ pub const CORRECTION_QUIET: std::time::Duration = std::time::Duration::from_mill
 
 /// The longest a reconnecting client's first frame, or a pose read,
 /// waits for the drags the session holds and no frame shows yet
-/// (`SessionHandle::drags_shown`): a solve step takes milliseconds, a
-/// factor build with drags queued for it seconds. Past it the current
-/// frame goes out, and a drag it does not show yet may be sent twice.
-pub const DRAGS_SHOWN_WAIT: std::time::Duration = std::time::Duration::from_secs(10);
+/// (`SessionHandle::drags_shown`). The session answers as soon as they are
+/// shown or refused, or when it closes: a solve step takes milliseconds,
+/// drags queued for a factor build wait for it (refused after
+/// `build_wait_ms`, 30 s by default). This bound is a safety net past
+/// that; past it the current frame goes out, and a drag it does not show
+/// yet may be sent twice.
+pub const DRAGS_SHOWN_WAIT: std::time::Duration = std::time::Duration::from_secs(60);
 
 /// Sleeps until `at`; never when `None` (for a `select!` branch that is
 /// disabled then: the session's wake-up, a connection's rate interval).
