@@ -530,3 +530,69 @@ async fn a_closed_session_answers_a_pose_read_at_once() -> Result<(), ClientErro
     );
     Ok(())
 }
+
+/// A new constraint set takes back the drags no solve took yet (they were
+/// composed into the old set's targets), and a frame acknowledges them at
+/// once: a client that connects while the new set is built does not send
+/// them again onto it. Drag 1's append is held so that drag 2 waits for a
+/// solve when the edit (which waits for the running solve) comes in; the
+/// edit's second checkpoint (after the set is installed) is held too, so
+/// that nothing but the edit itself can have published a frame
+/// acknowledging drag 2 (measured: without that frame none came while the
+/// checkpoint was held).
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_constraint_edit_acknowledges_the_drags_it_takes_back() -> Result<(), ClientError> {
+    use std::sync::atomic::{AtomicUsize, Ordering};
+    let gate = Arc::new(AppendGate::default());
+    let memory: Arc<dyn Store> = Arc::new(MemoryStore::new());
+    // checkpoints of the session counted once it is armed; the second one
+    // waits (at most 20 s) for `release`
+    let armed: Arc<Mutex<Option<String>>> = Arc::default();
+    let seen = Arc::new(AtomicUsize::new(0));
+    let release = Arc::new(std::sync::atomic::AtomicBool::new(false));
+    let held = {
+        let (armed, seen, release) = (armed.clone(), seen.clone(), release.clone());
+        Arc::new(with_faults(gate.store(memory.clone()), move |call| {
+            let mine =
+                call.op == "checkpoint" && call.id.is_some() && armed.lock().as_deref() == call.id;
+            if mine && seen.fetch_add(1, Ordering::SeqCst) == 1 {
+                let until = Instant::now() + Duration::from_secs(20);
+                while !release.load(Ordering::SeqCst) && Instant::now() < until {
+                    std::thread::sleep(Duration::from_millis(1));
+                }
+            }
+            Ok(())
+        }))
+    };
+    let (s, _state) = gated_session(held, &memory).await?;
+    let mut ws = s.connect().await?;
+    let _ = ws.frame_acking(0, true).await?;
+    gate.hold(&s.id);
+    ws.drag(0, [0.0, 0.0, 0.1], None, 1).await?;
+    gate.entered().await;
+    ws.drag(0, [0.0, 0.0, 0.1], None, 2).await?;
+    // drag 2 reaches the session before the edit
+    tokio::time::sleep(Duration::from_millis(100)).await;
+    *armed.lock() = Some(s.id.clone());
+    // time for the edit to reach the session (loaded hosts included)
+    // before drag 1's solve returns; else drag 2's own solve acknowledges it
+    let opener = gate.open_after(Duration::from_millis(1000));
+    let edit = {
+        let s = s.clone();
+        tokio::spawn(async move { s.set_constraints(&grid_constraints(8)).await })
+    };
+    let acked = tokio::time::timeout(Duration::from_secs(5), ws.frame_acking(2, false)).await;
+    let held_then = seen.load(Ordering::SeqCst);
+    release.store(true, Ordering::SeqCst);
+    opener.join().expect("opener");
+    let _ = edit.await.expect("join")?;
+    let (h, _) = acked.unwrap_or_else(|_| {
+        panic!("no frame acknowledged drag 2 while the edit's checkpoint was held ({held_then} checkpoints seen)")
+    })?;
+    assert!(
+        held_then >= 2,
+        "the frame came before the edit's checkpoint ({held_then})"
+    );
+    assert_eq!(h.ack_seq, 2);
+    Ok(())
+}

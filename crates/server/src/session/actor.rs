@@ -348,6 +348,9 @@ impl Actor {
             constraints: anchored,
         });
         self.install(set, AfterBuild::Solve)?;
+        // the drags no solve took went with the old set's targets: like an
+        // undo, the edit takes them back, and a frame says so
+        self.acknowledge_taken_back();
         // the store's checkpoint went with its old constraints
         self.checkpoint();
         Ok(SessionState::Building)

@@ -149,6 +149,22 @@ impl Actor {
         Ok(self.snapshot_for(&header))
     }
 
+    /// Publishes the current pose under a frame that acknowledges every
+    /// drag received (when one is not yet): for drags taken back without a
+    /// solve. A client keeps unacknowledged drags pending and resends them
+    /// after a reconnect, onto a pose or a constraint set they were not
+    /// meant for.
+    pub(super) fn acknowledge_taken_back(&mut self) {
+        if self.shown.applied_seq == self.shown.last_seq {
+            return;
+        }
+        self.shown.applied_seq = self.shown.last_seq;
+        self.shown.revision += 1;
+        let header = self.header();
+        let bytes = FrameBody::from_pose(&self.shown.pose).finish(&header);
+        self.frames_tx.send_replace(Some(Frame { header, bytes }));
+    }
+
     pub(super) fn undo_redo(&mut self, undo: bool) -> Result<PoseSnapshot, SessionError> {
         if self.state() != SessionState::Ready {
             return Err(SessionError::NotReady {
