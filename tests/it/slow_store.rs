@@ -6,7 +6,8 @@ use std::sync::Arc;
 use std::time::{Duration, Instant};
 
 use dend_client::ws::{DeltaJson, ServerMsg};
-use dend_client::{Client, ClientError, MeshJson, SessionParams, WsEvent};
+use dend_client::{Client, ClientError, MeshJson, Pose, SessionParams, WsClient, WsEvent};
+use dend_protocol::FrameHeader;
 use dend_server::store::{with_faults, MemoryStore, Store};
 use dend_server::Config;
 use dend_testkit::server::{grid, grid_constraints, start_with_store};
@@ -149,12 +150,13 @@ async fn concurrent_uploads_never_exceed_max_meshes() {
 }
 
 /// A memory store whose journal appends (or another operation, `op`) for
-/// one session can be held: the call waits (at most 20 s) until `open` is
-/// set, after raising `entered`.
+/// one session can be held: past the first `skip` such calls, the call
+/// waits (at most 20 s) until `open` is set, after raising `entered`.
 #[derive(Default)]
 struct AppendGate {
     session: Mutex<Option<String>>,
     op: Mutex<Option<&'static str>>,
+    skip: std::sync::atomic::AtomicUsize,
     entered: std::sync::atomic::AtomicBool,
     open: std::sync::atomic::AtomicBool,
 }
@@ -166,8 +168,13 @@ impl AppendGate {
         let g = self.clone();
         Arc::new(with_faults(memory, move |call| {
             let op = g.op.lock().unwrap_or("append");
-            let held = call.op == op && call.id.is_some() && g.session.lock().as_deref() == call.id;
-            if held {
+            let mine = call.op == op && call.id.is_some() && g.session.lock().as_deref() == call.id;
+            // (the first `skip` calls pass: `skip` counts down to 0)
+            let skipped = mine
+                && g.skip
+                    .fetch_update(Ordering::SeqCst, Ordering::SeqCst, |k| k.checked_sub(1))
+                    .is_ok();
+            if mine && !skipped {
                 g.entered.store(true, Ordering::SeqCst);
                 let until = Instant::now() + Duration::from_secs(20);
                 while !g.open.load(Ordering::SeqCst) && Instant::now() < until {
@@ -183,10 +190,22 @@ impl AppendGate {
         *self.session.lock() = Some(session.to_owned());
     }
 
+    /// Holds `session`'s calls of `op` from now on, past the first `skip`.
+    fn hold_op(&self, session: &str, op: &'static str, skip: usize) {
+        *self.op.lock() = Some(op);
+        self.skip.store(skip, std::sync::atomic::Ordering::SeqCst);
+        self.hold(session);
+    }
+
+    /// Whether a call is held (or was).
+    fn was_entered(&self) -> bool {
+        self.entered.load(std::sync::atomic::Ordering::SeqCst)
+    }
+
     /// Waits until an append is held.
     async fn entered(&self) {
         let start = Instant::now();
-        while !self.entered.load(std::sync::atomic::Ordering::SeqCst) {
+        while !self.was_entered() {
             assert!(
                 start.elapsed() < Duration::from_secs(30),
                 "no append was held"
@@ -231,6 +250,64 @@ async fn gated_session(
     Ok((s, state))
 }
 
+/// [`gated_session`] on a memory store behind a fresh [`AppendGate`]:
+/// the gate, the memory store, the session and the server's state.
+async fn gated() -> Result<
+    (
+        Arc<AppendGate>,
+        Arc<dyn Store>,
+        Arc<dend_client::SessionClient>,
+        dend_server::AppState,
+    ),
+    ClientError,
+> {
+    let gate = Arc::new(AppendGate::default());
+    let memory: Arc<dyn Store> = Arc::new(MemoryStore::new());
+    let (s, state) = gated_session(gate.store(memory.clone()), &memory).await?;
+    Ok((gate, memory, s, state))
+}
+
+/// The first frame's header on a new connection (within 10 s).
+async fn first_frame(ws: &mut WsClient) -> Result<FrameHeader, ClientError> {
+    loop {
+        match tokio::time::timeout(Duration::from_secs(10), ws.next()).await {
+            Ok(Ok(WsEvent::Frame(h, _))) => return Ok(h),
+            Ok(Ok(_)) => {}
+            Ok(Err(e)) => return Err(e),
+            Err(_) => panic!("no first frame within 10 s"),
+        }
+    }
+}
+
+/// A client that sent drag 1 (0.1 up) before its connection dropped
+/// follows the reconnect rule on its new connection `ws`: it sends the
+/// drag again unless the first frame acknowledges it, then waits for a
+/// settled frame that does. Returns the first frame's header.
+async fn reconnect_rule(ws: &mut WsClient) -> Result<FrameHeader, ClientError> {
+    let h0 = first_frame(ws).await?;
+    if h0.ack_seq < 1 {
+        ws.drag(0, [0.0, 0.0, 0.1], None, 1).await?;
+    }
+    if !(h0.ack_seq >= 1 && h0.converged) {
+        let acked = tokio::time::timeout(Duration::from_secs(10), ws.frame_acking(1, true)).await;
+        let _ = acked.unwrap_or_else(|_| panic!("no settled frame acknowledged drag 1"))?;
+    }
+    Ok(h0)
+}
+
+/// The handle (the grid's top row, rigid) moved by the one 0.1 drag from
+/// `before` to `after`; `h0` is the new connection's first frame.
+fn assert_moved_once(before: &Pose, after: &Pose, h0: &FrameHeader) {
+    for v in 56..64 {
+        let dz = after.positions[v][2] - before.positions[v][2];
+        assert!(
+            (dz - 0.1).abs() < 1e-9,
+            "vertex {v} moved {dz} (first frame of the new connection acknowledged {})",
+            h0.ack_seq
+        );
+    }
+}
+
 /// An undo that arrives while the solve of the drag before it is still
 /// writing that drag to the journal: the store ends with the undone state,
 /// as a revival would rebuild it (the checkpoint's targets, then the
@@ -242,9 +319,7 @@ async fn gated_session(
 /// replays the drag the user took back.
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn an_undo_racing_a_journal_append_is_not_undone_by_a_revival() -> Result<(), ClientError> {
-    let gate = Arc::new(AppendGate::default());
-    let memory: Arc<dyn Store> = Arc::new(MemoryStore::new());
-    let (s, _state) = gated_session(gate.store(memory.clone()), &memory).await?;
+    let (gate, memory, s, _state) = gated().await?;
 
     gate.hold(&s.id);
     let dragged = {
@@ -293,9 +368,7 @@ async fn an_undo_racing_a_journal_append_is_not_undone_by_a_revival() -> Result<
 /// arrives while its solve runs.
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn an_undo_acknowledges_the_drags_it_takes_back() -> Result<(), ClientError> {
-    let gate = Arc::new(AppendGate::default());
-    let memory: Arc<dyn Store> = Arc::new(MemoryStore::new());
-    let (s, _state) = gated_session(gate.store(memory.clone()), &memory).await?;
+    let (gate, _memory, s, _state) = gated().await?;
     let mut ws = s.connect().await?;
     let _ = ws.frame_acking(0, true).await?;
     let before = s.pose().await?;
@@ -323,9 +396,7 @@ async fn an_undo_acknowledges_the_drags_it_takes_back() -> Result<(), ClientErro
 /// that the session has the drag in its targets and no frame for it yet.
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn a_reconnect_during_a_drags_solve_does_not_apply_it_twice() -> Result<(), ClientError> {
-    let gate = Arc::new(AppendGate::default());
-    let memory: Arc<dyn Store> = Arc::new(MemoryStore::new());
-    let (s, _state) = gated_session(gate.store(memory.clone()), &memory).await?;
+    let (gate, _memory, s, _state) = gated().await?;
     let mut first = s.connect().await?;
     let _ = first.frame_acking(0, true).await?;
     let before = s.pose().await?;
@@ -336,34 +407,9 @@ async fn a_reconnect_during_a_drags_solve_does_not_apply_it_twice() -> Result<()
     // the connection drops; the client opens another one
     drop(first);
     let opener = gate.open_after(Duration::from_millis(300));
-    let mut second = s.connect().await?;
-    let h0 = loop {
-        match tokio::time::timeout(Duration::from_secs(10), second.next()).await {
-            Ok(Ok(WsEvent::Frame(h, _))) => break h,
-            Ok(Ok(_)) => {}
-            Ok(Err(e)) => return Err(e),
-            Err(_) => panic!("no first frame within 10 s"),
-        }
-    };
-    if h0.ack_seq < 1 {
-        second.drag(0, [0.0, 0.0, 0.1], None, 1).await?;
-    }
-    if !(h0.ack_seq >= 1 && h0.converged) {
-        let acked =
-            tokio::time::timeout(Duration::from_secs(10), second.frame_acking(1, true)).await;
-        let _ = acked.unwrap_or_else(|_| panic!("no settled frame acknowledged drag 1"))?;
-    }
+    let h0 = reconnect_rule(&mut s.connect().await?).await?;
     opener.join().expect("opener");
-    let after = s.pose().await?;
-    // the handle (the grid's top row) is rigid: moved by the one drag
-    for v in 56..64 {
-        let dz = after.positions[v][2] - before.positions[v][2];
-        assert!(
-            (dz - 0.1).abs() < 1e-9,
-            "vertex {v} moved {dz} (first frame of the new connection acknowledged {})",
-            h0.ack_seq
-        );
-    }
+    assert_moved_once(&before, &s.pose().await?, &h0);
     Ok(())
 }
 
@@ -372,9 +418,7 @@ async fn a_reconnect_during_a_drags_solve_does_not_apply_it_twice() -> Result<()
 /// it, as the first frame of a new connection does.
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn a_pose_read_during_a_drags_solve_acknowledges_it() -> Result<(), ClientError> {
-    let gate = Arc::new(AppendGate::default());
-    let memory: Arc<dyn Store> = Arc::new(MemoryStore::new());
-    let (s, _state) = gated_session(gate.store(memory.clone()), &memory).await?;
+    let (gate, _memory, s, _state) = gated().await?;
     let mut ws = s.connect().await?;
     let _ = ws.frame_acking(0, true).await?;
     gate.hold(&s.id);
@@ -449,14 +493,11 @@ async fn a_client_joining_a_stream_of_drags_gets_its_first_frame() -> Result<(),
 /// queue, the first frame acknowledged 0 and the handle moved 0.2).
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn a_drag_queued_behind_a_store_write_is_not_applied_twice() -> Result<(), ClientError> {
-    let gate = Arc::new(AppendGate::default());
-    let memory: Arc<dyn Store> = Arc::new(MemoryStore::new());
-    let (s, _state) = gated_session(gate.store(memory.clone()), &memory).await?;
+    let (gate, _memory, s, _state) = gated().await?;
     let mut first = s.connect().await?;
     let _ = first.frame_acking(0, true).await?;
     let before = s.pose().await?;
-    *gate.op.lock() = Some("put_named_pose");
-    gate.hold(&s.id);
+    gate.hold_op(&s.id, "put_named_pose", 0);
     let saving = {
         let s = s.clone();
         tokio::spawn(async move { s.save_pose("p", false).await })
@@ -467,34 +508,10 @@ async fn a_drag_queued_behind_a_store_write_is_not_applied_twice() -> Result<(),
     tokio::time::sleep(Duration::from_millis(100)).await;
     drop(first);
     let opener = gate.open_after(Duration::from_millis(300));
-    let mut second = s.connect().await?;
-    let h0 = loop {
-        match tokio::time::timeout(Duration::from_secs(10), second.next()).await {
-            Ok(Ok(WsEvent::Frame(h, _))) => break h,
-            Ok(Ok(_)) => {}
-            Ok(Err(e)) => return Err(e),
-            Err(_) => panic!("no first frame within 10 s"),
-        }
-    };
-    if h0.ack_seq < 1 {
-        second.drag(0, [0.0, 0.0, 0.1], None, 1).await?;
-    }
-    if !(h0.ack_seq >= 1 && h0.converged) {
-        let acked =
-            tokio::time::timeout(Duration::from_secs(10), second.frame_acking(1, true)).await;
-        let _ = acked.unwrap_or_else(|_| panic!("no settled frame acknowledged drag 1"))?;
-    }
+    let h0 = reconnect_rule(&mut s.connect().await?).await?;
     opener.join().expect("opener");
     let _ = saving.await.expect("join")?;
-    let after = s.pose().await?;
-    for v in 56..64 {
-        let dz = after.positions[v][2] - before.positions[v][2];
-        assert!(
-            (dz - 0.1).abs() < 1e-9,
-            "vertex {v} moved {dz} (first frame of the new connection acknowledged {})",
-            h0.ack_seq
-        );
-    }
+    assert_moved_once(&before, &s.pose().await?, &h0);
     Ok(())
 }
 
@@ -504,9 +521,7 @@ async fn a_drag_queued_behind_a_store_write_is_not_applied_twice() -> Result<(),
 /// updated: the read took the whole safety bound).
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn a_closed_session_answers_a_pose_read_at_once() -> Result<(), ClientError> {
-    let gate = Arc::new(AppendGate::default());
-    let memory: Arc<dyn Store> = Arc::new(MemoryStore::new());
-    let (s, state) = gated_session(gate.store(memory.clone()), &memory).await?;
+    let (gate, _memory, s, state) = gated().await?;
     let h = state.registry.get(&s.id).expect("a live session");
     let mut ws = s.connect().await?;
     let _ = ws.frame_acking(0, true).await?;
@@ -542,28 +557,11 @@ async fn a_closed_session_answers_a_pose_read_at_once() -> Result<(), ClientErro
 /// checkpoint was held).
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn a_constraint_edit_acknowledges_the_drags_it_takes_back() -> Result<(), ClientError> {
-    use std::sync::atomic::{AtomicUsize, Ordering};
     let gate = Arc::new(AppendGate::default());
+    // the edit's second checkpoint (the first is its commit's) is held
+    let checkpoints = Arc::new(AppendGate::default());
     let memory: Arc<dyn Store> = Arc::new(MemoryStore::new());
-    // checkpoints of the session counted once it is armed; the second one
-    // waits (at most 20 s) for `release`
-    let armed: Arc<Mutex<Option<String>>> = Arc::default();
-    let seen = Arc::new(AtomicUsize::new(0));
-    let release = Arc::new(std::sync::atomic::AtomicBool::new(false));
-    let held = {
-        let (armed, seen, release) = (armed.clone(), seen.clone(), release.clone());
-        Arc::new(with_faults(gate.store(memory.clone()), move |call| {
-            let mine =
-                call.op == "checkpoint" && call.id.is_some() && armed.lock().as_deref() == call.id;
-            if mine && seen.fetch_add(1, Ordering::SeqCst) == 1 {
-                let until = Instant::now() + Duration::from_secs(20);
-                while !release.load(Ordering::SeqCst) && Instant::now() < until {
-                    std::thread::sleep(Duration::from_millis(1));
-                }
-            }
-            Ok(())
-        }))
-    };
+    let held = checkpoints.store(gate.store(memory.clone()));
     let (s, _state) = gated_session(held, &memory).await?;
     let mut ws = s.connect().await?;
     let _ = ws.frame_acking(0, true).await?;
@@ -573,7 +571,7 @@ async fn a_constraint_edit_acknowledges_the_drags_it_takes_back() -> Result<(), 
     ws.drag(0, [0.0, 0.0, 0.1], None, 2).await?;
     // drag 2 reaches the session before the edit
     tokio::time::sleep(Duration::from_millis(100)).await;
-    *armed.lock() = Some(s.id.clone());
+    checkpoints.hold_op(&s.id, "checkpoint", 1);
     // time for the edit to reach the session (loaded hosts included)
     // before drag 1's solve returns; else drag 2's own solve acknowledges it
     let opener = gate.open_after(Duration::from_millis(1000));
@@ -582,16 +580,19 @@ async fn a_constraint_edit_acknowledges_the_drags_it_takes_back() -> Result<(), 
         tokio::spawn(async move { s.set_constraints(&grid_constraints(8)).await })
     };
     let acked = tokio::time::timeout(Duration::from_secs(5), ws.frame_acking(2, false)).await;
-    let held_then = seen.load(Ordering::SeqCst);
-    release.store(true, Ordering::SeqCst);
+    let held_then = checkpoints.was_entered();
+    checkpoints
+        .open_after(Duration::ZERO)
+        .join()
+        .expect("release");
     opener.join().expect("opener");
     let _ = edit.await.expect("join")?;
     let (h, _) = acked.unwrap_or_else(|_| {
-        panic!("no frame acknowledged drag 2 while the edit's checkpoint was held ({held_then} checkpoints seen)")
+        panic!("no frame acknowledged drag 2 while the edit's checkpoint was held")
     })?;
     assert!(
-        held_then >= 2,
-        "the frame came before the edit's checkpoint ({held_then})"
+        held_then,
+        "the frame came before the edit's second checkpoint"
     );
     assert_eq!(h.ack_seq, 2);
     Ok(())

@@ -125,7 +125,7 @@ impl Actor {
         if self.flow.shown_waiters.is_empty() {
             return;
         }
-        let (unshown, done) = (self.drags_unshown(), self.solve.solves.1);
+        let (unshown, done) = (self.drags_unshown(), self.solve.solves_done);
         let waiting = std::mem::take(&mut self.flow.shown_waiters);
         for (started, reply) in waiting {
             if unshown && done <= started {
@@ -216,7 +216,9 @@ impl Actor {
             }
             Cmd::DragsShown(reply) => {
                 if self.drags_unshown() {
-                    self.flow.shown_waiters.push((self.solve.solves.0, reply));
+                    self.flow
+                        .shown_waiters
+                        .push((self.solve.solves_started, reply));
                 } else {
                     let _ = reply.send(());
                 }

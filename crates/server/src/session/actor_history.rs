@@ -12,7 +12,7 @@ use crate::session::types::{Event, Frame, PoseSnapshot};
 use crate::store::{Checkpoint, StoreError, StoredTransform};
 use dend::deform::RigidTransform;
 use dend_protocol::ws::SessionState;
-use dend_protocol::FrameBody;
+use dend_protocol::{FrameBody, FrameHeader};
 
 impl Actor {
     /// [`commit`](Self::commit) unless a client holds a handle: one user
@@ -141,12 +141,19 @@ impl Actor {
         for (_, w) in self.flow.waiters.drain(..) {
             let _ = w.send(Err(SessionError::NotReady { state }));
         }
-        self.shown.revision += 1;
         // iteration 0, converged and settled, no objective (set above)
+        let header = self.publish_shown_pose();
+        Ok(self.snapshot_for(&header))
+    }
+
+    /// Publishes the shown pose as a frame of a new revision (a pose set
+    /// without a solve); returns its header.
+    fn publish_shown_pose(&mut self) -> FrameHeader {
+        self.shown.revision += 1;
         let header = self.header();
         let bytes = FrameBody::from_pose(&self.shown.pose).finish(&header);
         self.frames_tx.send_replace(Some(Frame { header, bytes }));
-        Ok(self.snapshot_for(&header))
+        header
     }
 
     /// Publishes the current pose under a frame that acknowledges every
@@ -159,10 +166,7 @@ impl Actor {
             return;
         }
         self.shown.applied_seq = self.shown.last_seq;
-        self.shown.revision += 1;
-        let header = self.header();
-        let bytes = FrameBody::from_pose(&self.shown.pose).finish(&header);
-        self.frames_tx.send_replace(Some(Frame { header, bytes }));
+        self.publish_shown_pose();
     }
 
     pub(super) fn undo_redo(&mut self, undo: bool) -> Result<PoseSnapshot, SessionError> {

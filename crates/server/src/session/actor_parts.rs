@@ -115,8 +115,11 @@ pub(super) struct Solve {
     pub(super) journal: Vec<JournalEntry>,
     /// The solve that runs took drags (no frame shows them yet).
     pub(super) inflight_drags: bool,
-    /// Solves started and taken in so far (`Actor::answer_drags_shown`).
-    pub(super) solves: (u64, u64),
+    /// Solves started so far (one runs at a time, and each takes every
+    /// drag received before it: `Actor::answer_drags_shown`).
+    pub(super) solves_started: u64,
+    /// Solves whose result the session has taken in.
+    pub(super) solves_done: u64,
     pub(super) iters_since_change: usize,
     /// When the last drag without a waiter (a WebSocket drag) was applied:
     /// the coarse corrections wait until drags pause
@@ -222,7 +225,8 @@ impl Actor {
                 drag_pending: false,
                 journal: vec![],
                 inflight_drags: false,
-                solves: (0, 0),
+                solves_started: 0,
+                solves_done: 0,
                 iters_since_change: 0,
                 last_stream_drag: None,
                 drag_gap: None,

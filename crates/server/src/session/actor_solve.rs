@@ -90,7 +90,7 @@ impl Actor {
         self.solve.refining = !self.solve.drag_pending && self.flow.waiters.is_empty();
         self.flow.inflight = self.flow.waiters.drain(..).map(|w| w.1).collect();
         self.solve.inflight_drags = self.solve.drag_pending;
-        self.solve.solves.0 += 1;
+        self.solve.solves_started += 1;
         self.drags_taken();
         let Some(mut deformer) = self.solve.deformer.take() else {
             return;
@@ -259,7 +259,7 @@ impl Actor {
             } => {
                 self.solve.refining = false;
                 self.solve.inflight_drags = false;
-                self.solve.solves.1 += 1;
+                self.solve.solves_done += 1;
                 if pose_epoch != self.solve.pose_epoch {
                     // an undo, redo, reset or restore replaced the pose while
                     // this solve ran: its pose and frame are not the
