@@ -597,3 +597,136 @@ async fn a_constraint_edit_acknowledges_the_drags_it_takes_back() -> Result<(), 
     assert_eq!(h.ack_seq, 2);
     Ok(())
 }
+
+/// Another client's drag that reaches the session after an undo, while the
+/// undo waits for the running solve of the drag before it: the drag is
+/// applied after the undo, on the undone pose. Served at once, it went
+/// into the targets the undo then replaced: lost, while its frame
+/// acknowledged it. The first drag's append is held at a gate so that the
+/// undo and the second client's drag both arrive while its solve runs.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_drag_after_a_waiting_undo_is_applied_after_it() -> Result<(), ClientError> {
+    let (gate, _memory, s, _state) = gated().await?;
+    let mut ws = s.connect().await?;
+    let _ = ws.frame_acking(0, true).await?;
+    // (connected now: a new connection's first frame waits for the drags
+    // the session holds, and its socket reads nothing before it)
+    let mut other = s.connect().await?;
+    let _ = other.frame_acking(0, true).await?;
+    let before = s.pose().await?;
+
+    gate.hold(&s.id);
+    ws.drag(0, [0.0, 0.0, 0.1], None, 1).await?;
+    gate.entered().await;
+    let undo = {
+        let s = s.clone();
+        tokio::spawn(async move { s.undo().await })
+    };
+    // the undo reaches the session (and waits there) before the drag
+    tokio::time::sleep(Duration::from_millis(300)).await;
+    other.drag(0, [0.0, 0.0, 0.2], None, 2).await?;
+    let opener = gate.open_after(Duration::from_millis(300));
+    let _ = undo.await.expect("join")?;
+    opener.join().expect("opener");
+    let acked = tokio::time::timeout(Duration::from_secs(10), other.frame_acking(2, true)).await;
+    let _ = acked.unwrap_or_else(|_| panic!("no settled frame acknowledged drag 2 within 10 s"))?;
+    let after = s.pose().await?;
+    // the handle (the grid's top row, rigid) moved by drag 2 alone
+    for v in 56..64 {
+        let dz = after.positions[v][2] - before.positions[v][2];
+        assert!(
+            (dz - 0.2).abs() < 1e-9,
+            "vertex {v} moved {dz}: drag 2 {}",
+            if dz.abs() < 1e-9 {
+                "was lost"
+            } else {
+                "and the undone drag 1"
+            }
+        );
+    }
+    Ok(())
+}
+
+/// Another client's drag that reaches the session after a constraint
+/// edit, while the edit waits for the running solve of the drag before
+/// it: the drag is applied to the new set, after the edit. Served at
+/// once, it went into the old set's targets, which the new set replaced:
+/// lost, while its frame acknowledged it.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_drag_after_a_waiting_constraint_edit_moves_the_new_set() -> Result<(), ClientError> {
+    let (gate, _memory, s, _state) = gated().await?;
+    let mut ws = s.connect().await?;
+    let _ = ws.frame_acking(0, true).await?;
+    let mut other = s.connect().await?;
+    let _ = other.frame_acking(0, true).await?;
+    let before = s.pose().await?;
+
+    gate.hold(&s.id);
+    ws.drag(0, [0.0, 0.0, 0.1], None, 1).await?;
+    gate.entered().await;
+    let edit = {
+        let s = s.clone();
+        tokio::spawn(async move { s.set_constraints(&grid_constraints(8)).await })
+    };
+    // the edit reaches the session (and waits there) before the drag
+    tokio::time::sleep(Duration::from_millis(300)).await;
+    other.drag(0, [0.0, 0.0, 0.2], None, 2).await?;
+    let opener = gate.open_after(Duration::from_millis(300));
+    let _ = edit.await.expect("join")?;
+    opener.join().expect("opener");
+    let acked = tokio::time::timeout(Duration::from_secs(10), other.frame_acking(2, true)).await;
+    let _ = acked.unwrap_or_else(|_| panic!("no settled frame acknowledged drag 2 within 10 s"))?;
+    let after = s.pose().await?;
+    // the handle moved by both drags: the edit anchors the new set where
+    // drag 1 left the pose, and drag 2 moves it from there
+    for v in 56..64 {
+        let dz = after.positions[v][2] - before.positions[v][2];
+        assert!((dz - 0.3).abs() < 1e-9, "vertex {v} moved {dz}");
+    }
+    Ok(())
+}
+
+/// Another client's drag that reaches the session after a named pose's
+/// restore, while the restore waits for the settle of the drag before
+/// it: the drag is applied after the restore, on the restored pose.
+/// Served at once, it went into the targets the restore then replaced.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_drag_after_a_waiting_restore_is_applied_after_it() -> Result<(), ClientError> {
+    let (gate, _memory, s, _state) = gated().await?;
+    let mut ws = s.connect().await?;
+    let _ = ws.frame_acking(0, true).await?;
+    let mut other = s.connect().await?;
+    let _ = other.frame_acking(0, true).await?;
+    let before = s.pose().await?;
+    s.save_pose("start", false).await?;
+
+    gate.hold(&s.id);
+    ws.drag(0, [0.0, 0.0, 0.1], None, 1).await?;
+    gate.entered().await;
+    let restore = {
+        let s = s.clone();
+        tokio::spawn(async move { s.restore_pose("start").await })
+    };
+    // the restore reaches the session (and waits there) before the drag
+    tokio::time::sleep(Duration::from_millis(300)).await;
+    other.drag(0, [0.0, 0.0, 0.2], None, 2).await?;
+    let opener = gate.open_after(Duration::from_millis(300));
+    let _ = restore.await.expect("join")?;
+    opener.join().expect("opener");
+    let acked = tokio::time::timeout(Duration::from_secs(10), other.frame_acking(2, true)).await;
+    let _ = acked.unwrap_or_else(|_| panic!("no settled frame acknowledged drag 2 within 10 s"))?;
+    let after = s.pose().await?;
+    for v in 56..64 {
+        let dz = after.positions[v][2] - before.positions[v][2];
+        assert!(
+            (dz - 0.2).abs() < 1e-9,
+            "vertex {v} moved {dz}: drag 2 {}",
+            if dz.abs() < 1e-9 {
+                "was lost"
+            } else {
+                "and drag 1, taken back"
+            }
+        );
+    }
+    Ok(())
+}

@@ -7,7 +7,7 @@ use std::time::Instant;
 use tokio::sync::mpsc;
 
 use super::error::SessionError;
-use super::shared::{off_worker, Cmd, Internal, QueuedDrag, Reply, Restore};
+use super::shared::{off_worker, Cmd, Internal, PoseCmd, QueuedDrag, Reply, Restore};
 use super::timing::{sleep_until_or_never, CORRECTION_QUIET};
 use super::types::{Delta, Event, PoseSnapshot};
 use crate::store::JournalEntry;
@@ -26,19 +26,27 @@ impl Actor {
         };
         self.load_named_poses();
         loop {
-            while self.solve.deformer.is_some() {
-                let Some(cmd) = self.flow.deferred.pop_front() else {
-                    break;
-                };
-                if !self.on_cmd(cmd) {
-                    return self.closed();
+            // (a named pose's restore lets the drags held behind it go on)
+            loop {
+                while self.solve.deformer.is_some() && !self.restore_holds_drags() {
+                    let Some(cmd) = self.flow.deferred.pop_front() else {
+                        break;
+                    };
+                    if !self.run_cmd(cmd) {
+                        return self.closed();
+                    }
                 }
-            }
-            while self.pose_settled() {
-                let Some(cmd) = self.poses.settle_queue.pop_front() else {
+                let mut restored = false;
+                while self.pose_settled() {
+                    let Some(cmd) = self.poses.settle_queue.pop_front() else {
+                        break;
+                    };
+                    restored |= matches!(cmd, PoseCmd::Restore { .. });
+                    self.on_pose_cmd(cmd);
+                }
+                if !restored {
                     break;
-                };
-                self.on_pose_cmd(cmd);
+                }
             }
             self.maybe_start_solve();
             // the oldest queued drag's deadline (far away when none is queued)
@@ -115,7 +123,36 @@ impl Actor {
     /// since the last solve started, taken by the solve that runs, or
     /// queued for the factor.
     fn drags_unshown(&self) -> bool {
-        self.solve.drag_pending || self.solve.inflight_drags || !self.flow.queued.is_empty()
+        self.solve.drag_pending
+            || self.solve.inflight_drags
+            || !self.flow.queued.is_empty()
+            || self.drags_held()
+    }
+
+    /// Whether drags wait in `deferred` behind a command that waits
+    /// ([`Actor::on_cmd`]).
+    fn drags_held(&self) -> bool {
+        self.flow
+            .deferred
+            .iter()
+            .any(|c| matches!(c, Cmd::Drag { .. }))
+    }
+
+    /// Whether a named pose's restore waits for the settle (and will
+    /// replace the targets); not in a failed session, which refuses drags
+    /// (and may never settle).
+    fn restore_waits(&self) -> bool {
+        self.state() != SessionState::Failed
+            && self
+                .poses
+                .settle_queue
+                .iter()
+                .any(|c| matches!(c, PoseCmd::Restore { .. }))
+    }
+
+    /// Whether the drags in `deferred` wait for a named pose's restore.
+    fn restore_holds_drags(&self) -> bool {
+        matches!(self.flow.deferred.front(), Some(Cmd::Drag { .. })) && self.restore_waits()
     }
 
     /// Answers the `Cmd::DragsShown` questions whose drags are in a frame:
@@ -126,9 +163,12 @@ impl Actor {
             return;
         }
         let (unshown, done) = (self.drags_unshown(), self.solve.solves_done);
+        // (a held drag is in no solve's targets yet: only its own solve,
+        // once it is applied, shows it)
+        let held = self.drags_held();
         let waiting = std::mem::take(&mut self.flow.shown_waiters);
         for (started, reply) in waiting {
-            if unshown && done <= started {
+            if held || unshown && done <= started {
                 self.flow.shown_waiters.push((started, reply));
             } else {
                 let _ = reply.send(());
@@ -146,7 +186,7 @@ impl Actor {
             !self.history.uncommitted && self.history.cursor + 1 < self.history.entries.len();
     }
 
-    /// Handles one command; false when the session must stop.
+    /// Handles one command as it arrives; false when the session must stop.
     fn on_cmd(&mut self, cmd: Cmd) -> bool {
         // these read or replace the pose, and write a checkpoint, which
         // truncates the stored journal: they wait for a running solve, so
@@ -156,10 +196,22 @@ impl Actor {
             cmd,
             Cmd::Undo(_) | Cmd::Redo(_) | Cmd::Reset(_) | Cmd::SetConstraints { .. }
         );
-        if needs_deformer && self.solve.deformer.is_none() {
+        // a drag keeps its place behind them, and behind a named pose's
+        // restore (which waits for the settle): composed into the targets
+        // at once, it would be replaced with them (taken back, though its
+        // frame acknowledges it) or go to a constraint set it was not sent
+        // for
+        let behind = matches!(cmd, Cmd::Drag { .. })
+            && (!self.flow.deferred.is_empty() || self.restore_waits());
+        if needs_deformer && self.solve.deformer.is_none() || behind {
             self.flow.deferred.push_back(cmd);
             return true;
         }
+        self.run_cmd(cmd)
+    }
+
+    /// Runs one command, in its turn; false when the session must stop.
+    fn run_cmd(&mut self, cmd: Cmd) -> bool {
         match cmd {
             Cmd::Drag {
                 handle,
