@@ -546,55 +546,50 @@ async fn a_closed_session_answers_a_pose_read_at_once() -> Result<(), ClientErro
     Ok(())
 }
 
-/// A new constraint set takes back the drags no solve took yet (they were
-/// composed into the old set's targets), and a frame acknowledges them at
-/// once: a client that connects while the new set is built does not send
-/// them again onto it. Drag 1's append is held so that drag 2 waits for a
-/// solve when the edit (which waits for the running solve) comes in; the
-/// edit's second checkpoint (after the set is installed) is held too, so
-/// that nothing but the edit itself can have published a frame
-/// acknowledging drag 2 (measured: without that frame none came while the
-/// checkpoint was held).
+/// A constraint edit keeps the drags received before it: it waits for
+/// their solve, then commits that pose as an undo step and anchors the new
+/// set there. Before, it committed the step with the drags in its targets
+/// but not in its pose, and took them back from the new set. Drag 1's
+/// append is held so that drag 2 is received, not yet solved, when the
+/// edit (which waits for the running solve) comes in.
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
-async fn a_constraint_edit_acknowledges_the_drags_it_takes_back() -> Result<(), ClientError> {
-    let gate = Arc::new(AppendGate::default());
-    // the edit's second checkpoint (the first is its commit's) is held
-    let checkpoints = Arc::new(AppendGate::default());
-    let memory: Arc<dyn Store> = Arc::new(MemoryStore::new());
-    let held = checkpoints.store(gate.store(memory.clone()));
-    let (s, _state) = gated_session(held, &memory).await?;
+async fn a_constraint_edit_keeps_the_drags_received_before_it() -> Result<(), ClientError> {
+    let (gate, _memory, s, _state) = gated().await?;
     let mut ws = s.connect().await?;
     let _ = ws.frame_acking(0, true).await?;
+    let before = s.pose().await?;
     gate.hold(&s.id);
     ws.drag(0, [0.0, 0.0, 0.1], None, 1).await?;
     gate.entered().await;
     ws.drag(0, [0.0, 0.0, 0.1], None, 2).await?;
     // drag 2 reaches the session before the edit
     tokio::time::sleep(Duration::from_millis(100)).await;
-    checkpoints.hold_op(&s.id, "checkpoint", 1);
-    // time for the edit to reach the session (loaded hosts included)
-    // before drag 1's solve returns; else drag 2's own solve acknowledges it
-    let opener = gate.open_after(Duration::from_millis(1000));
+    let opener = gate.open_after(Duration::from_millis(300));
     let edit = {
         let s = s.clone();
         tokio::spawn(async move { s.set_constraints(&grid_constraints(8)).await })
     };
-    let acked = tokio::time::timeout(Duration::from_secs(5), ws.frame_acking(2, false)).await;
-    let held_then = checkpoints.was_entered();
-    checkpoints
-        .open_after(Duration::ZERO)
-        .join()
-        .expect("release");
-    opener.join().expect("opener");
     let _ = edit.await.expect("join")?;
-    let (h, _) = acked.unwrap_or_else(|_| {
-        panic!("no frame acknowledged drag 2 while the edit's checkpoint was held")
-    })?;
-    assert!(
-        held_then,
-        "the frame came before the edit's second checkpoint"
-    );
-    assert_eq!(h.ack_seq, 2);
+    opener.join().expect("opener");
+    s.wait_ready(Duration::from_secs(60)).await?;
+    let acked = tokio::time::timeout(Duration::from_secs(10), ws.frame_acking(2, true)).await;
+    let _ = acked.unwrap_or_else(|_| panic!("no settled frame acknowledged drag 2 within 10 s"))?;
+    let moved = |p: &Pose, v: usize| p.positions[v][2] - before.positions[v][2];
+    let edited = s.pose().await?;
+    // the undo step the edit committed: its pose holds both drags too
+    let undone = s.undo().await?;
+    for v in 56..64 {
+        assert!(
+            (moved(&edited, v) - 0.2).abs() < 1e-9,
+            "after the edit vertex {v} moved {}",
+            moved(&edited, v)
+        );
+        assert!(
+            (moved(&undone, v) - 0.2).abs() < 1e-9,
+            "the edit's undo step has vertex {v} moved {}",
+            moved(&undone, v)
+        );
+    }
     Ok(())
 }
 

@@ -28,7 +28,10 @@ impl Actor {
         loop {
             // (a named pose's restore lets the drags held behind it go on)
             loop {
-                while self.solve.deformer.is_some() && !self.restore_holds_drags() {
+                while let Some(cmd) = self.flow.deferred.front() {
+                    if self.must_wait(cmd) {
+                        break;
+                    }
                     let Some(cmd) = self.flow.deferred.pop_front() else {
                         break;
                     };
@@ -150,9 +153,27 @@ impl Actor {
                 .any(|c| matches!(c, PoseCmd::Restore { .. }))
     }
 
-    /// Whether the drags in `deferred` wait for a named pose's restore.
-    fn restore_holds_drags(&self) -> bool {
-        matches!(self.flow.deferred.front(), Some(Cmd::Drag { .. })) && self.restore_waits()
+    /// Whether `cmd`, next in turn, waits (in `deferred`). An undo, redo,
+    /// reset or constraint edit reads or replaces the pose and writes a
+    /// checkpoint, which truncates the stored journal: it waits for a
+    /// running solve, so that the journal append the solve starts with
+    /// lands before the checkpoint (else a revival replays drags the
+    /// checkpoint holds or undid). A constraint edit also waits for the
+    /// solve of the drags received before it: it commits the pose as an
+    /// undo step and anchors the new set there, so the pose holds them
+    /// (else they went with the old set's targets, unsolved, into that
+    /// step). A drag waits for a named pose's restore, which waits for the
+    /// settle.
+    fn must_wait(&self, cmd: &Cmd) -> bool {
+        let running = self.solve.deformer.is_none();
+        match cmd {
+            Cmd::Undo(_) | Cmd::Redo(_) | Cmd::Reset(_) => running,
+            Cmd::SetConstraints { .. } => {
+                running || self.state() == SessionState::Ready && self.solve.drag_pending
+            }
+            Cmd::Drag { .. } => self.restore_waits(),
+            _ => false,
+        }
     }
 
     /// Answers the `Cmd::DragsShown` questions whose drags are in a frame:
@@ -188,22 +209,12 @@ impl Actor {
 
     /// Handles one command as it arrives; false when the session must stop.
     fn on_cmd(&mut self, cmd: Cmd) -> bool {
-        // these read or replace the pose, and write a checkpoint, which
-        // truncates the stored journal: they wait for a running solve, so
-        // the journal append it starts with lands before the checkpoint
-        // (else a revival replays drags the checkpoint holds or undid)
-        let needs_deformer = matches!(
-            cmd,
-            Cmd::Undo(_) | Cmd::Redo(_) | Cmd::Reset(_) | Cmd::SetConstraints { .. }
-        );
-        // a drag keeps its place behind them, and behind a named pose's
-        // restore (which waits for the settle): composed into the targets
-        // at once, it would be replaced with them (taken back, though its
-        // frame acknowledges it) or go to a constraint set it was not sent
-        // for
-        let behind = matches!(cmd, Cmd::Drag { .. })
-            && (!self.flow.deferred.is_empty() || self.restore_waits());
-        if needs_deformer && self.solve.deformer.is_none() || behind {
+        // a drag keeps its place behind the commands that wait: composed
+        // into the targets at once, it would be replaced with them (taken
+        // back, though its frame acknowledges it) or go to a constraint set
+        // it was not sent for
+        let behind = matches!(cmd, Cmd::Drag { .. }) && !self.flow.deferred.is_empty();
+        if behind || self.must_wait(&cmd) {
             self.flow.deferred.push_back(cmd);
             return true;
         }
@@ -402,8 +413,9 @@ impl Actor {
             constraints: anchored,
         });
         self.install(set, AfterBuild::Solve)?;
-        // the drags no solve took went with the old set's targets: like an
-        // undo, the edit takes them back, and a frame says so
+        // (the edit waited for the solve of the drags received before it,
+        // `must_wait`; were one left unsolved, it went with the old set's
+        // targets: like an undo, the edit takes it back, and a frame says so)
         self.acknowledge_taken_back();
         // the store's checkpoint went with its old constraints
         self.checkpoint();
