@@ -725,3 +725,190 @@ async fn a_drag_after_a_waiting_restore_is_applied_after_it() -> Result<(), Clie
     }
     Ok(())
 }
+
+/// A constraint edit after a solve that failed while drags arrived: those
+/// drags get a solve of their own, and the edit (which waits for the
+/// solve of the drags received before it) returns. The failing solve is
+/// made by two huge, finite drags whose composed target overflows; drag
+/// 1's append is held so that they compose while its solve runs, and the
+/// failing solve's append so that drag 4 arrives during it. Before, the
+/// failed solve marked the pose settled, no solve took drag 4, and the
+/// edit waited for ever.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_constraint_edit_after_a_failed_solve_returns() -> Result<(), ClientError> {
+    let (first, second) = (
+        Arc::new(AppendGate::default()),
+        Arc::new(AppendGate::default()),
+    );
+    let memory: Arc<dyn Store> = Arc::new(MemoryStore::new());
+    let held = second.store(first.store(memory.clone()));
+    let (s, _state) = gated_session(held, &memory).await?;
+    let mut ws = s.connect().await?;
+    let _ = ws.frame_acking(0, true).await?;
+    first.hold(&s.id);
+    second.hold_op(&s.id, "append", 1);
+    ws.drag(0, [0.0, 0.0, 0.1], None, 1).await?;
+    first.entered().await;
+    ws.drag(0, [1e308, 0.0, 0.0], None, 2).await?;
+    ws.drag(0, [1e308, 0.0, 0.0], None, 3).await?;
+    tokio::time::sleep(Duration::from_millis(100)).await;
+    first.open_after(Duration::ZERO).join().expect("open");
+    second.entered().await;
+    ws.drag(0, [0.0, 0.0, 0.1], None, 4).await?;
+    tokio::time::sleep(Duration::from_millis(100)).await;
+    let edit = {
+        let s = s.clone();
+        tokio::spawn(async move { s.set_constraints(&grid_constraints(8)).await })
+    };
+    tokio::time::sleep(Duration::from_millis(300)).await;
+    second.open_after(Duration::ZERO).join().expect("open");
+    let done = tokio::time::timeout(Duration::from_secs(15), edit).await;
+    let _ = done
+        .unwrap_or_else(|_| panic!("the constraint edit did not return within 15 s"))
+        .expect("join")?;
+    Ok(())
+}
+
+/// A client that reconnects while its drag waits behind a constraint edit
+/// (which waits for the solve of the drags before it), and follows the
+/// reconnect rule, has the drag applied once: the new connection's first
+/// frame waits for the held drag's own solve. Before, a solve that ended
+/// while the drag was held answered that wait, the first frame did not
+/// acknowledge the drag, and the client's resend moved the handle twice.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_drag_held_behind_an_edit_is_not_applied_twice() -> Result<(), ClientError> {
+    let (gate, _memory, s, _state) = gated().await?;
+    let mut a = s.connect().await?;
+    let _ = a.frame_acking(0, true).await?;
+    let mut b = s.connect().await?;
+    let _ = b.frame_acking(0, true).await?;
+    let before = s.pose().await?;
+
+    gate.hold(&s.id);
+    a.drag(0, [0.0, 0.0, 0.1], None, 1).await?;
+    gate.entered().await;
+    a.drag(0, [0.0, 0.0, 0.1], None, 2).await?;
+    tokio::time::sleep(Duration::from_millis(100)).await;
+    let edit = {
+        let s = s.clone();
+        tokio::spawn(async move { s.set_constraints(&grid_constraints(8)).await })
+    };
+    tokio::time::sleep(Duration::from_millis(300)).await;
+    // held behind the waiting edit
+    b.drag(0, [0.0, 0.0, 0.2], None, 3).await?;
+    tokio::time::sleep(Duration::from_millis(100)).await;
+    drop(b);
+    let opener = gate.open_after(Duration::from_millis(1000));
+    let mut b2 = s.connect().await?;
+    let h0 = first_frame(&mut b2).await?;
+    if h0.ack_seq < 3 {
+        b2.drag(0, [0.0, 0.0, 0.2], None, 3).await?;
+    }
+    let _ = edit.await.expect("join")?;
+    opener.join().expect("opener");
+    s.wait_ready(Duration::from_secs(60)).await?;
+    let acked = tokio::time::timeout(Duration::from_secs(10), b2.frame_acking(3, true)).await;
+    let _ = acked.unwrap_or_else(|_| panic!("no settled frame acknowledged drag 3"))?;
+    let after = s.pose().await?;
+    for v in 56..64 {
+        let dz = after.positions[v][2] - before.positions[v][2];
+        assert!(
+            (dz - 0.4).abs() < 1e-9,
+            "vertex {v} moved {dz} (0.4 expected; first frame acked {})",
+            h0.ack_seq
+        );
+    }
+    Ok(())
+}
+
+/// The same behind a named pose's restore, which waits for the settle:
+/// the settle's solves end while the drag is held.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_drag_held_behind_a_restore_is_not_applied_twice() -> Result<(), ClientError> {
+    let (gate, _memory, s, _state) = gated().await?;
+    let mut a = s.connect().await?;
+    let _ = a.frame_acking(0, true).await?;
+    let mut b = s.connect().await?;
+    let _ = b.frame_acking(0, true).await?;
+    let before = s.pose().await?;
+    s.save_pose("start", false).await?;
+
+    gate.hold(&s.id);
+    a.drag(0, [0.0, 0.0, 0.1], None, 1).await?;
+    gate.entered().await;
+    let restore = {
+        let s = s.clone();
+        tokio::spawn(async move { s.restore_pose("start").await })
+    };
+    tokio::time::sleep(Duration::from_millis(300)).await;
+    b.drag(0, [0.0, 0.0, 0.2], None, 3).await?;
+    tokio::time::sleep(Duration::from_millis(100)).await;
+    drop(b);
+    let opener = gate.open_after(Duration::from_millis(300));
+    let mut b2 = s.connect().await?;
+    let h0 = first_frame(&mut b2).await?;
+    if h0.ack_seq < 3 {
+        b2.drag(0, [0.0, 0.0, 0.2], None, 3).await?;
+    }
+    let _ = restore.await.expect("join")?;
+    opener.join().expect("opener");
+    let acked = tokio::time::timeout(Duration::from_secs(10), b2.frame_acking(3, true)).await;
+    let _ = acked.unwrap_or_else(|_| panic!("no settled frame acknowledged drag 3"))?;
+    let after = s.pose().await?;
+    for v in 56..64 {
+        let dz = after.positions[v][2] - before.positions[v][2];
+        assert!(
+            (dz - 0.2).abs() < 1e-9,
+            "vertex {v} moved {dz} (0.2 expected; first frame acked {})",
+            h0.ack_seq
+        );
+    }
+    Ok(())
+}
+
+/// The commands that wait keep their arrival order: drag 1, an undo
+/// (waits for drag 1's solve), another client's drag 3 (held behind the
+/// undo), then a named pose's restore. The restore comes last, so the
+/// pose is the named one. Before, a restore waited apart from the held
+/// drags, ran first, and drag 3 was applied after it.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_drag_before_a_restore_is_not_applied_after_it() -> Result<(), ClientError> {
+    let (gate, _memory, s, _state) = gated().await?;
+    let mut a = s.connect().await?;
+    let _ = a.frame_acking(0, true).await?;
+    let mut b = s.connect().await?;
+    let _ = b.frame_acking(0, true).await?;
+    let before = s.pose().await?;
+    s.save_pose("start", false).await?;
+
+    gate.hold(&s.id);
+    a.drag(0, [0.0, 0.0, 0.1], None, 1).await?;
+    gate.entered().await;
+    let undo = {
+        let s = s.clone();
+        tokio::spawn(async move { s.undo().await })
+    };
+    tokio::time::sleep(Duration::from_millis(300)).await;
+    b.drag(0, [0.0, 0.0, 0.2], None, 3).await?;
+    tokio::time::sleep(Duration::from_millis(100)).await;
+    let restore = {
+        let s = s.clone();
+        tokio::spawn(async move { s.restore_pose("start").await })
+    };
+    tokio::time::sleep(Duration::from_millis(300)).await;
+    let opener = gate.open_after(Duration::from_millis(100));
+    let _ = undo.await.expect("join")?;
+    let _ = restore.await.expect("join")?;
+    opener.join().expect("opener");
+    let acked = tokio::time::timeout(Duration::from_secs(10), b.frame_acking(3, true)).await;
+    let _ = acked.unwrap_or_else(|_| panic!("no settled frame acknowledged drag 3"))?;
+    let after = s.pose().await?;
+    for v in 56..64 {
+        let dz = after.positions[v][2] - before.positions[v][2];
+        assert!(
+            dz.abs() < 1e-9,
+            "vertex {v} moved {dz} (the restore came last)"
+        );
+    }
+    Ok(())
+}

@@ -7,7 +7,7 @@ use std::time::Instant;
 use tokio::sync::mpsc;
 
 use super::error::SessionError;
-use super::shared::{off_worker, Cmd, Internal, PoseCmd, QueuedDrag, Reply, Restore};
+use super::shared::{off_worker, Cmd, Internal, QueuedDrag, Reply, Restore};
 use super::timing::{sleep_until_or_never, CORRECTION_QUIET};
 use super::types::{Delta, Event, PoseSnapshot};
 use crate::store::JournalEntry;
@@ -26,29 +26,15 @@ impl Actor {
         };
         self.load_named_poses();
         loop {
-            // (a named pose's restore lets the drags held behind it go on)
-            loop {
-                while let Some(cmd) = self.flow.deferred.front() {
-                    if self.must_wait(cmd) {
-                        break;
-                    }
-                    let Some(cmd) = self.flow.deferred.pop_front() else {
-                        break;
-                    };
-                    if !self.run_cmd(cmd) {
-                        return self.closed();
-                    }
-                }
-                let mut restored = false;
-                while self.pose_settled() {
-                    let Some(cmd) = self.poses.settle_queue.pop_front() else {
-                        break;
-                    };
-                    restored |= matches!(cmd, PoseCmd::Restore { .. });
-                    self.on_pose_cmd(cmd);
-                }
-                if !restored {
+            while let Some(cmd) = self.flow.deferred.front() {
+                if self.must_wait(cmd) {
                     break;
+                }
+                let Some(cmd) = self.flow.deferred.pop_front() else {
+                    break;
+                };
+                if !self.run_cmd(cmd) {
+                    return self.closed();
                 }
             }
             self.maybe_start_solve();
@@ -141,16 +127,19 @@ impl Actor {
             .any(|c| matches!(c, Cmd::Drag { .. }))
     }
 
-    /// Whether a named pose's restore waits for the settle (and will
-    /// replace the targets); not in a failed session, which refuses drags
-    /// (and may never settle).
-    fn restore_waits(&self) -> bool {
-        self.state() != SessionState::Failed
-            && self
-                .poses
-                .settle_queue
-                .iter()
-                .any(|c| matches!(c, PoseCmd::Restore { .. }))
+    /// Whether `cmd` keeps its place among the commands that change the
+    /// pose or the targets: behind one that waits, it waits too
+    /// ([`Actor::on_cmd`]).
+    fn in_order(cmd: &Cmd) -> bool {
+        match cmd {
+            Cmd::Drag { .. }
+            | Cmd::Undo(_)
+            | Cmd::Redo(_)
+            | Cmd::Reset(_)
+            | Cmd::SetConstraints { .. } => true,
+            Cmd::Poses(c) => c.waits_for_settle(),
+            _ => false,
+        }
     }
 
     /// Whether `cmd`, next in turn, waits (in `deferred`). An undo, redo,
@@ -162,8 +151,9 @@ impl Actor {
     /// solve of the drags received before it: it commits the pose as an
     /// undo step and anchors the new set there, so the pose holds them
     /// (else they went with the old set's targets, unsolved, into that
-    /// step). A drag waits for a named pose's restore, which waits for the
-    /// settle.
+    /// step). A named pose's save or restore waits for the settle (not in
+    /// a failed session, which may never settle and takes a new
+    /// constraint set next).
     fn must_wait(&self, cmd: &Cmd) -> bool {
         let running = self.solve.deformer.is_none();
         match cmd {
@@ -171,7 +161,9 @@ impl Actor {
             Cmd::SetConstraints { .. } => {
                 running || self.state() == SessionState::Ready && self.solve.drag_pending
             }
-            Cmd::Drag { .. } => self.restore_waits(),
+            Cmd::Poses(c) => {
+                c.waits_for_settle() && !self.pose_settled() && self.state() != SessionState::Failed
+            }
             _ => false,
         }
     }
@@ -189,7 +181,13 @@ impl Actor {
         let held = self.drags_held();
         let waiting = std::mem::take(&mut self.flow.shown_waiters);
         for (started, reply) in waiting {
-            if held || unshown && done <= started {
+            if held {
+                // the solves that end while drags are held do not show
+                // them: counted from the next one
+                self.flow
+                    .shown_waiters
+                    .push((self.solve.solves_started, reply));
+            } else if unshown && done <= started {
                 self.flow.shown_waiters.push((started, reply));
             } else {
                 let _ = reply.send(());
@@ -209,11 +207,13 @@ impl Actor {
 
     /// Handles one command as it arrives; false when the session must stop.
     fn on_cmd(&mut self, cmd: Cmd) -> bool {
-        // a drag keeps its place behind the commands that wait: composed
-        // into the targets at once, it would be replaced with them (taken
-        // back, though its frame acknowledges it) or go to a constraint set
-        // it was not sent for
-        let behind = matches!(cmd, Cmd::Drag { .. }) && !self.flow.deferred.is_empty();
+        // the commands that change the pose or the targets keep their
+        // order behind one that waits: a drag composed into the targets at
+        // once would be replaced with them (taken back, though its frame
+        // acknowledges it) or go to a constraint set it was not sent for,
+        // and an undo run at once would go before the drags it should take
+        // back
+        let behind = Self::in_order(&cmd) && !self.flow.deferred.is_empty();
         if behind || self.must_wait(&cmd) {
             self.flow.deferred.push_back(cmd);
             return true;
@@ -270,13 +270,7 @@ impl Actor {
                     }
                 }
             }
-            Cmd::Poses(cmd) => {
-                if cmd.waits_for_settle() && !self.pose_settled() {
-                    self.poses.settle_queue.push_back(cmd);
-                } else {
-                    self.on_pose_cmd(cmd);
-                }
-            }
+            Cmd::Poses(cmd) => self.on_pose_cmd(cmd),
             Cmd::DragsShown(reply) => {
                 if self.drags_unshown() {
                     self.flow

@@ -11,7 +11,7 @@ use std::time::{Duration, Instant};
 use tokio::sync::{mpsc, watch};
 
 use super::phase::Phase;
-use crate::session::shared::{Cmd, Inner, Internal, PoseCmd, QueuedDrag, Reply, SessionOptions};
+use crate::session::shared::{Cmd, Inner, Internal, QueuedDrag, Reply, SessionOptions};
 use crate::session::types::{Frame, PoseSnapshot};
 use crate::store::{JournalEntry, NamedPose};
 use dend::deform::{Constraints, ConstraintsSpec, Deformer, Factor, RigidTransform};
@@ -165,15 +165,15 @@ pub(super) struct History {
 pub(super) struct Poses {
     /// The list (None until read from the store, see `actor_poses.rs`).
     pub(super) named: Option<Vec<NamedPose>>,
-    /// Named-pose commands waiting for the pose to settle.
-    pub(super) settle_queue: VecDeque<PoseCmd>,
 }
 
 /// What waits: commands, drags and reads held until the session can
 /// answer them, and the callers a solve answers.
 #[derive(Default)]
 pub(super) struct Flow {
-    /// Commands that read or replace the pose, held while a solve runs.
+    /// The commands that change the pose or the targets and wait (for a
+    /// running solve, the solve of earlier drags, the settle), in order,
+    /// with the ones that arrived behind them (`Actor::must_wait`).
     pub(super) deferred: VecDeque<Cmd>,
     /// Drags that reached the session while its factor was being built
     /// (a new constraint set, a revival): applied, in order, once it is

@@ -330,7 +330,9 @@ impl Actor {
                         None
                     }
                     Err(e) => {
-                        self.shown.settled = true;
+                        // (drags received during the failed solve get a
+                        // solve of their own: a constraint edit waits for it)
+                        self.shown.settled = !self.solve.dirty;
                         Some(Arc::new(e))
                     }
                 };
