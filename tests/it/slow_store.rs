@@ -295,6 +295,25 @@ async fn reconnect_rule(ws: &mut WsClient) -> Result<FrameHeader, ClientError> {
     Ok(h0)
 }
 
+/// [`reconnect_rule`] for drag `seq` (`dz` up): sent again unless the
+/// first frame acknowledges it, then a settled frame that does (the first
+/// one itself, when it is). Returns the first frame's header.
+async fn resend_unless_shown(
+    ws: &mut WsClient,
+    seq: u64,
+    dz: f64,
+) -> Result<FrameHeader, ClientError> {
+    let h0 = first_frame(ws).await?;
+    if h0.ack_seq < seq {
+        ws.drag(0, [0.0, 0.0, dz], None, seq).await?;
+    }
+    if !(h0.ack_seq >= seq && h0.converged) {
+        let acked = tokio::time::timeout(Duration::from_secs(20), ws.frame_acking(seq, true)).await;
+        let _ = acked.unwrap_or_else(|_| panic!("no settled frame acknowledged drag {seq}"))?;
+    }
+    Ok(h0)
+}
+
 /// The handle (the grid's top row, rigid) moved by the one 0.1 drag from
 /// `before` to `after`; `h0` is the new connection's first frame.
 fn assert_moved_once(before: &Pose, after: &Pose, h0: &FrameHeader) {
@@ -800,15 +819,10 @@ async fn a_drag_held_behind_an_edit_is_not_applied_twice() -> Result<(), ClientE
     drop(b);
     let opener = gate.open_after(Duration::from_millis(1000));
     let mut b2 = s.connect().await?;
-    let h0 = first_frame(&mut b2).await?;
-    if h0.ack_seq < 3 {
-        b2.drag(0, [0.0, 0.0, 0.2], None, 3).await?;
-    }
+    let h0 = resend_unless_shown(&mut b2, 3, 0.2).await?;
     let _ = edit.await.expect("join")?;
     opener.join().expect("opener");
     s.wait_ready(Duration::from_secs(60)).await?;
-    let acked = tokio::time::timeout(Duration::from_secs(10), b2.frame_acking(3, true)).await;
-    let _ = acked.unwrap_or_else(|_| panic!("no settled frame acknowledged drag 3"))?;
     let after = s.pose().await?;
     for v in 56..64 {
         let dz = after.positions[v][2] - before.positions[v][2];
@@ -846,14 +860,9 @@ async fn a_drag_held_behind_a_restore_is_not_applied_twice() -> Result<(), Clien
     drop(b);
     let opener = gate.open_after(Duration::from_millis(300));
     let mut b2 = s.connect().await?;
-    let h0 = first_frame(&mut b2).await?;
-    if h0.ack_seq < 3 {
-        b2.drag(0, [0.0, 0.0, 0.2], None, 3).await?;
-    }
+    let h0 = resend_unless_shown(&mut b2, 3, 0.2).await?;
     let _ = restore.await.expect("join")?;
     opener.join().expect("opener");
-    let acked = tokio::time::timeout(Duration::from_secs(10), b2.frame_acking(3, true)).await;
-    let _ = acked.unwrap_or_else(|_| panic!("no settled frame acknowledged drag 3"))?;
     let after = s.pose().await?;
     for v in 56..64 {
         let dz = after.positions[v][2] - before.positions[v][2];
