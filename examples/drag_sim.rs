@@ -15,7 +15,7 @@
 //!     [--path line|arc] [--preset characters|elastica] [--previews] [--levels 1|2|3 (default 3)]
 //!     [--correction-period K] [--coarse-ratio R] [--tol T] [--anderson W]
 //!     [--area KA] [--stretch KS] [--error-trace] [--galerkin off|DEPTH[,LAG[,PERIOD[,SMOOTH]]]]
-//!     [--newton-level on|off] [--level-minima]
+//!     [--newton-level on|off] [--level-minima] [--gestures N]
 //! ```
 //!
 //! `--galerkin` makes the coarse corrections Galerkin ones
@@ -35,6 +35,11 @@
 //! weighted by its vertex count: a count that does not depend on the host
 //! or on what else it runs).
 //!
+//! With `--gestures N` the gesture runs N times on the same deformer, along
+//! the path and back in turn, as a session's later gestures with the same
+//! constraint set (what a deformer learns from its first corrections, the
+//! coarse levels' detail weight, carries over): `settle` is the last
+//! gesture's, `first_settle` the first's.
 //! With `--level-minima`, `level_minima` holds each coarse level's own
 //! minimum of the final target against the fine minimum (solves to
 //! tolerance 1e-5, `dend::deform::level_minima`): how far the levels'
@@ -58,7 +63,9 @@
 use std::sync::Arc;
 use std::time::Instant;
 
-use dend::deform::{Constraints, Deformer, Factor, Galerkin, Levels, Preset, Rest, RigidTransform};
+use dend::deform::{
+    Constraints, Deformer, Factor, Galerkin, Levels, Preset, Rest, RigidTransform, StepReport,
+};
 use dend::mesh::{Mesh, Point};
 use nalgebra::{UnitQuaternion, Vector3};
 
@@ -132,6 +139,7 @@ fn run() -> Result<(), String> {
     let previews = args.iter().any(|a| a == "--previews");
     let error_trace = args.iter().any(|a| a == "--error-trace");
     let with_level_minima = args.iter().any(|a| a == "--level-minima");
+    let gestures: usize = arg(&args, "--gestures").unwrap_or(1);
     let preset = arg::<String>(&args, "--preset")
         .map(|p| Preset::from_name(&p).ok_or(format!("unknown preset {p}")))
         .transpose()?
@@ -232,72 +240,43 @@ fn run() -> Result<(), String> {
         .map_err(|e| e.to_string())?;
     let one_ms = t.elapsed().as_secs_f64() * 1e3;
 
-    // the drag loop
+    // the drag loop: `--gestures N` runs the gesture N times on the same
+    // deformer, along the arc and back in turn (N odd ends at the one-shot's
+    // target), as a session's later gestures with the same constraint set;
+    // the report's settle is the last gesture's
     let mut d = setup.deformer(&rest);
-    // a session holds the coarse corrections while a person drags (a
-    // correction behind a drag delays its frame) and runs them in the
-    // settle: so does the replay
-    d.hold_corrections(true);
-    let t = Instant::now();
-    let mut drag_iters = 0;
-    let (mut preview_its, mut preview_ms) = (0, 0.0);
-    for k in 1..=drags {
-        c.handles[0].target = target_at(k as f64 / drags as f64, arc, axis, extent, pivot);
-        if previews {
-            // what a session answers a WebSocket drag with on a large mesh
-            let its = dend::deform::PREVIEW_ITERATIONS;
-            if d.preview(&factor, &c, its)
-                .map_err(|e| e.to_string())?
-                .is_some()
-            {
-                continue;
-            }
-        }
-        let r = d.step(&factor, &c, per_drag).map_err(|e| e.to_string())?;
-        drag_iters += r.iterations;
+    let mut first_settle = None;
+    let mut outcome = None;
+    for g in 0..gestures {
+        let back = g % 2 == 1;
+        let o = gesture(
+            &mut d,
+            (&factor, &mut c),
+            (drags, per_drag, previews, params.max_iters),
+            |k| {
+                let s = k as f64 / drags as f64;
+                target_at(if back { 1.0 - s } else { s }, arc, axis, extent, pivot)
+            },
+        )?;
+        first_settle.get_or_insert((
+            o.settle_iters,
+            o.settle_ms,
+            o.settle_iters as f64 + o.coarse_work,
+        ));
+        outcome = Some(o);
     }
-    let drag_ms = t.elapsed().as_secs_f64() * 1e3;
-    let t = Instant::now();
-    if previews {
-        // between the last drag and the end of the quiet time the session
-        // refines the preview until its coarse problem converges
-        for _ in 0..100 {
-            let its = dend::deform::PREVIEW_ITERATIONS;
-            match d.preview(&factor, &c, its).map_err(|e| e.to_string())? {
-                Some(r) => {
-                    preview_its += r.iterations;
-                    preview_ms += r.ms;
-                    if r.converged {
-                        break;
-                    }
-                }
-                None => break,
-            }
-        }
-    }
-    d.hold_corrections(false);
-    let (mut settle_iters, mut last) = (0, None);
-    let (mut coarse_its, mut coarse_ms, mut coarse_work) = (0, 0.0, 0.0);
-    while settle_iters < params.max_iters {
-        let r = d.step(&factor, &c, 1).map_err(|e| e.to_string())?;
-        settle_iters += r.iterations;
-        coarse_its += r.coarse_iterations;
-        coarse_ms += r.coarse_ms;
-        coarse_work += r.coarse_work;
-        if std::env::var_os("DEND_TRACE").is_some() {
-            eprintln!(
-                "settle {settle_iters}: update {:.2e} objective {:.6} coarse {}",
-                r.last_update, r.objective, r.coarse_iterations
-            );
-        }
-        let done = r.converged || r.diverged || r.iterations == 0;
-        last = Some(r);
-        if done {
-            break;
-        }
-    }
-    let settle_ms = t.elapsed().as_secs_f64() * 1e3;
-    let last = last.ok_or("no settle step")?;
+    let Gesture {
+        drag_ms,
+        drag_iters,
+        preview_its,
+        preview_ms,
+        settle_iters,
+        coarse_its,
+        coarse_ms,
+        coarse_work,
+        settle_ms,
+        last,
+    } = outcome.ok_or("--gestures 0")?;
     let dist = |a: &[Point], b: &[Point]| {
         a.iter()
             .zip(b)
@@ -352,6 +331,9 @@ fn run() -> Result<(), String> {
                      "work": r1.iterations as f64 + r1.coarse_work},
         "drag_ms_per_drag": drag_ms / drags as f64,
         "drag_iterations": drag_iters,
+        "gestures": gestures,
+        "first_settle": first_settle.map(|(its, ms, work)| serde_json::json!({
+            "iterations": its, "ms": ms, "fine_iteration_equivalents": ms / fine_ms, "work": work})),
         "settle": {"iterations": settle_iters, "converged": last.converged,
                    "objective": last.objective, "ms": settle_ms,
                    "fine_iteration_equivalents": settle_ms / fine_ms,
@@ -368,6 +350,104 @@ fn run() -> Result<(), String> {
     });
     println!("{out}");
     Ok(())
+}
+
+/// One gesture and its settle, as a session runs them ([`run`]'s drag
+/// loop): the handle's target at drag `k` is `target(k)`.
+fn gesture(
+    d: &mut Deformer,
+    (factor, c): (&Factor, &mut Constraints),
+    (drags, per_drag, previews, max_iters): (usize, usize, bool, usize),
+    target: impl Fn(usize) -> RigidTransform,
+) -> Result<Gesture, String> {
+    // a session holds the coarse corrections while a person drags (a
+    // correction behind a drag delays its frame) and runs them in the
+    // settle: so does the replay
+    d.hold_corrections(true);
+    let t = Instant::now();
+    let mut drag_iters = 0;
+    let (mut preview_its, mut preview_ms) = (0, 0.0);
+    for k in 1..=drags {
+        c.handles[0].target = target(k);
+        if previews {
+            // what a session answers a WebSocket drag with on a large mesh
+            let its = dend::deform::PREVIEW_ITERATIONS;
+            if d.preview(factor, c, its)
+                .map_err(|e| e.to_string())?
+                .is_some()
+            {
+                continue;
+            }
+        }
+        let r = d.step(factor, c, per_drag).map_err(|e| e.to_string())?;
+        drag_iters += r.iterations;
+    }
+    let drag_ms = t.elapsed().as_secs_f64() * 1e3;
+    let t = Instant::now();
+    if previews {
+        // between the last drag and the end of the quiet time the session
+        // refines the preview until its coarse problem converges
+        for _ in 0..100 {
+            let its = dend::deform::PREVIEW_ITERATIONS;
+            match d.preview(factor, c, its).map_err(|e| e.to_string())? {
+                Some(r) => {
+                    preview_its += r.iterations;
+                    preview_ms += r.ms;
+                    if r.converged {
+                        break;
+                    }
+                }
+                None => break,
+            }
+        }
+    }
+    d.hold_corrections(false);
+    let (mut settle_iters, mut last) = (0, None);
+    let (mut coarse_its, mut coarse_ms, mut coarse_work) = (0, 0.0, 0.0);
+    while settle_iters < max_iters {
+        let r = d.step(factor, c, 1).map_err(|e| e.to_string())?;
+        settle_iters += r.iterations;
+        coarse_its += r.coarse_iterations;
+        coarse_ms += r.coarse_ms;
+        coarse_work += r.coarse_work;
+        if std::env::var_os("DEND_TRACE").is_some() {
+            eprintln!(
+                "settle {settle_iters}: update {:.2e} objective {:.6} coarse {}",
+                r.last_update, r.objective, r.coarse_iterations
+            );
+        }
+        let done = r.converged || r.diverged || r.iterations == 0;
+        last = Some(r);
+        if done {
+            break;
+        }
+    }
+    Ok(Gesture {
+        drag_ms,
+        drag_iters,
+        preview_its,
+        preview_ms,
+        settle_iters,
+        coarse_its,
+        coarse_ms,
+        coarse_work,
+        settle_ms: t.elapsed().as_secs_f64() * 1e3,
+        last: last.ok_or("no settle step")?,
+    })
+}
+
+/// What [`gesture`] measured.
+struct Gesture {
+    drag_ms: f64,
+    drag_iters: usize,
+    preview_its: usize,
+    preview_ms: f64,
+    settle_iters: usize,
+    coarse_its: usize,
+    coarse_ms: f64,
+    coarse_work: f64,
+    settle_ms: f64,
+    last: StepReport,
 }
 
 /// The solver's settings a run compares: every deformer of the run is

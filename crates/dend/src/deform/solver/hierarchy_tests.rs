@@ -118,7 +118,7 @@ fn creature_edit_part(mesh: &Mesh, s: Real, k: Real) -> Constraints {
 
 /// The objective of `c`'s minimum: a one-level solve from rest to
 /// tolerance 1e-7.
-fn tight_minimum(rest: &Arc<Rest>, f: &Factor, c: &Constraints) -> Real {
+pub(super) fn tight_minimum(rest: &Arc<Rest>, f: &Factor, c: &Constraints) -> Real {
     let tight = Params {
         tol: 1e-7,
         max_iters: 3000,
@@ -267,7 +267,7 @@ fn a_limb_converges_to_the_minimum_at_two_resolutions() {
 /// A tube of `nu` × `nv` vertices fixed at one end, the other end moved
 /// sideways by `reach` × (0.25, 0.1, −0.1) of its length and turned by
 /// `reach` × 40° about the vertical.
-fn limb_tube(nu: u32, nv: u32, reach: Real) -> (Mesh, Constraints) {
+pub(super) fn limb_tube(nu: u32, nv: u32, reach: Real) -> (Mesh, Constraints) {
     let mut spec = ShapeSpec::default_for(Shape::Cylinder);
     spec.params.nu = Some(nu);
     spec.params.nv = Some(nv);
@@ -314,6 +314,13 @@ fn a_warm_sequence_corrects_on_the_newton_level_and_reaches_the_minimum() {
         let mut d = Deformer::new(rest.clone(), params);
         d.set_newton_level(newton_level);
         assert!(d.step(&f, &near, 300).unwrap().converged);
+        // (the start from rest has its own problem on the hierarchy, which
+        // the next sequence may drop: `solver/detail_fit.rs`)
+        assert_eq!(
+            d.start_coarse.is_some(),
+            newton_level,
+            "the start's problem"
+        );
         let r = d.step(&f, &c, 300).unwrap();
         assert!(r.converged && r.coarse_iterations > 0, "{r:?}");
         let rel = (r.objective - e_min) / e_min;
@@ -327,7 +334,6 @@ fn a_warm_sequence_corrects_on_the_newton_level_and_reaches_the_minimum() {
             // the vertices, Newton steps, nothing below
             assert!(p.deformer.newton && p.levels_below == Levels::One);
             assert!(shrink > 0.75 * newton_ratio as Real, "{shrink}");
-            assert!(d.start_coarse.is_some(), "no start on the hierarchy");
         } else {
             // the hierarchy's first level (its coarsest here)
             assert!(shrink < 0.75 * newton_ratio as Real, "{shrink}");

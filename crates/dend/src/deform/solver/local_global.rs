@@ -379,6 +379,11 @@ impl Deformer {
         moved: bool,
     ) -> (Real, Option<CoarseRun>) {
         let fit = self.params.detail == DetailTerm::Nonlinear;
+        // the coarse levels' detail weight, once their first corrections
+        // have measured it (`solver/detail_fit.rs`)
+        if self.detail_fit.decide() {
+            self.drop_coarse_problems();
+        }
         let st = &mut self.elastic;
         st.anderson.reset();
         st.corrections = fit && self.levels != Levels::One;

@@ -19,10 +19,11 @@ use state::State;
 
 // The iteration's steps (`impl Deformer` blocks) name this file's types;
 // the state a `Deformer` holds is in the leaves (`state.rs`,
-// `newton_state.rs`, `scratch.rs`, `levels.rs`), so this file names none
+// `newton_state.rs`, `scratch.rs`, `levels.rs`, `detail_fit.rs`), so this file names none
 // of the steps (docs/architecture.md, "Layering"). deform/mod.rs
 // re-exports the public items of `multilevel.rs` and `preview.rs`.
 mod correct;
+mod detail_fit;
 mod galerkin;
 mod galerkin_state;
 mod least_squares;
@@ -38,6 +39,8 @@ mod propagate;
 mod scratch;
 mod state;
 
+#[cfg(test)]
+mod detail_fit_tests;
 #[cfg(test)]
 mod galerkin_tests;
 #[cfg(test)]
@@ -146,6 +149,8 @@ pub struct Deformer {
     galerkin_mode: Option<Galerkin>,
     /// Their per-set state.
     galerkin: Option<Box<galerkin_state::GalerkinState>>,
+    /// The coarse levels' detail weight (`solver/detail_fit.rs`).
+    detail_fit: detail_fit::DetailFit,
 }
 
 /// The coarse problem of one fine constraint set.
@@ -238,6 +243,7 @@ impl Deformer {
             interrupt: None,
             galerkin_mode: None,
             galerkin: None,
+            detail_fit: detail_fit::DetailFit::default(),
         }
     }
 

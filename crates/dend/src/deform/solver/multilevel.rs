@@ -53,6 +53,7 @@ use std::time::Instant;
 
 use nalgebra::{UnitQuaternion, Vector3};
 
+use super::detail_fit::DetailFit;
 use super::levels::{CoarseRun, Levels};
 use super::{CoarseProblem, CoarseSlot, Deformer, SolvedStart};
 use crate::deform::coarse::{CoarseLevel, PROLONGATION_PASSES, RESTRICTION_PASSES};
@@ -202,14 +203,16 @@ pub(super) fn coarse_params(rest: &Rest, params: &Params, level: &CoarseLevel) -
 }
 
 /// Builds the coarse problem of `constraints`' set on the level of at
-/// most `ratio` (module docs); `newton_level`: the level takes Newton
-/// steps and has no levels below it ([`newton_level_ratio`]).
+/// most `ratio` (module docs) with `params` (the fine ones, their detail
+/// weight scaled: `solver/detail_fit.rs`); `newton_level`: the level takes Newton
+/// steps and has no levels below it ([`newton_level_ratio`]); `detail`:
+/// the scale of the detail weight of the levels below it against its own.
 pub(super) fn coarse_problem(
     rest: &Arc<Rest>,
     params: &Params,
     (ratio, newton_level): (usize, bool),
     constraints: &Constraints,
-    levels: Levels,
+    (levels, detail): (Levels, Real),
 ) -> Option<CoarseProblem> {
     let level: Arc<CoarseLevel> = rest.coarse_at_most(ratio)?;
     let cc = level.restrict(constraints)?;
@@ -223,6 +226,8 @@ pub(super) fn coarse_problem(
         coarse_fixed[v as usize] = true;
     }
     let mut deformer = Box::new(Deformer::new(level.rest.clone(), *params));
+    // (its levels below take the detail weight's scale again)
+    deformer.detail_fit = DetailFit::inherited(detail);
     // a coarse problem's own corrections are its coarse problems' (the
     // coarse start from rest converges each level's problem by them)
     deformer.set_galerkin(None);
@@ -434,16 +439,20 @@ impl Deformer {
         } else {
             self.first_level()?
         };
+        if self.detail_fit.with_factor(factor.id()) {
+            self.drop_coarse_problems();
+        }
         let key = (factor.id(), first.0);
+        let below = self.detail_fit.below(&self.params);
+        let detail = (self.levels, self.detail_fit.scale());
         let mut problem = match self.coarse_slot(separate).take() {
             Some((k, p)) if k == key => p,
-            _ => coarse_problem(&self.rest, &self.params, first, constraints, self.levels)
-                .map(Box::new),
+            _ => coarse_problem(&self.rest, &below, first, constraints, detail).map(Box::new),
         };
         let out = match problem.as_deref_mut() {
             Some(p) => match p.level.restrict(constraints) {
                 Some(cc) => {
-                    p.deformer.params = coarse_params(&self.rest, &self.params, &p.level);
+                    p.deformer.params = coarse_params(&self.rest, &below, &p.level);
                     f(self, p, &cc)
                 }
                 None => None,
@@ -452,6 +461,13 @@ impl Deformer {
         };
         *self.coarse_slot(separate) = Some((key, problem));
         out
+    }
+
+    /// Forgets the coarse problems built (their detail weight is stale:
+    /// `solver/detail_fit.rs`); the next start or correction builds them again.
+    pub(super) fn drop_coarse_problems(&mut self) {
+        self.coarse = None;
+        self.start_coarse = None;
     }
 
     /// Where [`Deformer::with_coarse`] keeps its coarse problem: the coarse
@@ -528,7 +544,11 @@ impl Deformer {
             && self.params.formulation.kind() == Formulation::Elastic
             && self.params.detail == DetailTerm::Nonlinear;
         let ahead = levels_used && self.elastic.starts_from_rest();
+        // a new set's levels start at the fine detail weight
+        self.detail_fit.restart();
+        let below = self.detail_fit.below(&self.params);
         let (rest, params, levels) = (&self.rest, &self.params, self.levels);
+        let detail = (levels, self.detail_fit.scale());
         let (first, start_first) = (self.first_level(), self.start_level());
         let separate = self.separate_start();
         // (`Factor::build` takes the mesh's order, the coarse problem the
@@ -536,9 +556,9 @@ impl Deformer {
         let internal = rest.internal_constraints(constraints);
         let build = |first: (usize, bool), solve: bool| {
             let t0 = Instant::now();
-            let mut p = coarse_problem(rest, params, first, &internal, levels)?;
+            let mut p = coarse_problem(rest, &below, first, &internal, detail)?;
             let cc = p.level.restrict(&internal)?;
-            p.deformer.params = coarse_params(rest, params, &p.level);
+            p.deformer.params = coarse_params(rest, &below, &p.level);
             if solve {
                 p.solved_start = Some(solve_start(&mut p, &cc, &internal, t0)?);
             }
@@ -642,6 +662,9 @@ impl Deformer {
             coarse.interrupt = None;
             coarse.drift_limit = None;
             let report = report?;
+            // the gain the coarse model predicts, in the fine level's
+            // units (`solver/detail_fit.rs`)
+            let predicted = (report.initial_objective - report.objective) / (ratio * ratio);
             let its = (
                 report.iterations,
                 (report.iterations as Real + report.coarse_work) * p.level.share(),
@@ -670,15 +693,18 @@ impl Deformer {
                 &p.coarse_fixed,
                 PROLONGATION_PASSES,
             );
-            Some((its, Ok(Some(w_f))))
+            Some((its, Ok(Some((w_f, predicted)))))
         });
         match field {
             None => Correction::Unavailable(run((0, 0.0), 0.0)),
             Some((its, Err(()))) => Correction::Interrupted(run(its, 0.0)),
             Some((its, Ok(None))) => Correction::Unavailable(run(its, 0.0)),
-            Some((its, Ok(Some(w_f)))) => {
+            Some((its, Ok(Some((w_f, predicted))))) => {
                 match self.apply_rotation_correction(factor, (el, set), &w_f, e) {
-                    Some(e_new) => Correction::Kept(e_new, run(its, 1.0)),
+                    Some(e_new) => {
+                        self.detail_fit.record(factor.id(), e, e - e_new, predicted);
+                        Correction::Kept(e_new, run(its, 1.0))
+                    }
                     None => Correction::Dropped(run(its, 1.0)),
                 }
             }

@@ -140,7 +140,9 @@ impl Deformer {
                     &self.params,
                     (key.1, false),
                     constraints,
-                    Levels::Two,
+                    // (a preview shows its level's own solve: the fine
+                    // detail weight)
+                    (Levels::Two, 1.0),
                 )
                 .map(Box::new),
                 following: false,
