@@ -138,7 +138,7 @@ async fn run_mode(
         tokio::spawn(async move { extra_sessions(client, mesh_id, n, progress, at).await })
     });
     let mut tasks = vec![];
-    let max_fps = args.max_fps;
+    let (max_fps, gestures) = (args.max_fps, args.gestures);
     let refine_fps = args.declared_refine_fps();
     for _ in 0..args.sessions {
         let (client, mesh_id, spec, params, progress) = (
@@ -154,14 +154,18 @@ async fn run_mode(
             opts.max_fps = max_fps;
             // a version 2 client asks for nothing
             opts.refine_fps = refine_fps.filter(|_| mode != StreamMode::Legacy);
-            one_session(run, opts, path, pace, &progress).await
+            one_session(run, opts, (path, gestures), pace, &progress).await
         }));
     }
     let mut sum = Summary::default();
     let (mut ready, mut constraints_ready) = (vec![], vec![]);
     let mut rows = String::new();
+    let mut gesture_settles: Vec<Vec<Duration>> = vec![Vec::new(); gestures as usize];
     for (session, t) in tasks.into_iter().enumerate() {
-        let (seen, r, c) = t.await??;
+        let (seen, settles, r, c) = t.await??;
+        for (g, d) in settles.into_iter().enumerate() {
+            gesture_settles[g].push(d);
+        }
         if args.latencies.is_some() {
             for (drag, l) in seen.latencies.iter().enumerate() {
                 let ms = l.as_secs_f64() * 1e3;
@@ -252,6 +256,17 @@ async fn run_mode(
         ms(percentile(&sum.settles_visible, 0.5)),
         ms(percentile(&sum.settles_visible, 1.0)),
     );
+    if gestures > 1 {
+        let each: Vec<String> = gesture_settles
+            .iter_mut()
+            .enumerate()
+            .map(|(g, d)| {
+                d.sort();
+                format!("{}: {:.1} ms", g + 1, ms(percentile(d, 0.5)))
+            })
+            .collect();
+        println!("[{m}] settle by gesture (median): {}", each.join(", "));
+    }
     println!(
         "[{m}] {} frames in all; phase {:.2} s; errors: 0 (any error aborts the run)",
         sum.frames,
@@ -286,16 +301,20 @@ fn percentile(sorted: &[Duration], p: f64) -> Duration {
         .unwrap_or_default()
 }
 
-/// One session: created, constrained, connected with `opts`, dragged.
-/// Returns what its client saw, and the times to ready (from creation and
-/// from the constraints).
+/// What one session's client saw in its last gesture, every gesture's
+/// settle, and its times to ready (from creation and from the
+/// constraints).
+type SessionRun = (drive::Seen, Vec<Duration>, Duration, Duration);
+
+/// One session: created, constrained, connected with `opts`, dragged
+/// through `gestures` gestures.
 async fn one_session(
     (client, mesh_id, params, spec): (Client, String, SessionParams, ConstraintsSpec),
     opts: StreamOptions,
-    path: Path,
+    (path, gestures): (Path, u64),
     pace: Pace,
     progress: &AtomicU64,
-) -> anyhow::Result<(drive::Seen, Duration, Duration)> {
+) -> anyhow::Result<SessionRun> {
     let created = Instant::now();
     let s = client.create_session(&mesh_id, params).await?;
     let constrained = Instant::now();
@@ -303,8 +322,13 @@ async fn one_session(
     s.wait_ready(Duration::from_secs(600)).await?;
     let (ready, constraints_ready) = (created.elapsed(), constrained.elapsed());
     let mut ws = s.connect_with(opts).await?;
-    let seen = drive::drag(&mut ws, &path, pace, progress).await?;
+    let mut settles = Vec::new();
+    let mut seen = drive::Seen::default();
+    for g in 0..gestures {
+        seen = drive::drag(&mut ws, (&path, g), pace, progress).await?;
+        settles.push(seen.settle);
+    }
     ws.close().await?;
     s.delete().await?;
-    Ok((seen, ready, constraints_ready))
+    Ok((seen, settles, ready, constraints_ready))
 }

@@ -52,6 +52,12 @@ pub struct LoadtestArgs {
     /// Drags per session.
     #[arg(long, default_value_t = 200)]
     pub(super) drags: u64,
+    /// Gestures per session, each of `--drags` drags and its settle: along
+    /// the path, back, along again, in turn (a person's later gestures
+    /// with the same constraint set). The report is the last gesture's,
+    /// with a line of every gesture's settle.
+    #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u64).range(1..))]
+    pub(super) gestures: u64,
     /// Mesh file (OBJ/OFF/PLY/STL); default: a generated 100×100 grid.
     #[arg(long)]
     pub(super) mesh: Option<PathBuf>,

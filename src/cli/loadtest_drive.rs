@@ -35,6 +35,18 @@ pub struct Path {
 }
 
 impl Path {
+    /// The delta of drag `j` (0-based) of gesture `g` (0-based): the
+    /// path's even gestures go along it, its odd ones back (each delta of
+    /// the way along undone, in reverse order: the handle turns back about
+    /// its pivot and moves back).
+    pub fn delta_of(&self, g: u64, j: u64) -> ([f64; 3], Option<[f64; 4]>) {
+        if g % 2 == 0 {
+            return self.delta(j);
+        }
+        let (t, q) = self.delta(self.drags - 1 - j);
+        (t.map(|x| -x), q.map(|[x, y, z, w]| [-x, -y, -z, w]))
+    }
+
     /// The delta of drag `i` (0-based): translation and quaternion.
     pub fn delta(&self, i: u64) -> ([f64; 3], Option<[f64; 4]>) {
         let k = self.axis;
@@ -110,12 +122,14 @@ pub struct Seen {
     pub settle_converged: bool,
 }
 
-/// Drags the handle along `path` at `pace` and reads frames until the
-/// one after the last drag that says settled. Every acknowledged drag is
-/// counted in `progress` (shared by the sessions of a run).
+/// Drags the handle along `path` at `pace` (gesture `gesture`, 0-based:
+/// [`Path::delta_of`]; its drags' `seq` follow the gestures before it) and
+/// reads frames until the one after the last drag that says settled.
+/// Every acknowledged drag is counted in `progress` (shared by the
+/// sessions of a run).
 pub async fn drag(
     ws: &mut WsClient,
-    path: &Path,
+    (path, gesture): (&Path, u64),
     pace: Pace,
     progress: &AtomicU64,
 ) -> anyhow::Result<Seen> {
@@ -123,7 +137,9 @@ pub async fn drag(
     let mut sent: BTreeMap<u64, Instant> = BTreeMap::new();
     let start = Instant::now();
     let period = (pace.drag_hz > 0.0).then(|| Duration::from_secs_f64(1.0 / pace.drag_hz));
-    let (mut next_seq, mut acked) = (1u64, 0u64);
+    let first = gesture * path.drags;
+    let last = first + path.drags;
+    let (mut next_seq, mut acked) = (first + 1, first);
     let mut last_sent = start;
     let bytes0 = ws.frame_bytes();
     // the frames after the last drag was sent: when each came, and every
@@ -131,22 +147,22 @@ pub async fn drag(
     let mut track: Vec<(Duration, Vec<[f32; 3]>)> = Vec::new();
     loop {
         // send what is due: on the clock, or (closed loop) once acknowledged
-        while next_seq <= path.drags {
+        while next_seq <= last {
             let due = match period {
-                Some(p) => Instant::now() >= start + p * (next_seq - 1) as u32,
+                Some(p) => Instant::now() >= start + p * (next_seq - first - 1) as u32,
                 None => acked + 1 >= next_seq,
             };
             if !due {
                 break;
             }
-            let (t, q) = path.delta(next_seq - 1);
+            let (t, q) = path.delta_of(gesture, next_seq - first - 1);
             ws.drag(0, t, q, next_seq).await?;
             last_sent = Instant::now();
             sent.insert(next_seq, last_sent);
             next_seq += 1;
         }
         let wait = match period {
-            Some(p) if next_seq <= path.drags => start + p * (next_seq - 1) as u32,
+            Some(p) if next_seq <= last => start + p * (next_seq - first - 1) as u32,
             _ => Instant::now() + Duration::from_secs(600),
         };
         let msg = match tokio::time::timeout_at(wait.into(), ws.next_full()).await {
@@ -159,7 +175,7 @@ pub async fn drag(
                 let h = f.header;
                 seen.frames += 1;
                 seen.levels[usize::from(h.level.min(1))] += 1;
-                let dragging = acked < path.drags;
+                let dragging = acked < last;
                 if dragging {
                     seen.drag_frames += 1;
                 }
@@ -172,16 +188,16 @@ pub async fn drag(
                     let _ = progress.fetch_add(1, Ordering::Relaxed);
                 }
                 acked = acked.max(h.ack_seq);
-                if dragging && acked >= path.drags {
+                if dragging && acked >= last {
                     seen.drag_time = now - start;
                     seen.drag_bytes = ws.frame_bytes() - bytes0;
                 }
-                if next_seq > path.drags {
+                if next_seq > last {
                     let stride = f.positions.len().div_ceil(TRACKED_VERTICES).max(1);
                     let sample = f.positions.iter().step_by(stride).copied().collect();
                     track.push((now - last_sent, sample));
                 }
-                if acked >= path.drags && h.settled {
+                if acked >= last && h.settled {
                     seen.settle = now - last_sent;
                     seen.settle_visible = visible_settle(&track, VISIBLE_SHARE * path.diagonal);
                     seen.settle_iterations = h.iteration;

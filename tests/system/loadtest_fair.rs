@@ -40,3 +40,28 @@ fn sixteen_sessions_on_two_solver_threads_are_served_fairly_and_admission_refuse
         "{stdout}"
     );
 }
+
+/// A session's later gestures (`--gestures`): along the arc, back, and
+/// along again, each settled before the next. Every gesture's drags are
+/// acknowledged under their own `seq` (a gesture that reused the first's
+/// would wait for ever for its acknowledgements, or end at once), and the
+/// report gives one settle per gesture.
+#[test]
+fn a_session_drags_three_gestures_along_the_path_and_back() {
+    let out = Command::new(env!("CARGO_BIN_EXE_dend"))
+        .args(["loadtest", "--drags", "12", "--grid", "20", "--path", "arc"])
+        .args(["--gestures", "3"])
+        .output()
+        .expect("run dend loadtest");
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{stdout}\n{stderr}");
+    let line = stdout
+        .lines()
+        .find(|l| l.contains("settle by gesture"))
+        .unwrap_or_else(|| panic!("no settle by gesture:\n{stdout}"));
+    for g in ["1: ", "2: ", "3: "] {
+        assert!(line.contains(g), "{line}");
+    }
+    assert!(stdout.contains("converged 1/1"), "{stdout}");
+}
