@@ -245,11 +245,10 @@ fn run() -> Result<(), String> {
     // target), as a session's later gestures with the same constraint set;
     // the report's settle is the last gesture's
     let mut d = setup.deformer(&rest);
-    let mut first_settle = None;
-    let mut outcome = None;
+    let mut seen = Vec::new();
     for g in 0..gestures {
         let back = g % 2 == 1;
-        let o = gesture(
+        seen.push(gesture(
             &mut d,
             (&factor, &mut c),
             (drags, per_drag, previews, params.max_iters),
@@ -257,26 +256,12 @@ fn run() -> Result<(), String> {
                 let s = k as f64 / drags as f64;
                 target_at(if back { 1.0 - s } else { s }, arc, axis, extent, pivot)
             },
-        )?;
-        first_settle.get_or_insert((
-            o.settle_iters,
-            o.settle_ms,
-            o.settle_iters as f64 + o.coarse_work,
-        ));
-        outcome = Some(o);
+        )?);
     }
-    let Gesture {
-        drag_ms,
-        drag_iters,
-        preview_its,
-        preview_ms,
-        settle_iters,
-        coarse_its,
-        coarse_ms,
-        coarse_work,
-        settle_ms,
-        last,
-    } = outcome.ok_or("--gestures 0")?;
+    let (Some(first), Some(g)) = (seen.first(), seen.last()) else {
+        return Err("--gestures 0".into());
+    };
+    let last = &g.last;
     let dist = |a: &[Point], b: &[Point]| {
         a.iter()
             .zip(b)
@@ -329,17 +314,18 @@ fn run() -> Result<(), String> {
                      "objective": r1.objective, "ms": one_ms,
                      "fine_iteration_equivalents": one_ms / fine_ms,
                      "work": r1.iterations as f64 + r1.coarse_work},
-        "drag_ms_per_drag": drag_ms / drags as f64,
-        "drag_iterations": drag_iters,
+        "drag_ms_per_drag": g.drag_ms / drags as f64,
+        "drag_iterations": g.drag_iters,
         "gestures": gestures,
-        "first_settle": first_settle.map(|(its, ms, work)| serde_json::json!({
-            "iterations": its, "ms": ms, "fine_iteration_equivalents": ms / fine_ms, "work": work})),
-        "settle": {"iterations": settle_iters, "converged": last.converged,
-                   "objective": last.objective, "ms": settle_ms,
-                   "fine_iteration_equivalents": settle_ms / fine_ms,
-                   "work": settle_iters as f64 + coarse_work,
-                   "coarse_iterations": coarse_its, "coarse_ms": coarse_ms,
-                   "preview_iterations": preview_its, "preview_ms": preview_ms},
+        "first_settle": {"iterations": first.settle_iters, "ms": first.settle_ms,
+                         "fine_iteration_equivalents": first.settle_ms / fine_ms,
+                         "work": first.work()},
+        "settle": {"iterations": g.settle_iters, "converged": last.converged,
+                   "objective": last.objective, "ms": g.settle_ms,
+                   "fine_iteration_equivalents": g.settle_ms / fine_ms,
+                   "work": g.work(),
+                   "coarse_iterations": g.coarse_its, "coarse_ms": g.coarse_ms,
+                   "preview_iterations": g.preview_its, "preview_ms": g.preview_ms},
         "reference": {"objective": r_ref.objective, "iterations": r_ref.iterations,
                       "one_shot_gap": dist(one.pose(), reference.pose()) / diag,
                       "settled_gap": dist(d.pose(), reference.pose()) / diag},
@@ -448,6 +434,13 @@ struct Gesture {
     coarse_work: f64,
     settle_ms: f64,
     last: StepReport,
+}
+
+impl Gesture {
+    /// The settle's work: fine iterations plus the coarse ones by size.
+    fn work(&self) -> f64 {
+        self.settle_iters as f64 + self.coarse_work
+    }
 }
 
 /// The solver's settings a run compares: every deformer of the run is
