@@ -314,17 +314,94 @@ async fn resend_unless_shown(
     Ok(h0)
 }
 
-/// The handle (the grid's top row, rigid) moved by the one 0.1 drag from
-/// `before` to `after`; `h0` is the new connection's first frame.
-fn assert_moved_once(before: &Pose, after: &Pose, h0: &FrameHeader) {
+/// The handle (the grid's top row, rigid) moved `dz` up from `before` to
+/// `after`; `why` is said when it did not.
+fn assert_handle_moved(before: &Pose, after: &Pose, dz: f64, why: &str) {
     for v in 56..64 {
-        let dz = after.positions[v][2] - before.positions[v][2];
+        let moved = after.positions[v][2] - before.positions[v][2];
         assert!(
-            (dz - 0.1).abs() < 1e-9,
-            "vertex {v} moved {dz} (first frame of the new connection acknowledged {})",
-            h0.ack_seq
+            (moved - dz).abs() < 1e-9,
+            "vertex {v} moved {moved}, not {dz} ({why})"
         );
     }
+}
+
+/// The handle moved by the one 0.1 drag from `before` to `after`; `h0` is
+/// the new connection's first frame.
+fn assert_moved_once(before: &Pose, after: &Pose, h0: &FrameHeader) {
+    let why = format!(
+        "first frame of the new connection acknowledged {}",
+        h0.ack_seq
+    );
+    assert_handle_moved(before, after, 0.1, &why);
+}
+
+/// [`gated`] with two clients connected and their first frames read (a new
+/// connection's first frame waits for the drags the session holds, and
+/// its socket reads nothing before it), and the pose before any drag.
+struct TwoClients {
+    gate: Arc<AppendGate>,
+    s: Arc<dend_client::SessionClient>,
+    a: WsClient,
+    b: WsClient,
+    before: Pose,
+    _state: dend_server::AppState,
+}
+
+async fn two_clients() -> Result<TwoClients, ClientError> {
+    let (gate, _memory, s, _state) = gated().await?;
+    let mut a = s.connect().await?;
+    let _ = a.frame_acking(0, true).await?;
+    let mut b = s.connect().await?;
+    let _ = b.frame_acking(0, true).await?;
+    let before = s.pose().await?;
+    Ok(TwoClients {
+        gate,
+        s,
+        a,
+        b,
+        before,
+        _state,
+    })
+}
+
+/// Runs `call` on a clone of `s` as a task of its own.
+fn spawn_call<T, F>(
+    s: &Arc<dend_client::SessionClient>,
+    call: impl FnOnce(Arc<dend_client::SessionClient>) -> F,
+) -> tokio::task::JoinHandle<Result<T, ClientError>>
+where
+    T: Send + 'static,
+    F: std::future::Future<Output = Result<T, ClientError>> + Send + 'static,
+{
+    tokio::spawn(call(s.clone()))
+}
+
+/// Client `a`'s drag 1 (0.1 up) is held in its journal append; `command`
+/// (a call that waits in the session) is sent then and given 300 ms to
+/// reach the session; client `b`'s drag 2 (0.2 up) comes after it, and
+/// the gate opens 300 ms later. Returns the pose once `command` returned
+/// and a settled frame acknowledged drag 2.
+async fn drag_behind<T: Send + 'static>(
+    t: &mut TwoClients,
+    command: tokio::task::JoinHandle<Result<T, ClientError>>,
+) -> Result<Pose, ClientError> {
+    tokio::time::sleep(Duration::from_millis(300)).await;
+    t.b.drag(0, [0.0, 0.0, 0.2], None, 2).await?;
+    let opener = t.gate.open_after(Duration::from_millis(300));
+    let _ = command.await.expect("join")?;
+    opener.join().expect("opener");
+    let acked = tokio::time::timeout(Duration::from_secs(10), t.b.frame_acking(2, true)).await;
+    let _ = acked.unwrap_or_else(|_| panic!("no settled frame acknowledged drag 2 within 10 s"))?;
+    t.s.pose().await
+}
+
+/// Client `a`'s drag 1 (0.1 up), its journal append held at the gate.
+async fn hold_drag_1(t: &mut TwoClients) -> Result<(), ClientError> {
+    t.gate.hold(&t.s.id);
+    t.a.drag(0, [0.0, 0.0, 0.1], None, 1).await?;
+    t.gate.entered().await;
+    Ok(())
 }
 
 /// An undo that arrives while the solve of the drag before it is still
@@ -593,22 +670,11 @@ async fn a_constraint_edit_keeps_the_drags_received_before_it() -> Result<(), Cl
     s.wait_ready(Duration::from_secs(60)).await?;
     let acked = tokio::time::timeout(Duration::from_secs(10), ws.frame_acking(2, true)).await;
     let _ = acked.unwrap_or_else(|_| panic!("no settled frame acknowledged drag 2 within 10 s"))?;
-    let moved = |p: &Pose, v: usize| p.positions[v][2] - before.positions[v][2];
     let edited = s.pose().await?;
     // the undo step the edit committed: its pose holds both drags too
     let undone = s.undo().await?;
-    for v in 56..64 {
-        assert!(
-            (moved(&edited, v) - 0.2).abs() < 1e-9,
-            "after the edit vertex {v} moved {}",
-            moved(&edited, v)
-        );
-        assert!(
-            (moved(&undone, v) - 0.2).abs() < 1e-9,
-            "the edit's undo step has vertex {v} moved {}",
-            moved(&undone, v)
-        );
-    }
+    assert_handle_moved(&before, &edited, 0.2, "after the edit");
+    assert_handle_moved(&before, &undone, 0.2, "the edit's undo step");
     Ok(())
 }
 
@@ -620,44 +686,13 @@ async fn a_constraint_edit_keeps_the_drags_received_before_it() -> Result<(), Cl
 /// undo and the second client's drag both arrive while its solve runs.
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn a_drag_after_a_waiting_undo_is_applied_after_it() -> Result<(), ClientError> {
-    let (gate, _memory, s, _state) = gated().await?;
-    let mut ws = s.connect().await?;
-    let _ = ws.frame_acking(0, true).await?;
-    // (connected now: a new connection's first frame waits for the drags
-    // the session holds, and its socket reads nothing before it)
-    let mut other = s.connect().await?;
-    let _ = other.frame_acking(0, true).await?;
-    let before = s.pose().await?;
-
-    gate.hold(&s.id);
-    ws.drag(0, [0.0, 0.0, 0.1], None, 1).await?;
-    gate.entered().await;
-    let undo = {
-        let s = s.clone();
-        tokio::spawn(async move { s.undo().await })
-    };
-    // the undo reaches the session (and waits there) before the drag
-    tokio::time::sleep(Duration::from_millis(300)).await;
-    other.drag(0, [0.0, 0.0, 0.2], None, 2).await?;
-    let opener = gate.open_after(Duration::from_millis(300));
-    let _ = undo.await.expect("join")?;
-    opener.join().expect("opener");
-    let acked = tokio::time::timeout(Duration::from_secs(10), other.frame_acking(2, true)).await;
-    let _ = acked.unwrap_or_else(|_| panic!("no settled frame acknowledged drag 2 within 10 s"))?;
-    let after = s.pose().await?;
-    // the handle (the grid's top row, rigid) moved by drag 2 alone
-    for v in 56..64 {
-        let dz = after.positions[v][2] - before.positions[v][2];
-        assert!(
-            (dz - 0.2).abs() < 1e-9,
-            "vertex {v} moved {dz}: drag 2 {}",
-            if dz.abs() < 1e-9 {
-                "was lost"
-            } else {
-                "and the undone drag 1"
-            }
-        );
-    }
+    let mut t = two_clients().await?;
+    hold_drag_1(&mut t).await?;
+    let undo = spawn_call(&t.s, |s| async move { s.undo().await });
+    let after = drag_behind(&mut t, undo).await?;
+    // drag 2 alone: lost, the handle would not move; applied before the
+    // undo, it would have been taken back with drag 1
+    assert_handle_moved(&t.before, &after, 0.2, "drag 2 after the undo");
     Ok(())
 }
 
@@ -668,35 +703,15 @@ async fn a_drag_after_a_waiting_undo_is_applied_after_it() -> Result<(), ClientE
 /// lost, while its frame acknowledged it.
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn a_drag_after_a_waiting_constraint_edit_moves_the_new_set() -> Result<(), ClientError> {
-    let (gate, _memory, s, _state) = gated().await?;
-    let mut ws = s.connect().await?;
-    let _ = ws.frame_acking(0, true).await?;
-    let mut other = s.connect().await?;
-    let _ = other.frame_acking(0, true).await?;
-    let before = s.pose().await?;
-
-    gate.hold(&s.id);
-    ws.drag(0, [0.0, 0.0, 0.1], None, 1).await?;
-    gate.entered().await;
-    let edit = {
-        let s = s.clone();
-        tokio::spawn(async move { s.set_constraints(&grid_constraints(8)).await })
-    };
-    // the edit reaches the session (and waits there) before the drag
-    tokio::time::sleep(Duration::from_millis(300)).await;
-    other.drag(0, [0.0, 0.0, 0.2], None, 2).await?;
-    let opener = gate.open_after(Duration::from_millis(300));
-    let _ = edit.await.expect("join")?;
-    opener.join().expect("opener");
-    let acked = tokio::time::timeout(Duration::from_secs(10), other.frame_acking(2, true)).await;
-    let _ = acked.unwrap_or_else(|_| panic!("no settled frame acknowledged drag 2 within 10 s"))?;
-    let after = s.pose().await?;
-    // the handle moved by both drags: the edit anchors the new set where
-    // drag 1 left the pose, and drag 2 moves it from there
-    for v in 56..64 {
-        let dz = after.positions[v][2] - before.positions[v][2];
-        assert!((dz - 0.3).abs() < 1e-9, "vertex {v} moved {dz}");
-    }
+    let mut t = two_clients().await?;
+    hold_drag_1(&mut t).await?;
+    let edit = spawn_call(&t.s, |s| async move {
+        s.set_constraints(&grid_constraints(8)).await
+    });
+    let after = drag_behind(&mut t, edit).await?;
+    // both drags: the edit anchors the new set where drag 1 left the pose,
+    // and drag 2 moves it from there
+    assert_handle_moved(&t.before, &after, 0.3, "drag 2 on the new set");
     Ok(())
 }
 
@@ -706,42 +721,12 @@ async fn a_drag_after_a_waiting_constraint_edit_moves_the_new_set() -> Result<()
 /// Served at once, it went into the targets the restore then replaced.
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn a_drag_after_a_waiting_restore_is_applied_after_it() -> Result<(), ClientError> {
-    let (gate, _memory, s, _state) = gated().await?;
-    let mut ws = s.connect().await?;
-    let _ = ws.frame_acking(0, true).await?;
-    let mut other = s.connect().await?;
-    let _ = other.frame_acking(0, true).await?;
-    let before = s.pose().await?;
-    s.save_pose("start", false).await?;
-
-    gate.hold(&s.id);
-    ws.drag(0, [0.0, 0.0, 0.1], None, 1).await?;
-    gate.entered().await;
-    let restore = {
-        let s = s.clone();
-        tokio::spawn(async move { s.restore_pose("start").await })
-    };
-    // the restore reaches the session (and waits there) before the drag
-    tokio::time::sleep(Duration::from_millis(300)).await;
-    other.drag(0, [0.0, 0.0, 0.2], None, 2).await?;
-    let opener = gate.open_after(Duration::from_millis(300));
-    let _ = restore.await.expect("join")?;
-    opener.join().expect("opener");
-    let acked = tokio::time::timeout(Duration::from_secs(10), other.frame_acking(2, true)).await;
-    let _ = acked.unwrap_or_else(|_| panic!("no settled frame acknowledged drag 2 within 10 s"))?;
-    let after = s.pose().await?;
-    for v in 56..64 {
-        let dz = after.positions[v][2] - before.positions[v][2];
-        assert!(
-            (dz - 0.2).abs() < 1e-9,
-            "vertex {v} moved {dz}: drag 2 {}",
-            if dz.abs() < 1e-9 {
-                "was lost"
-            } else {
-                "and drag 1, taken back"
-            }
-        );
-    }
+    let mut t = two_clients().await?;
+    t.s.save_pose("start", false).await?;
+    hold_drag_1(&mut t).await?;
+    let restore = spawn_call(&t.s, |s| async move { s.restore_pose("start").await });
+    let after = drag_behind(&mut t, restore).await?;
+    assert_handle_moved(&t.before, &after, 0.2, "drag 2 after the restore");
     Ok(())
 }
 
@@ -796,26 +781,20 @@ async fn a_constraint_edit_after_a_failed_solve_returns() -> Result<(), ClientEr
 /// acknowledge the drag, and the client's resend moved the handle twice.
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn a_drag_held_behind_an_edit_is_not_applied_twice() -> Result<(), ClientError> {
-    let (gate, _memory, s, _state) = gated().await?;
-    let mut a = s.connect().await?;
-    let _ = a.frame_acking(0, true).await?;
-    let mut b = s.connect().await?;
-    let _ = b.frame_acking(0, true).await?;
-    let before = s.pose().await?;
-
-    gate.hold(&s.id);
-    a.drag(0, [0.0, 0.0, 0.1], None, 1).await?;
-    gate.entered().await;
-    a.drag(0, [0.0, 0.0, 0.1], None, 2).await?;
+    let mut t = two_clients().await?;
+    hold_drag_1(&mut t).await?;
+    t.a.drag(0, [0.0, 0.0, 0.1], None, 2).await?;
     tokio::time::sleep(Duration::from_millis(100)).await;
-    let edit = {
-        let s = s.clone();
-        tokio::spawn(async move { s.set_constraints(&grid_constraints(8)).await })
-    };
+    let edit = spawn_call(&t.s, |s| async move {
+        s.set_constraints(&grid_constraints(8)).await
+    });
     tokio::time::sleep(Duration::from_millis(300)).await;
     // held behind the waiting edit
-    b.drag(0, [0.0, 0.0, 0.2], None, 3).await?;
+    t.b.drag(0, [0.0, 0.0, 0.2], None, 3).await?;
     tokio::time::sleep(Duration::from_millis(100)).await;
+    let TwoClients {
+        gate, s, b, before, ..
+    } = t;
     drop(b);
     let opener = gate.open_after(Duration::from_millis(1000));
     let mut b2 = s.connect().await?;
@@ -824,14 +803,8 @@ async fn a_drag_held_behind_an_edit_is_not_applied_twice() -> Result<(), ClientE
     opener.join().expect("opener");
     s.wait_ready(Duration::from_secs(60)).await?;
     let after = s.pose().await?;
-    for v in 56..64 {
-        let dz = after.positions[v][2] - before.positions[v][2];
-        assert!(
-            (dz - 0.4).abs() < 1e-9,
-            "vertex {v} moved {dz} (0.4 expected; first frame acked {})",
-            h0.ack_seq
-        );
-    }
+    let why = format!("first frame acknowledged {}", h0.ack_seq);
+    assert_handle_moved(&before, &after, 0.4, &why);
     Ok(())
 }
 
@@ -839,24 +812,16 @@ async fn a_drag_held_behind_an_edit_is_not_applied_twice() -> Result<(), ClientE
 /// the settle's solves end while the drag is held.
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn a_drag_held_behind_a_restore_is_not_applied_twice() -> Result<(), ClientError> {
-    let (gate, _memory, s, _state) = gated().await?;
-    let mut a = s.connect().await?;
-    let _ = a.frame_acking(0, true).await?;
-    let mut b = s.connect().await?;
-    let _ = b.frame_acking(0, true).await?;
-    let before = s.pose().await?;
-    s.save_pose("start", false).await?;
-
-    gate.hold(&s.id);
-    a.drag(0, [0.0, 0.0, 0.1], None, 1).await?;
-    gate.entered().await;
-    let restore = {
-        let s = s.clone();
-        tokio::spawn(async move { s.restore_pose("start").await })
-    };
+    let mut t = two_clients().await?;
+    t.s.save_pose("start", false).await?;
+    hold_drag_1(&mut t).await?;
+    let restore = spawn_call(&t.s, |s| async move { s.restore_pose("start").await });
     tokio::time::sleep(Duration::from_millis(300)).await;
-    b.drag(0, [0.0, 0.0, 0.2], None, 3).await?;
+    t.b.drag(0, [0.0, 0.0, 0.2], None, 3).await?;
     tokio::time::sleep(Duration::from_millis(100)).await;
+    let TwoClients {
+        gate, s, b, before, ..
+    } = t;
     drop(b);
     let opener = gate.open_after(Duration::from_millis(300));
     let mut b2 = s.connect().await?;
@@ -864,14 +829,8 @@ async fn a_drag_held_behind_a_restore_is_not_applied_twice() -> Result<(), Clien
     let _ = restore.await.expect("join")?;
     opener.join().expect("opener");
     let after = s.pose().await?;
-    for v in 56..64 {
-        let dz = after.positions[v][2] - before.positions[v][2];
-        assert!(
-            (dz - 0.2).abs() < 1e-9,
-            "vertex {v} moved {dz} (0.2 expected; first frame acked {})",
-            h0.ack_seq
-        );
-    }
+    let why = format!("first frame acknowledged {}", h0.ack_seq);
+    assert_handle_moved(&before, &after, 0.2, &why);
     Ok(())
 }
 
@@ -882,42 +841,22 @@ async fn a_drag_held_behind_a_restore_is_not_applied_twice() -> Result<(), Clien
 /// drags, ran first, and drag 3 was applied after it.
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn a_drag_before_a_restore_is_not_applied_after_it() -> Result<(), ClientError> {
-    let (gate, _memory, s, _state) = gated().await?;
-    let mut a = s.connect().await?;
-    let _ = a.frame_acking(0, true).await?;
-    let mut b = s.connect().await?;
-    let _ = b.frame_acking(0, true).await?;
-    let before = s.pose().await?;
-    s.save_pose("start", false).await?;
-
-    gate.hold(&s.id);
-    a.drag(0, [0.0, 0.0, 0.1], None, 1).await?;
-    gate.entered().await;
-    let undo = {
-        let s = s.clone();
-        tokio::spawn(async move { s.undo().await })
-    };
+    let mut t = two_clients().await?;
+    t.s.save_pose("start", false).await?;
+    hold_drag_1(&mut t).await?;
+    let undo = spawn_call(&t.s, |s| async move { s.undo().await });
     tokio::time::sleep(Duration::from_millis(300)).await;
-    b.drag(0, [0.0, 0.0, 0.2], None, 3).await?;
+    t.b.drag(0, [0.0, 0.0, 0.2], None, 3).await?;
     tokio::time::sleep(Duration::from_millis(100)).await;
-    let restore = {
-        let s = s.clone();
-        tokio::spawn(async move { s.restore_pose("start").await })
-    };
+    let restore = spawn_call(&t.s, |s| async move { s.restore_pose("start").await });
     tokio::time::sleep(Duration::from_millis(300)).await;
-    let opener = gate.open_after(Duration::from_millis(100));
+    let opener = t.gate.open_after(Duration::from_millis(100));
     let _ = undo.await.expect("join")?;
     let _ = restore.await.expect("join")?;
     opener.join().expect("opener");
-    let acked = tokio::time::timeout(Duration::from_secs(10), b.frame_acking(3, true)).await;
+    let acked = tokio::time::timeout(Duration::from_secs(10), t.b.frame_acking(3, true)).await;
     let _ = acked.unwrap_or_else(|_| panic!("no settled frame acknowledged drag 3"))?;
-    let after = s.pose().await?;
-    for v in 56..64 {
-        let dz = after.positions[v][2] - before.positions[v][2];
-        assert!(
-            dz.abs() < 1e-9,
-            "vertex {v} moved {dz} (the restore came last)"
-        );
-    }
+    let after = t.s.pose().await?;
+    assert_handle_moved(&t.before, &after, 0.0, "the restore came last");
     Ok(())
 }
