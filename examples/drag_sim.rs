@@ -15,7 +15,7 @@
 //!     [--path line|arc] [--preset characters|elastica] [--previews] [--levels 1|2|3 (default 3)]
 //!     [--correction-period K] [--coarse-ratio R] [--tol T] [--anderson W]
 //!     [--area KA] [--stretch KS] [--error-trace] [--galerkin off|DEPTH[,LAG[,PERIOD[,SMOOTH]]]]
-//!     [--newton-level on|off] [--level-minima] [--gestures N]
+//!     [--newton-level on|off] [--level-minima] [--gestures N] [--settle-trace]
 //! ```
 //!
 //! `--galerkin` makes the coarse corrections Galerkin ones
@@ -49,6 +49,13 @@
 //! one-shot solve: its distance to the tight-tolerance minimum (objective
 //! excess, pose rms and max in mean edge lengths), its update and the
 //! coarse iterations of a correction (`one_shot_trace` below).
+//!
+//! With `--settle-trace`, `settle_trace` has the same distances for the
+//! (last) gesture's settle: a first row for the pose it starts from (the
+//! last preview's with `--previews`), then one per settle step, with its
+//! time since the settle started. Shows where a settle's time goes: which
+//! part of the pose is far from the minimum when it starts, and how much
+//! of it each fine iteration and each correction removes.
 //!
 //! MESH is a file, `tube:N` or `creature:LEVELS` (`dend gen creature`). The edit is the load test's: the lowest
 //! 10 % of the vertices along the longest axis fixed, the highest 10 % the
@@ -138,6 +145,7 @@ fn run() -> Result<(), String> {
     let arc = arg::<String>(&args, "--path").as_deref() == Some("arc");
     let previews = args.iter().any(|a| a == "--previews");
     let error_trace = args.iter().any(|a| a == "--error-trace");
+    let settle_trace = args.iter().any(|a| a == "--settle-trace");
     let with_level_minima = args.iter().any(|a| a == "--level-minima");
     let gestures: usize = arg(&args, "--gestures").unwrap_or(1);
     let preset = arg::<String>(&args, "--preset")
@@ -252,6 +260,8 @@ fn run() -> Result<(), String> {
             &mut d,
             (&factor, &mut c),
             (drags, per_drag, previews, params.max_iters),
+            // (only the reported gesture's poses are kept)
+            settle_trace && g + 1 == gestures,
             |k| {
                 let s = k as f64 / drags as f64;
                 target_at(if back { 1.0 - s } else { s }, arc, axis, extent, pivot)
@@ -282,6 +292,23 @@ fn run() -> Result<(), String> {
     let r_ref = reference
         .step(&factor, &c, tight.max_iters)
         .map_err(|e| e.to_string())?;
+    let h = rest.mesh().mean_edge_length();
+    let settle_rows: Vec<serde_json::Value> = g
+        .trace
+        .iter()
+        .map(|s| {
+            let (rms, max) = distance_to(&s.pose, reference.pose(), h);
+            serde_json::json!({
+                "iteration": s.iterations,
+                "ms": s.ms,
+                "excess": s.objective.map(|e| (e - r_ref.objective) / r_ref.objective.abs()),
+                "rms": rms,
+                "max": max,
+                "update": s.update,
+                "coarse_iterations": s.coarse_iterations,
+            })
+        })
+        .collect();
     let trace = if error_trace {
         one_shot_trace(
             &rest,
@@ -330,6 +357,7 @@ fn run() -> Result<(), String> {
                       "one_shot_gap": dist(one.pose(), reference.pose()) / diag,
                       "settled_gap": dist(d.pose(), reference.pose()) / diag},
         "one_shot_trace": trace,
+        "settle_trace": settle_rows,
         "level_minima": minima,
         "objective_ratio": last.objective / r1.objective,
         "gap_over_diagonal": gap / diag,
@@ -344,6 +372,7 @@ fn gesture(
     d: &mut Deformer,
     (factor, c): (&Factor, &mut Constraints),
     (drags, per_drag, previews, max_iters): (usize, usize, bool, usize),
+    trace: bool,
     target: impl Fn(usize) -> RigidTransform,
 ) -> Result<Gesture, String> {
     // a session holds the coarse corrections while a person drags (a
@@ -388,6 +417,19 @@ fn gesture(
         }
     }
     d.hold_corrections(false);
+    // the pose the settle starts from (a preview's where previews answered
+    // the drags), then every settle step's
+    let mut poses = Vec::new();
+    if trace {
+        poses.push(SettlePose {
+            pose: d.shown_pose().to_vec(),
+            ms: t.elapsed().as_secs_f64() * 1e3,
+            iterations: 0,
+            coarse_iterations: 0,
+            update: None,
+            objective: None,
+        });
+    }
     let (mut settle_iters, mut last) = (0, None);
     let (mut coarse_its, mut coarse_ms, mut coarse_work) = (0, 0.0, 0.0);
     while settle_iters < max_iters {
@@ -403,6 +445,16 @@ fn gesture(
             );
         }
         let done = r.converged || r.diverged || r.iterations == 0;
+        if trace {
+            poses.push(SettlePose {
+                pose: d.pose().to_vec(),
+                ms: t.elapsed().as_secs_f64() * 1e3,
+                iterations: settle_iters,
+                coarse_iterations: r.coarse_iterations,
+                update: Some(r.last_update),
+                objective: Some(r.objective),
+            });
+        }
         last = Some(r);
         if done {
             break;
@@ -419,6 +471,7 @@ fn gesture(
         coarse_work,
         settle_ms: t.elapsed().as_secs_f64() * 1e3,
         last: last.ok_or("no settle step")?,
+        trace: poses,
     })
 }
 
@@ -434,6 +487,22 @@ struct Gesture {
     coarse_work: f64,
     settle_ms: f64,
     last: StepReport,
+    /// With `--settle-trace`, the settle's poses ([`SettlePose`]).
+    trace: Vec<SettlePose>,
+}
+
+/// A pose of the settle (`--settle-trace`): its time since the last drag
+/// (the previews' refinement included, as the settle's `ms`), the settle's
+/// fine iterations and the step's coarse ones, the step's update (what the
+/// convergence test reads) and objective (`None` for the pose the settle
+/// starts from).
+struct SettlePose {
+    pose: Vec<Point>,
+    ms: f64,
+    iterations: usize,
+    coarse_iterations: usize,
+    update: Option<f64>,
+    objective: Option<f64>,
 }
 
 impl Gesture {
@@ -486,14 +555,7 @@ fn one_shot_trace(
     let mut rows = Vec::new();
     for k in 1..=setup.params.max_iters {
         let r = d.step(factor, c, 1).map_err(|e| e.to_string())?;
-        let d2: Vec<f64> = d
-            .pose()
-            .iter()
-            .zip(star)
-            .map(|(p, q)| (0..3).map(|a| (p[a] - q[a]).powi(2)).sum())
-            .collect();
-        let rms = (d2.iter().sum::<f64>() / d2.len() as f64).sqrt() / h;
-        let max = d2.iter().fold(0.0f64, |m, &x| m.max(x)).sqrt() / h;
+        let (rms, max) = distance_to(d.pose(), star, h);
         rows.push(serde_json::json!({
             "iteration": k,
             "excess": (r.objective - e_star) / e_star.abs(),
@@ -507,6 +569,19 @@ fn one_shot_trace(
         }
     }
     Ok(rows)
+}
+
+/// The root-mean-square and the largest distance of `pose`'s vertices to
+/// `star`'s, in units of `h`.
+fn distance_to(pose: &[Point], star: &[Point], h: f64) -> (f64, f64) {
+    let d2: Vec<f64> = pose
+        .iter()
+        .zip(star)
+        .map(|(p, q)| (0..3).map(|a| (p[a] - q[a]).powi(2)).sum())
+        .collect();
+    let rms = (d2.iter().sum::<f64>() / d2.len().max(1) as f64).sqrt() / h;
+    let max = d2.iter().fold(0.0f64, |m, &x| m.max(x)).sqrt() / h;
+    (rms, max)
 }
 
 /// The median time of one fine iteration (one level, Anderson as set):
