@@ -15,7 +15,8 @@
 //!     [--path line|arc] [--preset characters|elastica] [--previews] [--levels 1|2|3 (default 3)]
 //!     [--correction-period K] [--coarse-ratio R] [--tol T] [--anderson W]
 //!     [--area KA] [--stretch KS] [--error-trace] [--galerkin off|DEPTH[,LAG[,PERIOD[,SMOOTH]]]]
-//!     [--newton-level on|off] [--level-minima] [--gestures N] [--settle-trace]
+//!     [--newton-level on|off] [--level-minima] [--level-minima-detail S]
+//!     [--gestures N] [--settle-trace]
 //! ```
 //!
 //! `--galerkin` makes the coarse corrections Galerkin ones
@@ -44,6 +45,9 @@
 //! minimum of the final target against the fine minimum (solves to
 //! tolerance 1e-5, `dend::deform::level_minima`): how far the levels'
 //! models stand from the fine one, whatever the solver's schedule.
+//! `--level-minima-detail S` measures them with each level's detail weight
+//! `S` times the level above's (`dend::deform::level_minima_with_detail`:
+//! the softer levels the solver fits where they are too stiff).
 //!
 //! With `--error-trace`, `one_shot_trace` has one row per iteration of the
 //! one-shot solve: its distance to the tight-tolerance minimum (objective
@@ -146,7 +150,8 @@ fn run() -> Result<(), String> {
     let previews = args.iter().any(|a| a == "--previews");
     let error_trace = args.iter().any(|a| a == "--error-trace");
     let settle_trace = args.iter().any(|a| a == "--settle-trace");
-    let with_level_minima = args.iter().any(|a| a == "--level-minima");
+    let level_detail: Option<f64> = arg(&args, "--level-minima-detail");
+    let with_level_minima = args.iter().any(|a| a == "--level-minima") || level_detail.is_some();
     let gestures: usize = arg(&args, "--gestures").unwrap_or(1);
     let preset = arg::<String>(&args, "--preset")
         .map(|p| Preset::from_name(&p).ok_or(format!("unknown preset {p}")))
@@ -324,7 +329,11 @@ fn run() -> Result<(), String> {
         let mut p = params;
         p.tol = 1e-5;
         p.max_iters = 3000;
-        Some(dend::deform::level_minima(&rest, &p, &c).map_err(|e| e.to_string())?)
+        let detail = level_detail.unwrap_or(1.0);
+        Some(
+            dend::deform::level_minima_with_detail(&rest, &p, &c, detail)
+                .map_err(|e| e.to_string())?,
+        )
     } else {
         None
     };

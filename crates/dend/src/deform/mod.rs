@@ -54,7 +54,7 @@ pub use params::{
 };
 pub use rest::{Rest, VertexOrdering};
 pub use rotation::{best_rotation, fit_rotation, fit_rotation_quat, rotation_from_covariance};
-pub use solver::level_minima::{level_minima, LevelMinima, LevelMinimum};
+pub use solver::level_minima::{level_minima, level_minima_with_detail, LevelMinima, LevelMinimum};
 pub use solver::multilevel::{COARSE_MAX_ITERS, CORRECTION_MAX_ITERS};
 pub use solver::preview::{
     PreviewReport, PREVIEW_ITERATIONS, PREVIEW_MIN_VERTICES, PREVIEW_PASSES, PREVIEW_VERTICES,

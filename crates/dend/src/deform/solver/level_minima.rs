@@ -34,6 +34,9 @@ pub struct LevelMinima {
     pub fine_converged: bool,
     /// The fine objective at its minimum, in the mesh's units (length²).
     pub fine_objective: Real,
+    /// The detail weight `k_L` of each level against the level above it
+    /// ([`level_minima_with_detail`]; 1: the fine weights on every level).
+    pub detail_scale: Real,
     /// The levels below the fine mesh, finest first.
     pub levels: Vec<LevelMinimum>,
 }
@@ -73,6 +76,20 @@ pub fn level_minima(
     params: &Params,
     constraints: &Constraints,
 ) -> Result<LevelMinima, DeformError> {
+    level_minima_with_detail(rest, params, constraints, 1.0)
+}
+
+/// [`level_minima`] with each level's detail weight `k_L` times `detail`
+/// against the level above it (the fine mesh's unchanged), as the solver's
+/// levels take it once their corrections find them too stiff
+/// (`solver/detail_fit.rs`): how close that model puts each level's own
+/// minimum to the fine one.
+pub fn level_minima_with_detail(
+    rest: &Arc<Rest>,
+    params: &Params,
+    constraints: &Constraints,
+    detail: Real,
+) -> Result<LevelMinima, DeformError> {
     let factor = Factor::build(rest, params, constraints)?;
     let mut fine = Deformer::new(rest.clone(), *params);
     fine.set_levels(Levels::Many);
@@ -82,6 +99,7 @@ pub fn level_minima(
         fine_iterations: report.iterations,
         fine_converged: report.converged,
         fine_objective: report.objective * scale2(rest),
+        detail_scale: detail,
         levels: Vec::new(),
     };
     let Some(ratio) = params.elastic().map(|e| e.coarse_ratio) else {
@@ -101,7 +119,8 @@ pub fn level_minima(
         at_fine = level.fine_of.iter().map(|&v| at_fine[v as usize]).collect();
         // (each level's tolerance in its own mean edge lengths, from the
         // level above's, as a correction's)
-        let p = coarse_params(&above, &params_above, &level);
+        let p =
+            coarse_params(&above, &params_above, &level).with_elastic(|e| e.laplacian *= detail);
         let r = &level.rest;
         let f = Factor::build(r, &p, &cc)?;
         let mut own = Deformer::new(r.clone(), p);

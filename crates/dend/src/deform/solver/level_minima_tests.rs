@@ -6,16 +6,22 @@ use std::sync::Arc;
 
 use nalgebra::{UnitQuaternion, Vector3};
 
-use super::level_minima::{level_minima, LevelMinima};
+use super::level_minima::{level_minima_with_detail, LevelMinima};
 use super::test_util::scaled;
 use crate::deform::{Params, Rest};
 use crate::mesh::gen::{creature_constraints, generate, Shape, ShapeSpec};
 use crate::mesh::Real;
 
-/// [`level_minima`] of the 2,306-vertex creature scaled by `s`, for its
-/// edit: feet fixed, the head moved up and sideways and turned 40° about
-/// the vertical.
+/// [`level_minima`](super::level_minima::level_minima) of the 2,306-vertex
+/// creature scaled by `s`, for its edit: feet fixed, the head moved up and
+/// sideways and turned 40° about the vertical.
 fn creature_minima(s: Real) -> LevelMinima {
+    creature_minima_with_detail(s, 1.0)
+}
+
+/// [`creature_minima`] with each level's detail weight times `detail`
+/// against the level above.
+fn creature_minima_with_detail(s: Real, detail: Real) -> LevelMinima {
     let mut spec = ShapeSpec::default_for(Shape::Creature);
     spec.params.nu = Some(2);
     let mesh = scaled(&generate(&spec).unwrap(), s);
@@ -29,7 +35,7 @@ fn creature_minima(s: Real) -> LevelMinima {
         max_iters: 3000,
         ..Params::default()
     };
-    level_minima(&Arc::new(Rest::new(mesh).unwrap()), &params, &c).unwrap()
+    level_minima_with_detail(&Arc::new(Rest::new(mesh).unwrap()), &params, &c, detail).unwrap()
 }
 
 /// Every solve converges; the level's own minimum is no higher in the
@@ -79,6 +85,32 @@ fn a_level_minimum_is_near_the_fine_one_in_any_unit() {
         assert!(
             close(a.objective_at_fine, b.objective_at_fine / (s * s)),
             "{a:?} {b:?}"
+        );
+    }
+}
+
+/// A softer detail weight on the levels changes their models and nothing
+/// of the fine one: the same fine solve (iterations and objective, bit for
+/// bit), and on every level a lower own minimum, since the level's
+/// objective is pointwise no higher with a smaller weight on its detail
+/// term (`E₂ ≥ 0`), so its minimum is no higher either.
+#[test]
+fn a_softer_level_detail_weight_lowers_the_levels_minima_not_the_fine_one() {
+    let plain = creature_minima(1.0);
+    let soft = creature_minima_with_detail(1.0, 0.25);
+    assert_eq!(soft.detail_scale, 0.25);
+    assert_eq!(plain.fine_iterations, soft.fine_iterations);
+    assert_eq!(
+        plain.fine_objective.to_bits(),
+        soft.fine_objective.to_bits()
+    );
+    assert_eq!(plain.levels.len(), soft.levels.len());
+    for (k, (a, b)) in plain.levels.iter().zip(&soft.levels).enumerate() {
+        assert_eq!(a.vertices, b.vertices);
+        assert!(b.converged, "level {k}: {b:?}");
+        assert!(
+            b.objective_own < a.objective_own,
+            "level {k}: soft {b:?} against {a:?}"
         );
     }
 }
