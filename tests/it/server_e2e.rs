@@ -256,6 +256,50 @@ async fn factor_ready_times_are_exported() -> Result<(), ClientError> {
     Ok(())
 }
 
+/// A constraint set's coarse levels are built beside its factor, once, and
+/// `/metrics` counts them in `dend_levels_ready_seconds`; the session's
+/// first solve takes them and converges. A mesh too small for a coarse
+/// level builds none.
+#[tokio::test]
+async fn coarse_levels_are_built_beside_the_factor() -> Result<(), ClientError> {
+    let (base, _state) = start(Config::default()).await;
+    let c = Client::new(&base);
+    let count = "dend_levels_ready_seconds_count";
+    assert_eq!(c.metric(count).await?, Some(0.0), "no levels yet");
+    let big = 40;
+    let (p, t) = grid(big);
+    let mesh = c.upload_json(&p, &t).await?;
+    let s = c.create_session(&mesh.id, params()).await?;
+    s.set_constraints(&grid_constraints(big)).await?;
+    s.wait_ready(Duration::from_secs(60)).await?;
+    // (the levels may come a little after the factor)
+    let t0 = std::time::Instant::now();
+    while c.metric(count).await? != Some(1.0) {
+        assert!(t0.elapsed() < Duration::from_secs(60), "no levels built");
+        tokio::time::sleep(Duration::from_millis(20)).await;
+    }
+    let total = c.metric("dend_levels_ready_seconds_sum").await?;
+    assert!(total.is_some_and(|s| s > 0.0 && s < 60.0), "{total:?}");
+    let moved = s
+        .drag("top", DeltaJson::translate([0.0, 0.0, 3.0]), None)
+        .await?;
+    assert!(moved.converged);
+    let top = big * big - 1;
+    assert!((moved.positions[top][2] - 3.0).abs() < 1e-6);
+    // a mesh under a coarse level's size: no levels
+    let (p, t) = grid(N);
+    let small = c.upload_json(&p, &t).await?;
+    let s = c.create_session(&small.id, params()).await?;
+    s.set_constraints(&grid_constraints(N)).await?;
+    s.wait_ready(Duration::from_secs(60)).await?;
+    let pose = s
+        .drag("top", DeltaJson::translate([0.0, 0.0, 1.0]), None)
+        .await?;
+    assert!(pose.converged);
+    assert_eq!(c.metric(count).await?, Some(1.0));
+    Ok(())
+}
+
 /// One drag, then the settle loop's frames: the objective never grows from
 /// frame to frame (the default formulation's Anderson history carries
 /// across the loop's one-iteration steps), and the last frame says

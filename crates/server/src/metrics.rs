@@ -29,6 +29,8 @@ pub struct Metrics {
     pub solve_seconds: Histogram,
     /// Constraint set submitted → its factor available (built or cached), seconds.
     pub factor_ready_seconds: Histogram,
+    /// Constraint set submitted -> its coarse levels built, seconds.
+    pub levels_ready_seconds: Histogram,
     /// Meshes stored.
     pub meshes: IntGauge,
     /// Factor cache: bytes held.
@@ -96,6 +98,16 @@ impl Metrics {
                     HistogramOpts::new(
                         "factor_ready_seconds",
                         "Constraint set submitted -> factor available (built or cached), seconds",
+                    )
+                    .buckets(prometheus::exponential_buckets(0.001, 2.0, 16)?),
+                )?,
+            ),
+            levels_ready_seconds: reg(
+                &r,
+                Histogram::with_opts(
+                    HistogramOpts::new(
+                        "levels_ready_seconds",
+                        "Constraint set submitted -> its coarse levels built beside the factor, seconds",
                     )
                     .buckets(prometheus::exponential_buckets(0.001, 2.0, 16)?),
                 )?,
@@ -188,5 +200,9 @@ impl Observer for Metrics {
 
     fn factor_ready(&self, seconds: f64) {
         self.factor_ready_seconds.observe(seconds);
+    }
+
+    fn levels_ready(&self, seconds: f64) {
+        self.levels_ready_seconds.observe(seconds);
     }
 }

@@ -56,6 +56,7 @@ pub use rest::{Rest, VertexOrdering};
 pub use rotation::{best_rotation, fit_rotation, fit_rotation_quat, rotation_from_covariance};
 pub use solver::level_minima::{level_minima, level_minima_with_detail, LevelMinima, LevelMinimum};
 pub use solver::multilevel::{COARSE_MAX_ITERS, CORRECTION_MAX_ITERS};
+pub use solver::prepared::{LevelPlan, PreparedLevels};
 pub use solver::preview::{
     PreviewReport, PREVIEW_ITERATIONS, PREVIEW_MIN_VERTICES, PREVIEW_PASSES, PREVIEW_VERTICES,
 };

@@ -458,6 +458,7 @@ impl Actor {
     fn activate(&mut self, set: Arc<InstalledSet>, step: Step) {
         self.set.generation += 1;
         self.set.factor = None;
+        self.set.prepared = None;
         self.go(step);
         self.inner.shared.lock().handles = set
             .constraints
@@ -520,6 +521,23 @@ impl Actor {
             self.inner.params,
             self.opts.cache.clone(),
         );
+        // the set's coarse levels, beside the factor (they need the rest
+        // operators and the constraints only): the first drag's preview
+        // and the first settle's corrections then find them built
+        let (plan, levels_tx, levels_for) = (
+            self.solve.level_plan.clone(),
+            self.internal_tx.clone(),
+            constraints.clone(),
+        );
+        drop(tokio::task::spawn_blocking(move || {
+            let t0 = Instant::now();
+            let levels = plan.build(&levels_for);
+            let _ = levels_tx.send(Internal::LevelsBuilt {
+                generation,
+                levels,
+                seconds: t0.elapsed().as_secs_f64(),
+            });
+        }));
         drop(tokio::task::spawn_blocking(move || {
             let t0 = Instant::now();
             let report = |stage| {

@@ -14,7 +14,9 @@ use super::phase::Phase;
 use crate::session::shared::{Cmd, Inner, Internal, QueuedDrag, Reply, SessionOptions};
 use crate::session::types::{Frame, PoseSnapshot};
 use crate::store::{JournalEntry, NamedPose};
-use dend::deform::{Constraints, ConstraintsSpec, Deformer, Factor, RigidTransform};
+use dend::deform::{
+    Constraints, ConstraintsSpec, Deformer, Factor, LevelPlan, PreparedLevels, RigidTransform,
+};
 
 /// Most history entries kept per session (older ones are dropped).
 pub(super) const HISTORY_LIMIT: usize = 64;
@@ -72,6 +74,9 @@ pub(super) struct SetState {
     /// The factor of the installed set once built (`None` while it
     /// builds): every solve of the set uses it, no cache lookup per solve.
     pub(super) factor: Option<Arc<Factor>>,
+    /// The set's coarse levels, built beside its factor, until the next
+    /// solve hands them to the deformer (`Deformer::install_levels`).
+    pub(super) prepared: Option<PreparedLevels>,
     /// The set with the targets of every drag applied.
     pub(super) constraints: Option<Arc<Constraints>>,
     /// `constraints` with the targets of the journaled drags only (what a
@@ -102,6 +107,9 @@ pub(super) struct Shown {
 pub(super) struct Solve {
     /// `None` while a solve runs: it holds the deformer.
     pub(super) deformer: Option<Deformer>,
+    /// What the deformer's coarse levels are: a new constraint set's are
+    /// built from it beside the set's factor (`Deformer::level_plan`).
+    pub(super) level_plan: LevelPlan,
     /// Counts the poses set from outside the solver (undo, redo, reset,
     /// restore): a solve started in an older epoch returns a pose that is
     /// no longer the session's.
@@ -219,6 +227,7 @@ impl Actor {
                 objective: f64::NAN,
             },
             solve: Solve {
+                level_plan: deformer.level_plan(),
                 deformer: Some(deformer),
                 pose_epoch: 0,
                 dirty: false,

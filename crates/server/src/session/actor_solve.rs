@@ -117,6 +117,7 @@ impl Actor {
             self.solve.pose_epoch,
         );
         let installed = self.set.factor.clone();
+        let prepared = self.set.prepared.take();
         let refining = self.solve.refining;
         // other sessions' solves wait for a worker: a drag's step from the
         // rest pose skips its coarse start (`Deformer::hold_coarse_start`)
@@ -138,6 +139,9 @@ impl Actor {
                             Some(f) => f,
                             None => cache.get_or_build(&rest, &params, &constraints)?,
                         };
+                        if let Some(levels) = prepared {
+                            deformer.install_levels(levels, &factor);
+                        }
                         // a refinement's corrections run: a drag stops them
                         // (`Actor::interrupt`) instead of waiting for them
                         deformer.hold_corrections(hold && !refining);
@@ -199,6 +203,18 @@ impl Actor {
                 if generation == self.set.generation && self.state() == SessionState::Building {
                     self.inner.shared.lock().build_stage = Some(stage);
                     let _ = self.inner.events.send(Event::BuildProgress { stage });
+                }
+            }
+            Internal::LevelsBuilt {
+                generation,
+                levels,
+                seconds,
+            } => {
+                if !levels.is_empty() {
+                    self.opts.observer.levels_ready(seconds);
+                }
+                if generation == self.set.generation {
+                    self.set.prepared = Some(levels);
                 }
             }
             Internal::Built {

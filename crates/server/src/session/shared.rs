@@ -275,6 +275,13 @@ pub(super) enum Internal {
         /// Wall time of the factor's lookup or build.
         seconds: f64,
     },
+    /// The coarse levels of constraint generation `generation`, built
+    /// beside its factor in `seconds`.
+    LevelsBuilt {
+        generation: u64,
+        levels: dend::deform::PreparedLevels,
+        seconds: f64,
+    },
 }
 
 /// What a handle asks the actor to do with named poses.

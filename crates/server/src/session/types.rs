@@ -74,6 +74,11 @@ pub trait Observer: Send + Sync + 'static {
     fn factor_ready(&self, seconds: f64) {
         let _ = seconds;
     }
+    /// A constraint set's coarse levels were built ahead of its first
+    /// solve, `seconds` after the set was submitted.
+    fn levels_ready(&self, seconds: f64) {
+        let _ = seconds;
+    }
 }
 
 /// An [`Observer`] that ignores everything.

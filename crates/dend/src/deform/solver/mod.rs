@@ -34,6 +34,7 @@ pub(super) mod multilevel;
 mod newton;
 mod newton_pattern;
 mod newton_state;
+pub(super) mod prepared;
 pub(super) mod preview;
 mod propagate;
 mod scratch;

@@ -253,12 +253,36 @@ pub(super) fn coarse_problem(
     })
 }
 
+/// The coarse problem of the level `first` for the set `internal` (the
+/// solver's order), with what its own solves need below it, its coarse
+/// start solved where `solve` ([`Deformer::build_factor`]); `None` where the
+/// set does not survive on the level or its solve failed.
+pub(super) fn coarse_problem_ahead(
+    rest: &Arc<Rest>,
+    below: &Params,
+    first: (usize, bool),
+    internal: &Constraints,
+    levels: Levels,
+    solve: bool,
+) -> Option<Box<CoarseProblem>> {
+    let t0 = std::time::Instant::now();
+    // (a new set's levels take the fine detail weight: `detail_fit.rs`)
+    let mut p = coarse_problem(rest, below, first, internal, (levels, 1.0))?;
+    let cc = p.level.restrict(internal)?;
+    p.deformer.params = coarse_params(rest, below, &p.level);
+    if solve {
+        p.solved_start = Some(solve_start(&mut p, &cc, internal, t0)?);
+    }
+    p.prepare_below(&cc)?;
+    Some(Box::new(p))
+}
+
 impl CoarseProblem {
     /// Builds what this problem's own solves need ([`Deformer::prepare_levels`]
     /// for its restricted constraints `cc`): the Newton pattern where it is
     /// the coarsest level, and the levels below it. `None` when its factor
     /// has no elastic part to analyse.
-    fn prepare_below(&mut self, cc: &Constraints) -> Option<()> {
+    pub(super) fn prepare_below(&mut self, cc: &Constraints) -> Option<()> {
         let factor = self.factor.clone();
         if self.deformer.newton {
             let (el, set) = factor.elastic.as_ref()?;
@@ -273,7 +297,7 @@ impl CoarseProblem {
 /// restricted constraints `cc` of the fine `constraints` (the deformer's
 /// parameters already set), its time counted from `t0`; `None` when the
 /// coarse solve failed.
-fn solve_start(
+pub(super) fn solve_start(
     p: &mut CoarseProblem,
     cc: &Constraints,
     constraints: &Constraints,
@@ -380,7 +404,7 @@ impl Deformer {
     /// it is a Newton level ([`newton_level_ratio`], only below the fine
     /// mesh of a hierarchy: a coarse problem's deformer never has the
     /// option set); `None` for a formulation without levels.
-    fn first_level(&self) -> Option<(usize, bool)> {
+    pub(super) fn first_level(&self) -> Option<(usize, bool)> {
         let ratio = self.params.elastic()?.coarse_ratio;
         if !self.newton_level || self.levels != Levels::Many {
             return Some((ratio, false));
@@ -407,7 +431,7 @@ impl Deformer {
     /// armadillo_43k standard edit took 30 fine iterations instead of 19,
     /// and the survey's bumpy plane stopped in another basin; both fixed
     /// with the hierarchy's start and corrections from rest).
-    fn start_level(&self) -> Option<(usize, bool)> {
+    pub(super) fn start_level(&self) -> Option<(usize, bool)> {
         Some((self.params.elastic()?.coarse_ratio, false))
     }
 
@@ -546,26 +570,15 @@ impl Deformer {
         let ahead = levels_used && self.elastic.starts_from_rest();
         // a new set's levels start at the fine detail weight
         self.detail_fit.restart();
-        let below = self.detail_fit.below(&self.params);
         let (rest, params, levels) = (&self.rest, &self.params, self.levels);
-        let detail = (levels, self.detail_fit.scale());
         let (first, start_first) = (self.first_level(), self.start_level());
         let separate = self.separate_start();
         // (`Factor::build` takes the mesh's order, the coarse problem the
         // solver's)
         let internal = rest.internal_constraints(constraints);
-        let build = |first: (usize, bool), solve: bool| {
-            let t0 = Instant::now();
-            let mut p = coarse_problem(rest, &below, first, &internal, detail)?;
-            let cc = p.level.restrict(&internal)?;
-            p.deformer.params = coarse_params(rest, &below, &p.level);
-            if solve {
-                p.solved_start = Some(solve_start(&mut p, &cc, &internal, t0)?);
-            }
-            // the levels below, for the corrections
-            p.prepare_below(&cc)?;
-            Some(Box::new(p))
-        };
+        // the coarse problem with the levels below it, for the corrections
+        let build =
+            |first, solve| coarse_problem_ahead(rest, params, first, &internal, levels, solve);
         let (factor, (solved, start)) = rayon::join(
             || Factor::build(rest, params, constraints),
             || {

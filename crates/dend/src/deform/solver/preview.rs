@@ -30,7 +30,7 @@ use rayon::prelude::*;
 
 use super::levels::Levels;
 use super::multilevel::{coarse_params, coarse_problem};
-use super::{Deformer, Motion, Preview};
+use super::{CoarseProblem, Deformer, Motion, Preview};
 use crate::deform::constraints::Constraints;
 use crate::deform::elastic::{ElasticOps, ElasticSet};
 use crate::deform::error::DeformError;
@@ -53,6 +53,32 @@ pub const PREVIEW_ITERATIONS: usize = 3;
 /// `P = Sᵏ P₀`).
 pub const PREVIEW_PASSES: usize = 3;
 
+/// The levels below the preview level and their detail weight: a single
+/// level's iteration (as with two levels), since a drag's preview answers
+/// in a few of its iterations, which a correction or a Newton step would
+/// make several times longer (feline drag→frame p50 34 → 65 ms with the
+/// hierarchy's); and the fine detail weight, since a preview shows its
+/// level's own solve.
+pub(super) const PREVIEW_LEVELS: (Levels, Real) = (Levels::Two, 1.0);
+
+impl Preview {
+    /// A preview of the fine factor and level `key` with the coarse
+    /// problem `problem`, for a mesh of `n` vertices, following no gesture
+    /// yet.
+    pub(super) fn new(key: (u64, usize), problem: Option<Box<CoarseProblem>>, n: usize) -> Self {
+        Preview {
+            key,
+            problem,
+            following: false,
+            pending: false,
+            pose: Vec::new(),
+            pose_user: Vec::new(),
+            blend: vec![(Matrix3::identity(), Vector3::zeros()); n],
+            next: vec![(Matrix3::identity(), Vector3::zeros()); n],
+        }
+    }
+}
+
 /// What one [`Deformer::preview`] did.
 #[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
 pub struct PreviewReport {
@@ -74,7 +100,7 @@ pub struct PreviewReport {
 /// `params` (at least the corrections' ratio), `None` without previews
 /// (the paper formulations, the linear detail term, a mesh under
 /// [`PREVIEW_MIN_VERTICES`]).
-fn preview_ratio(n: usize, params: &Params) -> Option<usize> {
+pub(super) fn preview_ratio(n: usize, params: &Params) -> Option<usize> {
     let e = params.elastic()?;
     (params.detail == DetailTerm::Nonlinear && n >= PREVIEW_MIN_VERTICES)
         .then(|| e.coarse_ratio.max(n / PREVIEW_VERTICES))
@@ -128,30 +154,16 @@ impl Deformer {
         let key = (factor.id(), ratio);
         let mut pv = match self.preview.take() {
             Some(p) if p.key == key => p,
-            _ => Box::new(Preview {
-                key,
-                // the preview level's own iteration is a single level's
-                // (as with two levels): a drag's preview answers in a few of
-                // its iterations, which a correction or a Newton step would
-                // make several times longer (feline drag→frame p50 34 → 65
-                // ms with the hierarchy's)
-                problem: coarse_problem(
+            _ => {
+                let problem = coarse_problem(
                     &self.rest,
                     &self.params,
                     (key.1, false),
                     constraints,
-                    // (a preview shows its level's own solve: the fine
-                    // detail weight)
-                    (Levels::Two, 1.0),
-                )
-                .map(Box::new),
-                following: false,
-                pending: false,
-                pose: Vec::new(),
-                pose_user: Vec::new(),
-                blend: vec![(Matrix3::identity(), Vector3::zeros()); n],
-                next: vec![(Matrix3::identity(), Vector3::zeros()); n],
-            }),
+                    PREVIEW_LEVELS,
+                );
+                Box::new(Preview::new(key, problem.map(Box::new), n))
+            }
         };
         let out = self.preview_with(&mut pv, constraints, max_iters);
         self.preview = Some(pv);

@@ -170,3 +170,74 @@ fn small_meshes_and_the_paper_formulation_have_no_preview() {
     assert_eq!(d.preview(&factor, &c, 3).unwrap(), None);
     assert!(!d.shows_preview());
 }
+
+/// The coarse problems built ahead of a constraint set's first solve
+/// (`solver/prepared.rs`) are the ones a deformer builds on use: a gesture
+/// of previews and the settle after it, with its corrections, give the
+/// same shown poses and the same settled pose, bit for bit, and the same
+/// reports.
+#[test]
+fn levels_built_ahead_solve_as_the_levels_built_on_use() {
+    let mesh = creature();
+    let rest = Arc::new(Rest::new(mesh.clone()).unwrap());
+    let params = Params::default();
+    let mut c = ends(&mesh, false);
+    let factor = Factor::build(&rest, &params, &c).unwrap();
+    let diag = mesh.diagonal();
+    let pivot = c.handles[0].rest_centroid;
+    let mut on_use = Deformer::new(rest.clone(), params);
+    let mut ahead = Deformer::new(rest.clone(), params);
+    let prepared = ahead.level_plan().build(&c);
+    assert!(!prepared.is_empty());
+    assert!(ahead.install_levels(prepared, &factor));
+    for k in 1..=6 {
+        let s = k as f64 / 6.0;
+        c.handles[0].target = RigidTransform {
+            rotation: UnitQuaternion::from_scaled_axis(Vector3::z() * (0.8 * s)),
+            translation: [0.15 * diag * s, 0.1 * diag * s, 0.0],
+            pivot,
+        };
+        let a = on_use
+            .preview(&factor, &c, super::PREVIEW_ITERATIONS)
+            .unwrap();
+        let b = ahead
+            .preview(&factor, &c, super::PREVIEW_ITERATIONS)
+            .unwrap();
+        assert_eq!(a.map(|r| r.iterations), b.map(|r| r.iterations), "drag {k}");
+        assert_eq!(on_use.shown_pose(), ahead.shown_pose(), "drag {k}");
+    }
+    let a = on_use.step(&factor, &c, params.max_iters).unwrap();
+    let b = ahead.step(&factor, &c, params.max_iters).unwrap();
+    assert!(a.converged && a.coarse_iterations > 0, "{a:?}");
+    assert_eq!(
+        (a.iterations, a.coarse_iterations, a.objective.to_bits()),
+        (b.iterations, b.coarse_iterations, b.objective.to_bits())
+    );
+    assert_eq!(on_use.pose(), ahead.pose());
+}
+
+/// Levels built for one constrained set are not taken for another set's
+/// factor (a set with half the handle's vertices), and a deformer without
+/// them builds its own on use; a set with the same constrained vertices
+/// (both ends handles instead of one fixed: the same factor) takes them.
+#[test]
+fn levels_built_for_another_set_are_refused() {
+    let mesh = creature();
+    let rest = Arc::new(Rest::new(mesh.clone()).unwrap());
+    let params = Params::default();
+    let one = ends(&mesh, false);
+    let handle = &one.handles[0].vertices;
+    let half = Constraints::new(
+        &mesh,
+        one.fixed.clone(),
+        vec![("b".into(), handle[..handle.len() / 2].to_vec(), None)],
+    )
+    .unwrap();
+    let factor = Factor::build(&rest, &params, &half).unwrap();
+    let mut d = Deformer::new(rest.clone(), params);
+    assert!(!d.install_levels(d.level_plan().build(&one), &factor));
+    assert!(d.preview(&factor, &half, 3).unwrap().is_some());
+    let both = ends(&mesh, true);
+    let factor = Factor::build(&rest, &params, &both).unwrap();
+    assert!(d.install_levels(d.level_plan().build(&one), &factor));
+}
