@@ -258,8 +258,9 @@ async fn factor_ready_times_are_exported() -> Result<(), ClientError> {
 
 /// A constraint set's coarse levels are built beside its factor, once, and
 /// `/metrics` counts them in `dend_levels_ready_seconds`; the session's
-/// first solve takes them and converges. A mesh too small for a coarse
-/// level builds none.
+/// first solve takes them and converges. The same constrained vertices set
+/// again (the deformer has their levels) and a mesh too small for a coarse
+/// level build none.
 #[tokio::test]
 async fn coarse_levels_are_built_beside_the_factor() -> Result<(), ClientError> {
     let (base, _state) = start(Config::default()).await;
@@ -286,6 +287,12 @@ async fn coarse_levels_are_built_beside_the_factor() -> Result<(), ClientError> 
     assert!(moved.converged);
     let top = big * big - 1;
     assert!((moved.positions[top][2] - 3.0).abs() < 1e-6);
+    s.set_constraints(&grid_constraints(big)).await?;
+    s.wait_ready(Duration::from_secs(60)).await?;
+    let again = s
+        .drag("top", DeltaJson::translate([0.0, 0.0, 1.0]), None)
+        .await?;
+    assert!(again.converged);
     // a mesh under a coarse level's size: no levels
     let (p, t) = grid(N);
     let small = c.upload_json(&p, &t).await?;
@@ -296,6 +303,9 @@ async fn coarse_levels_are_built_beside_the_factor() -> Result<(), ClientError> 
         .drag("top", DeltaJson::translate([0.0, 0.0, 1.0]), None)
         .await?;
     assert!(pose.converged);
+    // (a levels build would have reported by now: each took well under
+    // this on these meshes)
+    tokio::time::sleep(Duration::from_millis(300)).await;
     assert_eq!(c.metric(count).await?, Some(1.0));
     Ok(())
 }

@@ -29,7 +29,8 @@ pub struct Metrics {
     pub solve_seconds: Histogram,
     /// Constraint set submitted → its factor available (built or cached), seconds.
     pub factor_ready_seconds: Histogram,
-    /// Constraint set submitted -> its coarse levels built, seconds.
+    /// A constraint set's coarse levels built beside its factor: build
+    /// time, seconds.
     pub levels_ready_seconds: Histogram,
     /// Meshes stored.
     pub meshes: IntGauge,
@@ -107,7 +108,7 @@ impl Metrics {
                 Histogram::with_opts(
                     HistogramOpts::new(
                         "levels_ready_seconds",
-                        "Constraint set submitted -> its coarse levels built beside the factor, seconds",
+                        "A constraint set's coarse levels built beside its factor: build time, seconds",
                     )
                     .buckets(prometheus::exponential_buckets(0.001, 2.0, 16)?),
                 )?,

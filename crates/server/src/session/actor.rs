@@ -11,7 +11,7 @@ use super::shared::{off_worker, Cmd, Internal, QueuedDrag, Reply, Restore};
 use super::timing::{sleep_until_or_never, CORRECTION_QUIET};
 use super::types::{Delta, Event, PoseSnapshot};
 use crate::store::JournalEntry;
-use dend::deform::{ConstraintsSpec, RigidTransform};
+use dend::deform::{ConstraintsSpec, FactorKey, RigidTransform};
 use dend_protocol::ws::{HandleRef, PeerEvent, SessionState};
 use dend_protocol::FrameHeader;
 
@@ -456,6 +456,12 @@ impl Actor {
     /// installed, or a revival; state `building`); every grab ends,
     /// visibly.
     fn activate(&mut self, set: Arc<InstalledSet>, step: Step) {
+        // a set with the constrained vertices of the factor installed
+        // before (a reset, a restore, an edit of targets or names) has the
+        // deformer's levels already: none are built for it
+        let same_levels = self.set.factor.as_ref().is_some_and(|f| {
+            *f.key() == FactorKey::new(&self.inner.rest, &self.inner.params, &set.constraints)
+        });
         self.set.generation += 1;
         self.set.factor = None;
         self.set.prepared = None;
@@ -524,20 +530,22 @@ impl Actor {
         // the set's coarse levels, beside the factor (they need the rest
         // operators and the constraints only): the first drag's preview
         // and the first settle's corrections then find them built
-        let (plan, levels_tx, levels_for) = (
-            self.solve.level_plan.clone(),
-            self.internal_tx.clone(),
-            constraints.clone(),
-        );
-        drop(tokio::task::spawn_blocking(move || {
-            let t0 = Instant::now();
-            let levels = plan.build(&levels_for);
-            let _ = levels_tx.send(Internal::LevelsBuilt {
-                generation,
-                levels,
-                seconds: t0.elapsed().as_secs_f64(),
-            });
-        }));
+        if !same_levels {
+            let (plan, levels_tx, levels_for) = (
+                self.solve.level_plan.clone(),
+                self.internal_tx.clone(),
+                constraints.clone(),
+            );
+            drop(tokio::task::spawn_blocking(move || {
+                let t0 = Instant::now();
+                let levels = plan.build(&levels_for);
+                let _ = levels_tx.send(Internal::LevelsBuilt {
+                    generation,
+                    levels,
+                    seconds: t0.elapsed().as_secs_f64(),
+                });
+            }));
+        }
         drop(tokio::task::spawn_blocking(move || {
             let t0 = Instant::now();
             let report = |stage| {

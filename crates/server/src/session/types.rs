@@ -75,7 +75,7 @@ pub trait Observer: Send + Sync + 'static {
         let _ = seconds;
     }
     /// A constraint set's coarse levels were built ahead of its first
-    /// solve, `seconds` after the set was submitted.
+    /// solve, beside its factor, in `seconds`.
     fn levels_ready(&self, seconds: f64) {
         let _ = seconds;
     }

@@ -122,6 +122,20 @@ fn levels_too_stiff_for_a_limb_take_a_softer_detail_term() {
     let (first, below) = coarse_weight(&d);
     assert!((first - SOFT_DETAIL).abs() < 1e-12, "first level {first}");
     assert_eq!(below, SOFT_DETAIL);
+    // levels built ahead for another set (half the handle) are not taken
+    // while the levels are softer: that set's first correction builds them
+    // at the fine weight, as without them
+    let mesh = d.rest.mesh.clone();
+    let handle = &c.handles[0].vertices;
+    let half = handle[..handle.len() / 2].to_vec();
+    let other = Constraints::new(&mesh, c.fixed.clone(), vec![("h".into(), half, None)]).unwrap();
+    let f_other = Factor::build(&d.rest, &d.params, &other).unwrap();
+    let before = d.coarse.as_ref().map(|(k, _)| *k);
+    assert!(d.install_levels(d.level_plan().build(&other), &f_other));
+    assert_eq!(d.coarse.as_ref().map(|(k, _)| *k), before);
+    d.step(&f_other, &other, 300).unwrap();
+    assert_eq!(d.coarse.as_ref().unwrap().0 .0, f_other.id());
+    assert_eq!(coarse_weight(&d).0, 1.0);
     // another constraint set measures again, from the fine weight
     let _ = d.build_factor(&c).unwrap();
     assert_eq!(d.detail_fit.scale(), 1.0);

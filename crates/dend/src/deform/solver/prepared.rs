@@ -112,26 +112,26 @@ impl Deformer {
     /// Takes the coarse problems built ahead for `factor`'s constraint set
     /// ([`LevelPlan::build`] of this deformer's [`Deformer::level_plan`]):
     /// each one whose slot does not hold that set's problem yet. Returns
-    /// whether they were taken: not for another set's factor, nor where
-    /// this deformer's levels already took a detail weight of their own
-    /// for the factor (`solver/detail_fit.rs`: the prepared ones have the
-    /// fine weight).
+    /// false, taking nothing, for another constrained set's factor.
+    ///
+    /// The detail weight's fit (`solver/detail_fit.rs`) is left as it is:
+    /// the set's first correction switches it to the set, as without
+    /// prepared levels. Where the levels now take a weight other than the
+    /// fine one (the last set's corrections found them too stiff), that
+    /// first correction builds the set's problems anew at the fine weight,
+    /// also as without them: the prepared corrections' and coarse start's
+    /// are not taken then (the preview, always at the fine weight, is).
     pub fn install_levels(&mut self, prepared: PreparedLevels, factor: &Factor) -> bool {
         if prepared.key != *factor.key() {
             return false;
         }
         let id = factor.id();
-        if self.detail_fit.with_factor(id) {
-            self.drop_coarse_problems();
-        }
-        if self.detail_fit.scale() != 1.0 {
-            return false;
-        }
+        let fine_weight = self.detail_fit.scale() == 1.0;
         for (slot, p) in [
             (&mut self.coarse, prepared.corrections),
             (&mut self.start_coarse, prepared.start),
         ] {
-            if let Some((ratio, p)) = p {
+            if let Some((ratio, p)) = p.filter(|_| fine_weight) {
                 if slot.as_ref().is_none_or(|(k, _)| *k != (id, ratio)) {
                     *slot = Some(((id, ratio), Some(p)));
                 }
