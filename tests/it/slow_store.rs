@@ -404,6 +404,41 @@ async fn hold_drag_1(t: &mut TwoClients) -> Result<(), ClientError> {
     Ok(())
 }
 
+/// `command` (a call that waits in the session) given 300 ms to reach the
+/// session, client `b`'s drag 3 (0.2 up) held behind it; then `b`
+/// reconnects and follows the reconnect rule while the gate opens
+/// `open_after` later. Once `command` returned and the session is ready,
+/// the handle has moved `dz` from the pose before any drag: the held drag
+/// applied once.
+async fn held_drag_applied_once<T: Send + 'static>(
+    t: TwoClients,
+    command: tokio::task::JoinHandle<Result<T, ClientError>>,
+    open_after: Duration,
+    dz: f64,
+) -> Result<(), ClientError> {
+    let TwoClients {
+        gate,
+        s,
+        mut b,
+        before,
+        ..
+    } = t;
+    tokio::time::sleep(Duration::from_millis(300)).await;
+    b.drag(0, [0.0, 0.0, 0.2], None, 3).await?;
+    tokio::time::sleep(Duration::from_millis(100)).await;
+    drop(b);
+    let opener = gate.open_after(open_after);
+    let mut b2 = s.connect().await?;
+    let h0 = resend_unless_shown(&mut b2, 3, 0.2).await?;
+    let _ = command.await.expect("join")?;
+    opener.join().expect("opener");
+    s.wait_ready(Duration::from_secs(60)).await?;
+    let after = s.pose().await?;
+    let why = format!("first frame acknowledged {}", h0.ack_seq);
+    assert_handle_moved(&before, &after, dz, &why);
+    Ok(())
+}
+
 /// An undo that arrives while the solve of the drag before it is still
 /// writing that drag to the journal: the store ends with the undone state,
 /// as a revival would rebuild it (the checkpoint's targets, then the
@@ -788,24 +823,7 @@ async fn a_drag_held_behind_an_edit_is_not_applied_twice() -> Result<(), ClientE
     let edit = spawn_call(&t.s, |s| async move {
         s.set_constraints(&grid_constraints(8)).await
     });
-    tokio::time::sleep(Duration::from_millis(300)).await;
-    // held behind the waiting edit
-    t.b.drag(0, [0.0, 0.0, 0.2], None, 3).await?;
-    tokio::time::sleep(Duration::from_millis(100)).await;
-    let TwoClients {
-        gate, s, b, before, ..
-    } = t;
-    drop(b);
-    let opener = gate.open_after(Duration::from_millis(1000));
-    let mut b2 = s.connect().await?;
-    let h0 = resend_unless_shown(&mut b2, 3, 0.2).await?;
-    let _ = edit.await.expect("join")?;
-    opener.join().expect("opener");
-    s.wait_ready(Duration::from_secs(60)).await?;
-    let after = s.pose().await?;
-    let why = format!("first frame acknowledged {}", h0.ack_seq);
-    assert_handle_moved(&before, &after, 0.4, &why);
-    Ok(())
+    held_drag_applied_once(t, edit, Duration::from_millis(1000), 0.4).await
 }
 
 /// The same behind a named pose's restore, which waits for the settle:
@@ -816,22 +834,7 @@ async fn a_drag_held_behind_a_restore_is_not_applied_twice() -> Result<(), Clien
     t.s.save_pose("start", false).await?;
     hold_drag_1(&mut t).await?;
     let restore = spawn_call(&t.s, |s| async move { s.restore_pose("start").await });
-    tokio::time::sleep(Duration::from_millis(300)).await;
-    t.b.drag(0, [0.0, 0.0, 0.2], None, 3).await?;
-    tokio::time::sleep(Duration::from_millis(100)).await;
-    let TwoClients {
-        gate, s, b, before, ..
-    } = t;
-    drop(b);
-    let opener = gate.open_after(Duration::from_millis(300));
-    let mut b2 = s.connect().await?;
-    let h0 = resend_unless_shown(&mut b2, 3, 0.2).await?;
-    let _ = restore.await.expect("join")?;
-    opener.join().expect("opener");
-    let after = s.pose().await?;
-    let why = format!("first frame acknowledged {}", h0.ack_seq);
-    assert_handle_moved(&before, &after, 0.2, &why);
-    Ok(())
+    held_drag_applied_once(t, restore, Duration::from_millis(300), 0.2).await
 }
 
 /// The commands that wait keep their arrival order: drag 1, an undo

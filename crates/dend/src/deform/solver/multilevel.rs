@@ -553,6 +553,14 @@ impl Deformer {
         })
     }
 
+    /// Whether this deformer's sequences use coarse levels: levels below
+    /// the fine mesh, the elastic formulation and its nonlinear detail term.
+    pub(super) fn levels_used(&self) -> bool {
+        self.levels != Levels::One
+            && self.params.formulation.kind() == Formulation::Elastic
+            && self.params.detail == DetailTerm::Nonlinear
+    }
+
     /// Builds `constraints`' factor ([`Factor::build`]) for this deformer's
     /// parameters, and on another thread at the same time the levels
     /// below ([`Deformer::prepare_levels`]: they need the rest operators
@@ -564,9 +572,7 @@ impl Deformer {
     /// reached is the same as with [`Factor::build`] (the coarse solve is
     /// the same one, run earlier).
     pub fn build_factor(&mut self, constraints: &Constraints) -> Result<Factor, DeformError> {
-        let levels_used = self.levels != Levels::One
-            && self.params.formulation.kind() == Formulation::Elastic
-            && self.params.detail == DetailTerm::Nonlinear;
+        let levels_used = self.levels_used();
         let ahead = levels_used && self.elastic.starts_from_rest();
         // a new set's levels start at the fine detail weight
         self.detail_fit.restart();

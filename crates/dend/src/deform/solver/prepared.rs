@@ -23,7 +23,7 @@ use super::preview::preview_ratio;
 use super::{CoarseProblem, Deformer, Preview};
 use crate::deform::constraints::Constraints;
 use crate::deform::factor::{Factor, FactorKey};
-use crate::deform::params::{DetailTerm, Formulation, Params};
+use crate::deform::params::Params;
 use crate::deform::rest::Rest;
 
 /// What a deformer's levels are ([`Deformer::level_plan`]): enough to
@@ -95,9 +95,7 @@ impl Deformer {
     /// What this deformer's levels are, to build them for a constraint set
     /// elsewhere ([`LevelPlan::build`], then [`Deformer::install_levels`]).
     pub fn level_plan(&self) -> LevelPlan {
-        let used = self.levels != Levels::One
-            && self.params.formulation.kind() == Formulation::Elastic
-            && self.params.detail == DetailTerm::Nonlinear;
+        let used = self.levels_used();
         let separate = self.separate_start();
         LevelPlan {
             rest: self.rest.clone(),

@@ -47,6 +47,17 @@ fn ends(mesh: &Mesh, both_handles: bool) -> Constraints {
     }
 }
 
+/// The handle of `c` at a fraction `s` of its gesture: moved by 0.15 and
+/// 0.1 of the mesh's `diag` along x and y and turned 0.8 rad about z, all
+/// times `s`, about its rest centroid.
+fn swing(c: &Constraints, diag: f64, s: f64) -> RigidTransform {
+    RigidTransform {
+        rotation: UnitQuaternion::from_scaled_axis(Vector3::z() * (0.8 * s)),
+        translation: [0.15 * diag * s, 0.1 * diag * s, 0.0],
+        pivot: c.handles[0].rest_centroid,
+    }
+}
+
 #[test]
 fn a_rigid_motion_of_every_constraint_previews_as_that_motion() {
     let mesh = creature();
@@ -90,23 +101,17 @@ fn previews_meet_the_constraints_and_the_fine_solve_refines_from_them() {
     let mut c = ends(&mesh, false);
     let factor = Factor::build(&rest, &params, &c).unwrap();
     let diag = mesh.diagonal();
-    let pivot = c.handles[0].rest_centroid;
-    let target = |s: f64| RigidTransform {
-        rotation: UnitQuaternion::from_scaled_axis(Vector3::new(0.0, 0.0, 1.0) * (0.8 * s)),
-        translation: [0.15 * diag * s, 0.1 * diag * s, 0.0],
-        pivot,
-    };
     // the fine drag loop: one iteration per drag, corrections held as a
     // session holds them while a person drags
     let mut fine = Deformer::new(rest.clone(), params);
     fine.hold_corrections(true);
     for k in 1..=10 {
-        c.handles[0].target = target(k as f64 / 10.0);
+        c.handles[0].target = swing(&c, diag, k as f64 / 10.0);
         fine.step(&factor, &c, 1).unwrap();
     }
     let mut d = Deformer::new(rest.clone(), params);
     for k in 1..=10 {
-        c.handles[0].target = target(k as f64 / 10.0);
+        c.handles[0].target = swing(&c, diag, k as f64 / 10.0);
         let r = d.preview(&factor, &c, super::PREVIEW_ITERATIONS).unwrap();
         assert!(r.is_some(), "drag {k}: no preview");
         let shown = d.shown_pose();
@@ -184,19 +189,13 @@ fn levels_built_ahead_solve_as_the_levels_built_on_use() {
     let mut c = ends(&mesh, false);
     let factor = Factor::build(&rest, &params, &c).unwrap();
     let diag = mesh.diagonal();
-    let pivot = c.handles[0].rest_centroid;
     let mut on_use = Deformer::new(rest.clone(), params);
     let mut ahead = Deformer::new(rest.clone(), params);
     let prepared = ahead.level_plan().build(&c);
     assert!(!prepared.is_empty());
     assert!(ahead.install_levels(prepared, &factor));
     for k in 1..=6 {
-        let s = k as f64 / 6.0;
-        c.handles[0].target = RigidTransform {
-            rotation: UnitQuaternion::from_scaled_axis(Vector3::z() * (0.8 * s)),
-            translation: [0.15 * diag * s, 0.1 * diag * s, 0.0],
-            pivot,
-        };
+        c.handles[0].target = swing(&c, diag, k as f64 / 6.0);
         let a = on_use
             .preview(&factor, &c, super::PREVIEW_ITERATIONS)
             .unwrap();
