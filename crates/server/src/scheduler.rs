@@ -18,8 +18,8 @@
 //! liveness connection are not outnumbered by dozens of runnable solver
 //! threads when the solvers saturate the cores.
 //!
-//! Threads of one solve: a job that runs alone (no other job running, no
-//! session waiting) spreads its parallel loops over every core (rayon's
+//! Threads of one solve: a job that runs alone (no other session's job
+//! running or waiting) spreads its parallel loops over every core (rayon's
 //! shared pool); a job that runs beside others stays on its worker's own
 //! one-thread pool. With every core busy, splitting a solve's loops only
 //! adds the cost of splitting them (the two-thread sweeps' accumulators,
@@ -59,8 +59,11 @@ struct State {
     ring: VecDeque<String>,
     /// Jobs waiting.
     depth: usize,
-    /// Jobs running.
-    running: usize,
+    /// The session of each running job. A session's next solve is often
+    /// taken while its previous job returns (the job's result reaches the
+    /// session, which submits the next, before the worker is free): that
+    /// job is no other session's, and the next one still runs alone.
+    running: Vec<String>,
     /// Set when the scheduler is dropped: workers finish what is queued
     /// and end.
     stop: bool,
@@ -102,7 +105,7 @@ impl Scheduler {
                 queues: HashMap::new(),
                 ring: VecDeque::new(),
                 depth: 0,
-                running: 0,
+                running: Vec::new(),
                 stop: false,
             }),
             work: Condvar::new(),
@@ -170,7 +173,7 @@ fn worker(shared: &Shared) {
         .map_err(|e| tracing::warn!(error = %e, "a solver's own thread pool failed to start"))
         .ok();
     loop {
-        let ((job, at), beside_others) = {
+        let ((job, at), session, beside_others) = {
             let mut st = shared.state.lock();
             loop {
                 if let Some(session) = st.ring.pop_front() {
@@ -185,15 +188,16 @@ fn worker(shared: &Shared) {
                         let _ = st.queues.remove(&session);
                     } else {
                         // its next job waits for its next turn
-                        st.ring.push_back(session);
+                        st.ring.push_back(session.clone());
                     }
                     st.depth -= 1;
                     if let Some(m) = &shared.metrics {
                         m.depth.set(st.depth as i64);
                     }
-                    st.running += 1;
-                    let beside_others = st.running > 1 || !st.ring.is_empty();
-                    break (job, beside_others);
+                    let beside_others = st.running.iter().any(|s| *s != session)
+                        || st.ring.iter().any(|s| *s != session);
+                    st.running.push(session.clone());
+                    break (job, session, beside_others);
                 }
                 if st.stop {
                     return;
@@ -215,7 +219,10 @@ fn worker(shared: &Shared) {
                 let _ = std::panic::catch_unwind(job);
             }
         }
-        shared.state.lock().running -= 1;
+        let mut st = shared.state.lock();
+        if let Some(k) = st.running.iter().position(|s| *s == session) {
+            st.running.swap_remove(k);
+        }
     }
 }
 
@@ -305,7 +312,7 @@ mod tests {
     /// Waits until no job runs (a worker counts its job as running until
     /// the job has returned, after the job's own last message).
     fn wait_idle(s: &Scheduler) {
-        while s.shared.state.lock().running > 0 {
+        while !s.shared.state.lock().running.is_empty() {
             std::thread::yield_now();
         }
     }
@@ -343,5 +350,27 @@ mod tests {
         done_rx.recv().expect("the blocker ends");
         wait_idle(&s);
         assert_ne!(thread_of_next_job(&s, "alone"), "dend-solver-own");
+    }
+
+    /// A session's next job taken while its previous one still runs (the
+    /// session submits its next solve as soon as the previous job's result
+    /// reaches it, before that job has returned) runs alone: it runs beside
+    /// no other session's work.
+    #[test]
+    fn a_sessions_next_job_beside_its_own_previous_one_runs_alone() {
+        let s = Scheduler::new(2, None);
+        let (gate_tx, gate_rx) = mpsc::channel::<()>();
+        let (started_tx, started_rx) = mpsc::channel::<()>();
+        s.submit("one", move || {
+            let _ = started_tx.send(());
+            let _ = gate_rx.recv();
+        });
+        started_rx.recv().expect("a worker runs the first job");
+        let next = thread_of_next_job(&s, "one");
+        assert!(next.starts_with("dend-solver-"), "{next}");
+        assert_ne!(next, "dend-solver-own");
+        // another session's job beside it still stays on its own thread
+        assert_eq!(thread_of_next_job(&s, "other"), "dend-solver-own");
+        gate_tx.send(()).expect("the first job waits");
     }
 }
