@@ -12,7 +12,7 @@
 //!
 //! ```text
 //! cargo run --release --example drag_sim -- MESH [--drags 60] [--per-drag 1]
-//!     [--path line|arc] [--preset characters|elastica] [--previews] [--levels 1|2|3 (default 3)]
+//!     [--path line|arc|twist] [--preset characters|elastica] [--previews] [--levels 1|2|3 (default 3)]
 //!     [--correction-period K] [--coarse-ratio R] [--tol T] [--anderson W]
 //!     [--area KA] [--stretch KS] [--error-trace] [--galerkin off|DEPTH[,LAG[,PERIOD[,SMOOTH]]]]
 //!     [--newton-level on|off] [--level-minima] [--level-minima-detail S]
@@ -63,8 +63,14 @@
 //!
 //! MESH is a file, `tube:N` or `creature:LEVELS` (`dend gen creature`). The edit is the load test's: the lowest
 //! 10 % of the vertices along the longest axis fixed, the highest 10 % the
-//! handle, moved by 0.3 of that extent across it; `arc` swings the handle
-//! out and back along an arc while it turns 60° about the longest axis.
+//! handle, dragged along `dend loadtest`'s path (`dend_client::gesture`,
+//! the same drag deltas composed as a session composes them): `line` moves
+//! it by 0.3 of that extent across it, `arc` swings it 60° about the fixed
+//! end while it turns with the swing. `twist` is another edit, not the
+//! load test's: the handle moved by 0.3 of the extent across, out and back
+//! along a bow of 0.15, while it turns 60° about the longest axis (this
+//! tool's `arc` until 2026-12-07: docs/performance.md's figures of
+//! `drag_sim --path arc` before then are of this edit).
 //! The drags hold the coarse corrections, as a session's do, and the
 //! settle runs them: a replay whose drags ran Galerkin corrections (one
 //! after every iteration) kept the pose near the minimum through the
@@ -78,7 +84,8 @@ use dend::deform::{
     Constraints, Deformer, Factor, Galerkin, Levels, Preset, Rest, RigidTransform, StepReport,
 };
 use dend::mesh::{Mesh, Point};
-use nalgebra::{UnitQuaternion, Vector3};
+use dend_client::gesture::{self, DragPath};
+use nalgebra::{Quaternion, UnitQuaternion, Vector3};
 
 fn arg<T: std::str::FromStr>(args: &[String], name: &str) -> Option<T> {
     args.iter()
@@ -105,22 +112,71 @@ fn load(spec: &str) -> Result<Mesh, String> {
     dend::mesh::io::read_path(std::path::Path::new(spec)).map_err(|e| e.to_string())
 }
 
-/// The handle's target after a fraction `s` of the path.
-fn target_at(s: f64, arc: bool, axis: usize, extent: f64, pivot: Point) -> RigidTransform {
-    let mut t = [0.0; 3];
-    t[(axis + 1) % 3] = 0.3 * extent * s;
-    let mut rotation = UnitQuaternion::identity();
-    if arc {
-        let bow = 0.15 * extent * (std::f64::consts::PI * s).sin();
-        t[(axis + 2) % 3] += bow;
-        let mut a = Vector3::zeros();
-        a[axis] = 1.0;
-        rotation = UnitQuaternion::from_scaled_axis(a * (60f64.to_radians() * s));
+/// The edit the handle follows (module docs).
+#[derive(Clone, Copy)]
+enum Edit {
+    /// `dend loadtest`'s path.
+    Load(DragPath),
+    /// Across, along a bow, turning about the longest axis.
+    Twist,
+}
+
+impl Edit {
+    fn name(self) -> String {
+        match self {
+            Edit::Load(p) => p.to_string(),
+            Edit::Twist => "twist".into(),
+        }
     }
-    RigidTransform {
-        rotation,
-        translation: t,
-        pivot,
+
+    /// The handle's target after drag `k` (1-based; 0: before the first)
+    /// of gesture `g` (0-based: even gestures go along the path, odd ones
+    /// back), from the rest pose (identity about `pivot`) before gesture 0.
+    fn target(
+        self,
+        g: usize,
+        k: usize,
+        drags: usize,
+        (axis, extent, pivot): (usize, f64, Point),
+    ) -> RigidTransform {
+        let mut target = RigidTransform {
+            rotation: UnitQuaternion::identity(),
+            translation: [0.0; 3],
+            pivot,
+        };
+        match self {
+            Edit::Load(kind) => {
+                // the session's composition of the load test's deltas
+                let path = gesture::Gesture {
+                    kind,
+                    axis,
+                    extent,
+                    drags: drags as u64,
+                };
+                for gg in 0..=g {
+                    let n = if gg == g { k } else { drags };
+                    for j in 0..n {
+                        let (t, q) = path.delta_of(gg as u64, j as u64);
+                        let r = q.map_or(UnitQuaternion::identity(), |[x, y, z, w]| {
+                            UnitQuaternion::from_quaternion(Quaternion::new(w, x, y, z))
+                        });
+                        target = target.then(r, t);
+                    }
+                }
+            }
+            Edit::Twist => {
+                let s = k as f64 / drags as f64;
+                let s = if g % 2 == 1 { 1.0 - s } else { s };
+                let mut t = [0.0; 3];
+                t[(axis + 1) % 3] = 0.3 * extent * s;
+                t[(axis + 2) % 3] += 0.15 * extent * (std::f64::consts::PI * s).sin();
+                let mut a = Vector3::zeros();
+                a[axis] = 1.0;
+                target.rotation = UnitQuaternion::from_scaled_axis(a * (60f64.to_radians() * s));
+                target.translation = t;
+            }
+        }
+        target
     }
 }
 
@@ -146,7 +202,11 @@ fn run() -> Result<(), String> {
     let mesh = load(spec)?;
     let drags: usize = arg(&args, "--drags").unwrap_or(60);
     let per_drag: usize = arg(&args, "--per-drag").unwrap_or(1);
-    let arc = arg::<String>(&args, "--path").as_deref() == Some("arc");
+    let edit = match arg::<String>(&args, "--path").as_deref() {
+        None => Edit::Load(DragPath::Line),
+        Some("twist") => Edit::Twist,
+        Some(p) => Edit::Load(p.parse::<DragPath>()?),
+    };
     let previews = args.iter().any(|a| a == "--previews");
     let error_trace = args.iter().any(|a| a == "--error-trace");
     let settle_trace = args.iter().any(|a| a == "--settle-trace");
@@ -235,7 +295,8 @@ fn run() -> Result<(), String> {
     let diag = mesh.diagonal();
 
     // one shot: the final target from rest
-    c.handles[0].target = target_at(1.0, arc, axis, extent, pivot);
+    let place = (axis, extent, pivot);
+    c.handles[0].target = edit.target(0, drags, drags, place);
     let fine_ms = fine_iteration_ms(&rest, &factor, &c, params)?;
     let setup = Setup {
         params,
@@ -260,17 +321,13 @@ fn run() -> Result<(), String> {
     let mut d = setup.deformer(&rest);
     let mut seen = Vec::new();
     for g in 0..gestures {
-        let back = g % 2 == 1;
         seen.push(gesture(
             &mut d,
             (&factor, &mut c),
             (drags, per_drag, previews, params.max_iters),
             // (only the reported gesture's poses are kept)
             settle_trace && g + 1 == gestures,
-            |k| {
-                let s = k as f64 / drags as f64;
-                target_at(if back { 1.0 - s } else { s }, arc, axis, extent, pivot)
-            },
+            |k| edit.target(g, k, drags, place),
         )?);
     }
     let (Some(first), Some(g)) = (seen.first(), seen.last()) else {
@@ -341,7 +398,7 @@ fn run() -> Result<(), String> {
         "mesh": spec,
         "vertices": mesh.num_vertices(),
         "preset": preset.name(),
-        "path": if arc { "arc" } else { "line" },
+        "path": edit.name(),
         "galerkin": galerkin.map(|g| [g.depth, g.lag, g.period, g.smooth]),
         "drags": drags,
         "per_drag": per_drag,

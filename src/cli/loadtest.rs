@@ -21,6 +21,7 @@ use clap::ValueEnum;
 use dend_client::ws::StreamOptions;
 use dend_client::{Client, ConstraintsSpec, SessionParams};
 
+use dend_client::gesture::Gesture;
 use drive::{median, Pace, Path, Summary, VISIBLE_SHARE};
 
 #[path = "loadtest_args.rs"]
@@ -61,11 +62,13 @@ async fn run_async(args: LoadtestArgs) -> anyhow::Result<()> {
     handle_min[k] = hi[k] - 0.1 * ext[k];
     let spec = box_constraints([lo, fixed_max], [handle_min, hi]);
     let path = Path {
-        kind: args.path,
-        axis: k,
-        extent: ext[k],
+        gesture: Gesture {
+            kind: args.path,
+            axis: k,
+            extent: ext[k],
+            drags: args.drags,
+        },
         diagonal: ext.iter().map(|e| e * e).sum::<f64>().sqrt(),
-        drags: args.drags,
     };
     let pace = Pace {
         drag_hz: args.drag_hz,

@@ -125,8 +125,9 @@ pub struct LoadtestArgs {
     /// refused with 503 `overloaded`.
     #[arg(long)]
     pub(super) check_refused: Option<usize>,
-    /// The handle's path: a line, or an arc while the handle turns.
-    #[arg(long, value_enum, default_value_t = DragPath::Line)]
+    /// The handle's path: `line`, or `arc` (the handle swings 60° about
+    /// the fixed end and turns with it).
+    #[arg(long, default_value_t = DragPath::Line)]
     pub(super) path: DragPath,
     /// Drags per second on a clock (a mouse); 0: closed loop, the next
     /// drag when a frame acknowledges the last.

@@ -8,78 +8,17 @@ use std::time::{Duration, Instant};
 use dend_client::ws::ServerMsg;
 use dend_client::{WsClient, WsFull};
 
-/// The path a handle follows.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
-pub enum DragPath {
-    /// A straight line across the mesh's second axis.
-    Line,
-    /// An arc about the fixed end while the handle turns with it (its
-    /// rotation changes along the arc), 60° in all.
-    Arc,
-}
+pub use dend_client::gesture::DragPath;
+use dend_client::gesture::Gesture;
 
-/// The geometry of a drag: where the handle is and where it goes.
+/// The geometry of a drag: where the handle is and where it goes, and
+/// what "the pose has arrived" is measured against.
 #[derive(Debug, Clone, Copy)]
 pub struct Path {
-    /// The path.
-    pub kind: DragPath,
-    /// The longest axis of the mesh (the handle is at its high end).
-    pub axis: usize,
-    /// Its extent.
-    pub extent: f64,
-    /// The mesh's bounding-box diagonal (what "the pose has arrived" is
-    /// measured against, [`VISIBLE_SHARE`]).
+    /// The gesture's drags (`dend_client::gesture`).
+    pub gesture: Gesture,
+    /// The mesh's bounding-box diagonal ([`VISIBLE_SHARE`]).
     pub diagonal: f64,
-    /// Drags in the gesture.
-    pub drags: u64,
-}
-
-impl Path {
-    /// The delta of drag `j` (0-based) of gesture `g` (0-based): the
-    /// path's even gestures go along it, its odd ones back (each delta of
-    /// the way along undone, in reverse order: the handle turns back about
-    /// its pivot and moves back).
-    pub fn delta_of(&self, g: u64, j: u64) -> ([f64; 3], Option<[f64; 4]>) {
-        if g % 2 == 0 {
-            return self.delta(j);
-        }
-        let (t, q) = self.delta(self.drags - 1 - j);
-        (t.map(|x| -x), q.map(|[x, y, z, w]| [-x, -y, -z, w]))
-    }
-
-    /// The delta of drag `i` (0-based): translation and quaternion.
-    pub fn delta(&self, i: u64) -> ([f64; 3], Option<[f64; 4]>) {
-        let k = self.axis;
-        let n = self.drags.max(1) as f64;
-        match self.kind {
-            DragPath::Line => {
-                let mut t = [0.0; 3];
-                t[(k + 1) % 3] = 0.3 * self.extent / n;
-                (t, None)
-            }
-            DragPath::Arc => {
-                // the handle (at radius `extent` from the fixed end along
-                // axis k) swings by 60° about axis k+2 and turns with it:
-                // each drag rotates it by the step about its own pivot and
-                // moves the pivot along the arc
-                let total = 60f64.to_radians();
-                let step = total / n;
-                let at = |j: f64| {
-                    let a = step * j;
-                    (self.extent * a.cos(), self.extent * a.sin())
-                };
-                let (x0, y0) = at(i as f64);
-                let (x1, y1) = at(i as f64 + 1.0);
-                let mut t = [0.0; 3];
-                t[k] = x1 - x0;
-                t[(k + 1) % 3] = y1 - y0;
-                let mut axis = [0.0; 3];
-                axis[(k + 2) % 3] = 1.0;
-                let (s, c) = (0.5 * step).sin_cos();
-                (t, Some([axis[0] * s, axis[1] * s, axis[2] * s, c]))
-            }
-        }
-    }
 }
 
 /// How the client drags and reads.
@@ -137,8 +76,8 @@ pub async fn drag(
     let mut sent: BTreeMap<u64, Instant> = BTreeMap::new();
     let start = Instant::now();
     let period = (pace.drag_hz > 0.0).then(|| Duration::from_secs_f64(1.0 / pace.drag_hz));
-    let first = gesture * path.drags;
-    let last = first + path.drags;
+    let first = gesture * path.gesture.drags;
+    let last = first + path.gesture.drags;
     let (mut next_seq, mut acked) = (first + 1, first);
     let mut last_sent = start;
     let bytes0 = ws.frame_bytes();
@@ -155,7 +94,7 @@ pub async fn drag(
             if !due {
                 break;
             }
-            let (t, q) = path.delta_of(gesture, next_seq - first - 1);
+            let (t, q) = path.gesture.delta_of(gesture, next_seq - first - 1);
             ws.drag(0, t, q, next_seq).await?;
             last_sent = Instant::now();
             sent.insert(next_seq, last_sent);

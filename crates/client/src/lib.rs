@@ -16,6 +16,7 @@
 
 mod client;
 mod error;
+pub mod gesture;
 mod poses;
 mod session;
 mod socket;
