@@ -319,6 +319,11 @@ fn run() -> Result<(), String> {
     // target), as a session's later gestures with the same constraint set;
     // the report's settle is the last gesture's
     let mut d = setup.deformer(&rest);
+    // its levels built ahead too, as a session builds them beside the
+    // constraint set's factor (without them the settle's first correction
+    // built the coarse problems: on igea_134k 940 ms against 550 for the
+    // next ones)
+    d.prepare_levels(&factor, &c);
     let mut seen = Vec::new();
     for g in 0..gestures {
         seen.push(gesture(
