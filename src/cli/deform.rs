@@ -69,7 +69,7 @@ pub struct Args {
     /// Elastic formulation: weight k_L of the Laplacian part of the bending energy (the rotated detail rows), dimensionless; 1 with λ2 = 1 is E_T exactly [default: 0.1, or 1 with --preset elastica].
     #[arg(long)]
     laplacian: Option<f64>,
-    /// Elastic formulation: most fine vertices per coarse vertex of the two-level iteration, at least 2 [default: 3, or 8 with --preset elastica].
+    /// Elastic formulation: most vertices of a level per vertex of the coarse level below it (each level of the hierarchy), at least 2 [default: 4, or 8 with --preset elastica].
     #[arg(long)]
     coarse_ratio: Option<usize>,
     /// Elastic formulation: when a sequence's coarse corrections stop, while-faster (once one gains less than the fine iterations before it) or while-gaining (once one gains nothing) [default: while-gaining, or while-faster with --preset elastica].
