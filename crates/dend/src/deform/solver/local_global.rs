@@ -408,6 +408,9 @@ impl Deformer {
             }
         }
         if fit && self.adopt_preview(el, set) {
+            // a sequence from a preview's pose is one from a pose, whatever
+            // the fine pose was before it
+            self.elastic.on_hierarchy = false;
             return (self.local_step(factor, (el, set), false, false), None);
         }
         match start {

@@ -140,6 +140,10 @@ pub struct Deformer {
     newton: bool,
     /// [`Deformer::set_newton_level`].
     newton_level: bool,
+    /// Whether the sequences from a pose correct on a hierarchy of their
+    /// own ([`multilevel::WARM_COARSE_RATIO`]): the fine mesh's deformer;
+    /// a coarse problem's corrects on the levels below it.
+    warm_levels: bool,
     /// The coarse previews' problem and last pose ([`Deformer::preview`]).
     preview: Option<Box<Preview>>,
     /// Raised by another thread to stop a step at its next safe point
@@ -240,6 +244,7 @@ impl Deformer {
             drift_limit: None,
             newton: false,
             newton_level: false,
+            warm_levels: true,
             preview: None,
             interrupt: None,
             galerkin_mode: None,

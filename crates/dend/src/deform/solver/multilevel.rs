@@ -43,6 +43,13 @@
 //!   linear term `s`, the same rotation field back); the start from rest
 //!   and its sequence's corrections stay the hierarchy's
 //!   ([`NEWTON_LEVEL_MAX_VERTICES`], `Deformer::start_level`).
+//! - **A coarser hierarchy for the sequences from a pose** (the default
+//!   where the Newton level is off or the mesh has none): a drag's and a
+//!   settle's corrections, and those of a sequence from a preview's pose,
+//!   run on a second hierarchy whose levels each have about a sixteenth of
+//!   the vertices of the one above ([`WARM_COARSE_RATIO`]); the start from
+//!   rest and its sequence's corrections stay on the hierarchy at the
+//!   coarse ratio.
 //!
 //! [`ElasticParams::correction_period`]: crate::deform::ElasticParams::correction_period
 //! [`Corrections::WhileFaster`]: crate::deform::Corrections::WhileFaster
@@ -184,6 +191,41 @@ pub fn newton_level_ratio(n: usize, ratio: usize) -> Option<usize> {
         .then_some(wanted)
 }
 
+/// The coarse ratio of the hierarchy the fine mesh's sequences from a pose
+/// (a drag's, a settle's) correct on, beside the one at the coarse ratio
+/// that the starts and sequences from the rest pose use: each level has
+/// about a sixteenth of the vertices of the one above. After a drag the
+/// pose is near its minimum, and a cheaper, coarser cycle corrects it in
+/// less work; from the rest pose the coarser levels stand too far from the
+/// fine problem. On the load test's arc (`drag_sim --path arc`, work in
+/// fine iterations, settle): camel_9770 68.8 → 45.5, armadillo_43k 60.9 →
+/// 53.8, feline_50k 44.4 → 43.1, igea_134k 100.4 → 58.5 (8.0 → 4.2 s),
+/// the one-shots unchanged; the same ratio for every sequence failed the
+/// posing suite's one-shots from rest (15 → 12 of 22; docs/performance.md).
+pub const WARM_COARSE_RATIO: usize = 16;
+
+/// The ratio of the first level of the hierarchy the sequences from a pose
+/// use on a fine mesh of `n` vertices under the coarse ratio `ratio`
+/// ([`WARM_COARSE_RATIO`]), or `None` where it would be the start's level
+/// (a small mesh: both simplified to the fewest coarse vertices).
+pub fn warm_level_ratio(n: usize, ratio: usize) -> Option<usize> {
+    use crate::deform::coarse::{ratio_at_most, MIN_VERTICES};
+    let wanted = WARM_COARSE_RATIO.max(ratio);
+    (n >= MIN_VERTICES && ratio_at_most(n, wanted) > ratio_at_most(n, ratio)).then_some(wanted)
+}
+
+/// The parameters of the coarse problem on the level of `first`, from the
+/// fine mesh's `params`: a hierarchy coarser than the coarse ratio
+/// ([`warm_level_ratio`]) keeps its ratio on the levels below its first.
+fn level_params(params: &Params, (ratio, newton_level): (usize, bool)) -> Params {
+    match params.elastic() {
+        Some(e) if !newton_level && ratio > e.coarse_ratio => {
+            params.with_elastic(|e| e.coarse_ratio = ratio)
+        }
+        _ => *params,
+    }
+}
+
 impl Levels {
     /// The levels the coarse problem's own solve uses.
     fn below(self) -> Levels {
@@ -214,6 +256,7 @@ pub(super) fn coarse_problem(
     constraints: &Constraints,
     (levels, detail): (Levels, Real),
 ) -> Option<CoarseProblem> {
+    let params = &level_params(params, (ratio, newton_level));
     let level: Arc<CoarseLevel> = rest.coarse_at_most(ratio)?;
     let cc = level.restrict(constraints)?;
     let factor = Arc::new(Factor::build(&level.rest, params, &cc).ok()?);
@@ -226,6 +269,8 @@ pub(super) fn coarse_problem(
         coarse_fixed[v as usize] = true;
     }
     let mut deformer = Box::new(Deformer::new(level.rest.clone(), *params));
+    // (its own sequences correct on its levels below: no hierarchy beside them)
+    deformer.warm_levels = false;
     // (its levels below take the detail weight's scale again)
     deformer.detail_fit = DetailFit::inherited(detail);
     // a coarse problem's own corrections are its coarse problems' (the
@@ -269,7 +314,7 @@ pub(super) fn coarse_problem_ahead(
     // (a new set's levels take the fine detail weight: `detail_fit.rs`)
     let mut p = coarse_problem(rest, below, first, internal, (levels, 1.0))?;
     let cc = p.level.restrict(internal)?;
-    p.deformer.params = coarse_params(rest, below, &p.level);
+    p.deformer.params = coarse_params(rest, &level_params(below, first), &p.level);
     if solve {
         p.solved_start = Some(solve_start(&mut p, &cc, internal, t0)?);
     }
@@ -406,15 +451,16 @@ impl Deformer {
     /// option set); `None` for a formulation without levels.
     pub(super) fn first_level(&self) -> Option<(usize, bool)> {
         let ratio = self.params.elastic()?.coarse_ratio;
-        if !self.newton_level || self.levels != Levels::Many {
+        if self.levels != Levels::Many || !self.warm_levels {
             return Some((ratio, false));
         }
-        Some(
-            match newton_level_ratio(self.rest.mesh.num_vertices(), ratio) {
-                Some(r) => (r, true),
-                None => (ratio, false),
-            },
-        )
+        let n = self.rest.mesh.num_vertices();
+        if self.newton_level {
+            if let Some(r) = newton_level_ratio(n, ratio) {
+                return Some((r, true));
+            }
+        }
+        Some((warm_level_ratio(n, ratio).unwrap_or(ratio), false))
     }
 
     /// The rotations of the elastic iteration's current pose, `#V` (the
@@ -436,10 +482,12 @@ impl Deformer {
     }
 
     /// Whether the coarse start and the corrections use different coarse
-    /// problems: the first level is a Newton level.
+    /// problems: the first level is a Newton level or the first level of
+    /// the hierarchy of the sequences from a pose ([`warm_level_ratio`]).
     pub(super) fn separate_start(&self) -> bool {
         self.first_level()
-            .is_some_and(|(_, newton_level)| newton_level)
+            .zip(self.start_level())
+            .is_some_and(|(first, start)| first != start)
     }
 
     /// Runs `f` with the coarse problem of `constraints`' set (built on
@@ -467,7 +515,7 @@ impl Deformer {
             self.drop_coarse_problems();
         }
         let key = (factor.id(), first.0);
-        let below = self.detail_fit.below(&self.params);
+        let below = level_params(&self.detail_fit.below(&self.params), first);
         let detail = (self.levels, self.detail_fit.scale());
         let mut problem = match self.coarse_slot(separate).take() {
             Some((k, p)) if k == key => p,

@@ -213,6 +213,9 @@ fn levels_built_ahead_solve_as_the_levels_built_on_use() {
         (b.iterations, b.coarse_iterations, b.objective.to_bits())
     );
     assert_eq!(on_use.pose(), ahead.pose());
+    // the settle from the previews' pose is a sequence from a pose: it
+    // corrects on their coarser hierarchy, not on the start's
+    assert!(!ahead.elastic.on_hierarchy);
 }
 
 /// Levels built for one constrained set are not taken for another set's
