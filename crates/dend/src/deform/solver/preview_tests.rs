@@ -19,6 +19,16 @@ fn creature() -> Mesh {
     generate(&s).expect("creature")
 }
 
+/// The creature ([`creature`]), its rest operators, its [`ends`] with
+/// `both_handles` and their factor under the default parameters.
+fn creature_ends(both_handles: bool) -> (Mesh, Arc<Rest>, Constraints, Factor) {
+    let mesh = creature();
+    let rest = Arc::new(Rest::new(mesh.clone()).unwrap());
+    let c = ends(&mesh, both_handles);
+    let factor = Factor::build(&rest, &Params::default(), &c).unwrap();
+    (mesh, rest, c, factor)
+}
+
 /// The lowest 10 % along the longest axis and the highest 10 %: both
 /// handles when `both_handles`, else fixed and handle.
 fn ends(mesh: &Mesh, both_handles: bool) -> Constraints {
@@ -60,12 +70,9 @@ fn swing(c: &Constraints, diag: f64, s: f64) -> RigidTransform {
 
 #[test]
 fn a_rigid_motion_of_every_constraint_previews_as_that_motion() {
-    let mesh = creature();
+    let (mesh, rest, mut c, factor) = creature_ends(true);
     assert!(mesh.num_vertices() >= super::PREVIEW_MIN_VERTICES);
-    let rest = Arc::new(Rest::new(mesh.clone()).unwrap());
     let params = Params::default();
-    let mut c = ends(&mesh, true);
-    let factor = Factor::build(&rest, &params, &c).unwrap();
     // both handles turn 50° about one pivot and move: a rigid motion
     let pivot = c.handles[0].rest_centroid;
     let motion = RigidTransform {
@@ -95,11 +102,8 @@ fn a_rigid_motion_of_every_constraint_previews_as_that_motion() {
 
 #[test]
 fn previews_meet_the_constraints_and_the_fine_solve_refines_from_them() {
-    let mesh = creature();
-    let rest = Arc::new(Rest::new(mesh.clone()).unwrap());
+    let (mesh, rest, mut c, factor) = creature_ends(false);
     let params = Params::default();
-    let mut c = ends(&mesh, false);
-    let factor = Factor::build(&rest, &params, &c).unwrap();
     let diag = mesh.diagonal();
     // the fine drag loop: one iteration per drag, corrections held as a
     // session holds them while a person drags
@@ -183,11 +187,8 @@ fn small_meshes_and_the_paper_formulation_have_no_preview() {
 /// reports.
 #[test]
 fn levels_built_ahead_solve_as_the_levels_built_on_use() {
-    let mesh = creature();
-    let rest = Arc::new(Rest::new(mesh.clone()).unwrap());
+    let (mesh, rest, mut c, factor) = creature_ends(false);
     let params = Params::default();
-    let mut c = ends(&mesh, false);
-    let factor = Factor::build(&rest, &params, &c).unwrap();
     let diag = mesh.diagonal();
     let mut on_use = Deformer::new(rest.clone(), params);
     let mut ahead = Deformer::new(rest.clone(), params);
