@@ -6,7 +6,10 @@ use std::sync::Arc;
 
 use nalgebra::{UnitQuaternion, Vector3};
 
-use super::multilevel::{newton_level_ratio, warm_level_ratio, NEWTON_LEVEL_MAX_VERTICES};
+use super::multilevel::{
+    newton_level_ratio, start_level_ratio, warm_level_ratio, NEWTON_LEVEL_MAX_VERTICES,
+    START_LEVEL_MAX_VERTICES,
+};
 use super::test_util::{max_dist, patch_edit, scaled};
 use crate::deform::coarse::MIN_VERTICES;
 use crate::deform::{Constraints, Deformer, Factor, Levels, Params, Rest};
@@ -474,4 +477,47 @@ fn a_newton_level_is_given_to_meshes_up_to_its_size() {
     assert_eq!(newton_level_ratio(largest, 4), Some(8));
     assert_eq!(newton_level_ratio(largest + 1, 4), None);
     assert_eq!(newton_level_ratio(10_000, 3), Some(6));
+}
+
+/// The start from rest of a mesh whose hierarchy's first level would keep
+/// more than [`START_LEVEL_MAX_VERTICES`] begins at the first level down
+/// the ratio-4 hierarchy that keeps at most that many, and the sequences
+/// from a pose then correct on no finer level; a mesh whose first level
+/// fits keeps it (hand-computed cases, then every size in a range).
+#[test]
+fn a_start_skips_the_levels_too_large_to_pay_their_way() {
+    let max = START_LEVEL_MAX_VERTICES;
+    for (n, want) in [
+        (10_000, 4),
+        (4 * max, 4),
+        (4 * max + 4, 16),
+        (134_345, 16),
+        (64 * max, 64),
+        (64 * max + 64, 256),
+    ] {
+        assert_eq!(start_level_ratio(n, 4), want, "{n} vertices");
+    }
+    for n in (1_000..5_000_000).step_by(7_919) {
+        let r = start_level_ratio(n, 4);
+        assert!(n / r <= max, "{n}: level of {}", n / r);
+        assert!(
+            r == 4 || n / (r / 4) > max,
+            "{n}: {r} skips a level that fits"
+        );
+    }
+    // a fine deformer follows the rule; a tube of 66,560 vertices
+    let params = Params::default();
+    let ratio = params.elastic().unwrap().coarse_ratio;
+    for (nu, nv, want) in [(48, 80, ratio), (256, 260, ratio * ratio)] {
+        let (mesh, _) = limb_tube(nu, nv, 1.0);
+        let n = mesh.num_vertices();
+        let d = Deformer::new(Arc::new(Rest::new(mesh).unwrap()), params);
+        let (start, _) = d.start_level().unwrap();
+        let (first, _) = d.first_level().unwrap();
+        assert_eq!(start, want, "{n} vertices");
+        assert!(
+            first >= start,
+            "{n} vertices: corrections on {first}, start on {start}"
+        );
+    }
 }

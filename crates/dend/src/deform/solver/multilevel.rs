@@ -50,6 +50,11 @@
 //!   the vertices of the one above ([`WARM_COARSE_RATIO`]); the start from
 //!   rest and its sequence's corrections stay on the hierarchy at the
 //!   coarse ratio.
+//! - **No level too large to pay its way**: on a mesh so large that the
+//!   hierarchy's first level would keep more than
+//!   [`START_LEVEL_MAX_VERTICES`], the start and its sequence begin
+//!   further down the hierarchy ([`start_level_ratio`]), and the
+//!   sequences from a pose never correct on a finer level than that.
 //!
 //! [`ElasticParams::correction_period`]: crate::deform::ElasticParams::correction_period
 //! [`Corrections::WhileFaster`]: crate::deform::Corrections::WhileFaster
@@ -203,6 +208,37 @@ pub fn newton_level_ratio(n: usize, ratio: usize) -> Option<usize> {
 /// the one-shots unchanged; the same ratio for every sequence failed the
 /// posing suite's one-shots from rest (15 → 12 of 22; docs/performance.md).
 pub const WARM_COARSE_RATIO: usize = 16;
+
+/// The most vertices the first level of the hierarchy of the start from
+/// rest and its sequence keeps: on a larger mesh that level is skipped for
+/// the next one down ([`start_level_ratio`]). A correction's gain does not
+/// grow with its level's resolution (a settle's corrections on a level of
+/// half the fine vertices, solved to convergence, removed about as much of
+/// the largest error as cycles on a sixteenth, at four times their time:
+/// armadillo_43k 35 % against 27 % each, feline_50k 17 % against 34 %),
+/// while its cost does, and on
+/// igea_134k the 33,587-vertex first level of the ratio-4 hierarchy made
+/// the one-shot solve of the load test's arc cost 96.6 fine iterations of
+/// time against 54.5 from its 8,398-vertex level (`drag_sim --path arc`,
+/// the same run; the Loop-subdivided armadillo_43k, 172,966 vertices,
+/// 111.9 against 86.3; the subdivided camel_9770, 156,290, 52.6 against
+/// 49.6). The meshes under 65,536 vertices keep their hierarchy: feline_50k's
+/// first level (12,466 vertices) is worth its cost (its one-shot 37.0
+/// against 42.8 from a level of 8,310; docs/performance.md).
+pub const START_LEVEL_MAX_VERTICES: usize = 16_384;
+
+/// The ratio of the first level of the hierarchy the start from rest of a
+/// fine mesh of `n` vertices corrects on under the coarse ratio `ratio`:
+/// `ratio^k` for the least `k ≥ 1` whose level keeps at most
+/// [`START_LEVEL_MAX_VERTICES`].
+pub fn start_level_ratio(n: usize, ratio: usize) -> usize {
+    let step = ratio.max(2);
+    let mut r = step;
+    while n / r > START_LEVEL_MAX_VERTICES {
+        r *= step;
+    }
+    r
+}
 
 /// The ratio of the first level of the hierarchy the sequences from a pose
 /// use on a fine mesh of `n` vertices under the coarse ratio `ratio`
@@ -460,7 +496,9 @@ impl Deformer {
                 return Some((r, true));
             }
         }
-        Some((warm_level_ratio(n, ratio).unwrap_or(ratio), false))
+        // (never a finer level than the start's)
+        let (start, _) = self.start_level()?;
+        Some((warm_level_ratio(n, start).unwrap_or(start), false))
     }
 
     /// The rotations of the elastic iteration's current pose, `#V` (the
@@ -470,15 +508,21 @@ impl Deformer {
     }
 
     /// The level the coarse start from the rest pose and a sequence from
-    /// the rest pose's corrections solve on: the hierarchy's first level,
-    /// also on a mesh with a Newton level. From the rest pose the Newton
+    /// the rest pose's corrections solve on: the hierarchy's first level
+    /// ([`start_level_ratio`] on the fine mesh), also on a mesh with a
+    /// Newton level. From the rest pose the Newton
     /// level's corrections fail their line search far from the minimum
     /// and its start alone lands further from it (the posing suite's
     /// armadillo_43k standard edit took 30 fine iterations instead of 19,
     /// and the survey's bumpy plane stopped in another basin; both fixed
     /// with the hierarchy's start and corrections from rest).
     pub(super) fn start_level(&self) -> Option<(usize, bool)> {
-        Some((self.params.elastic()?.coarse_ratio, false))
+        let ratio = self.params.elastic()?.coarse_ratio;
+        if self.levels != Levels::Many || !self.warm_levels {
+            return Some((ratio, false));
+        }
+        let n = self.rest.mesh.num_vertices();
+        Some((start_level_ratio(n, ratio), false))
     }
 
     /// Whether the coarse start and the corrections use different coarse
