@@ -390,6 +390,50 @@ fn a_settle_after_a_gesture_on_the_newton_level_converges() {
     );
 }
 
+/// The first step after a gesture whose corrections were held corrects
+/// after its first iteration when it continues the gesture's last sequence
+/// (a settle), not after the correction period counted from the last drag's
+/// start; a step to new targets after the hold (a later drag) counts from
+/// its own start and answers without one.
+#[test]
+fn a_settle_after_a_held_gesture_corrects_at_once() {
+    let mesh = jittered_creature(2);
+    let c = creature_edit(&mesh, 1.0);
+    let params = Params::default();
+    let period = params.elastic().unwrap().correction_period;
+    assert!(period > 2, "a period of {period} corrects at once anyway");
+    let rest = Arc::new(Rest::new(mesh.clone()).unwrap());
+    let f = Factor::build(&rest, &params, &c).unwrap();
+    let gesture = |d: &mut Deformer, drags: usize, upto: Real| {
+        d.hold_corrections(true);
+        for k in 1..=drags {
+            let part = creature_edit_part(&mesh, 1.0, upto * k as Real / drags as Real);
+            let r = d.step(&f, &part, 1).unwrap();
+            // (the first from rest has its coarse start)
+            assert!(
+                k == 1 || r.coarse_iterations == 0,
+                "a held drag corrected: {r:?}"
+            );
+        }
+        d.hold_corrections(false);
+    };
+    let mut d = Deformer::new(rest.clone(), params);
+    gesture(&mut d, 20, 1.0);
+    let r = d.step(&f, &c, 1).unwrap();
+    assert!(
+        r.coarse_iterations > 0,
+        "no correction in the settle's first step: {r:?}"
+    );
+    // a drag after the hold: its own sequence, no correction in its frame
+    let mut d = Deformer::new(rest.clone(), params);
+    gesture(&mut d, 20, 0.5);
+    let r = d.step(&f, &creature_edit_part(&mesh, 1.0, 0.6), 1).unwrap();
+    assert_eq!(
+        r.coarse_iterations, 0,
+        "a new drag's frame corrected: {r:?}"
+    );
+}
+
 /// [`Deformer::prepare_levels`] builds every level's coarse problem and
 /// the coarsest level's Newton pattern, and changes nothing but when they
 /// are built: the solve after it takes the same iterations to the same

@@ -303,11 +303,10 @@ impl Deformer {
                 // the fine iterations after it
                 st.e_mark = e;
             }
+            let period = self.correction_period(weights.correction_period);
+            let st = &mut self.elastic;
             if st.corrections {
                 st.since_correction += 1;
-                let period = self
-                    .galerkin_mode
-                    .map_or(weights.correction_period, |g| g.period);
                 if st.since_correction >= period && !self.corrections_held {
                     e = self.correct(factor, (el, set), constraints, e, &mut report);
                 }
@@ -479,6 +478,12 @@ impl Deformer {
             .map(|(s, y)| s[0] * y[0] + s[1] * y[1] + s[2] * y[2])
             .sum();
         e - 2.0 * linear + factor.sys.soft_energy(&self.scratch.targets, &self.y)
+    }
+
+    /// The fine iterations between two corrections: the Galerkin mode's,
+    /// else `elastic` (the elastic weights' `correction_period`).
+    pub(super) fn correction_period(&self, elastic: usize) -> usize {
+        self.galerkin_mode.map_or(elastic, |g| g.period)
     }
 
     /// `rhs = (g(R) − Q Y)_U` (+ `λ1 (C − Y)` on constrained unknowns).

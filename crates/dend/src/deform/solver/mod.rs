@@ -314,14 +314,30 @@ impl Deformer {
     }
 
     /// Holds the coarse corrections of the elastic iteration (`true`) or
-    /// lets them run (`false`, the default). While held, iterations still
-    /// count towards the next correction, which runs in the first step
-    /// after the hold ends. A session holds them while a person drags: a
-    /// correction costs several fine iterations, and a drag arriving
-    /// behind it waited (camel at 60 drags/s: drag→frame p99 17–97 ms with
-    /// corrections, 17–19 ms without), while the settle after the gesture
-    /// needs them to converge.
+    /// lets them run (`false`, the default). A session holds them while a
+    /// person drags: a correction costs several fine iterations, and a
+    /// drag arriving behind it waited (camel at 60 drags/s: drag→frame p99
+    /// 17–97 ms with corrections, 17–19 ms without), while the settle
+    /// after the gesture needs them to converge.
+    ///
+    /// The first step after a hold, when it continues the held sequence
+    /// (the same targets: a settle, a refinement), corrects after its first
+    /// iteration, which applies the last drag's targets. Each drag starts a
+    /// sequence of its own whose count of iterations towards a correction
+    /// starts again, so a settle otherwise spent its first four iterations,
+    /// which move the far parts little, before its first correction
+    /// (`drag_sim --path arc`: settle iterations camel_9770 35 → 32,
+    /// feline_50k 32 → 29, armadillo_43k 40 → 38; through the server at 30
+    /// drags/s camel_9770 110–116 → 88–99 ms, eight camels 1.18 → 0.75–0.91
+    /// s, and in closed loop 1.11–1.18 → 1.15–1.24 s; docs/performance.md).
     pub fn hold_corrections(&mut self, hold: bool) {
+        if self.corrections_held && !hold {
+            if let Some(e) = self.params.elastic() {
+                let period = self.correction_period(e.correction_period);
+                let st = &mut self.elastic;
+                st.since_correction = st.since_correction.max(period.saturating_sub(1));
+            }
+        }
         self.corrections_held = hold;
     }
 
