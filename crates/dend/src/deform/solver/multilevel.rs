@@ -216,15 +216,15 @@ pub const WARM_COARSE_RATIO: usize = 16;
 /// half the fine vertices, solved to convergence, removed about as much of
 /// the largest error as cycles on a sixteenth, at four times their time:
 /// armadillo_43k 35 % against 27 % each, feline_50k 17 % against 34 %),
-/// while its cost does, and on
-/// igea_134k the 33,587-vertex first level of the ratio-4 hierarchy made
-/// the one-shot solve of the load test's arc cost 96.6 fine iterations of
-/// time against 54.5 from its 8,398-vertex level (`drag_sim --path arc`,
-/// the same run; the Loop-subdivided armadillo_43k, 172,966 vertices,
-/// 111.9 against 86.3; the subdivided camel_9770, 156,290, 52.6 against
-/// 49.6). The meshes under 65,536 vertices keep their hierarchy: feline_50k's
-/// first level (12,466 vertices) is worth its cost (its one-shot 37.0
-/// against 42.8 from a level of 8,310; docs/performance.md).
+/// while its cost does. On igea_134k the 33,587-vertex first level of the
+/// ratio-4 hierarchy made the one-shot solve of the load test's arc cost
+/// 96.8 fine iterations of time against 58.2 from its 8,398-vertex level
+/// (`drag_sim --path arc`, the same run; the Loop-subdivided armadillo_43k,
+/// 172,966 vertices, 110.6 against 91.9; the camel_9770 subdivided twice,
+/// 156,290, 50.0 against 51.0). The meshes up to 65,536 vertices keep their
+/// hierarchy: feline_50k's first level (12,466 vertices) is worth its cost
+/// (its one-shot 37.0 against 42.8 from a level of 8,310;
+/// docs/performance.md).
 pub const START_LEVEL_MAX_VERTICES: usize = 16_384;
 
 /// The ratio of the first level of the hierarchy the start from rest of a
