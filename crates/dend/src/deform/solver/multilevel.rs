@@ -262,6 +262,18 @@ fn level_params(params: &Params, (ratio, newton_level): (usize, bool)) -> Params
     }
 }
 
+/// The parameters of the coarse problem of `level`, the level of `first`,
+/// in its own units: [`level_params`] of the fine mesh's `params`, then
+/// [`coarse_params`].
+fn first_level_params(
+    rest: &Rest,
+    params: &Params,
+    first: (usize, bool),
+    level: &CoarseLevel,
+) -> Params {
+    coarse_params(rest, &level_params(params, first), level)
+}
+
 impl Levels {
     /// The levels the coarse problem's own solve uses.
     fn below(self) -> Levels {
@@ -350,7 +362,7 @@ pub(super) fn coarse_problem_ahead(
     // (a new set's levels take the fine detail weight: `detail_fit.rs`)
     let mut p = coarse_problem(rest, below, first, internal, (levels, 1.0))?;
     let cc = p.level.restrict(internal)?;
-    p.deformer.params = coarse_params(rest, &level_params(below, first), &p.level);
+    p.deformer.params = first_level_params(rest, below, first, &p.level);
     if solve {
         p.solved_start = Some(solve_start(&mut p, &cc, internal, t0)?);
     }
@@ -487,7 +499,7 @@ impl Deformer {
     /// option set); `None` for a formulation without levels.
     pub(super) fn first_level(&self) -> Option<(usize, bool)> {
         let ratio = self.params.elastic()?.coarse_ratio;
-        if self.levels != Levels::Many || !self.warm_levels {
+        if !self.fine_hierarchy() {
             return Some((ratio, false));
         }
         let n = self.rest.mesh.num_vertices();
@@ -518,11 +530,19 @@ impl Deformer {
     /// with the hierarchy's start and corrections from rest).
     pub(super) fn start_level(&self) -> Option<(usize, bool)> {
         let ratio = self.params.elastic()?.coarse_ratio;
-        if self.levels != Levels::Many || !self.warm_levels {
+        if !self.fine_hierarchy() {
             return Some((ratio, false));
         }
         let n = self.rest.mesh.num_vertices();
         Some((start_level_ratio(n, ratio), false))
+    }
+
+    /// Whether this deformer is a fine mesh's with a hierarchy of levels,
+    /// whose levels [`Deformer::start_level`] and [`Deformer::first_level`]
+    /// choose by its size; a coarse problem's deformer, or one with fewer
+    /// levels, corrects on the level at its coarse ratio.
+    fn fine_hierarchy(&self) -> bool {
+        self.levels == Levels::Many && self.warm_levels
     }
 
     /// Whether the coarse start and the corrections use different coarse
@@ -559,7 +579,7 @@ impl Deformer {
             self.drop_coarse_problems();
         }
         let key = (factor.id(), first.0);
-        let below = level_params(&self.detail_fit.below(&self.params), first);
+        let below = self.detail_fit.below(&self.params);
         let detail = (self.levels, self.detail_fit.scale());
         let mut problem = match self.coarse_slot(separate).take() {
             Some((k, p)) if k == key => p,
@@ -568,7 +588,7 @@ impl Deformer {
         let out = match problem.as_deref_mut() {
             Some(p) => match p.level.restrict(constraints) {
                 Some(cc) => {
-                    p.deformer.params = coarse_params(&self.rest, &below, &p.level);
+                    p.deformer.params = first_level_params(&self.rest, &below, first, &p.level);
                     f(self, p, &cc)
                 }
                 None => None,
