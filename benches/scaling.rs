@@ -1,14 +1,17 @@
 //! Whether the solver's work grows with the mesh: the time to convergence
 //! of one edit at three resolutions of the same generated shape, in fine
-//! iterations (docs/performance.md, "Fine-iteration equivalents"). Run:
+//! iterations (docs/performance.md, "Commands": fine-iteration
+//! equivalents). Run:
 //! `cargo bench --bench scaling`.
 //!
 //! The shape is `dend_testkit::tube_of_size` at about 8k, 32k and 128k
 //! vertices, the edit `dend_testkit::standard_edit` (the lowest 10 % in z
 //! fixed, the highest 10 % moved by 0.15 of the diagonal and turned 30°).
 //! For each resolution and each of [`Levels::Two`] and [`Levels::Many`]
-//! (the default), criterion times one fine iteration (from a deformed
-//! pose, one level) and the solve from rest to convergence; stderr gets
+//! (the default), criterion times one fine iteration (one of the 2nd to
+//! 12th of a one-level sequence from rest, `dend_testkit::FineIterationClock`,
+//! the unit `examples/drag_sim.rs` reports in too) and the solve from rest
+//! to convergence; stderr gets
 //! the medians of both and their ratio, the fine-iteration equivalents,
 //! which should stay flat across the three resolutions (the largest within
 //! 1.5× of the smallest).
@@ -44,15 +47,11 @@ fn bench(c: &mut Criterion) {
         g.measurement_time(Duration::from_secs(if nv > 60_000 { 20 } else { 5 }));
         let iteration = RefCell::new(Vec::new());
         g.bench_function(BenchmarkId::new("iteration", nv), |b| {
-            let mut d = Deformer::new(rest.clone(), params);
-            d.set_levels(Levels::One);
-            d.step(&factor, &edit, 2).expect("step");
+            let mut clock = dend_testkit::FineIterationClock::new(rest.clone(), params);
             b.iter_custom(|iters| {
                 let mut total = Duration::ZERO;
                 for _ in 0..iters {
-                    let t = Instant::now();
-                    std::hint::black_box(d.step(&factor, &edit, 1).expect("step"));
-                    let dt = t.elapsed();
+                    let dt = clock.time(&factor, &edit).expect("step");
                     iteration.borrow_mut().push(dt);
                     total += dt;
                 }

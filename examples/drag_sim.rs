@@ -666,15 +666,15 @@ fn fine_iteration_ms(
     c: &Constraints,
     params: dend::deform::Params,
 ) -> Result<f64, String> {
-    let mut d = Deformer::new(rest.clone(), params);
-    d.set_levels(Levels::One);
-    d.step(factor, c, 1).map_err(|e| e.to_string())?;
-    let mut times = Vec::new();
-    for _ in 0..11 {
-        let t = Instant::now();
-        d.step(factor, c, 1).map_err(|e| e.to_string())?;
-        times.push(t.elapsed().as_secs_f64() * 1e3);
-    }
+    let mut clock = dend_testkit::FineIterationClock::new(rest.clone(), params);
+    let times = (0..dend_testkit::FineIterationClock::PER_SEQUENCE)
+        .map(|_| {
+            clock
+                .time(factor, c)
+                .map(|t| t.as_secs_f64() * 1e3)
+                .map_err(|e| e.to_string())
+        })
+        .collect::<Result<Vec<_>, _>>()?;
     Ok(dend_testkit::median(times))
 }
 

@@ -2,10 +2,11 @@
 //! rest, the tube and standard edits, and the distance between poses.
 
 use std::sync::Arc;
+use std::time::{Duration, Instant};
 
 use dend::deform::{
-    BoxSel, Constraints, ConstraintsSpec, Deformer, Factor, Formulation, HandleSpec, Params, Rest,
-    RigidTransform, RotationSpec, StepReport, VertexSet,
+    BoxSel, Constraints, ConstraintsSpec, DeformError, Deformer, Factor, Formulation, HandleSpec,
+    Levels, Params, Rest, RigidTransform, RotationSpec, StepReport, VertexSet,
 };
 use dend::mesh::{Mesh, Point};
 use nalgebra::{UnitQuaternion, Vector3};
@@ -117,6 +118,50 @@ fn centroid(mesh: &Mesh, vs: &[u32]) -> Point {
         }
     }
     c
+}
+
+/// Times one fine iteration as a solve runs it: the unit of the
+/// fine-iteration equivalents that benches and examples report
+/// (docs/performance.md). Each timed iteration is one of the 2nd to the
+/// 12th of a sequence from rest on the fine mesh alone
+/// ([`Levels::One`]): Anderson's candidate and its energy test included,
+/// no coarse correction. The sequence's first iteration (its start) is not
+/// timed, and a new sequence starts after [`Self::PER_SEQUENCE`] timed
+/// ones: an iteration at a converged pose takes the plain step alone and
+/// costs up to a third less, so timing a sequence that has converged
+/// would shrink the unit on the meshes that converge first.
+pub struct FineIterationClock {
+    deformer: Deformer,
+    left: usize,
+}
+
+impl FineIterationClock {
+    /// Timed iterations per sequence from rest.
+    pub const PER_SEQUENCE: usize = 11;
+
+    /// A clock on `rest` with `params` (the solve's own).
+    pub fn new(rest: Arc<Rest>, params: Params) -> Self {
+        let mut deformer = Deformer::new(rest, params);
+        deformer.set_levels(Levels::One);
+        FineIterationClock { deformer, left: 0 }
+    }
+
+    /// The time of the next fine iteration towards `constraints`.
+    pub fn time(
+        &mut self,
+        factor: &Factor,
+        constraints: &Constraints,
+    ) -> Result<Duration, DeformError> {
+        if self.left == 0 {
+            self.deformer.reset();
+            self.deformer.step(factor, constraints, 1)?;
+            self.left = Self::PER_SEQUENCE;
+        }
+        let t = Instant::now();
+        std::hint::black_box(self.deformer.step(factor, constraints, 1)?);
+        self.left -= 1;
+        Ok(t.elapsed())
+    }
 }
 
 /// The median of `v` (the mean of the two middle values for an even
