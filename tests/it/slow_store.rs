@@ -239,11 +239,16 @@ async fn gated_session(
     let s = Arc::new(c.create_session(&mesh.id, SessionParams::default()).await?);
     s.set_constraints(&grid_constraints(8)).await?;
     s.wait_ready(Duration::from_secs(60)).await?;
+    // the set's first solve settled, and so committed the first undo step:
+    // the constraint edit writes a checkpoint when it is installed, before
+    // that solve, and a drag sent while it still runs joins it (a loaded
+    // host showed it: the test's undo then found the drag in the first
+    // step, with nothing before it to go back to)
     let start = Instant::now();
-    while memory.get_checkpoint(&s.id).expect("store").is_none() {
+    while !s.pose().await?.settled || memory.get_checkpoint(&s.id).expect("store").is_none() {
         assert!(
             start.elapsed() < Duration::from_secs(30),
-            "no first checkpoint"
+            "no first settled pose and checkpoint"
         );
         tokio::time::sleep(Duration::from_millis(10)).await;
     }
