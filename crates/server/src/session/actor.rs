@@ -357,6 +357,10 @@ impl Actor {
             self.solve
                 .interrupt
                 .store(true, std::sync::atomic::Ordering::Relaxed);
+            // a refinement still waiting for a worker now stands for the
+            // drag's answer: it stops after an iteration and hands over
+            // (it no longer waits behind earlier sessions' settles)
+            self.opts.scheduler.answer_now(&self.inner.id);
         }
         match reply {
             Some(w) => self.flow.waiters.push(w),

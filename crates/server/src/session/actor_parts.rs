@@ -156,6 +156,10 @@ pub(super) struct Solve {
     pub(super) interrupt: Arc<AtomicBool>,
     /// Whether the solve in flight is such a refinement.
     pub(super) refining: bool,
+    /// When the current run of refinements began (`None` after a solve
+    /// that answered a drag or a waiter): the scheduler runs the earliest
+    /// run's first (`Scheduler::submit_refinement`).
+    pub(super) refining_since: Option<Instant>,
 }
 
 /// The undo history.
@@ -244,6 +248,7 @@ impl Actor {
                 wake_at: None,
                 interrupt: Arc::default(),
                 refining: false,
+                refining_since: None,
             },
             history: History::default(),
             poses: Poses::default(),

@@ -88,6 +88,11 @@ impl Actor {
         // the settle, or the solve towards a new constraint set) stops
         // early when a drag arrives (`Actor::interrupt`)
         self.solve.refining = !self.solve.drag_pending && self.flow.waiters.is_empty();
+        self.solve.refining_since = if self.solve.refining {
+            Some(self.solve.refining_since.unwrap_or_else(Instant::now))
+        } else {
+            None
+        };
         self.flow.inflight = self.flow.waiters.drain(..).map(|w| w.1).collect();
         self.solve.inflight_drags = self.solve.drag_pending;
         self.solve.solves_started += 1;
@@ -122,7 +127,7 @@ impl Actor {
         // other sessions' solves wait for a worker: a drag's step from the
         // rest pose skips its coarse start (`Deformer::hold_coarse_start`)
         let contended = self.opts.scheduler.waiting() > 0;
-        self.opts.scheduler.submit(&self.inner.id, move || {
+        let job = move || {
             let t0 = Instant::now();
             let appended = if journal.is_empty() {
                 Ok(())
@@ -176,7 +181,14 @@ impl Actor {
                 generation,
                 pose_epoch,
             });
-        });
+        };
+        match self.solve.refining_since {
+            Some(since) => self
+                .opts
+                .scheduler
+                .submit_refinement(&self.inner.id, since, job),
+            None => self.opts.scheduler.submit(&self.inner.id, job),
+        }
     }
 
     /// [`refinement_wait`] for the solve about to start, `None` when it is
