@@ -305,20 +305,27 @@ mod tests {
     use super::*;
     use std::sync::mpsc;
 
-    /// One worker, held busy while a greedy session queues many jobs and a
-    /// quiet one queues one: the quiet job runs second, not after all of
-    /// the greedy ones (the order is the property; no clock involved).
-    #[test]
-    fn a_session_with_one_job_does_not_wait_behind_a_greedy_one() {
-        let s = Scheduler::new(1, None);
+    /// Runs a job of session "blocker" that holds `s`'s one worker until
+    /// the returned sender sends (or is dropped); returns once it runs.
+    fn hold_the_worker(s: &Scheduler) -> mpsc::Sender<()> {
         let (gate_tx, gate_rx) = mpsc::channel::<()>();
-        let (order_tx, order_rx) = mpsc::channel::<String>();
         let (started_tx, started_rx) = mpsc::channel::<()>();
         s.submit("blocker", move || {
             let _ = started_tx.send(());
             let _ = gate_rx.recv();
         });
         started_rx.recv().expect("the worker runs the blocker");
+        gate_tx
+    }
+
+    /// One worker, held busy while a greedy session queues many jobs and a
+    /// quiet one queues one: the quiet job runs second, not after all of
+    /// the greedy ones (the order is the property; no clock involved).
+    #[test]
+    fn a_session_with_one_job_does_not_wait_behind_a_greedy_one() {
+        let s = Scheduler::new(1, None);
+        let gate_tx = hold_the_worker(&s);
+        let (order_tx, order_rx) = mpsc::channel::<String>();
         for k in 0..20 {
             let tx = order_tx.clone();
             s.submit("greedy", move || {
@@ -378,14 +385,8 @@ mod tests {
     #[test]
     fn refinements_run_earliest_run_first_and_answers_keep_their_turn() {
         let s = Scheduler::new(1, None);
-        let (gate_tx, gate_rx) = mpsc::channel::<()>();
+        let gate_tx = hold_the_worker(&s);
         let (order_tx, order_rx) = mpsc::channel::<&'static str>();
-        let (started_tx, started_rx) = mpsc::channel::<()>();
-        s.submit("blocker", move || {
-            let _ = started_tx.send(());
-            let _ = gate_rx.recv();
-        });
-        started_rx.recv().expect("the worker runs the blocker");
         let t0 = Instant::now();
         let later = |ms| t0 + std::time::Duration::from_millis(ms);
         // ring order: late, answer, early, middle
@@ -416,14 +417,8 @@ mod tests {
     #[test]
     fn a_refinement_a_drag_came_behind_takes_the_answers_turn() {
         let s = Scheduler::new(1, None);
-        let (gate_tx, gate_rx) = mpsc::channel::<()>();
+        let gate_tx = hold_the_worker(&s);
         let (order_tx, order_rx) = mpsc::channel::<&'static str>();
-        let (started_tx, started_rx) = mpsc::channel::<()>();
-        s.submit("blocker", move || {
-            let _ = started_tx.send(());
-            let _ = gate_rx.recv();
-        });
-        started_rx.recv().expect("the worker runs the blocker");
         let t0 = Instant::now();
         // ring order: dragging (its refinement began last), settling
         for (session, since) in [
