@@ -12,8 +12,10 @@ use super::rotation::fit_rotation_quat;
 use super::rotation::lanes::{fit_rotation_quat4, LANES};
 use crate::mesh::{cross, norm, sub, Point, Real, Topology};
 
-/// Vertex count above which per-vertex loops run on the rayon pool.
-const PARALLEL_MIN: usize = 4096;
+/// Vertex count above which per-vertex loops run on the rayon pool. From 1,024: a hierarchy's coarse levels
+/// (1,000–4,000 vertices below 8k–50k meshes) run on both cores as the
+/// fine mesh does (docs/performance.md, "Small levels on both cores").
+const PARALLEL_MIN: usize = 1024;
 
 /// The per-vertex coefficients `μ^i` of STEP 1 (paper eq. 25), for one mode.
 ///

@@ -30,9 +30,12 @@ use super::energy::Shape;
 use crate::mesh::{Point, Real};
 use crate::operators::Operators;
 
-/// Rows from which the products with `L` run on the rayon pool.
-const PARALLEL_MIN: usize = 4096;
-const CHUNK: usize = 2048;
+/// Rows from which the products with `L` run on the rayon pool. From 1,024: a hierarchy's coarse levels
+/// (1,000–4,000 vertices below 8k–50k meshes) run on both cores as the
+/// fine mesh does (docs/performance.md, "Small levels on both cores").
+const PARALLEL_MIN: usize = 1024;
+/// Rows per task of the parallel products.
+const CHUNK: usize = 1024;
 
 /// `(M x)_i` for a CSR matrix `m` whose entry `(i, j)` is scaled by
 /// `col_scale[j]` when given.

@@ -417,6 +417,38 @@ fn restriction_is_the_transpose_of_prolongation() {
     }
 }
 
+/// The transfers give the same bits on any number of threads: the limb
+/// (4,160 vertices) is above their parallel threshold, and each vertex's
+/// value is summed on its own, in the same order, whoever computes it.
+#[test]
+fn the_transfers_do_not_depend_on_the_threads() {
+    let (rest, level, fine_fixed, coarse_fixed) = limb_level();
+    assert!(rest.mesh.num_vertices() >= 2 * 1024);
+    let n = fine_fixed.len();
+    let nc = level.num_vertices();
+    let wc: Vec<Vector3<Real>> = (0..nc).map(|c| noise(c, 3)).collect();
+    let f: Vec<Point> = (0..n).map(|i| noise(i, 4).into()).collect();
+    let run = |threads: usize| {
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .unwrap();
+        pool.install(|| {
+            (
+                level.prolongate_vectors(&rest, &wc, &fine_fixed, &coarse_fixed, 10),
+                level.restrict_forces(&rest, &f, &fine_fixed, &coarse_fixed, 3),
+            )
+        })
+    };
+    let (p1, r1) = run(1);
+    for threads in [2, 3] {
+        let (p, r) = run(threads);
+        assert!(p.iter().zip(&p1).all(|(a, b)| a == b), "{threads} threads");
+        assert!(r.iter().zip(&r1).all(|(a, b)| a == b), "{threads} threads");
+    }
+    assert!(p1.iter().any(|v| v.norm() > 0.0) && r1.iter().any(|v| *v != [0.0; 3]));
+}
+
 #[test]
 fn prolongation_keeps_a_constant_field_away_from_the_fixed_part() {
     // rows of S and P₀ sum to 1: a constant coarse field stays constant

@@ -15,6 +15,7 @@
 //! camel's fine energy in the prototype (FINDINGS2, 23:08).
 
 use nalgebra::Vector3;
+use rayon::prelude::*;
 
 use crate::deform::rest::{CoarseLevel, Rest};
 use crate::mesh::{Point, Real};
@@ -25,6 +26,30 @@ pub const RESTRICTION_PASSES: usize = 3;
 /// Smoothing passes of the rotation-vector prolongation (prototype: 10;
 /// 10 and 20 both turned the camel's rejected correction into a descent).
 pub const PROLONGATION_PASSES: usize = 10;
+
+/// The fewest fine vertices whose smoothing passes run on the rayon pool:
+/// a correction's transfers are passes over the whole fine mesh, on the
+/// calling thread they cost a fifth to a third of a fine iteration.
+const PARALLEL_MIN: usize = 2048;
+
+/// Vertices per task of a parallel smoothing pass.
+const CHUNK: usize = 512;
+
+/// `out_i = f(i)` for every vertex: on the rayon pool from
+/// [`PARALLEL_MIN`] vertices (each value on its own, so the result does
+/// not depend on how the work is split).
+fn each_vertex(out: &mut [Vector3<Real>], f: impl Fn(usize) -> Vector3<Real> + Sync) {
+    if out.len() >= PARALLEL_MIN {
+        out.par_iter_mut()
+            .enumerate()
+            .with_min_len(CHUNK)
+            .for_each(|(i, o)| *o = f(i));
+    } else {
+        for (i, o) in out.iter_mut().enumerate() {
+            *o = f(i);
+        }
+    }
+}
 
 impl CoarseLevel {
     /// `r = Pᵀ f` with `P = (Sᵏ P₀)` masked (module docs), `k = passes`
@@ -54,13 +79,17 @@ impl CoarseLevel {
             .collect();
         let mut next = vec![Vector3::zeros(); n];
         for _ in 0..passes {
-            for (i, out) in next.iter_mut().enumerate() {
-                let mut acc = v[i] / closed_degree(i);
-                for &j in topo.ring(i) {
-                    acc += v[j as usize] / closed_degree(j as usize);
-                }
-                *out = acc;
+            // each `v_j / d_j` once, summed in the same order as before
+            for (i, vi) in v.iter_mut().enumerate() {
+                *vi /= closed_degree(i);
             }
+            each_vertex(&mut next, |i| {
+                let mut acc = v[i];
+                for &j in topo.ring(i) {
+                    acc += v[j as usize];
+                }
+                acc
+            });
             std::mem::swap(&mut v, &mut next);
         }
         let mut r = vec![[0.0; 3]; self.num_vertices()];
@@ -103,14 +132,14 @@ impl CoarseLevel {
             .collect();
         let mut next = vec![Vector3::zeros(); n];
         for _ in 0..passes {
-            for (i, out) in next.iter_mut().enumerate() {
+            each_vertex(&mut next, |i| {
                 let ring = topo.ring(i);
                 let mut acc = v[i];
                 for &j in ring {
                     acc += v[j as usize];
                 }
-                *out = acc / (ring.len() + 1) as Real;
-            }
+                acc / (ring.len() + 1) as Real
+            });
             std::mem::swap(&mut v, &mut next);
         }
         for (vi, &fixed) in v.iter_mut().zip(fine_fixed) {

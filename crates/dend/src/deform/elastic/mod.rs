@@ -77,8 +77,10 @@ use area_lanes::{project_area_lanes, LANES as AREA_LANES};
 use dend_linalg::sparse::matmul;
 use residual_rows::ResidualRows;
 
-/// Element count from which the local step runs on the rayon pool.
-const PARALLEL_MIN: usize = 2048;
+/// Element count from which the local step runs on the rayon pool. From 1,024: a hierarchy's coarse levels
+/// (1,000–4,000 vertices below 8k–50k meshes) run on both cores as the
+/// fine mesh does (docs/performance.md, "Small levels on both cores").
+const PARALLEL_MIN: usize = 1024;
 
 /// Vertices or triangles per block of the local step's energy sum (a
 /// multiple of [`LANES`]): each block is summed in order, then the
