@@ -11,10 +11,12 @@
 //! (the default), criterion times one fine iteration (one of the 2nd to
 //! 12th of a one-level sequence from rest, `dend_testkit::FineIterationClock`,
 //! the unit `examples/drag_sim.rs` reports in too) and the solve from rest
-//! to convergence; stderr gets
-//! the medians of both and their ratio, the fine-iteration equivalents,
-//! which should stay flat across the three resolutions (the largest within
-//! 1.5× of the smallest).
+//! to convergence. Three fine iterations are also timed before each solve
+//! (outside criterion's timing): the equivalents are the solves' median
+//! over theirs, so that both are measured in the same seconds of a host
+//! whose speed drifts. stderr gets the medians and their ratio, the
+//! fine-iteration equivalents, which should stay flat across the three
+//! resolutions (the largest within 1.5× of the smallest).
 //!
 //! Environment: `DEND_BENCH_SIZES=8000,32000` to pick resolutions.
 
@@ -24,6 +26,9 @@ use std::time::{Duration, Instant};
 
 use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion};
 use dend::deform::{Deformer, Factor, Levels, Params, Rest};
+
+/// Fine iterations timed beside each solve, the unit of its equivalents.
+const UNIT_BESIDE_SOLVE: usize = 3;
 
 fn sizes() -> Vec<usize> {
     std::env::var("DEND_BENCH_SIZES")
@@ -67,13 +72,23 @@ fn bench(c: &mut Criterion) {
         );
         for (name, levels) in [("two", Levels::Two), ("many", Levels::Many)] {
             let solves = RefCell::new(Vec::new());
+            // the unit timed beside each solve (untimed by criterion): the
+            // host's speed drifts by 15-20 % over the seconds between the
+            // iteration's samples and the solves', and a ratio of medians
+            // taken apart inherits that drift
+            let beside = RefCell::new(Vec::new());
             let report = RefCell::new(None);
             g.bench_function(BenchmarkId::new(format!("converge_{name}"), nv), |b| {
                 let mut d = Deformer::new(rest.clone(), params);
                 d.set_levels(levels);
+                let mut clock = dend_testkit::FineIterationClock::new(rest.clone(), params);
                 b.iter_custom(|iters| {
                     let mut total = Duration::ZERO;
                     for _ in 0..iters {
+                        for _ in 0..UNIT_BESIDE_SOLVE {
+                            let dt = clock.time(&factor, &edit).expect("step");
+                            beside.borrow_mut().push(dt.as_secs_f64());
+                        }
                         d.reset();
                         let t = Instant::now();
                         let r = d.step(&factor, &edit, 200).expect("step");
@@ -85,16 +100,18 @@ fn bench(c: &mut Criterion) {
                     total
                 })
             });
+            let unit = dend_testkit::median(beside.borrow().clone());
             let solve =
                 dend_testkit::median(solves.borrow().iter().map(Duration::as_secs_f64).collect());
             let r = (*report.borrow()).expect("a solve ran");
             rows.push(format!(
-                "{nv:>7} vertices, {name:>4} levels: fine iteration {:.2} ms, solve {:.1} ms = \
-                 {:.1} fine-iteration equivalents ({} fine iterations, {:.1} coarse work, \
-                 converged {})",
+                "{nv:>7} vertices, {name:>4} levels: fine iteration {:.2} ms ({:.2} ms beside \
+                 the solves), solve {:.1} ms = {:.1} fine-iteration equivalents ({} fine \
+                 iterations, {:.1} coarse work, converged {})",
                 fine * 1e3,
+                unit * 1e3,
                 solve * 1e3,
-                solve / fine,
+                solve / unit,
                 r.iterations,
                 r.coarse_work,
                 r.converged

@@ -12,10 +12,12 @@ use super::rotation::fit_rotation_quat;
 use super::rotation::lanes::{fit_rotation_quat4, LANES};
 use crate::mesh::{cross, norm, sub, Point, Real, Topology};
 
-/// Vertex count above which per-vertex loops run on the rayon pool. From 1,024: a hierarchy's coarse levels
-/// (1,000–4,000 vertices below 8k–50k meshes) run on both cores as the
-/// fine mesh does (docs/performance.md, "Small levels on both cores").
-const PARALLEL_MIN: usize = 1024;
+/// Vertex count from which per-vertex loops run on the rayon pool. From
+/// 1,536: a hierarchy's levels of 2,000–4,000 vertices (below meshes of
+/// 8k–50k) run on both cores as the fine mesh does, and meshes of about
+/// 1,500 vertices, which lost time to the pool's hand-offs, on one
+/// (docs/performance.md, "Small levels on both cores").
+const PARALLEL_MIN: usize = 1536;
 
 /// The per-vertex coefficients `μ^i` of STEP 1 (paper eq. 25), for one mode.
 ///

@@ -30,10 +30,12 @@ use super::energy::Shape;
 use crate::mesh::{Point, Real};
 use crate::operators::Operators;
 
-/// Rows from which the products with `L` run on the rayon pool. From 1,024: a hierarchy's coarse levels
-/// (1,000–4,000 vertices below 8k–50k meshes) run on both cores as the
-/// fine mesh does (docs/performance.md, "Small levels on both cores").
-const PARALLEL_MIN: usize = 1024;
+/// Rows from which the products with `L` run on the rayon pool. From
+/// 1,536: a hierarchy's levels of 2,000–4,000 vertices (below meshes of
+/// 8k–50k) run on both cores as the fine mesh does, and meshes of about
+/// 1,500 vertices, which lost time to the pool's hand-offs, on one
+/// (docs/performance.md, "Small levels on both cores").
+const PARALLEL_MIN: usize = 1536;
 /// Rows per task of the parallel products.
 const CHUNK: usize = 1024;
 

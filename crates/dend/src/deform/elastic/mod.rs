@@ -77,10 +77,12 @@ use area_lanes::{project_area_lanes, LANES as AREA_LANES};
 use dend_linalg::sparse::matmul;
 use residual_rows::ResidualRows;
 
-/// Element count from which the local step runs on the rayon pool. From 1,024: a hierarchy's coarse levels
-/// (1,000–4,000 vertices below 8k–50k meshes) run on both cores as the
-/// fine mesh does (docs/performance.md, "Small levels on both cores").
-const PARALLEL_MIN: usize = 1024;
+/// Vertex count from which the local step runs on the rayon pool. From
+/// 1,536: a hierarchy's levels of 2,000–4,000 vertices (below meshes of
+/// 8k–50k) run on both cores as the fine mesh does, and meshes of about
+/// 1,500 vertices, which lost time to the pool's hand-offs, on one
+/// (docs/performance.md, "Small levels on both cores").
+const PARALLEL_MIN: usize = 1536;
 
 /// Vertices or triangles per block of the local step's energy sum (a
 /// multiple of [`LANES`]): each block is summed in order, then the
