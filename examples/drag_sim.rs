@@ -29,9 +29,10 @@
 //! level where it has one (`Deformer::set_newton_level`; off by default).
 //!
 //! `fine_iteration_ms` is the median time of one fine iteration in the same
-//! run; the one-shot solve (timed after the constraint set's
-//! precomputation: its fine factor and `Deformer::prepare_levels`) and the settle are also reported in those units
-//! (`fine_iteration_equivalents`: time over it) and as `work` (fine
+//! run (eleven timed before the one-shot and eleven after the settle); the
+//! one-shot solve (timed after the constraint set's precomputation: its
+//! fine factor and `Deformer::prepare_levels`) and the settle are also
+//! reported in those units (`fine_iteration_equivalents`: time over it) and as `work` (fine
 //! iterations plus `StepReport::coarse_work`, each level's iterations
 //! weighted by its vertex count: a count that does not depend on the host
 //! or on what else it runs).
@@ -297,7 +298,11 @@ fn run() -> Result<(), String> {
     // one shot: the final target from rest
     let place = (axis, extent, pivot);
     c.handles[0].target = edit.target(0, drags, drags, place);
-    let fine_ms = fine_iteration_ms(&rest, &factor, &c, params)?;
+    // the unit: eleven fine iterations before the one-shot and eleven
+    // after the settle (below), one median, so that a drift of the host's
+    // speed over the run weighs on both solves alike
+    let mut clock = dend_testkit::FineIterationClock::new(rest.clone(), params);
+    let mut unit = fine_iterations_ms(&mut clock, &factor, &c)?;
     let setup = Setup {
         params,
         levels,
@@ -339,6 +344,8 @@ fn run() -> Result<(), String> {
         return Err("--gestures 0".into());
     };
     let last = &g.last;
+    unit.extend(fine_iterations_ms(&mut clock, &factor, &c)?);
+    let fine_ms = dend_testkit::median(unit);
     let dist = |a: &[Point], b: &[Point]| {
         a.iter()
             .zip(b)
@@ -655,27 +662,24 @@ fn distance_to(pose: &[Point], star: &[Point], h: f64) -> (f64, f64) {
     (rms, max)
 }
 
-/// The median time of one fine iteration (one level, Anderson as set):
-/// iterations 2 to 12 of a one-level solve of `c` from rest, one call
-/// each (the first, which spreads the handles' rotations, is not
-/// counted). Work is reported in these units, which do not depend on the
-/// host.
-fn fine_iteration_ms(
-    rest: &Arc<Rest>,
+/// The times of one sequence's worth of fine iterations (one level,
+/// Anderson as set): iterations 2 to 12 of a one-level solve of `c` from
+/// rest, one call each (the first, which spreads the handles' rotations,
+/// is not counted). Their median is the unit work is reported in, which
+/// does not depend on the host.
+fn fine_iterations_ms(
+    clock: &mut dend_testkit::FineIterationClock,
     factor: &Factor,
     c: &Constraints,
-    params: dend::deform::Params,
-) -> Result<f64, String> {
-    let mut clock = dend_testkit::FineIterationClock::new(rest.clone(), params);
-    let times = (0..dend_testkit::FineIterationClock::PER_SEQUENCE)
+) -> Result<Vec<f64>, String> {
+    (0..dend_testkit::FineIterationClock::PER_SEQUENCE)
         .map(|_| {
             clock
                 .time(factor, c)
                 .map(|t| t.as_secs_f64() * 1e3)
                 .map_err(|e| e.to_string())
         })
-        .collect::<Result<Vec<_>, _>>()?;
-    Ok(dend_testkit::median(times))
+        .collect()
 }
 
 fn bbox(mesh: &Mesh) -> (Point, Point) {
