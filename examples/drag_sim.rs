@@ -32,10 +32,10 @@
 //! run (eleven timed before the one-shot and eleven after the settle); the
 //! one-shot solve (timed after the constraint set's precomputation: its
 //! fine factor and `Deformer::prepare_levels`) and the settle are also
-//! reported in those units (`fine_iteration_equivalents`: time over it) and as `work` (fine
-//! iterations plus `StepReport::coarse_work`, each level's iterations
-//! weighted by its vertex count: a count that does not depend on the host
-//! or on what else it runs).
+//! reported in those units (`fine_iteration_equivalents`: time over it)
+//! and as `work` (fine iterations plus `StepReport::coarse_work`, each
+//! level's iterations weighted by its vertex count: a count that does not
+//! depend on the host or on what else it runs).
 //!
 //! With `--gestures N` the gesture runs N times on the same deformer, along
 //! the path and back in turn, as a session's later gestures with the same

@@ -12,12 +12,9 @@ use super::rotation::fit_rotation_quat;
 use super::rotation::lanes::{fit_rotation_quat4, LANES};
 use crate::mesh::{cross, norm, sub, Point, Real, Topology};
 
-/// Vertex count from which per-vertex loops run on the rayon pool. From
-/// 1,536: a hierarchy's levels of 2,000–4,000 vertices (below meshes of
-/// 8k–50k) run on both cores as the fine mesh does, and meshes of about
-/// 1,500 vertices, which lost time to the pool's hand-offs, on one
-/// (docs/performance.md, "Small levels on both cores").
-const PARALLEL_MIN: usize = 1536;
+// Vertex count from which per-vertex loops run on the rayon pool
+// (the iteration's shared threshold, crates/dend/src/deform/parallel.rs).
+use super::parallel::PARALLEL_MIN_VERTICES as PARALLEL_MIN;
 
 /// The per-vertex coefficients `μ^i` of STEP 1 (paper eq. 25), for one mode.
 ///

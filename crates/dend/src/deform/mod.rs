@@ -24,6 +24,7 @@ mod elastic;
 mod energy;
 mod error;
 mod factor;
+mod parallel;
 mod params;
 mod rest;
 mod rotation;

@@ -30,12 +30,9 @@ use super::energy::Shape;
 use crate::mesh::{Point, Real};
 use crate::operators::Operators;
 
-/// Rows from which the products with `L` run on the rayon pool. From
-/// 1,536: a hierarchy's levels of 2,000–4,000 vertices (below meshes of
-/// 8k–50k) run on both cores as the fine mesh does, and meshes of about
-/// 1,500 vertices, which lost time to the pool's hand-offs, on one
-/// (docs/performance.md, "Small levels on both cores").
-const PARALLEL_MIN: usize = 1536;
+// Rows from which the products with `L` run on the rayon pool
+// (the iteration's shared threshold, crates/dend/src/deform/parallel.rs).
+use super::parallel::PARALLEL_MIN_VERTICES as PARALLEL_MIN;
 /// Rows per task of the parallel products.
 const CHUNK: usize = 1024;
 

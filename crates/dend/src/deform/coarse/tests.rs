@@ -423,7 +423,7 @@ fn restriction_is_the_transpose_of_prolongation() {
 #[test]
 fn the_transfers_do_not_depend_on_the_threads() {
     let (rest, level, fine_fixed, coarse_fixed) = limb_level();
-    assert!(rest.mesh.num_vertices() >= 2 * 1024);
+    assert!(rest.mesh.num_vertices() >= transfer::PARALLEL_MIN);
     let n = fine_fixed.len();
     let nc = level.num_vertices();
     let wc: Vec<Vector3<Real>> = (0..nc).map(|c| noise(c, 3)).collect();

@@ -30,7 +30,7 @@ pub const PROLONGATION_PASSES: usize = 10;
 /// The fewest fine vertices whose smoothing passes run on the rayon pool:
 /// a correction's transfers are passes over the whole fine mesh, on the
 /// calling thread they cost a fifth to a third of a fine iteration.
-const PARALLEL_MIN: usize = 2048;
+pub(crate) const PARALLEL_MIN: usize = 2048;
 
 /// Vertices per task of a parallel smoothing pass.
 const CHUNK: usize = 512;

@@ -77,12 +77,9 @@ use area_lanes::{project_area_lanes, LANES as AREA_LANES};
 use dend_linalg::sparse::matmul;
 use residual_rows::ResidualRows;
 
-/// Vertex count from which the local step runs on the rayon pool. From
-/// 1,536: a hierarchy's levels of 2,000–4,000 vertices (below meshes of
-/// 8k–50k) run on both cores as the fine mesh does, and meshes of about
-/// 1,500 vertices, which lost time to the pool's hand-offs, on one
-/// (docs/performance.md, "Small levels on both cores").
-const PARALLEL_MIN: usize = 1536;
+// Vertex count from which the local step runs on the rayon pool
+// (the iteration's shared threshold, crates/dend/src/deform/parallel.rs).
+use crate::deform::parallel::PARALLEL_MIN_VERTICES as PARALLEL_MIN;
 
 /// Vertices or triangles per block of the local step's energy sum (a
 /// multiple of [`LANES`]): each block is summed in order, then the
